@@ -1,0 +1,38 @@
+# Two commands take a fresh machine to a finished run and a green test suite:
+#   make demo   -> virtual env, install, FMU build, default scenario, CSV + PNG
+#   make test   -> virtual env, install, FMU build, pytest (long campaigns excluded)
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+DEMO_SCENARIO ?= scenarios/keio_fig7_aluminium_force_control.toml
+DEMO_OUT      ?= results/demo
+
+.PHONY: all venv fmus demo test test-long bench clean
+
+all: test
+
+$(VENV)/.installed: pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e ".[test]"
+	touch $@
+
+venv: $(VENV)/.installed
+
+fmus: $(VENV)/.installed
+	$(PY) -m fmus.build
+
+demo: fmus
+	$(VENV)/bin/drillcosim run $(DEMO_SCENARIO) --out $(DEMO_OUT)
+
+test: fmus
+	$(PY) -m pytest -q
+
+test-long: fmus
+	$(PY) -m pytest -q -m long
+
+bench: fmus
+	$(PY) -m benchmarks
+
+clean:
+	rm -rf fmus/build results .pytest_cache

@@ -1,0 +1,1 @@
+"""drillcosim co-simulation master: FMU slaves, Python blocks, algorithm, recording, scenarios."""
