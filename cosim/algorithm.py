@@ -1,0 +1,382 @@
+"""The fixed-step master algorithm.
+
+Every communication step n (t = t0 + n*h)::
+
+    read the outputs of every FMU          (one getReal per FMU)
+    apply the events due at t              (manipulators)
+    run the due blocks in dependency order (block at k*h runs when n % k == 0, else holds)
+    check the condition events
+    record the row (every `decimation` steps)
+    write the inputs of every FMU          (one setReal per FMU)
+    doStep(t, h) on every FMU
+
+All values travel on one flat Python list, the *bus*: each FMU output that anyone
+reads, each block output and each unconnected block input owns one slot. The loop
+uses only precomputed index lists, bound ctypes calls and local variables -- no
+dictionary lookups per step -- so the master costs little next to the FMU calls.
+"""
+from __future__ import annotations
+
+import sys
+import time as _time
+from dataclasses import dataclass, field
+from operator import itemgetter
+
+from .errors import ScenarioError, SimulationError
+from .manipulators import OPERATORS, Event, fire_step, parse_condition, setter_for
+from .recorder import Recorder, Result
+from .slave import TERMINATE_REQUESTED
+
+CHUNK_STEPS = 4096          # steps between CSV flushes / progress updates
+PROGRESS_MIN_STEPS = 20000  # show a progress bar only on runs at least this long
+
+
+@dataclass
+class RunInfo:
+    """How the run went (the run part of summary.json)."""
+
+    stop_time: float
+    time_reached: float = 0.0
+    steps: int = 0
+    status: str = "running"          # completed | stopped | failed
+    stop_reason: str = ""
+    wall_time_s: float = 0.0
+    events_fired: list = field(default_factory=list)
+    error: str | None = None
+
+    def as_dict(self) -> dict:
+        d = dict(self.__dict__)
+        if d["error"] is None:
+            d.pop("error")
+        return d
+
+
+def _getter(indices: list[int]):
+    """Fast ``bus -> values`` for a list of slots (a slice when they are contiguous)."""
+    if not indices:
+        return itemgetter(slice(0, 0))
+    i0 = indices[0]
+    if indices == list(range(i0, i0 + len(indices))):
+        return itemgetter(slice(i0, i0 + len(indices)))
+    if len(indices) == 1:
+        return itemgetter(slice(i0, i0 + 1))
+    return itemgetter(*indices)
+
+
+class _Bus:
+    """Slot allocation (compile time only)."""
+
+    def __init__(self, system):
+        self.system = system
+        self.values: list[float] = []
+        self.slot: dict[str, int] = {}
+
+    def add(self, signal: str, start: float) -> int:
+        self.slot[signal] = len(self.values)
+        self.values.append(float(start))
+        return self.slot[signal]
+
+    def ref(self, signal: str) -> tuple[int, float, float]:
+        """(slot, scale, offset) that yields ``signal``'s value."""
+        if signal in self.slot:
+            return self.slot[signal], 1.0, 0.0
+        conn = self.system.driven_by(signal)
+        if conn is not None:
+            i, s, o = self.ref(conn.src)
+            return i, s * conn.factor, o * conn.factor + conn.bias
+        raise ScenarioError(f"'{signal}' is not available on the bus")
+
+
+def _fmu_reads(system, extra_signals) -> dict[str, list[str]]:
+    """Per FMU, the variables read each step: connection sources, recorded, conditions."""
+    reads: dict[str, list[str]] = {name: [] for name in system.slaves}
+    wanted = [c.src for c in system.connections] + list(extra_signals)
+    for sig in wanted:
+        inst, var = sig.split(".", 1)
+        if inst in system.slaves:
+            system.source(sig)                     # checks it is a readable Real variable
+            if system.driven_by(sig) is not None:
+                # a connected FMU input: the bus has the value written in this step; a
+                # getReal before the write would show the previous step's value
+                continue
+            if var not in reads[inst]:
+                reads[inst].append(var)
+    return reads
+
+
+def simulate(system, stop_time: float, recorder: Recorder | None = None,
+             events: list[Event] = (), progress: bool = False, extra_record=()) -> RunInfo:
+    """Run ``system`` from its start time to ``stop_time`` [s] (or an earlier stop event).
+
+    Rows go to ``recorder`` as they are produced; the caller finishes the recorder
+    (also after a :class:`SimulationError`, which keeps every row recorded so far).
+    """
+    h, t0 = system.step_size, system.start_time
+    n_last = round((stop_time - t0) / h)
+    if n_last < 1:
+        raise ScenarioError(f"stop_time {stop_time!r} s must be at least one step ({h!r} s) after "
+                            f"the start time {t0!r} s", key="stop_time")
+    info = RunInfo(stop_time=float(stop_time))
+    order = system.block_order()
+
+    # -- compile: signals -> bus slots ---------------------------------------------
+    columns = recorder.resolve(system, extra_record) if recorder is not None else []
+    conditions = [parse_condition(e.when) for e in events if e.when is not None]
+    for c in columns:   # every recorded name must exist (FMU variable, block output or input)
+        try:
+            system.input(c) if _is_block_input(system, c) else system.source(c)
+        except ScenarioError as e:
+            raise ScenarioError(e.detail, key="record.signals") from None
+    bus = _Bus(system)
+    fmu_vars = _fmu_reads(system, [c for c in columns if c.split(".", 1)[0] in system.slaves]
+                          + [c[0] for c in conditions if c[0].split(".", 1)[0] in system.slaves])
+    read_plan = []
+    for name, slave in system.slaves.items():
+        names = fmu_vars[name]
+        a = len(bus.values)
+        for var in names:
+            bus.add(f"{name}.{var}", 0.0)
+        read_plan.append((slave, names, a, len(bus.values)))
+    block_plan = []
+    for name in order:
+        block = system.blocks[name]
+        a = len(bus.values)
+        for p in block.outputs:
+            bus.add(f"{name}.{p.name}", p.start)
+        block_plan.append((name, block, a, len(bus.values)))
+    for name in order:                  # unconnected block inputs hold their start value
+        for p in system.blocks[name].inputs:
+            sig = f"{name}.{p.name}"
+            if system.driven_by(sig) is None:
+                bus.add(sig, p.start)
+
+    def inputs_of(signals):
+        refs = [bus.ref(s) for s in signals]
+        scaled = tuple((j, s, o) for j, (_i, s, o) in enumerate(refs) if (s, o) != (1.0, 0.0))
+        return _getter([r[0] for r in refs]), scaled
+
+    blocks_rt = []
+    for name, block, a, b in block_plan:
+        getu, scaled = inputs_of([f"{name}.{p.name}" for p in block.inputs])
+        blocks_rt.append((system.rate(name), block.step, getu, scaled, a, b, b - a, name))
+    cond_rt = []
+    for ev, (sig, op, number) in zip([e for e in events if e.when is not None], conditions):
+        i, s, o = bus.ref(sig)
+        cond_rt.append((i, s, o, OPERATORS[op], number, ev))
+    timed = sorted(((fire_step(e.time, t0, h), k, e) for k, e in enumerate(events) if e.time is not None),
+                   key=lambda x: (x[0], x[1]))
+    setters = {}
+    for ev in events:
+        if ev.action == "set":
+            try:
+                setters[id(ev)] = setter_for(system, ev.target)
+            except ValueError as e:
+                raise ScenarioError(str(e), key="set") from None
+    rec_get, rec_scaled = inputs_of(columns)
+    decimation = recorder.decimation if recorder is not None else 0
+    if recorder is not None:
+        recorder.start(columns, [_unit(system, c) for c in columns])
+
+    # -- instantiate ---------------------------------------------------------------
+    started, failed = [], None
+    rows: list = []
+    bar = None
+    wall0 = _time.perf_counter()
+    n = 0
+    try:
+        for slave in system.slaves.values():
+            started.append(slave)
+            slave.instantiate(t0, stop_time)
+        for block in system.blocks.values():
+            block.reset(t0)
+        reads, writes, steppers = [], [], []
+        for slave, names, a, b in read_plan:
+            in_names = [v for v, vv in slave.variables.items()
+                        if vv.causality == "input" and system.driven_by(f"{slave.name}.{v}")]
+            get, obuf, put, ibuf, do_step = slave.step_io(names, in_names)
+            if names:
+                reads.append((get, obuf, a, b, slave))
+            if in_names:
+                gi, sc = inputs_of([f"{slave.name}.{v}" for v in in_names])
+                writes.append((put, ibuf, gi, sc, slave))
+            steppers.append((do_step, slave))
+        values = bus.values
+        bus_len = len(values)
+
+        def apply(ev, t):
+            info.events_fired.append({"time": t, "event": ev.describe()})
+            if ev.action == "stop":
+                return True
+            kind, what = setters[id(ev)]
+            if kind == "block_input":
+                values[bus.slot[what]] = float(ev.value)
+            else:
+                what(ev.value, values)
+            return False
+
+        if progress and n_last >= PROGRESS_MIN_STEPS:
+            from tqdm import tqdm
+            bar = tqdm(total=n_last, unit="step", unit_scale=True, file=sys.stderr,
+                       desc="co-simulation", mininterval=0.5, leave=False)
+        next_timed = timed[0][0] if timed else -1
+        stop = False
+        phase = "read"
+        block_name = ""
+        while True:
+            n_end = min(n + CHUNK_STEPS, n_last + 1)
+            while n < n_end:
+                t = t0 + n * h
+                # 1. plant outputs at t
+                phase = "read"
+                for get, obuf, a, b, slave in reads:
+                    status = get()
+                    if status:
+                        _check(status, "getReal", slave, t)
+                    values[a:b] = obuf
+                # 2. time events due at t
+                if n == next_timed:
+                    while timed and timed[0][0] == n:
+                        stop = apply(timed.pop(0)[2], t) or stop
+                    next_timed = timed[0][0] if timed else -1
+                # 3. blocks in dependency order, each at its own rate (sample-and-hold)
+                phase = "block"
+                for k, step, getu, scaled, a, b, nb, block_name in blocks_rt:
+                    if n % k == 0:
+                        u = getu(values)
+                        if scaled:
+                            u = list(u)
+                            for j, s, o in scaled:
+                                u[j] = s * u[j] + o
+                        y = step(t, u)
+                        if len(y) != nb:
+                            raise _bad_output(block_name, y, nb, t)
+                        values[a:b] = y
+                # 4. condition events
+                phase = "event"
+                if cond_rt:
+                    for c in cond_rt:
+                        i, s, o, op, number, ev = c
+                        if op(s * values[i] + o, number):
+                            # fires once; rebinding leaves the list being iterated intact
+                            cond_rt = [x for x in cond_rt if x is not c]
+                            stop = apply(ev, t) or stop
+                # 5. record
+                if decimation and (n % decimation == 0 or stop):
+                    if rec_scaled:
+                        r = list(rec_get(values))
+                        for j, s, o in rec_scaled:
+                            r[j] = s * r[j] + o
+                        rows.append((t, *r))
+                    else:
+                        rows.append((t, *rec_get(values)))
+                if stop or n == n_last:
+                    break
+                # 6. plant inputs, 7. advance every FMU from t to t + h
+                phase = "write"
+                for put, ibuf, gi, sc, slave in writes:
+                    ibuf[:] = gi(values)
+                    for j, s, o in sc:
+                        ibuf[j] = s * ibuf[j] + o
+                    status = put()
+                    if status:
+                        _check(status, "setReal", slave, t)
+                phase = "doStep"
+                for do_step, slave in steppers:
+                    status = do_step(t, h)
+                    if status:
+                        if status == TERMINATE_REQUESTED:
+                            stop = True
+                            info.stop_reason = f"FMU '{slave.name}' asked to terminate at t = {t + h:g} s"
+                        else:
+                            _check(status, "doStep", slave, t)
+                n += 1
+                if stop:        # FMU asked to terminate: record nothing past the last step
+                    break
+            if len(values) != bus_len:
+                raise SimulationError("the signal bus changed size (a block returned the wrong "
+                                      "number of outputs)", time=t0 + n * h)
+            if recorder is not None:
+                recorder.write(rows)
+                rows = []
+            if bar is not None:
+                bar.update(n - bar.n)
+            if stop or n >= n_last:
+                break
+        info.steps = n
+        info.time_reached = t0 + n * h
+        if stop:
+            info.status = "stopped"
+            if not info.stop_reason:
+                fired = [e["event"] for e in info.events_fired if e["event"].endswith("stop")]
+                info.stop_reason = f"stop event ({fired[-1]})" if fired else "stop"
+        else:
+            info.status = "completed"
+            info.stop_reason = f"stop_time {stop_time:g} s reached"
+        return info
+    except SimulationError as e:
+        failed = e.instance
+        _record_failure(info, e, n, t0, h)
+        raise
+    except Exception as e:
+        t = t0 + n * h
+        where = block_name if phase == "block" else None
+        err = SimulationError(f"{'block step' if where else phase} raised {type(e).__name__}: {e}",
+                              time=t, instance=where)
+        _record_failure(info, err, n, t0, h)
+        raise err from e
+    finally:
+        info.wall_time_s = _time.perf_counter() - wall0
+        if recorder is not None and rows:
+            recorder.write(rows)
+        if bar is not None:
+            bar.close()
+        for slave in started:
+            slave.free(failed=(slave.name == failed))
+
+
+def _record_failure(info: RunInfo, e: SimulationError, n: int, t0: float, h: float) -> None:
+    info.status = "failed"
+    info.steps = n
+    info.time_reached = e.time if e.time is not None else t0 + n * h
+    info.error = str(e)
+    info.stop_reason = "error"
+
+
+def _check(status: int, what: str, slave, t: float) -> None:
+    if status >= 2:    # Discard, Error, Fatal (Warning is logged, the run goes on)
+        name = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"][status] if status < 6 else str(status)
+        raise SimulationError(f"{what} returned {name}", time=t, instance=slave.name,
+                              fmu_message=slave.last_message())
+
+
+def _bad_output(name, y, nb, t):
+    return SimulationError(f"step() returned {len(y)} values, the block declares {nb} outputs",
+                           time=t, instance=name)
+
+
+def _is_block_input(system, signal: str) -> bool:
+    inst, var = signal.split(".", 1) if "." in signal else (signal, "")
+    return inst in system.blocks and var in system.blocks[inst].input_names()
+
+
+def _unit(system, signal: str) -> str | None:
+    if _is_block_input(system, signal):
+        return system.input(signal).unit
+    return system.source(signal).unit
+
+
+def run(system, stop_time: float, recorder: Recorder | None = None, events=(), progress: bool = False
+        ) -> Result:
+    """Python API without a scenario file: simulate and return the :class:`Result`.
+
+    On a :class:`SimulationError` the partial result is attached as ``error.result``.
+    """
+    recorder = recorder if recorder is not None else Recorder()
+    try:
+        info = simulate(system, stop_time, recorder, events, progress)
+    except SimulationError as e:
+        e.result = recorder.finish()
+        raise
+    result = recorder.finish()
+    result.summary.update(info.as_dict())
+    return result

@@ -1,0 +1,151 @@
+"""``drillcosim`` command line: run, list, info, plot."""
+from __future__ import annotations
+
+import argparse
+import sys
+import tomllib
+from pathlib import Path
+
+
+def _parse_set(items: list[str]) -> dict:
+    """``KEY=VALUE`` pairs; VALUE is read as a TOML value (3, 0.5, true, "text"), else a string."""
+    out = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise SystemExit(f"--set expects KEY=VALUE, got {item!r}")
+        try:
+            out[key.strip()] = tomllib.loads(f"v = {value}")["v"]
+        except tomllib.TOMLDecodeError:
+            out[key.strip()] = value
+    return out
+
+
+def scenario_dir() -> Path:
+    """``scenarios/`` of the working directory, else the one next to the installed package."""
+    here = Path("scenarios")
+    return here if here.is_dir() else Path(__file__).resolve().parent.parent / "scenarios"
+
+
+def cmd_run(args) -> int:
+    from .errors import CosimError
+    from .runner import run_scenario
+    path = Path(args.scenario)
+    if not path.exists() and (scenario_dir() / args.scenario).exists():
+        path = scenario_dir() / args.scenario
+    if not path.exists() and (scenario_dir() / f"{args.scenario}.toml").exists():
+        path = scenario_dir() / f"{args.scenario}.toml"
+    try:
+        result = run_scenario(path, out_dir=args.out, overrides=_parse_set(args.set),
+                              progress=not args.quiet)
+    except CosimError as e:
+        print(f"drillcosim: {e}", file=sys.stderr)
+        res = getattr(e, "result", None)
+        if res is not None and res.out_dir is not None:
+            print(f"partial results: {res.out_dir / 'data.csv'}", file=sys.stderr)
+            print(f"summary: {res.out_dir / 'summary.json'}", file=sys.stderr)
+        return 1
+    s = result.summary
+    if not args.quiet:
+        print(f"{s['scenario']}: {s['status']} at t = {s['time_reached']:g} s, {s['steps']} steps, "
+              f"{s['wall_time_s']:.2f} s wall")
+    print(f"csv: {result.out_dir / 'data.csv'}")
+    print(f"mat: {result.out_dir / 'data.mat'}")
+    for png in s.get("files", {}).get("png", []):
+        print(f"png: {png}")
+    print(f"summary: {result.out_dir / 'summary.json'}")
+    return 0
+
+
+def cmd_list(args) -> int:
+    from .scenario import describe
+    d = Path(args.dir) if args.dir else scenario_dir()
+    files = sorted(d.glob("*.toml"))
+    if not files:
+        print(f"no scenarios in {d}", file=sys.stderr)
+        return 1
+    width = max(len(f.stem) for f in files)
+    for f in files:
+        print(f"{f.stem:<{width}}  {describe(f)}")
+    return 0
+
+
+def cmd_info(args) -> int:
+    from .errors import CosimError
+    from .slave import load_model, resolve_fmu_path
+    try:
+        model = load_model(resolve_fmu_path(args.fmu, Path.cwd()))
+    except (CosimError, OSError) as e:
+        print(f"drillcosim: {e}", file=sys.stderr)
+        return 1
+    md = model.model_description
+    kinds = [k for k, iface in (("CS", md.coSimulation), ("ME", md.modelExchange)) if iface is not None]
+    print(f"file: {model.path}")
+    print(f"FMI version: {md.fmiVersion}")
+    print(f"kind: {', '.join(kinds)}")
+    print(f"model name: {md.modelName}")
+    print(f"model identifier: {model.model_identifier}")
+    if md.description:
+        print(f"description: {md.description}")
+    if md.defaultExperiment is not None and md.defaultExperiment.stepSize:
+        print(f"default step size: {md.defaultExperiment.stepSize} s")
+    rows = [("name", "causality", "type", "unit", "start", "description")]
+    order = {"input": 0, "output": 1, "parameter": 2}
+    for v in sorted(model.variables.values(), key=lambda v: (order.get(v.causality, 3), v.vr)):
+        rows.append((v.name, v.causality, v.type, v.unit or "", v.start if v.start is not None else "",
+                     v.description))
+    widths = [max(len(str(r[i])) for r in rows) for i in range(5)]
+    print("variables:")
+    for r in rows:
+        print("  " + "  ".join(f"{str(c):<{w}}" for c, w in zip(r[:5], widths)) + "  " + r[5])
+    return 0
+
+
+def cmd_plot(args) -> int:
+    from .plots import group_by_unit, plot_groups
+    from .recorder import Result
+    try:
+        result = Result.from_csv(args.result_dir)
+    except (OSError, ValueError, StopIteration) as e:
+        print(f"drillcosim: cannot read {args.result_dir}/data.csv: {e}", file=sys.stderr)
+        return 1
+    signals = args.signals or result.signals
+    missing = [s for s in signals if s not in result]
+    if missing:
+        print(f"drillcosim: not recorded: {', '.join(missing)} (recorded: {', '.join(result.signals)})",
+              file=sys.stderr)
+        return 1
+    out = Path(args.out) if args.out else Path(args.result_dir) / "signals.png"
+    plot_groups(result, group_by_unit(result, signals), out, result.summary.get("scenario", ""))
+    print(f"png: {out}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="drillcosim", description="Co-simulation of drilling feed drives: "
+                                "plant FMUs + Python observers/controllers, configured by scenario files.")
+    sub = p.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("run", help="run a scenario file; prints the paths of CSV, PNG, summary")
+    r.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
+    r.add_argument("--out", help="output folder (default results/<scenario name>)")
+    r.add_argument("--quiet", action="store_true", help="no progress bar, only the paths")
+    r.add_argument("--set", action="append", metavar="KEY=VALUE", default=[],
+                   help="override a scenario key, e.g. --set fmus.stage.parameters.seed=3 (repeatable)")
+    r.set_defaults(func=cmd_run)
+    li = sub.add_parser("list", help="list the scenarios with their description")
+    li.add_argument("--dir", help="folder of scenario files (default scenarios/)")
+    li.set_defaults(func=cmd_list)
+    i = sub.add_parser("info", help="FMI version, kind, variables of an FMU (path or built-in name)")
+    i.add_argument("fmu")
+    i.set_defaults(func=cmd_info)
+    pl = sub.add_parser("plot", help="plot recorded signals of a result folder")
+    pl.add_argument("result_dir")
+    pl.add_argument("--signals", nargs="+", help="signals to plot (default: all)")
+    pl.add_argument("--out", help="PNG file (default RESULT_DIR/signals.png)")
+    pl.set_defaults(func=cmd_plot)
+    args = p.parse_args(argv)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

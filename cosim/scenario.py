@@ -1,0 +1,377 @@
+"""Scenario files (TOML): load, apply overrides, validate completely, build the System.
+
+Validation happens in two passes, both before any FMU is instantiated:
+
+1. shape: every table has only known keys, every value has the expected type;
+2. meaning: FMU files exist and have the variables named, block classes import and
+   accept their settings, connection ends exist with matching units, sample periods
+   fit the step size, no algebraic loop, events and plots name real signals.
+
+Every problem is a :class:`ScenarioError` whose message names the file, the key path
+(``connections[3].to``) and what was expected. The format is described in
+``docs/scenario_format.md``.
+"""
+from __future__ import annotations
+
+import copy
+import importlib
+import inspect
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .errors import AlgebraicLoopError, CosimError, ScenarioError
+from .manipulators import Event, parse_condition, setter_for
+from .slave import load_model, resolve_fmu_path
+from .system import System
+
+# --- shape ---------------------------------------------------------------------------
+NUMBER, POSITIVE, NONNEG, INTEGER1 = "a number", "a number > 0", "a number >= 0", "an integer >= 1"
+STRING, BOOL, TABLE, STRINGS = "a string", "true or false", "a table", "a list of strings"
+ANY = "any value"
+
+SECTIONS = {"scenario": TABLE, "fmus": TABLE, "blocks": TABLE, "connections": "an array of tables",
+            "record": TABLE, "events": "an array of tables", "plots": "an array of tables",
+            "scores": "an array of tables"}
+SCENARIO_KEYS = {"name": STRING, "description": STRING, "step_size": POSITIVE, "stop_time": POSITIVE,
+                 "start_time": NUMBER}
+FMU_KEYS = {"path": STRING, "parameters": TABLE, "logging": BOOL}
+BLOCK_KEYS = {"class": STRING, "sample_period": NONNEG, "settings": TABLE}
+CONNECTION_KEYS = {"from": STRING, "to": STRING, "scale": NUMBER, "offset": NUMBER}
+RECORD_KEYS = {"signals": STRINGS, "decimation": INTEGER1}
+EVENT_KEYS = {"time": NUMBER, "when": STRING, "set": STRING, "value": "a number or true/false",
+              "action": "'set' or 'stop'"}
+PLOT_KEYS = {"file": STRING, "title": STRING, "y": "a list of signal names, or a list of such lists",
+             "function": STRING, "settings": TABLE}
+SCORE_KEYS = {"function": STRING, "settings": TABLE}
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _type_ok(expected: str, v) -> bool:
+    if expected == NUMBER:
+        return _is_number(v)
+    if expected == POSITIVE:
+        return _is_number(v) and v > 0
+    if expected == NONNEG:
+        return _is_number(v) and v >= 0
+    if expected == INTEGER1:
+        return isinstance(v, int) and not isinstance(v, bool) and v >= 1
+    if expected == STRING:
+        return isinstance(v, str)
+    if expected == BOOL:
+        return isinstance(v, bool)
+    if expected == TABLE:
+        return isinstance(v, dict)
+    if expected == STRINGS:
+        return isinstance(v, list) and all(isinstance(x, str) for x in v)
+    if expected == EVENT_KEYS["value"]:
+        return _is_number(v) or isinstance(v, bool)
+    if expected == EVENT_KEYS["action"]:
+        return v in ("set", "stop")
+    if expected == PLOT_KEYS["y"]:
+        return isinstance(v, list) and v and (all(isinstance(x, str) for x in v) or all(
+            isinstance(g, list) and g and all(isinstance(x, str) for x in g) for g in v))
+    if expected.startswith("an array"):
+        return isinstance(v, list) and all(isinstance(x, dict) for x in v)
+    return True
+
+
+def _show(v) -> str:
+    return f"{type(v).__name__} {v!r}" if not isinstance(v, (dict, list)) else type(v).__name__
+
+
+class _Checker:
+    def __init__(self, file: str):
+        self.file = file
+
+    def error(self, key: str, message: str) -> ScenarioError:
+        return ScenarioError(message, self.file, key)
+
+    def table(self, d: dict, key: str, allowed: dict, required=()) -> None:
+        for k, v in d.items():
+            path = f"{key}.{k}" if key else k
+            if k not in allowed:
+                raise self.error(path, f"unknown key '{k}' (expected one of: {', '.join(allowed)})")
+            if not _type_ok(allowed[k], v):
+                raise self.error(path, f"expected {allowed[k]}, got {_show(v)}")
+        for k in required:
+            if k not in d:
+                raise self.error(f"{key}.{k}" if key else k, f"missing required key '{k}' ({allowed[k]})")
+
+
+def check_shape(raw: dict, file: str) -> None:
+    c = _Checker(file)
+    c.table(raw, "", SECTIONS)
+    c.table(raw.get("scenario", {}), "scenario", SCENARIO_KEYS, required=("stop_time",))
+    if "scenario" not in raw:
+        raise c.error("scenario", "missing table [scenario] (with at least stop_time [s])")
+    for kind, keys, req in (("fmus", FMU_KEYS, ("path",)), ("blocks", BLOCK_KEYS, ("class",))):
+        for name, spec in raw.get(kind, {}).items():
+            if not isinstance(spec, dict):
+                raise c.error(f"{kind}.{name}", f"expected a table [{kind}.{name}], got {_show(spec)}")
+            c.table(spec, f"{kind}.{name}", keys, req)
+    for i, spec in enumerate(raw.get("connections", [])):
+        c.table(spec, f"connections[{i}]", CONNECTION_KEYS, ("from", "to"))
+    c.table(raw.get("record", {}), "record", RECORD_KEYS)
+    for i, spec in enumerate(raw.get("events", [])):
+        c.table(spec, f"events[{i}]", EVENT_KEYS)
+    for i, spec in enumerate(raw.get("plots", [])):
+        c.table(spec, f"plots[{i}]", PLOT_KEYS)
+        if ("y" in spec) == ("function" in spec):
+            raise c.error(f"plots[{i}]", "expected exactly one of 'y' (signals to plot against time) "
+                                         "or 'function' (module:function)")
+    for i, spec in enumerate(raw.get("scores", [])):
+        c.table(spec, f"scores[{i}]", SCORE_KEYS, ("function",))
+
+
+# --- overrides -------------------------------------------------------------------------
+def apply_overrides(raw: dict, overrides: dict | None, file: str = "") -> dict:
+    """Set dotted keys (``fmus.stage.parameters.seed``, ``connections[2].scale``) in a copy.
+
+    Below ``parameters`` / ``settings`` the rest of the key is one name, so FMU
+    variable names with dots (``body.m``) can be overridden too. An index one past
+    the end of an array of tables appends a table (``events[2].time``).
+    """
+    raw = copy.deepcopy(raw)
+    for key, value in (overrides or {}).items():
+        parts = re.sub(r"\[(\d+)\]", r".\1", key).split(".")
+        cur = raw
+        i = 0
+        try:
+            while i < len(parts) - 1:
+                p = parts[i]
+                if isinstance(cur, list):
+                    if int(p) == len(cur):          # one past the end: a new table
+                        cur.append({})
+                    cur = cur[int(p)]
+                else:
+                    cur = cur.setdefault(p, {})
+                i += 1
+                if parts[i - 1] in ("parameters", "settings"):
+                    break
+            leaf = ".".join(parts[i:])
+            if isinstance(cur, list):
+                cur[int(leaf)] = value
+            elif isinstance(cur, dict):
+                cur[leaf] = value
+            else:
+                raise TypeError(f"'{'.'.join(parts[:i])}' is {_show(cur)}, not a table")
+        except (ValueError, IndexError, TypeError) as e:
+            raise ScenarioError(f"cannot apply override {key} = {value!r}: {e}", file, "overrides") from None
+    return raw
+
+
+# --- meaning ---------------------------------------------------------------------------
+def import_object(spec: str):
+    """``"package.module:Name"`` (or ``package.module.Name``) -> the object."""
+    mod, sep, attr = spec.partition(":")
+    if not sep:
+        mod, _, attr = spec.rpartition(".")
+    if not mod or not attr:
+        raise ImportError(f"expected 'module:Name', got {spec!r}")
+    obj = importlib.import_module(mod)
+    for a in attr.split("."):
+        obj = getattr(obj, a)
+    return obj
+
+
+@dataclass
+class Scenario:
+    """A validated scenario, ready to run (``cosim.run_scenario``)."""
+
+    path: Path | None
+    name: str
+    description: str
+    step_size: float
+    stop_time: float
+    start_time: float
+    system: System
+    record_signals: list = field(default_factory=lambda: ["*"])
+    decimation: int = 1
+    events: list = field(default_factory=list)
+    plots: list = field(default_factory=list)       # dicts: file/title/y or function/settings
+    scores: list = field(default_factory=list)      # (function spec, function, settings)
+    overrides: dict = field(default_factory=dict)
+    raw: dict = field(default_factory=dict)
+
+    def plotted_signals(self) -> list[str]:
+        out = []
+        for p in self.plots:
+            for g in p.get("groups", []):
+                out += [s for s in g if s not in out]
+        return out
+
+
+def _construct_block(cls, name: str, spec: dict, c: _Checker):
+    settings = dict(spec.get("settings", {}))
+    key = f"blocks.{name}"
+    if "sample_period" in spec:
+        if "sample_period" in settings:
+            raise c.error(f"{key}.settings.sample_period", "sample_period is given twice; keep "
+                                                           f"[{key}] sample_period only")
+        params = inspect.signature(cls).parameters
+        takes = "sample_period" in params or any(p.kind == p.VAR_KEYWORD for p in params.values())
+        if not takes:
+            raise c.error(f"{key}.sample_period", f"{cls.__name__}() takes no sample_period argument")
+        settings["sample_period"] = float(spec["sample_period"])
+    try:
+        return cls(**settings)
+    except TypeError as e:
+        raise c.error(f"{key}.settings", f"{cls.__name__}(**settings) refused the settings: {e}") from None
+    except (ValueError, ArithmeticError) as e:
+        raise c.error(f"{key}.settings", f"{cls.__name__}(**settings) failed: {e}") from None
+
+
+def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
+          name_default: str = "scenario") -> Scenario:
+    """Check ``raw`` (a parsed TOML dict, overrides applied) and build the :class:`Scenario`."""
+    check_shape(raw, file)
+    c = _Checker(file)
+    sc = raw["scenario"]
+    try:
+        system = System(sc.get("step_size", 1e-4), sc.get("start_time", 0.0))
+    except ScenarioError as e:
+        raise c.error("scenario.step_size", e.detail) from None
+    if sc["stop_time"] <= system.start_time:
+        raise c.error("scenario.stop_time", f"expected a time after start_time ({system.start_time} s), "
+                                            f"got {sc['stop_time']!r}")
+
+    for name, spec in raw.get("fmus", {}).items():
+        key = f"fmus.{name}"
+        try:
+            model = load_model(resolve_fmu_path(spec["path"], base_dir))
+        except CosimError as e:
+            raise c.error(f"{key}.path", str(e)) from None
+        except Exception as e:   # not a zip, bad XML, ...
+            raise c.error(f"{key}.path", f"cannot read the FMU: {type(e).__name__}: {e}") from None
+        try:
+            system.add_fmu(name, model, spec.get("parameters", {}), spec.get("logging", True))
+        except ScenarioError as e:
+            raise c.error(f"{key}.{e.key}" if e.key else key, e.detail) from None
+
+    for name, spec in raw.get("blocks", {}).items():
+        key = f"blocks.{name}"
+        try:
+            cls = import_object(spec["class"])
+        except (ImportError, AttributeError) as e:
+            raise c.error(f"{key}.class", f"cannot import {spec['class']!r} (expected 'module:Class' "
+                                          f"importable from the project): {type(e).__name__}: {e}") from None
+        block = _construct_block(cls, name, spec, c)
+        try:
+            system.add_block(name, block)
+        except ScenarioError as e:
+            raise c.error(f"{key}.{e.key}" if e.key else key, e.detail) from None
+
+    for i, spec in enumerate(raw.get("connections", [])):
+        try:
+            system.connect(spec["from"], spec["to"], spec.get("scale"), spec.get("offset"))
+        except ScenarioError as e:
+            raise c.error(f"connections[{i}].{e.key}" if e.key else f"connections[{i}]", e.detail) from None
+    try:
+        system.block_order()
+    except AlgebraicLoopError as e:
+        raise AlgebraicLoopError(e.detail, file, "connections") from None
+
+    def check_signal(sig: str, key: str) -> None:
+        try:
+            inst, var = sig.split(".", 1) if "." in sig else (sig, "")
+            if inst in system.blocks and var in system.blocks[inst].input_names():
+                return
+            system.source(sig)
+        except ScenarioError as e:
+            raise c.error(key, e.detail) from None
+
+    rec = raw.get("record", {})
+    signals = rec.get("signals", ["*"])
+    for j, sig in enumerate(signals):
+        if sig != "*":
+            check_signal(sig, f"record.signals[{j}]")
+
+    events = []
+    for i, spec in enumerate(raw.get("events", [])):
+        key = f"events[{i}]"
+        if "when" in spec:
+            try:
+                parse_condition(spec["when"])
+            except ValueError as e:
+                raise c.error(f"{key}.when", str(e)) from None
+        action = spec.get("action", "set" if "set" in spec else None)
+        if action is None:
+            raise c.error(key, "expected 'set' + 'value', or action = 'stop'")
+        try:
+            ev = Event(time=spec.get("time"), when=spec.get("when"), action=action,
+                       target=spec.get("set"), value=spec.get("value"))
+        except ValueError as e:
+            raise c.error(key, str(e)) from None
+        if ev.when is not None:
+            check_signal(parse_condition(ev.when)[0], f"{key}.when")
+        if ev.action == "set":
+            try:
+                setter_for(system, ev.target)
+            except ValueError as e:
+                raise c.error(f"{key}.set", str(e)) from None
+        events.append(ev)
+
+    plots = []
+    for i, spec in enumerate(raw.get("plots", [])):
+        key = f"plots[{i}]"
+        if "function" in spec:
+            try:
+                fn = import_object(spec["function"])
+            except (ImportError, AttributeError) as e:
+                raise c.error(f"{key}.function", f"cannot import {spec['function']!r}: {e}") from None
+            plots.append({"function": fn, "spec": spec["function"], "settings": spec.get("settings", {})})
+        else:
+            y = spec["y"]
+            flat = isinstance(y[0], str)
+            groups = [y] if flat else y          # one axes per group
+            for g, group in enumerate(groups):
+                for j, sig in enumerate(group):
+                    check_signal(sig, f"{key}.y[{j}]" if flat else f"{key}.y[{g}][{j}]")
+            plots.append({"file": spec.get("file", f"plot_{i}.png"), "title": spec.get("title", ""),
+                          "groups": groups})
+
+    scores = []
+    for i, spec in enumerate(raw.get("scores", [])):
+        try:
+            fn = import_object(spec["function"])
+        except (ImportError, AttributeError) as e:
+            raise c.error(f"scores[{i}].function", f"cannot import {spec['function']!r}: {e}") from None
+        scores.append((spec["function"], fn, spec.get("settings", {})))
+
+    return Scenario(path=None, name=sc.get("name", name_default), description=sc.get("description", ""),
+                    step_size=system.step_size, stop_time=float(sc["stop_time"]),
+                    start_time=system.start_time, system=system, record_signals=signals,
+                    decimation=rec.get("decimation", 1), events=events, plots=plots, scores=scores, raw=raw)
+
+
+def read_toml(path: Path) -> dict:
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except tomllib.TOMLDecodeError as e:
+        raise ScenarioError(f"not valid TOML: {e}", str(path)) from None
+    except OSError as e:
+        raise ScenarioError(f"cannot read: {e}", str(path)) from None
+
+
+def load_scenario(path, overrides: dict | None = None) -> Scenario:
+    """Load and fully validate a scenario file; ``overrides`` are dotted keys set first."""
+    path = Path(path)
+    raw = apply_overrides(read_toml(path), overrides, str(path))
+    scenario = build(raw, str(path), path.parent.resolve(), path.stem)
+    scenario.path = path
+    scenario.overrides = dict(overrides or {})
+    return scenario
+
+
+def describe(path) -> str:
+    """The description line of a scenario file (for ``drillcosim list``), without validating it."""
+    try:
+        return str(read_toml(Path(path)).get("scenario", {}).get("description", ""))
+    except ScenarioError as e:
+        return f"(unreadable: {e.detail})"

@@ -1,0 +1,345 @@
+"""One FMU instance (FMI 2.0 or 3.0 co-simulation) driven through fmpy.
+
+Two layers, as in libcosim:
+
+* :class:`FMUModel` -- what ``modelDescription.xml`` says (names, value references,
+  types, units, causality, start values, descriptions). Read once per file, cached;
+  used to validate scenarios before anything is instantiated.
+* :class:`FMUSlave` -- one running instance: instantiate, parameter overrides,
+  initialisation, per-step I/O with precomputed value-reference arrays, doStep,
+  terminate/free. The FMU's log messages are kept (last ``LOG_KEEP``) so an error can
+  quote the FMU's own words.
+
+The per-step calls go straight to the ctypes functions fmpy has loaded (with
+argtypes set), bound to preallocated arrays: fmpy's ``getReal(vr)`` wrapper builds two
+ctypes arrays per call, which is most of the Python cost of a step.
+"""
+from __future__ import annotations
+
+import atexit
+import collections
+import functools
+import os
+import shutil
+from ctypes import byref
+from dataclasses import dataclass
+from pathlib import Path
+
+import fmpy
+from fmpy.model_description import read_model_description
+
+from .errors import CosimError, SimulationError
+
+BUILTIN_FMUS = ("LinearStage", "BallScrewDrive")
+LOG_KEEP = 20          # log messages kept per instance
+
+_FMI3_INT_TYPES = {"Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64"}
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One model variable as the master sees it."""
+
+    name: str
+    vr: int
+    type: str            # as in the XML: Real/Integer/Boolean/... or Float64/Int32/...
+    causality: str
+    variability: str
+    initial: str | None
+    unit: str | None     # declared unit (variable's or its declaredType's), None if absent
+    start: str | None
+    description: str
+
+    @property
+    def is_real(self) -> bool:
+        # the signal bus carries float64 only (signal contract: Real-valued everything)
+        return self.type in ("Real", "Float64")
+
+    @property
+    def kind(self) -> str:
+        if self.type in ("Real", "Float64", "Float32"):
+            return "real"
+        if self.type in ("Integer", "Enumeration") or self.type in _FMI3_INT_TYPES:
+            return "integer"
+        if self.type == "Boolean":
+            return "boolean"
+        return self.type.lower()
+
+    @property
+    def scoring_only(self) -> bool:
+        return self.description.startswith("Scoring only:")
+
+
+def resolve_fmu_path(spec: str, base_dir: str | os.PathLike | None = None) -> Path:
+    """A built-in plant name (``LinearStage``) or a path to a ``.fmu`` file."""
+    if spec in BUILTIN_FMUS:
+        try:
+            from fmus.build import fmu_path  # built on demand by the plant owner's build
+        except ImportError as e:
+            raise CosimError(
+                f"built-in FMU '{spec}' is resolved by fmus.build.fmu_path(name), which is not "
+                f"importable ({e}); run `make fmus` or give a path to a .fmu file") from e
+        return Path(fmu_path(spec))
+    p = Path(spec).expanduser()
+    if not p.is_absolute() and base_dir is not None:
+        p = Path(base_dir) / p
+    if not p.exists():
+        raise CosimError(f"FMU file '{p}' does not exist (built-in names: {', '.join(BUILTIN_FMUS)})")
+    return p.resolve()
+
+
+class FMUModel:
+    """The model description of one FMU file (shared by all its instances)."""
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path).resolve()
+        md = read_model_description(str(self.path))
+        self.model_description = md
+        self.fmi_version = md.fmiVersion
+        if md.coSimulation is None:
+            raise CosimError(f"{self.path.name}: no co-simulation interface (model exchange only); "
+                             "the master steps FMUs with doStep")
+        self.model_identifier = md.coSimulation.modelIdentifier
+        self.guid = md.guid
+        self.variables: dict[str, Variable] = {}
+        for v in md.modelVariables:
+            unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
+            self.variables[v.name] = Variable(
+                name=v.name, vr=v.valueReference, type=v.type, causality=v.causality,
+                variability=v.variability, initial=v.initial, unit=unit or None,
+                start=v.start, description=v.description or "")
+
+    @property
+    def is_fmi3(self) -> bool:
+        return self.fmi_version.startswith("3")
+
+    def names(self, causality: str) -> list[str]:
+        return [n for n, v in self.variables.items() if v.causality == causality]
+
+
+@functools.lru_cache(maxsize=None)
+def _load_model(path: str, mtime_ns: int) -> FMUModel:
+    return FMUModel(path)
+
+
+def load_model(path: str | os.PathLike) -> FMUModel:
+    """Model description of ``path``, read once per file version."""
+    p = Path(path).resolve()
+    return _load_model(str(p), p.stat().st_mtime_ns)
+
+
+_EXTRACTED: dict[tuple[str, int], str] = {}
+
+
+def _extract(path: Path) -> str:
+    """fmpy.extract() once per FMU file (and version) per process; removed at exit."""
+    key = (str(path), path.stat().st_mtime_ns)
+    d = _EXTRACTED.get(key)
+    if d is None or not os.path.isdir(d):
+        d = fmpy.extract(str(path))
+        _EXTRACTED[key] = d
+    return d
+
+
+@atexit.register
+def _cleanup_extracted() -> None:
+    pid = os.getpid()
+    if _cleanup_extracted.owner == pid:   # forked campaign workers must not delete the parent's
+        for d in _EXTRACTED.values():
+            shutil.rmtree(d, ignore_errors=True)
+
+
+_cleanup_extracted.owner = os.getpid()
+
+_STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
+TERMINATE_REQUESTED = 100   # pseudo status: FMI 3.0 doStep asked to terminate the simulation
+
+
+class FMUSlave:
+    """One FMU instance in the co-simulation."""
+
+    def __init__(self, name: str, model: FMUModel | str | os.PathLike,
+                 parameters: dict | None = None, logging: bool = True):
+        self.name = name
+        self.model = model if isinstance(model, FMUModel) else load_model(model)
+        self.parameters = dict(parameters or {})
+        self.logging = logging
+        self.log: collections.deque = collections.deque(maxlen=LOG_KEEP)
+        self.fmu = None
+        self._initialized = False
+
+    # -- description ------------------------------------------------------------------
+    @property
+    def variables(self) -> dict[str, Variable]:
+        return self.model.variables
+
+    def variable(self, name: str) -> Variable:
+        try:
+            return self.model.variables[name]
+        except KeyError:
+            raise CosimError(f"FMU '{self.name}' ({self.model.path.name}) has no variable '{name}'") from None
+
+    # -- log --------------------------------------------------------------------------
+    def _log_message(self, status: int, category, message) -> None:
+        def text(b):
+            return b.decode("utf-8", "replace") if isinstance(b, bytes) else str(b or "")
+        self.log.append((status, text(category), text(message)))
+
+    def last_message(self) -> str | None:
+        """The FMU's last error/warning message (else its last message), or None."""
+        for status, _cat, msg in reversed(self.log):
+            if status >= 1:
+                return f"[{_STATUS[status] if 0 <= status < 6 else status}] {msg}"
+        if self.log:
+            return self.log[-1][2]
+        return None
+
+    def _fail(self, what: str, time: float | None, exc: Exception | None = None) -> SimulationError:
+        detail = f"{what} failed" + (f" ({exc})" if exc is not None else "")
+        return SimulationError(detail, time=time, instance=self.name, fmu_message=self.last_message())
+
+    # -- life cycle ---------------------------------------------------------------------
+    def instantiate(self, start_time: float = 0.0, stop_time: float | None = None) -> None:
+        """Load, instantiate, apply parameter overrides and initialise the FMU."""
+        m = self.model
+        unzipdir = _extract(m.path)
+        kw = dict(guid=m.guid, unzipDirectory=unzipdir, modelIdentifier=m.model_identifier,
+                  instanceName=self.name)
+        try:
+            if m.is_fmi3:
+                self.fmu = fmpy.fmi3.FMU3Slave(**kw)
+                self.fmu.instantiate(loggingOn=self.logging,
+                                     logMessage=lambda env, status, cat, msg:
+                                     self._log_message(status, cat, msg))
+            else:
+                from fmpy.fmi2 import (FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE,
+                                       fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE)
+                self.fmu = FMU2Slave(**kw)
+                cb = fmi2CallbackFunctions()
+                cb.logger = fmi2CallbackLoggerTYPE(
+                    lambda env, inst, status, cat, msg: self._log_message(status, cat, msg))
+                cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
+                cb.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
+                from fmpy.logging import addLoggerProxy   # formats the C varargs of the message
+                addLoggerProxy(byref(cb))
+                self._callbacks = cb                      # keep alive while the FMU lives
+                self.fmu.instantiate(callbacks=cb, loggingOn=self.logging)
+        except Exception as e:
+            raise self._fail("instantiate", start_time, e) from e
+        try:
+            self.set_values(self.parameters)
+            if m.is_fmi3:
+                self.fmu.enterInitializationMode(startTime=start_time, stopTime=stop_time)
+            else:
+                self.fmu.setupExperiment(startTime=start_time, stopTime=stop_time)
+                self.fmu.enterInitializationMode()
+            self.fmu.exitInitializationMode()
+        except SimulationError:
+            raise
+        except Exception as e:
+            raise self._fail("initialisation", start_time, e) from e
+        self._initialized = True
+
+    def free(self, failed: bool = False) -> None:
+        """Terminate (unless the FMU failed: then only free, as FMI allows) and unload."""
+        if self.fmu is None:
+            return
+        try:
+            if self._initialized and not failed:
+                self.fmu.terminate()
+        except Exception:
+            pass
+        try:
+            if self.fmu.component:          # instantiate may have failed: nothing to free but the library
+                self.fmu.freeInstance()
+            else:
+                self.fmu.freeLibrary()
+        except Exception:
+            pass
+        self.fmu = None
+        self._initialized = False
+
+    # -- values by type (parameters before init, events between steps) ----------------
+    def set_values(self, values: dict) -> None:
+        for name, value in values.items():
+            self.set_value(name, value)
+
+    def set_value(self, name: str, value) -> None:
+        v = self.variable(name)
+        f, t = self.fmu, v.type
+        try:
+            if v.kind == "real":
+                (f.setFloat64 if self.model.is_fmi3 else f.setReal)([v.vr], [float(value)])
+            elif v.kind == "integer":
+                setter = getattr(f, f"set{t}" if t in _FMI3_INT_TYPES else
+                                 ("setInt64" if self.model.is_fmi3 else "setInteger"))
+                setter([v.vr], [int(value)])
+            elif v.kind == "boolean":
+                f.setBoolean([v.vr], [bool(value)])
+            elif v.kind == "string":
+                f.setString([v.vr], [str(value)])
+            else:
+                raise CosimError(f"cannot set variable '{name}' of type {t}")
+        except CosimError:
+            raise
+        except Exception as e:
+            raise self._fail(f"setting {name} = {value!r}", None, e) from e
+
+    def get_value(self, name: str) -> float:
+        """One value (not for the step loop)."""
+        v = self.variable(name)
+        f = self.fmu
+        if v.kind == "real":
+            return (f.getFloat64 if self.model.is_fmi3 else f.getReal)([v.vr])[0]
+        if v.kind == "integer":
+            if self.model.is_fmi3:
+                getter = getattr(f, f"get{v.type}" if v.type in _FMI3_INT_TYPES else "getInt64")
+            else:
+                getter = f.getInteger
+            return getter([v.vr])[0]
+        if v.kind == "boolean":
+            return f.getBoolean([v.vr])[0]
+        raise CosimError(f"cannot read variable '{name}' of type {v.type}")
+
+    # -- per-step primitives -------------------------------------------------------------
+    def step_io(self, outputs: list[str], inputs: list[str]):
+        """Bound calls for the master loop: ``(get, out_buf, set, in_buf, do_step)``.
+
+        ``get()`` reads all ``outputs`` into ``out_buf`` with one getReal/getFloat64 and
+        returns the FMI status; ``set()`` writes ``in_buf`` to ``inputs`` with one
+        setReal/setFloat64; ``do_step(t, h)`` returns the status (or TERMINATE_REQUESTED).
+        Value-reference arrays are built here, once.
+        """
+        fmi3 = self.model.is_fmi3
+        funcs = self.fmu._functions
+        comp = self.fmu.component
+        from ctypes import c_double, c_uint, c_bool
+        ovr = (c_uint * len(outputs))(*[self.variable(n).vr for n in outputs])
+        ivr = (c_uint * len(inputs))(*[self.variable(n).vr for n in inputs])
+        out_buf = (c_double * len(outputs))()
+        in_buf = (c_double * len(inputs))()
+        if fmi3:
+            get = functools.partial(funcs["fmi3GetFloat64"], comp, ovr, len(outputs), out_buf, len(outputs))
+            put = functools.partial(funcs["fmi3SetFloat64"], comp, ivr, len(inputs), in_buf, len(inputs))
+            raw_step = funcs["fmi3DoStep"]
+            flags = [c_bool(), c_bool(), c_bool()]
+            last = c_double()
+            ev, term, early, last_ref = byref(flags[0]), byref(flags[1]), byref(flags[2]), byref(last)
+            terminate = flags[1]
+
+            def do_step(t, h):
+                status = raw_step(comp, t, h, True, ev, term, early, last_ref)
+                if terminate.value and status < 2:
+                    return TERMINATE_REQUESTED
+                return status
+        else:
+            get = functools.partial(funcs["fmi2GetReal"], comp, ovr, len(outputs), out_buf)
+            put = functools.partial(funcs["fmi2SetReal"], comp, ivr, len(inputs), in_buf)
+            raw_step = funcs["fmi2DoStep"]
+
+            def do_step(t, h):
+                return raw_step(comp, t, h, 1)
+        return get, out_buf, put, in_buf, do_step
+
+    def __repr__(self) -> str:
+        return f"FMUSlave({self.name!r}, {self.model.path.name}, FMI {self.model.fmi_version})"

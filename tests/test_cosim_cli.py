@@ -1,0 +1,79 @@
+"""The drillcosim command line (called through main()) and the campaign runner."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from cosim.campaign import run_campaign
+from cosim.cli import main
+from cosim_helpers import BASE_SCENARIO as BASE
+
+
+@pytest.fixture
+def scenario_file(tmp_path, mass_fmu):
+    p = tmp_path / "mass_test.toml"
+    p.write_text(BASE.format(fmu=mass_fmu))
+    return p
+
+
+def test_list(scenario_file, capsys):
+    assert main(["list", "--dir", str(scenario_file.parent)]) == 0
+    assert "mass_test  a test mass pushed by a step" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("which,version", [("mass_fmu", "2.0"), ("mass_fmu3", "3.0")])
+def test_info(which, version, request, capsys):
+    assert main(["info", str(request.getfixturevalue(which))]) == 0
+    out = capsys.readouterr().out
+    assert f"FMI version: {version}" in out and "kind: CS" in out
+    assert "model identifier: Mass" in out
+    line = next(l for l in out.splitlines() if l.strip().startswith("x_true"))
+    assert "output" in line and " m " in line and "Scoring only: true position" in line
+
+
+def test_run_and_plot(scenario_file, tmp_path, capsys):
+    out = tmp_path / "cli_out"
+    assert main(["run", str(scenario_file), "--out", str(out), "--quiet",
+                 "--set", "scenario.stop_time=0.05", "--set", "fmus.mass.parameters.m=2.0"]) == 0
+    printed = capsys.readouterr().out
+    for what in ("csv:", "png:", "summary:"):
+        assert what in printed
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["time_reached"] == pytest.approx(0.05)
+    assert summary["overrides"] == {"scenario.stop_time": 0.05, "fmus.mass.parameters.m": 2.0}
+    assert main(["plot", str(out), "--signals", "mass.x", "force.y"]) == 0
+    assert (out / "signals.png").stat().st_size > 1000
+
+
+def test_run_reports_errors(scenario_file, tmp_path, capsys):
+    assert main(["run", str(scenario_file), "--quiet", "--set", "connections[0].to=mass.nope"]) == 1
+    assert "connections[0].to" in capsys.readouterr().err
+    out = tmp_path / "fail"
+    assert main(["run", str(scenario_file), "--out", str(out), "--quiet",
+                 "--set", "fmus.mass.parameters.fail_time=0.01"]) == 1
+    err = capsys.readouterr().err
+    assert "instance 'mass'" in err and "simulated plant failure" in err and "partial results" in err
+
+
+def test_campaign_two_runs_one_failing(scenario_file, tmp_path):
+    summaries = run_campaign(scenario_file, [{"fmus.mass.parameters.m": 2.0},
+                                             {"fmus.mass.parameters.fail_time": 0.02}],
+                             out_dir=tmp_path / "camp", progress=False)
+    ok, bad = summaries
+    assert ok["status"] == "completed" and ok["run"] == 0 and "final_position_mm" in ok
+    assert bad["status"] == "failed" and "simulated plant failure" in bad["error"]
+    saved = json.loads((tmp_path / "camp" / "campaign.json").read_text())
+    assert [s["run"] for s in saved] == [0, 1]
+
+
+def test_open_loop_linear_stage_smoke(tmp_path):
+    """The shipped open-loop scenario on the real plant FMU (built by fmus/build.py)."""
+    pytest.importorskip("fmus.build")
+    from cosim import run_scenario
+    from cosim.cli import scenario_dir
+    r = run_scenario(scenario_dir() / "open_loop_linear_stage.toml", out_dir=tmp_path / "ol",
+                     overrides={"scenario.stop_time": 0.15}, progress=False)
+    assert r.summary["status"] == "completed" and len(r.time) == 151
+    assert r["stage.z_enc"].max() > 1e-3          # 0.6 A overcomes the friction: it moves
+    assert (tmp_path / "ol" / "open_loop.png").exists()

@@ -1,0 +1,192 @@
+"""Scenario files: every validation error names the file, the key and what was expected;
+a full run writes CSV, .mat, summary.json (with scores) and PNGs."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import scipy.io
+
+from cosim import AlgebraicLoopError, ScenarioError, SimulationError, load_scenario, run_scenario
+from cosim.recorder import Result
+from cosim_helpers import BASE_SCENARIO as BASE
+
+
+
+@pytest.fixture
+def scenario_file(tmp_path, mass_fmu):
+    p = tmp_path / "mass_test.toml"
+    p.write_text(BASE.format(fmu=mass_fmu))
+    return p
+
+
+def expect_error(path, overrides, key, *fragments, exc=ScenarioError):
+    with pytest.raises(exc) as ei:
+        load_scenario(path, overrides)
+    msg = str(ei.value)
+    assert str(path) in msg and f": {key}: " in msg, msg
+    for f in fragments:
+        assert f in msg, msg
+    return msg
+
+
+def test_valid_scenario_loads(scenario_file):
+    sc = load_scenario(scenario_file)
+    assert sc.name == "mass_test" and sc.step_size == 1e-3 and sc.stop_time == 0.1
+    assert list(sc.system.slaves) == ["mass"] and sc.system.block_order() == ["force", "probe"]
+    assert sc.plotted_signals() == ["mass.x", "probe.y", "mass.v"]
+
+
+@pytest.mark.parametrize("overrides,key,fragments", [
+    ({"scenario.stoptime": 1.0}, "scenario.stoptime", ["unknown key 'stoptime'", "stop_time"]),
+    ({"fmus.mass.paramters.m": 1.0}, "fmus.mass.paramters", ["unknown key 'paramters'", "parameters"]),
+    ({"connections[1].scael": 2.0}, "connections[1].scael", ["unknown key 'scael'", "scale"]),
+    ({"record.every": 2}, "record.every", ["unknown key"]),
+    ({"plots[0].colour": "red"}, "plots[0].colour", ["unknown key"]),
+])
+def test_unknown_keys(scenario_file, overrides, key, fragments):
+    expect_error(scenario_file, overrides, key, *fragments)
+
+
+def test_unknown_top_level_table(tmp_path, scenario_file):
+    p = tmp_path / "bad.toml"
+    p.write_text(scenario_file.read_text() + "\n[solver]\nmethod = 'rk4'\n")
+    expect_error(p, None, "solver", "unknown key 'solver'")
+
+
+@pytest.mark.parametrize("overrides,key,fragments", [
+    ({"connections[1].from": "mass.xx"}, "connections[1].from", ["no variable 'xx'", "outputs: x, v"]),
+    ({"connections[0].to": "mass.force"}, "connections[0].to", ["no variable 'force'", "inputs: u"]),
+    ({"connections[1].to": "probe.q"}, "connections[1].to", ["no input port 'q'", "inputs: x"]),
+    ({"connections[1].to": "nobody.x"}, "connections[1].to", ["no FMU or block named 'nobody'"]),
+    ({"fmus.mass.parameters.mm": 1.0}, "fmus.mass.parameters.mm", ["no variable 'mm'", "parameters:"]),
+    ({"record.signals": ["mass.q"]}, "record.signals[0]", ["no variable 'q'"]),
+    ({"events[0].set": "mass.nothing"}, "events[0].set", ["no variable 'nothing'"]),
+    ({"plots[0].y": ["mass.x", "probe.zz"]}, "plots[0].y[1]", ["no output port 'zz'"]),
+])
+def test_missing_variable_or_port(scenario_file, overrides, key, fragments):
+    expect_error(scenario_file, overrides, key, *fragments)
+
+
+def test_unit_mismatch(scenario_file):
+    msg = expect_error(scenario_file, {"blocks.force.settings.unit": "A"}, "connections[0].to",
+                       "unit mismatch", "force.y is [A]", "mass.u expects [N]")
+    assert "scale" in msg
+    # the same connection with an explicit conversion is accepted
+    load_scenario(scenario_file, {"blocks.force.settings.unit": "A", "connections[0].scale": 24.0})
+
+
+@pytest.mark.parametrize("overrides,key,fragments", [
+    ({"scenario.stop_time": "long"}, "scenario.stop_time", ["expected a number > 0", "str 'long'"]),
+    ({"scenario.step_size": -1e-3}, "scenario.step_size", ["expected a number > 0"]),
+    ({"fmus.mass.parameters.m": "heavy"}, "fmus.mass.parameters.m", ["expected a number", "str 'heavy'"]),
+    ({"fmus.mass.parameters.n_sub": 1.5}, "fmus.mass.parameters.n_sub", ["expected an integer"]),
+    ({"fmus.mass.parameters.frozen": 1}, "fmus.mass.parameters.frozen", ["expected true or false"]),
+    ({"connections[0].scale": "2"}, "connections[0].scale", ["expected a number"]),
+    ({"record.decimation": 0}, "record.decimation", ["expected an integer >= 1"]),
+    ({"record.signals": "mass.x"}, "record.signals", ["expected a list of strings"]),
+    ({"events[0].value": "half"}, "events[0].value", ["expected a number or true/false"]),
+    ({"blocks.probe.sample_period": "fast"}, "blocks.probe.sample_period", ["expected a number >= 0"]),
+    ({"fmus.mass.path": 3}, "fmus.mass.path", ["expected a string"]),
+])
+def test_wrong_types(scenario_file, overrides, key, fragments):
+    expect_error(scenario_file, overrides, key, *fragments)
+
+
+def test_class_not_importable_and_bad_settings(scenario_file):
+    expect_error(scenario_file, {"blocks.probe.class": "nowhere.module:Nope"}, "blocks.probe.class",
+                 "cannot import 'nowhere.module:Nope'", "module:Class")
+    expect_error(scenario_file, {"blocks.probe.class": "cosim.sources:Nope"}, "blocks.probe.class",
+                 "cannot import")
+    expect_error(scenario_file, {"blocks.force.settings.stp_time": 1.0}, "blocks.force.settings",
+                 "refused the settings", "stp_time")
+
+
+def test_bad_sample_period(scenario_file):
+    expect_error(scenario_file, {"blocks.probe.sample_period": 0.0105}, "blocks.probe.sample_period",
+                 "not an integer multiple of the step size 0.001")
+
+
+def test_missing_required_keys_and_files(scenario_file, tmp_path):
+    expect_error(scenario_file, {"fmus.mass.path": str(tmp_path / "none.fmu")}, "fmus.mass.path",
+                 "does not exist")
+    expect_error(scenario_file, {"blocks.extra.sample_period": 0.01}, "blocks.extra.class",
+                 "missing required key 'class'")
+    bad = tmp_path / "broken.toml"
+    bad.write_text("[scenario\nstop_time = 1")
+    with pytest.raises(ScenarioError, match="not valid TOML"):
+        load_scenario(bad)
+
+
+def test_scoring_only_guard(scenario_file):
+    expect_error(scenario_file, {"connections[1].from": "mass.x_true"}, "connections[1].from",
+                 "scoring only", "Scoring only: true position", "scorer = True")
+    load_scenario(scenario_file, {"connections[1].from": "mass.x_true",
+                                  "blocks.probe.class": "cosim_helpers:Scorer"})
+
+
+def test_algebraic_loop_in_file(tmp_path):
+    p = tmp_path / "loop.toml"
+    p.write_text("""
+[scenario]
+stop_time = 0.01
+[blocks.a]
+class = "cosim_helpers:Gain"
+[blocks.b]
+class = "cosim_helpers:Gain"
+[[connections]]
+from = "a.y"
+to = "b.u"
+[[connections]]
+from = "b.y"
+to = "a.u"
+""")
+    msg = expect_error(p, None, "connections", "algebraic loop", exc=AlgebraicLoopError)
+    assert "a -> b -> a" in msg or "b -> a -> b" in msg
+
+
+def test_event_validation(scenario_file):
+    expect_error(scenario_file, {"events[0].set": "mass.u"}, "events[0].set", "driven by the connection")
+    expect_error(scenario_file, {"events[0].set": "mass.m"}, "events[0].set", "tunable")
+    expect_error(scenario_file, {"events[1].when": "mass.x >> 1", "events[1].action": "stop"},
+                 "events[1].when", "<signal> <op> <number>")
+    expect_error(scenario_file, {"events[1].time": 0.1}, "events[1]", "expected 'set' + 'value'")
+    expect_error(scenario_file, {"events[1].when": "mass.nope > 1", "events[1].action": "stop"},
+                 "events[1].when", "no variable 'nope'")
+
+
+def test_full_run_writes_csv_mat_summary_png(scenario_file, tmp_path):
+    out = tmp_path / "out"
+    r = run_scenario(scenario_file, out_dir=out, progress=False,
+                     overrides={"events[1].when": "mass.x > 0.004", "events[1].action": "stop"})
+    assert r.summary["status"] == "stopped" and r.time[-1] < 0.1
+    header = (out / "data.csv").read_text().splitlines()[0]
+    assert header.startswith("time [s],mass.x [m],force.y [N],probe.y [m]") and "mass.v [m/s]" in header
+    back = Result.from_csv(out)
+    assert np.array_equal(back["mass.x"], r["mass.x"]) and back.unit("force.y") == "N"
+    mat = scipy.io.loadmat(out / "data.mat", simplify_cells=True)
+    assert np.allclose(mat["mass"]["x"], r["mass.x"]) and mat["units"]["mass"]["v"] == "m/s"
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["scenario"] == "mass_test" and summary["final_position_mm"] == pytest.approx(
+        r["mass.x"][-1] * 1000)
+    assert summary["steps"] == len(r.time) - 1 and summary["wall_time_s"] > 0
+    assert {p.name for p in out.glob("*.png")} == {"motion.png", "custom.png"}
+    # the tunable-gain event at 0.05 s halves the acceleration
+    v = r["mass.v"]
+    assert v[40] - v[39] == pytest.approx(2e-3) and v[60] - v[59] == pytest.approx(1e-3)
+
+
+def test_fmu_failure_in_scenario_keeps_rows_and_writes_summary(scenario_file, tmp_path):
+    out = tmp_path / "fail"
+    with pytest.raises(SimulationError) as ei:
+        run_scenario(scenario_file, out_dir=out, progress=False,
+                     overrides={"fmus.mass.parameters.fail_time": 0.03})
+    e = ei.value
+    assert e.time == pytest.approx(0.03) and e.instance == "mass"
+    assert "simulated plant failure" in str(e)
+    rows = (out / "data.csv").read_text().splitlines()
+    assert len(rows) == 1 + 31                     # header + t = 0 .. 0.03 s
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed" and summary["failed_instance"] == "mass"
+    assert "simulated plant failure" in summary["fmu_message"] and summary["rows_recorded"] == 31
