@@ -1,0 +1,295 @@
+"""Scores and figures of the thrust-force-control scenarios (Keio Figs. 4 and 7).
+
+One job: judge a recorded run of :class:`controllers.force_control.ThrustForceController`
+against its command, per layer of the stack, with the dynamometer (``F_dyn``, a
+scoring-only plant output), and draw the paper-like figure.
+
+Definitions (all in :func:`force_scores`)
+-----------------------------------------
+* The dynamometer signal is low-passed by a centred moving average of ``filter_time``
+  seconds (default 5 ms: a dynamometer amplifier's bandwidth, far above the thrust
+  dynamics; it removes the plant's white measurement noise, 1 N std, whose 4-sigma
+  spikes would otherwise be scored as thrust errors). Raw-signal peaks are reported too.
+* Layers are the plant's ``layer`` output (index of the layer at the tool tip) while the
+  controller is in force mode. A *layer change* is the time the index steps to the next
+  layer; the *entry* is the switch to force control.
+* ``settling_time_s``: after a layer change (or the entry), the time until the filtered
+  thrust is back inside ``F_cmd +- band`` (5 N) for good (until the next change).
+* Steady part of a layer: from ``settle_window`` (0.2 s) after its change to its end,
+  ending early at depth ``z_steady_end`` (tool tip, e.g. the stack bottom minus the
+  plant's ``exit_thinning``: the deflecting last plies are the exit, not the layer).
+  ``mean_error`` (N and % of the command) and ``peak_error`` (N, max |error|) are taken
+  there; ``peak_error_transient_N`` covers the whole layer incl. the change. Settling
+  is judged up to the same depth (the exit is not a layer change).
+* ``i_ref_max_A`` / ``saturated`` from the controller's exact running maximum and latch.
+* Comparison (``compare_stage``): the same stack at constant feed with force control
+  off, run side by side in the same scenario -- mean thrust per layer and the jump at
+  each layer change, next to the (vanishing) jump under force control.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+
+def moving_average(x: np.ndarray, n: int) -> np.ndarray:
+    """Centred moving average over ``n`` samples (shrinking window at the ends)."""
+    x = np.asarray(x, float)
+    if n <= 1 or len(x) == 0:
+        return x.copy()
+    c = np.concatenate(([0.0], np.cumsum(x)))
+    k = np.arange(len(x))
+    lo = np.clip(k - n // 2, 0, len(x))
+    hi = np.clip(k - n // 2 + n, 0, len(x))
+    return (c[hi] - c[lo]) / (hi - lo)
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index ranges where ``mask`` is True."""
+    m = np.concatenate(([False], np.asarray(mask, bool), [False]))
+    d = np.diff(m.astype(int))
+    return list(zip(np.nonzero(d == 1)[0], np.nonzero(d == -1)[0]))
+
+
+def layer_scores(t, F, F_cmd, layer, active, z_tool=None, *, band=5.0, settle_window=0.2,
+                 z_steady_end=None, filter_time=0.005, F_raw=None) -> dict:
+    """Per-layer scores from plain arrays (see module docstring).
+
+    ``t`` [s], ``F`` measured thrust [N] (raw dynamometer; filtered here), ``F_cmd``
+    command [N], ``layer`` plant layer index, ``active`` True where force control runs,
+    ``z_tool`` tool-tip position [m] (needed for ``z_steady_end``).
+    """
+    t = np.asarray(t, float)
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1e-4
+    Ff = moving_average(F, max(1, int(round(filter_time / dt))))
+    F_raw = np.asarray(F if F_raw is None else F_raw, float)
+    layer = np.rint(np.asarray(layer, float)).astype(int)
+    active = np.asarray(active, bool)
+    F_cmd = np.asarray(F_cmd, float)
+    err = Ff - F_cmd
+    err_raw = F_raw - F_cmd
+    out_layers = []
+    idx = np.nonzero(active)[0]
+    if len(idx) == 0:
+        return {"layers": [], "force_control_active": False}
+    a0, a1 = idx[0], idx[-1] + 1
+    # change points inside the active span: entry, then each step to another layer > 0
+    lay = layer[a0:a1]
+    starts = [0]
+    for k in range(1, len(lay)):
+        if lay[k] != lay[k - 1] and lay[k] > 0:
+            starts.append(k)
+    for n_seg, s0 in enumerate(starts):
+        s1 = starts[n_seg + 1] if n_seg + 1 < len(starts) else len(lay)
+        i0, i1 = a0 + s0, a0 + s1
+        seg = slice(i0, i1)
+        L = int(np.bincount(np.maximum(layer[seg], 0)).argmax())
+        tc = t[i0]
+        scope = np.zeros(len(t), bool)
+        scope[i0:i1] = True
+        scope &= active
+        if z_steady_end is not None and z_tool is not None:
+            scope &= np.asarray(z_tool, float) < z_steady_end
+        # settling: last sample outside the band, within this segment (exit excluded)
+        js = np.nonzero(scope)[0]
+        outside = js[np.abs(err[js]) > band] if len(js) else js
+        settled = len(js) > 0 and not (len(outside) and outside[-1] == js[-1])
+        t_settle = 0.0 if len(outside) == 0 else t[outside[-1]] + dt - tc
+        steady = scope & (t >= tc + settle_window)
+        cmd = float(np.median(F_cmd[seg])) if i1 > i0 else float("nan")
+        entry = {"layer": L, "segment": "entry" if n_seg == 0 else f"change {n_seg}",
+                 "t_change_s": tc, "F_cmd_N": cmd,
+                 "settling_time_s": t_settle, "settled": bool(settled),
+                 "peak_error_transient_N": float(np.abs(err[js]).max()) if len(js) else float("nan")}
+        if steady.sum() >= 3:
+            me = float(np.mean(F_raw[steady] - F_cmd[steady]))
+            entry.update({
+                "steady_from_s": float(t[steady][0]), "steady_to_s": float(t[steady][-1]),
+                "mean_thrust_N": float(np.mean(F_raw[steady])),
+                "mean_error_N": me,
+                "mean_error_pct": 100.0 * me / cmd if cmd else float("nan"),
+                "peak_error_N": float(np.abs(err[steady]).max()),
+                "peak_error_raw_N": float(np.abs(err_raw[steady]).max()),
+            })
+        else:
+            entry.update({"steady_from_s": None, "mean_thrust_N": None, "mean_error_N": None,
+                          "mean_error_pct": None, "peak_error_N": None, "peak_error_raw_N": None})
+        out_layers.append(entry)
+    return {"layers": out_layers, "force_control_active": True}
+
+
+def constant_feed_jumps(t, F, layer, *, filter_time=0.005, settle_window=0.2, moving=None,
+                        z_tool=None, z_steady_end=None) -> dict:
+    """Mean thrust per layer at constant feed and the jumps between consecutive layers."""
+    t = np.asarray(t, float)
+    layer = np.rint(np.asarray(layer, float)).astype(int)
+    F = np.asarray(F, float)
+    ok = np.ones(len(t), bool) if moving is None else np.asarray(moving, bool)
+    if z_steady_end is not None and z_tool is not None:
+        ok &= np.asarray(z_tool, float) < z_steady_end
+    means = []
+    for s0, s1 in _runs((layer > 0) & ok):
+        # split the run at layer changes
+        cut = [s0] + [k for k in range(s0 + 1, s1) if layer[k] != layer[k - 1]] + [s1]
+        for a, b in zip(cut[:-1], cut[1:]):
+            sel = (np.arange(len(t)) >= a) & (np.arange(len(t)) < b) & (t >= t[a] + settle_window)
+            means.append({"layer": int(layer[a]), "t_change_s": float(t[a]),
+                          "mean_thrust_N": float(F[sel].mean()) if sel.sum() >= 3 else None})
+    jumps = []
+    for p, q in zip(means[:-1], means[1:]):
+        if p["mean_thrust_N"] is not None and q["mean_thrust_N"] is not None:
+            jumps.append({"from_layer": p["layer"], "to_layer": q["layer"], "t_s": q["t_change_s"],
+                          "jump_N": q["mean_thrust_N"] - p["mean_thrust_N"]})
+    return {"layers": means, "jumps": jumps}
+
+
+def force_scores(result, stage="stage", controller="controller", observer="observer",
+                 band=5.0, settle_window=0.2, filter_time=0.005, z_steady_end=None,
+                 compare_stage=None, compare_controller=None, prefix="force_control") -> dict:
+    """``[[scores]]`` function: per-layer thrust-control scores (module docstring)."""
+    t = result.time
+    mode = result[f"{controller}.mode"]
+    F_cmd = result[f"{controller}.F_cmd_out"]
+    active = mode == 1
+    z_tool = result[f"{stage}.z_tool_true"] if f"{stage}.z_tool_true" in result else None
+    sc = layer_scores(t, result[f"{stage}.F_dyn"], F_cmd, result[f"{stage}.layer"], active, z_tool,
+                      band=band, settle_window=settle_window, z_steady_end=z_steady_end,
+                      filter_time=filter_time)
+    if f"{observer}.F_thrust_hat" in result:
+        est = layer_scores(t, result[f"{observer}.F_thrust_hat"], F_cmd, result[f"{stage}.layer"],
+                           active, z_tool, band=band, settle_window=settle_window,
+                           z_steady_end=z_steady_end, filter_time=filter_time)
+        for a, b in zip(sc["layers"], est["layers"]):
+            a["estimate_mean_error_pct"] = b["mean_error_pct"]
+    layers = sc["layers"]
+    steady = [x for x in layers if x["mean_error_N"] is not None]
+    changes = [x for x in layers if x["segment"] != "entry"]
+    out = {
+        "layers": layers,
+        "worst_mean_error_pct": max((abs(x["mean_error_pct"]) for x in steady), default=None),
+        "worst_peak_error_N": max((x["peak_error_N"] for x in steady), default=None),
+        "worst_settling_time_s": max((x["settling_time_s"] for x in changes), default=None),
+        "all_settled": all(x["settled"] for x in layers),
+        "i_ref_max_A": float(np.max(result[f"{controller}.i_ref_max"])),
+        "saturated": bool(np.max(result[f"{controller}.saturated_any"]) > 0),
+        "modes_seen": sorted({int(m) for m in np.unique(mode)}),
+        "t_contact_s": float(t[np.argmax(active)]) if active.any() else None,
+        "t_retract_s": float(t[np.nonzero(mode == 2)[0][0]]) if (mode == 2).any() else None,
+        "definitions": {"band_N": band, "settle_window_s": settle_window,
+                        "filter_time_s": filter_time, "z_steady_end_m": z_steady_end,
+                        "mean_error": "F_dyn (raw) minus command, steady part of each layer",
+                        "peak_error": f"max |F_dyn low-passed ({filter_time * 1e3:g} ms) - command|, steady part"},
+    }
+    if len(layers) >= 2:
+        # thrust jumps under force control, for the side-by-side with constant feed
+        out["layer_change_jumps_N"] = [
+            (b["mean_thrust_N"] - a["mean_thrust_N"])
+            if a["mean_thrust_N"] is not None and b["mean_thrust_N"] is not None else None
+            for a, b in zip(layers[:-1], layers[1:])]
+    if compare_stage:
+        cs = compare_stage
+        cc = compare_controller
+        moving = None
+        if cc and f"{cc}.v_hat" in result:
+            moving = result[f"{cc}.v_hat"] > 1e-5     # feeding (not the retract through the stack)
+        z_cf = result[f"{cs}.z_tool_true"] if f"{cs}.z_tool_true" in result else None
+        cf = constant_feed_jumps(t, moving_average(result[f"{cs}.F_dyn"], 1), result[f"{cs}.layer"],
+                                 settle_window=settle_window, moving=moving, z_tool=z_cf,
+                                 z_steady_end=z_steady_end)
+        out["constant_feed"] = cf
+        out["constant_feed_jumps_N"] = [j["jump_N"] for j in cf["jumps"]]
+    return {prefix: out}
+
+
+# ----------------------------------------------------------------------------- figures
+def force_figure(result, out_dir, stage="stage", controller="controller", observer="observer",
+                 compare_stage=None, compare_controller=None, file="thrust_force_control.png",
+                 title="Thrust force control", filter_time=0.005, prefix="force_control"):
+    """``[[plots]]`` function: thrust vs command with layer marks, feed rate, current
+    (Keio Figs. 4 and 7); with ``compare_stage`` the constant-feed run side by side."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = result.time
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1e-4
+    n = max(1, int(round(filter_time / dt)))
+    F = result[f"{stage}.F_dyn"]
+    mode = result[f"{controller}.mode"]
+    F_cmd = result[f"{controller}.F_cmd_out"]
+    layer = result[f"{stage}.layer"]
+    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(9, 8.5),
+                             gridspec_kw={"height_ratios": [2.2, 1.2, 1]})
+    ax = axes[0]
+    ax.plot(t, F, color="0.8", lw=0.5, label="dynamometer F_dyn (raw)")
+    ax.plot(t, moving_average(F, n), color="C0", lw=1.2,
+            label=f"F_dyn ({filter_time * 1e3:g} ms average), force control")
+    if f"{observer}.F_thrust_hat" in result:
+        ax.plot(t, moving_average(result[f"{observer}.F_thrust_hat"], n), color="C2", lw=0.8, ls="--",
+                label="observer estimate F_thrust_hat")
+    cmd = np.where(mode == 1, F_cmd, np.nan)
+    ax.plot(t, cmd, color="k", lw=1.0, label="command F_cmd")
+    if compare_stage:
+        ax.plot(t, moving_average(result[f"{compare_stage}.F_dyn"], n), color="C3", lw=1.0,
+                label="constant feed, force control off")
+    # layer marks (A), (B), ...
+    # layer changes while drilling (not the retract back up through the stack)
+    changes = [k for k in range(1, len(layer)) if layer[k] != layer[k - 1] and layer[k - 1] > 0
+               and layer[k] > 0 and mode[k] == 1]
+    for j, k in enumerate(changes):
+        lab = f"({chr(ord('A') + j)})"
+        for a in axes:
+            a.axvline(t[k], color="C1", lw=0.8, ls=":")
+        ax.annotate(lab, (t[k], 1.0), xycoords=("data", "axes fraction"), xytext=(3, -12),
+                    textcoords="offset points", color="C1")
+    if compare_stage:
+        cl = result[f"{compare_stage}.layer"]
+        fwd = (result[f"{compare_controller}.v_hat"] > 1e-5 if compare_controller
+               and f"{compare_controller}.v_hat" in result else np.ones(len(cl), bool))
+        for k in range(1, len(cl)):
+            if cl[k] != cl[k - 1] and cl[k - 1] > 0 and cl[k] > 0 and fwd[k]:
+                for a in axes:
+                    a.axvline(t[k], color="C3", lw=0.6, ls=":")
+    ax.set_ylabel("thrust [N]")
+    ax.legend(loc="upper left", fontsize=8)
+    ax.grid(alpha=0.3)
+    summ = result.summary.get(prefix) if isinstance(result.summary, dict) else None
+    if summ:
+        txt = []
+        for x in summ.get("layers", []):
+            if x.get("mean_error_pct") is not None:
+                txt.append(f"layer {x['layer']}: mean {x['mean_error_pct']:+.2f} %, peak {x['peak_error_N']:.1f} N, "
+                           f"settled in {x['settling_time_s'] * 1e3:.0f} ms")
+        if summ.get("constant_feed_jumps_N"):
+            txt.append("constant-feed jumps: " + ", ".join(f"{j:+.0f} N" for j in summ["constant_feed_jumps_N"]))
+        txt.append(f"max |i_ref| {summ['i_ref_max_A']:.2f} A" + (" (saturated)" if summ["saturated"] else ""))
+        ax.text(0.99, 0.02, "\n".join(txt), transform=ax.transAxes, ha="right", va="bottom", fontsize=7,
+                bbox=dict(facecolor="white", alpha=0.8, edgecolor="0.8"))
+    ax = axes[1]
+    ax.plot(t, result[f"{controller}.v_hat"] * 1e3, color="C0", lw=1.0, label="feed rate, force control")
+    if compare_controller and f"{compare_controller}.v_hat" in result:
+        ax.plot(t, result[f"{compare_controller}.v_hat"] * 1e3, color="C3", lw=0.8, label="constant feed")
+    ax.set_ylabel("feed rate [mm/s]")
+    lo, hi = np.nanpercentile(result[f"{controller}.v_hat"][mode == 1] * 1e3, [0, 100]) if (mode == 1).any() else (0, 1)
+    ax.set_ylim(min(-0.1, lo - 0.2), max(hi * 1.3, 0.5))
+    ax.legend(loc="upper right", fontsize=8)
+    ax.grid(alpha=0.3)
+    ax = axes[2]
+    ax.plot(t, result[f"{controller}.i_ref"], color="C0", lw=0.8, label="i_ref")
+    ax2 = ax.twinx()
+    ax2.plot(t, mode, color="0.5", lw=0.8, ls="--", label="mode (0 approach, 1 force, 2 retract)")
+    ax2.set_ylim(-0.2, 2.5)
+    ax2.set_yticks([0, 1, 2])
+    ax.set_ylabel("current [A]")
+    ax2.set_ylabel("mode")
+    ax.set_xlabel("time [s]")
+    ax.grid(alpha=0.3)
+    ax2.legend(loc="upper right", fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    path = Path(out_dir) / file
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,318 @@
+"""Friction model (Coulomb + viscous, optional Stribeck) and its identification from an
+air-cutting run (Fang et al. 2015, Section 5.2: at constant feed without contact the motor
+output is friction).
+
+Units are whatever the drive's coordinate is, stated in the model:
+
+* Keio linear stage: force [N], velocity [m/s], ``viscous`` [N s/m];
+* Fang ball-screw drive: motor-side torque [N m], motor speed [rad/s], ``viscous``
+  [N m s/rad] -- the coordinate of eq. 3-6 (``tau_cf + D w_m``).
+
+``force(v) = coulomb * sgn(v) + viscous * v + stribeck * exp(-(v / v_stribeck)^2) * sgn(v)``
+with ``sgn`` smoothed linearly inside ``|v| < v_eps`` (no chattering of the compensation at
+standstill, where Coulomb friction is undetermined anyway). ``offset`` is a velocity-
+independent effort found by the fit (on the vertical Keio stage: minus the net gravity
+force, gravity minus compensator); it is not part of ``force(v)``.
+
+Position-periodic effort (motor cogging, ball-screw torque ripple) is part of the same
+"drive loss" model: ``position_ripple(p)`` with harmonics ``k`` of the drive position.
+
+Identification: :func:`constant_velocity_segments` finds the constant-velocity segments
+of a recorded run (settling transients dropped), :func:`identify_friction` solves the
+linear least-squares problem ``effort = Fc sgn(v) + b v + offset + sum_k (a_k sin kp +
+c_k cos kp)`` on their samples (segment velocity measured by the encoder). Needs segments
+of both signs (else Coulomb and offset are not separable) and at least two speeds.
+:class:`VelocitySegments` is the block that commands such a run (scenarios
+``air_cut_friction_identification*.toml``; the score function
+``controllers.observer_scoring:air_cut_friction`` fits and writes ``friction.json``).
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, asdict, field
+from pathlib import Path
+
+import numpy as np
+
+from cosim.block import Block, Port
+
+
+@dataclass
+class FrictionModel:
+    coulomb: float = 0.0          # effort unit (N or N m)
+    viscous: float = 0.0          # effort unit per velocity unit
+    stribeck: float = 0.0         # extra breakaway effort at v -> 0
+    v_stribeck: float = 1e-3      # velocity unit
+    v_eps: float = 1e-6           # velocity unit: linear sign region
+    offset: float = 0.0           # effort unit, velocity independent (not in force(v))
+    effort_unit: str = "N"
+    velocity_unit: str = "m/s"
+    # position-periodic part (cogging, ball-screw torque ripple): rows [k, a_sin, a_cos],
+    # effort += a_sin sin(k p) + a_cos cos(k p), p the drive position in position_unit
+    # (motor angle [rad] with k = harmonics per revolution; or [m] with k = 2 pi / pitch)
+    ripple: list = field(default_factory=list)
+    position_unit: str = "m"
+    info: dict = field(default_factory=dict)
+
+    def force(self, v: float) -> float:
+        """Friction effort at velocity ``v`` (plain float in, plain float out)."""
+        if v > self.v_eps:
+            s = 1.0
+        elif v < -self.v_eps:
+            s = -1.0
+        else:
+            s = v / self.v_eps
+        f = self.coulomb * s + self.viscous * v
+        if self.stribeck:
+            f += self.stribeck * s * math.exp(-(v / self.v_stribeck) ** 2)
+        return f
+
+    __call__ = force
+
+    def position_ripple(self, p: float) -> float:
+        """Position-periodic effort (cogging) at drive position ``p``."""
+        f = 0.0
+        for k, a_s, a_c in self.ripple:
+            f += a_s * math.sin(k * p) + a_c * math.cos(k * p)
+        return f
+
+    @property
+    def has_ripple(self) -> bool:
+        return bool(self.ripple)
+
+    # ------------------------------------------------------------------ persistence
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["units"] = {
+            "coulomb": self.effort_unit,
+            "viscous": f"{self.effort_unit} s/{self.velocity_unit.split('/')[0]}",
+            "stribeck": self.effort_unit,
+            "v_stribeck": self.velocity_unit,
+            "v_eps": self.velocity_unit,
+            "offset": self.effort_unit,
+            "ripple": f"[1/{self.position_unit}, {self.effort_unit}, {self.effort_unit}]",
+        }
+        return d
+
+    def save(self, path) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(self.to_dict(), indent=2, sort_keys=True))
+        return path
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "FrictionModel":
+        keys = {"coulomb", "viscous", "stribeck", "v_stribeck", "v_eps", "offset",
+                "effort_unit", "velocity_unit", "ripple", "position_unit", "info"}
+        return cls(**{k: v for k, v in d.items() if k in keys})
+
+    @classmethod
+    def load(cls, path) -> "FrictionModel":
+        path = Path(path)
+        try:
+            d = json.loads(path.read_text())
+        except FileNotFoundError:
+            raise FileNotFoundError(
+                f"friction file {path} not found: run the air_cut_friction_identification "
+                f"scenario first (it writes friction.json) or give the coefficients as settings") from None
+        return cls.from_dict(d)
+
+
+def resolve_path(path):
+    """A settings path: as given if it exists, else relative to the repository root."""
+    if not path:
+        return path
+    p = Path(path)
+    if p.exists() or p.is_absolute():
+        return p
+    alt = Path(__file__).resolve().parent.parent / p
+    return alt if alt.exists() else p
+
+
+def make_friction(friction_file=None, coulomb=None, viscous=None, stribeck=None, v_stribeck=None,
+                  v_eps=None, effort_unit="N", velocity_unit="m/s", ripple=None, offset=None,
+                  position_unit="m") -> FrictionModel:
+    """Friction model for a block.
+
+    With ``friction_file`` (a friction.json written by the air-cut identification) the file
+    is the model and the coefficient arguments are ignored (they are the fallback a scenario
+    carries for runs without a file); only ``v_eps`` applies. Without a file: the coefficients
+    given (missing ones are 0).
+    """
+    if friction_file:
+        fm = FrictionModel.load(friction_file)
+        if fm.effort_unit != effort_unit or fm.velocity_unit != velocity_unit:
+            raise ValueError(
+                f"friction file {friction_file} is in {fm.effort_unit} / {fm.velocity_unit}, "
+                f"this block needs {effort_unit} / {velocity_unit} (identified on another drive?)")
+        if fm.ripple and fm.position_unit != position_unit:
+            raise ValueError(f"friction file {friction_file}: ripple is in 1/{fm.position_unit}, "
+                             f"this block needs 1/{position_unit}")
+        if v_eps is not None:
+            fm.v_eps = float(v_eps)
+        return fm
+    fm = FrictionModel(effort_unit=effort_unit, velocity_unit=velocity_unit, position_unit=position_unit)
+    for name, val in (("coulomb", coulomb), ("viscous", viscous), ("stribeck", stribeck),
+                      ("v_stribeck", v_stribeck), ("v_eps", v_eps), ("offset", offset)):
+        if val is not None:
+            setattr(fm, name, float(val))
+    if ripple is not None:
+        rows = [list(map(float, r)) for r in ripple]
+        if any(len(r) != 3 for r in rows):
+            raise ValueError(f"ripple must be rows [k, a_sin, a_cos], got {ripple!r}")
+        fm.ripple = rows
+    return fm
+
+
+# --------------------------------------------------------------------------- identification
+def constant_velocity_segments(time, v_ref, *, settle: float = 0.2, min_duration: float = 0.3,
+                               rel_tol: float = 1e-6) -> list[np.ndarray]:
+    """Index arrays of the constant, non-zero ``v_ref`` segments, first ``settle`` s dropped."""
+    t = np.asarray(time, float)
+    r = np.asarray(v_ref, float)
+    n = len(t)
+    segs = []
+    i = 0
+    while i < n:
+        j = i
+        while j + 1 < n and abs(r[j + 1] - r[i]) <= rel_tol * max(abs(r[i]), 1e-12):
+            j += 1
+        if r[i] != 0.0:
+            idx = np.arange(i, j + 1)
+            idx = idx[t[idx] >= t[i] + settle]
+            if len(idx) > 2 and t[idx[-1]] - t[idx[0]] >= min_duration:
+                segs.append(idx)
+        i = j + 1
+    return segs
+
+
+def identify_friction(time, position, effort, v_ref, *, ripple_k=(), v_stribeck=None,
+                      fit_offset: bool = True, settle: float = 0.2, min_duration: float = 0.3,
+                      effort_unit: str = "N", velocity_unit: str = "m/s", position_unit: str = "m",
+                      v_eps: float = 1e-6) -> FrictionModel:
+    """Least-squares friction fit on the constant-velocity segments of an air-cutting run.
+
+    ``position`` is the drive position in the friction's coordinate (motor angle [rad] for
+    the ball screw, stage position [m] for the linear stage), ``effort`` the nominal motor
+    effort (``K_Tn i`` [N m] or ``Kt_n i`` [N]), ``v_ref`` the commanded velocity in the same
+    coordinate (used only to find the segments). Per segment the velocity is the mean one
+    measured by ``position``; every sample of the segment is a row of::
+
+        effort = Fc sgn(v) + b v [+ offset] [+ Fs sgn(v) exp(-(v/vs)^2)]
+                 + sum_k (a_k sin(k p) + c_k cos(k p))       (k in ripple_k)
+
+    The position-periodic columns (cogging, ball-screw ripple) would otherwise leak into
+    the segment means when a segment does not span whole periods. ``v_stribeck``: None (no
+    Stribeck term), a number (fixed Stribeck velocity: the fit stays linear) or a list of
+    candidates (each is fitted, the smallest residual wins -- a 1-D scan of the only
+    nonlinear parameter).
+    """
+    if v_stribeck is not None and not np.isscalar(v_stribeck):
+        best = None
+        for vs in v_stribeck:
+            fm = identify_friction(time, position, effort, v_ref, ripple_k=ripple_k, v_stribeck=float(vs),
+                                   fit_offset=fit_offset, settle=settle, min_duration=min_duration,
+                                   effort_unit=effort_unit, velocity_unit=velocity_unit,
+                                   position_unit=position_unit, v_eps=v_eps)
+            if best is None or fm.info["rms_residual"] < best.info["rms_residual"]:
+                best = fm
+        best.info["v_stribeck_candidates"] = [float(v) for v in v_stribeck]
+        return best
+    t = np.asarray(time, float)
+    p = np.asarray(position, float)
+    e = np.asarray(effort, float)
+    segs = constant_velocity_segments(t, v_ref, settle=settle, min_duration=min_duration)
+    if not segs:
+        raise ValueError("identify_friction: no constant-velocity segment found in the record")
+    rows_v, rows_i, seg_v, seg_e = [], [], [], []
+    for idx in segs:
+        v = (p[idx[-1]] - p[idx[0]]) / (t[idx[-1]] - t[idx[0]])
+        rows_v.append(np.full(len(idx), v))
+        rows_i.append(idx)
+        seg_v.append(v)
+        seg_e.append(float(np.mean(e[idx])))
+    v = np.concatenate(rows_v)
+    idx = np.concatenate(rows_i)
+    if not (np.any(v > 0) and np.any(v < 0)):
+        raise ValueError("identify_friction: needs constant-velocity segments in both directions")
+    if len(set(np.round(np.abs(seg_v), 12))) < 2:
+        raise ValueError("identify_friction: needs at least two different speeds (Coulomb vs viscous)")
+    cols = [np.sign(v), v]
+    names = ["coulomb", "viscous"]
+    if fit_offset:
+        cols.append(np.ones_like(v))
+        names.append("offset")
+    if v_stribeck:
+        cols.append(np.sign(v) * np.exp(-(v / v_stribeck) ** 2))
+        names.append("stribeck")
+    for k in ripple_k:
+        cols += [np.sin(k * p[idx]), np.cos(k * p[idx])]
+        names += [f"sin{k}", f"cos{k}"]
+    Phi = np.column_stack(cols)
+    y = e[idx]
+    coef, *_ = np.linalg.lstsq(Phi, y, rcond=None)
+    resid = y - Phi @ coef
+    c = dict(zip(names, (float(a) for a in coef)))
+    fm = FrictionModel(coulomb=c["coulomb"], viscous=c["viscous"], offset=c.get("offset", 0.0),
+                       stribeck=c.get("stribeck", 0.0), v_stribeck=float(v_stribeck or 1e-3), v_eps=v_eps,
+                       effort_unit=effort_unit, velocity_unit=velocity_unit, position_unit=position_unit,
+                       ripple=[[float(k), c[f"sin{k}"], c[f"cos{k}"]] for k in ripple_k])
+    fm.info = {"n_segments": len(segs), "n_samples": int(len(y)),
+               "rms_residual": float(np.sqrt(np.mean(resid ** 2))),
+               "segment_velocity": [float(a) for a in seg_v],
+               "segment_mean_effort": [float(a) for a in seg_e]}
+    return fm
+
+
+# --------------------------------------------------------------------------- air-cut motion
+class VelocitySegments(Block):
+    """Reference for an air-cutting identification run: constant-velocity segments.
+
+    For each entry of ``velocities`` [m/s] (feed coordinate, sign = direction): ramp at
+    ``a_max`` [m/s2] to that velocity, hold it for ``hold`` [s] (one value or one per
+    segment), ramp back to rest, wait ``pause`` [s]. Starts at ``z_start`` [m] after
+    ``t_start`` [s]. Outputs ``z_ref`` [m], ``v_ref`` [m/s], ``a_ref`` [m/s2] (exact
+    piecewise-constant-acceleration profile, evaluated analytically at ``t``) and
+    ``segment`` [1] (1-based index of the segment being held, 0 elsewhere).
+    """
+
+    inputs = ()
+    outputs = (Port("z_ref", "m", "reference position"),
+               Port("v_ref", "m/s", "reference velocity"),
+               Port("a_ref", "m/s2", "reference acceleration"),
+               Port("segment", "1", "index of the constant-velocity segment held (0 = none)"))
+    direct_feedthrough = False
+
+    def __init__(self, velocities=(1e-3, -1e-3, 2.5e-3, -2.5e-3, 5e-3, -5e-3), hold=2.0,
+                 a_max: float = 0.05, pause: float = 0.1, z_start: float = 0.0, t_start: float = 0.1,
+                 sample_period: float = 0.0):
+        super().__init__(sample_period)
+        vel = [float(v) for v in velocities]
+        holds = [float(hold)] * len(vel) if np.isscalar(hold) else [float(h) for h in hold]
+        if not vel or len(holds) != len(vel) or any(h <= 0 for h in holds) or not a_max > 0:
+            raise ValueError("VelocitySegments: need velocities, hold > 0 (one or one per segment), a_max > 0")
+        # phases: (t0, duration, a, v0, z0, segment)
+        ph = []
+        t, z = float(t_start), float(z_start)
+        for k, (v, h) in enumerate(zip(vel, holds), start=1):
+            tr = abs(v) / a_max
+            a = math.copysign(a_max, v)
+            for dur, acc, v0, seg in ((tr, a, 0.0, 0), (h, 0.0, v, k), (tr, -a, v, 0)):
+                ph.append((t, dur, acc, v0, z, seg))
+                z += v0 * dur + 0.5 * acc * dur * dur
+                t += dur
+            t += float(pause)
+        self._phases = ph
+        self.z_start = float(z_start)
+        self.t_end = t
+        self.z_end = z
+
+    def step(self, t, u):
+        for t0, dur, a, v0, z0, seg in self._phases:
+            if t0 <= t < t0 + dur:
+                s = t - t0
+                return (z0 + v0 * s + 0.5 * a * s * s, v0 + a * s, a, float(seg))
+            if t < t0:
+                return (z0, 0.0, 0.0, 0.0)
+        return (self.z_end, 0.0, 0.0, 0.0)
