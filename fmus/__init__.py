@@ -1,6 +1,7 @@
 """Plant FMUs of drillcosim (C sources, generated modelDescription.xml, build script).
 
 ``fmus.build.fmu_path("LinearStage")`` / ``fmu_path("BallScrewDrive")`` return the built
-``fmus/build/<name>.fmu`` (building it when missing or stale); ``python -m fmus.build``
+FMI 2.0 ``fmus/build/<name>.fmu`` (building it when missing or stale), ``"LinearStage3"`` /
+``"BallScrewDrive3"`` the FMI 3.0 variants from the same C code; ``python -m fmus.build``
 builds all.  Variables are defined once in ``fmus/spec.py``; equations in docs/plants.md.
 """

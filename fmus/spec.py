@@ -222,10 +222,17 @@ MODELS = {
 }
 
 
-def value_references(model: str) -> dict[str, tuple[str, int]]:
-    """name -> (type, value reference). Real and Integer are numbered separately from 1."""
+def value_references(model: str, fmi_version: int = 2) -> dict[str, tuple[str, int]]:
+    """name -> (type, value reference).
+
+    FMI 2.0: Real and Integer are numbered separately from 1.  FMI 3.0 (value references
+    unique over all types): Real (Float64) the same, Integer (Int32) continue after the
+    last Real, 0 is ``time``; fmus/common/fmi3_frame.c maps them back the same way."""
     out, cnt = {}, {"Real": 0, "Integer": 0}
     for v in MODELS[model]["vars"]:
         cnt[v.type] += 1
         out[v.name] = (v.type, cnt[v.type])
+    if fmi_version == 3:
+        n_reals = cnt["Real"]
+        out = {k: (t, vr + n_reals if t == "Integer" else vr) for k, (t, vr) in out.items()}
     return out
