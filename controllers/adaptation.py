@@ -1,0 +1,133 @@
+"""Cutting-parameter adaptation on the detected tool position (Fang Section 6).
+
+The detector's ``flag`` (0 before entry, 1 in layer 1, 2 in layer 2, 3 exited)
+selects a *stage* of material-specific cutting parameters, given per stage in the
+scenario::
+
+    [blocks.adapt.settings]
+    ramp_time = 0.2
+    stages = [
+      {flag = 0, name = "cfrp", feed_rate = 2.0e-4, spindle_speed = 2000.0, orbital_speed = 120.0},
+      {flag = 2, name = "ti",   feed_rate = 1.0e-4, spindle_speed = 1000.0, orbital_speed = 60.0},
+    ]
+
+A stage is in force from the first sample whose ``flag`` is >= its ``flag`` (the
+highest such stage wins); ``fail = 1`` switches to ``fail_stage`` (by name) when
+given, a safe set of parameters for a process that left its expected course.
+
+The change is *ramped*, so that the feed drive does not jerk: each output moves
+from the value in force to the new one along a raised-cosine (half-cycle) blend
+over ``ramp_time`` [s]. Velocity (feed rate) and its derivative are continuous,
+and the acceleration demanded of the drive is bounded by
+``pi/2 * |dv| / ramp_time``. The ramp starts at the very sample in which the new
+flag arrives (the block is direct feed-through, run after the detector in the
+same step; the blend is evaluated at the end of the sample its output is held
+over, so that output already differs), and FeedTrajectory acts on it from the next
+communication step -- well inside one detector period (0.02 s).
+
+Outputs: ``feed_rate_cmd`` [m/s] (to ``FeedTrajectory.feed_rate_cmd``),
+``spindle_speed`` [rpm], ``orbital_speed`` [rpm] (to the plant inputs), and for the
+record what was in force when: ``stage`` (index of the stage whose parameters are
+the target, 0-based in ``stages``), ``t_switch`` [s] (time the current stage was
+entered; NaN before the first switch) and ``ramp`` (0..1, progress of the blend).
+``self.log`` keeps (t, stage name, feed_rate, spindle_speed, orbital_speed) of
+every switch for the Python API.
+"""
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+from cosim.block import Block, Port
+
+PARAMS = ("feed_rate", "spindle_speed", "orbital_speed")
+
+
+class CuttingParameterAdaptation(Block):
+    inputs = (
+        Port("flag", "1", "detector tool position indicator (0, 1, 2, 3)"),
+        Port("fail", "1", "detector fail indicator (1 = switch to fail_stage when set)"),
+    )
+    outputs = (
+        Port("feed_rate_cmd", "m/s", "feed-rate command to FeedTrajectory"),
+        Port("spindle_speed", "rpm", "spindle speed command"),
+        Port("orbital_speed", "rpm", "orbital speed command"),
+        Port("stage", "1", "index of the stage whose parameters are the target"),
+        Port("t_switch", "s", "time the current stage was entered (NaN before any switch)", math.nan),
+        Port("ramp", "1", "progress of the current blend, 0..1"),
+    )
+    direct_feedthrough = True
+
+    def __init__(self, stages: Sequence[dict] = (), ramp_time: float = 0.2,
+                 fail_stage: str | None = None, sample_period: float = 0.0):
+        super().__init__(sample_period)
+        if not stages:
+            raise ValueError("CuttingParameterAdaptation: give at least one stage "
+                             "{flag, name, feed_rate, spindle_speed, orbital_speed}")
+        self.stages = []
+        for i, s in enumerate(stages):
+            s = dict(s)
+            unknown = set(s) - {"flag", "name", *PARAMS}
+            if unknown:
+                raise ValueError(f"CuttingParameterAdaptation: stage {i}: unknown keys {sorted(unknown)}")
+            missing = [p for p in PARAMS if p not in s]
+            if missing:
+                raise ValueError(f"CuttingParameterAdaptation: stage {i}: missing {missing}")
+            if not all(float(s[p]) > 0 for p in PARAMS):
+                raise ValueError(f"CuttingParameterAdaptation: stage {i}: feed_rate, spindle_speed, "
+                                 "orbital_speed must be > 0")
+            self.stages.append({"flag": int(s.get("flag", 0)), "name": str(s.get("name", f"stage{i}")),
+                                **{p: float(s[p]) for p in PARAMS}})
+        flags = [s["flag"] for s in self.stages]
+        if flags != sorted(flags) or len(set(flags)) != len(flags):
+            raise ValueError(f"CuttingParameterAdaptation: stage flags must be strictly increasing, got {flags}")
+        if ramp_time < 0:
+            raise ValueError(f"CuttingParameterAdaptation: ramp_time must be >= 0 s, got {ramp_time}")
+        self.ramp_time = float(ramp_time)
+        names = [s["name"] for s in self.stages]
+        if fail_stage is not None and fail_stage not in names:
+            raise ValueError(f"CuttingParameterAdaptation: fail_stage {fail_stage!r} is not one of {names}")
+        self.fail_index = None if fail_stage is None else names.index(fail_stage)
+        self.reset(0.0)
+
+    def _target_index(self, flag: float, fail: float) -> int:
+        if fail >= 0.5 and self.fail_index is not None:
+            return self.fail_index
+        idx = 0
+        for i, s in enumerate(self.stages):
+            if flag >= s["flag"] - 1e-9:
+                idx = i
+        return idx
+
+    def reset(self, t0: float) -> None:
+        s0 = self.stages[0]
+        self.index = 0
+        self.value = [s0[p] for p in PARAMS]      # in force now
+        self.start = list(self.value)             # blend start values
+        self.t_switch = math.nan
+        self.log = [(float(t0), s0["name"], *self.value)]
+        self._t_prev = None
+
+    def step(self, t, u):
+        idx = self._target_index(float(u[0]), float(u[1]))
+        if idx != self.index:
+            self.start = list(self.value)  # blend from what is in force (also mid-ramp)
+            self.index = idx
+            self.t_switch = float(t)
+            st = self.stages[idx]
+            self.log.append((float(t), st["name"], *(st[p] for p in PARAMS)))
+        target = [self.stages[self.index][p] for p in PARAMS]
+        # hold interval of these outputs: the sample period, or the spacing of the
+        # calls when the block runs every communication step
+        h = self.sample_period if self.sample_period > 0 else (
+            0.0 if self._t_prev is None else max(t - self._t_prev, 0.0))
+        self._t_prev = float(t)
+        if math.isnan(self.t_switch) or self.ramp_time <= 0:
+            r = 1.0
+        else:
+            # the blend value at the end of the sample the outputs are held over,
+            # so that the first output after a switch already moves
+            s = (t - self.t_switch + h) / self.ramp_time
+            r = 1.0 if s >= 1.0 else 0.5 * (1.0 - math.cos(math.pi * max(s, 0.0)))
+        self.value = [a + (b - a) * r for a, b in zip(self.start, target)]
+        return (*self.value, float(self.index), self.t_switch, r)

@@ -1,0 +1,273 @@
+"""Scoring of the stack-interface detector (Fang Table 5) and Fig.-3-shaped
+synthetic thrust traces for unit tests.
+
+Event truth: the time ``t_true`` at which the tool tip (scoring-only plant signal
+``x_tool_true``) reaches the event's boundary of the *actual* stack: the top
+surface (entry), the bottom of the first layer (interface: the paper's stack is a
+5 mm CFRP plate on the Ti, so the interface is known 5 mm below the surface; a
+slight gap is not known to the operator and makes the Ti start ``gap`` deeper),
+the bottom of the second layer (exit).
+As in the paper ("drilling depth is calculated by the feed rate which multiplies
+the time"), the depth error is the feed travelled between the true and the
+detected time, measured on the table encoder: ``dz = x_enc(t_det) - x_enc(t_true)``;
+negative = found early, positive = late.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+EVENTS = ("entry", "interface", "exit")
+
+
+# ---------------------------------------------------------------- truth and errors
+def stack_boundaries(surface, t1, t2, gap=0.0):
+    """Tool-tip positions [m] of entry, interface, exit.
+
+    The interface is the bottom of layer 1 (``surface + t1``), as the paper
+    measures it (the operator knows the plate thicknesses, not the slight gap);
+    with a gap the tool reaches the Ti ``gap`` later. The exit is the bottom of
+    layer 2 (``surface + t1 + gap + t2``).
+    """
+    return (surface, surface + t1, surface + t1 + gap + t2)
+
+
+def interp_at(time, signal, t):
+    if t is None or not math.isfinite(t):
+        return math.nan
+    return float(np.interp(t, time, signal))
+
+
+def last_value(arr):
+    arr = np.asarray(arr, float)
+    return float(arr[-1]) if arr.size else math.nan
+
+
+def flag_before_entry(time, flag, t_entry_true):
+    """True when the detector flag left 0 before the tool touched the stack."""
+    time = np.asarray(time, float)
+    flag = np.asarray(flag, float)
+    if not math.isfinite(t_entry_true):
+        return bool(np.any(flag > 0))
+    return bool(np.any(flag[time < t_entry_true] > 0))
+
+
+# ---------------------------------------------------------------- synthetic traces
+@dataclass
+class SyntheticHole:
+    """A Fig.-3-shaped observed-thrust trace along a constant-feed hole."""
+
+    feed: float = 0.2e-3          # m/s (12 mm/min)
+    x0: float = 0.0               # m, encoder at t = 0
+    surface: float = 1.0e-3       # m
+    t1: float = 5e-3              # m CFRP
+    t2: float = 4.5e-3            # m Ti
+    gap: float = 0.0              # m
+    F_cfrp: float = 85.0          # N
+    F_ti: float = 280.0           # N
+    ti_slope: float = -0.1        # relative thrust change across the Ti layer ("slow descending")
+    engage: float = 0.1e-3        # m, engagement ramp length (entry and layer change)
+    gap_thinning: float = 0.1e-3  # m, CFRP above a gap thins out over this (depression)
+    exit_thinning: float = 0.4e-3  # m, remaining Ti below which thrust falls (linearly to 0)
+    noise: float = 4.0            # N std of the observer output noise
+    ripple: float = 3.0           # N residual orbital ripple left in the observed DC thrust
+    f_ripple: float = 2.0         # Hz (120 rpm orbit)
+    lag: float = 0.1              # s, first-order lag of the observer
+    t_after: float = 3.0          # s after the exit
+    seed: int = 0
+
+    @property
+    def boundaries(self):
+        return stack_boundaries(self.surface, self.t1, self.t2, self.gap)
+
+    def true_force(self, xt):
+        """Noise-free thrust at tool-tip position(s) xt, shaped like the plant's law:
+        engagement ramps over ``engage``, a layer with a gap below it thins out over
+        ``gap_thinning`` (the depression), the last layer over ``exit_thinning``."""
+        xt = np.asarray(xt, float)
+        s, b_cfrp_end = self.surface, self.surface + self.t1
+        b_ti, b_exit = b_cfrp_end + self.gap, self.boundaries[2]
+        ramp = lambda d, L: np.clip(d / L, 0.0, 1.0) if L > 0 else (d >= 0).astype(float)  # noqa: E731
+        # CFRP, engaged over `engage`; with a gap the thinning layer deflects away
+        f_cfrp = self.F_cfrp * ramp(xt - s, self.engage)
+        if self.gap > 0:
+            f_cfrp = f_cfrp * ramp(b_cfrp_end - xt, self.gap_thinning)
+        # Ti plateau with a slow descending tendency, engaged over `engage`
+        depth_ti = np.clip((xt - b_ti) / self.t2, 0.0, 1.0)
+        level_ti = self.F_ti * (1.0 + self.ti_slope * depth_ti)
+        w_ti = ramp(xt - b_ti, self.engage)
+        f = f_cfrp * (1.0 - w_ti) + level_ti * w_ti
+        # exit: the thinning last layer carries less and less thrust
+        f = f * ramp(b_exit - xt, self.exit_thinning)
+        return np.where(xt < s, 0.0, f)
+
+    def trace(self, dt_fine=1e-3):
+        """(t, x, F_true, F_obs) on a fine grid: F_obs = lagged true force + ripple + noise."""
+        t_end = (self.boundaries[2] - self.x0) / self.feed + self.t_after
+        t = np.arange(0.0, t_end, dt_fine)
+        x = self.x0 + self.feed * t
+        F = self.true_force(x)
+        if self.lag > 0:
+            from scipy.signal import lfilter
+
+            a = 1.0 - math.exp(-dt_fine / self.lag)
+            Fl = lfilter([a], [1.0, a - 1.0], F)
+        else:
+            Fl = F
+        rng = np.random.default_rng(self.seed)
+        Fo = Fl + self.ripple * np.sin(2 * np.pi * self.f_ripple * t) + self.noise * rng.standard_normal(t.size)
+        return t, x, F, Fo
+
+
+def run_block_on_trace(block, t, inputs, period=None):
+    """Step a block at its sample period on pre-computed input arrays (sample-and-hold
+    like the master). Returns (t_steps, outputs[n_steps, n_out])."""
+    period = block.sample_period if period is None else period
+    block.reset(float(t[0]))
+    n = int(math.floor((t[-1] - t[0]) / period + 1e-9)) + 1
+    ts = t[0] + period * np.arange(n)
+    idx = np.minimum(np.searchsorted(t, ts - 1e-12), t.size - 1)
+    out = np.empty((n, len(block.outputs)))
+    for k, i in enumerate(idx):
+        out[k] = block.step(float(ts[k]), [float(col[i]) for col in inputs])
+    return ts, out
+
+
+# ---------------------------------------------------------------- scoring a run
+def _transitions(time, layer):
+    """True event times from the scoring-only ``layer`` signal (tool tip):
+    entry = first sample in layer 1; interface = first sample that leaves layer 1
+    (bottom of the CFRP: into the gap, or straight into layer 2); exit = first
+    sample back in layer 0 after layer 2 was reached. Times are interpolated to
+    the middle between the two samples around each change."""
+    time = np.asarray(time, float)
+    layer = np.rint(np.asarray(layer, float)).astype(int)
+
+    def first(mask, start=0):
+        idx = np.flatnonzero(mask[start:])
+        return None if idx.size == 0 else int(idx[0]) + start
+
+    def mid(i):
+        return math.nan if i is None else (float(time[i]) if i == 0 else 0.5 * float(time[i - 1] + time[i]))
+
+    i_entry = first(layer >= 1)
+    i_int = None if i_entry is None else first(layer != 1, i_entry)
+    i_ti = first(layer == 2)
+    i_exit = None if i_ti is None else first(layer == 0, i_ti)
+    return {"entry": mid(i_entry), "interface": mid(i_int), "exit": mid(i_exit), "ti_top": mid(i_ti)}
+
+
+def _moving_average(y, n):
+    if n <= 1:
+        return np.asarray(y, float)
+    c = np.cumsum(np.insert(np.asarray(y, float), 0, 0.0))
+    out = np.full(len(y), np.nan)
+    half = n // 2
+    out[half:half + len(y) - n + 1] = (c[n:] - c[:-n]) / n
+    return out
+
+
+def layer_thrust_stats(time, x_tool, F_dyn, F_obs, x_lo, x_hi, orbital_period=0.5):
+    """Table 3 columns for one layer: mean DC thrust of the dynamometer (moving
+    average over one orbital period) and of the observer over x_tool in
+    [x_lo, x_hi], RMS of their difference, deviation in %."""
+    time = np.asarray(time, float)
+    dt = float(np.median(np.diff(time))) if time.size > 1 else 1.0
+    dc = _moving_average(F_dyn, max(1, int(round(orbital_period / dt))))
+    sel = (np.asarray(x_tool) >= x_lo) & (np.asarray(x_tool) <= x_hi) & np.isfinite(dc)
+    if not sel.any():
+        return {"measured": math.nan, "observed": math.nan, "eps_rms": math.nan, "deviation_pct": math.nan}
+    meas = float(np.mean(dc[sel]))
+    obs = float(np.mean(np.asarray(F_obs, float)[sel]))
+    eps = float(np.sqrt(np.mean((dc[sel] - np.asarray(F_obs, float)[sel]) ** 2)))
+    return {"measured": meas, "observed": obs, "eps_rms": eps,
+            "deviation_pct": 100.0 * eps / meas if meas else math.nan}
+
+
+def score_hole(result, plant="plant", observer="observer", detector="detector",
+               entry_margin=0.2e-3, end_margin=0.2e-3, exit_margin=0.6e-3, orbital_period=0.5):
+    """Scores of one drilled hole (a ``[[scores]]`` function of the scenario).
+
+    Detector: time [s] and depth [mm] error of entry, interface and exit (both exit
+    criteria), ``flag_before_entry``, ``missed`` (events with a true time but no
+    detection), ``fail``. Observer: Table-3 columns per layer (``cfrp_*``, ``ti_*``)
+    over the steady part of each layer: ``entry_margin`` below its top,
+    ``end_margin`` above the CFRP bottom, ``exit_margin`` above the Ti bottom
+    (clear of the exit thinning).
+    """
+    t = np.asarray(result.time, float)
+    g = lambda name: np.asarray(result[name], float)  # noqa: E731
+    x_tool = g(f"{plant}.x_tool_true")
+    truth = _transitions(t, g(f"{plant}.layer"))
+    det = {n: last_value(result[f"{detector}.{n}"]) for n in
+           ("t_entry", "t_interface", "t_exit_paper", "t_exit_thinning", "fail", "fail_code", "flag")}
+    pairs = {
+        "entry": ("entry", det["t_entry"]),
+        "interface": ("interface", det["t_interface"]),
+        "exit_paper": ("exit", det["t_exit_paper"]),
+        "exit_thinning": ("exit", det["t_exit_thinning"]),
+    }
+    out = {}
+    missed = []
+    for key, (ev, t_det) in pairs.items():
+        t_true = truth[ev]
+        x_true, x_det = interp_at(t, x_tool, t_true), interp_at(t, x_tool, t_det)
+        out[f"{key}_t_true"] = t_true
+        out[f"{key}_t_det"] = t_det
+        out[f"{key}_dt_s"] = t_det - t_true
+        out[f"{key}_dz_mm"] = 1e3 * (x_det - x_true)
+        if math.isfinite(t_true) and not math.isfinite(t_det):
+            missed.append(key)
+    out["missed"] = missed
+    out["n_missed"] = len(missed)
+    out["flag_before_entry"] = flag_before_entry(t, g(f"{detector}.flag"), truth["entry"])
+    out["fail"] = det["fail"]
+    out["fail_code"] = det["fail_code"]
+    out["final_flag"] = det["flag"]
+    # Table 3 (observer vs dynamometer per layer)
+    x_e, x_i = interp_at(t, x_tool, truth["entry"]), interp_at(t, x_tool, truth["interface"])
+    x_ti, x_x = interp_at(t, x_tool, truth["ti_top"]), interp_at(t, x_tool, truth["exit"])
+    F_dyn, F_obs = g(f"{plant}.F_dyn"), g(f"{observer}.F_dc_hat")
+    for name, lo, hi in (("cfrp", x_e + entry_margin, x_i - end_margin),
+                         ("ti", x_ti + entry_margin, x_x - exit_margin)):
+        st = layer_thrust_stats(t, x_tool, F_dyn, F_obs, lo, hi, orbital_period)
+        for k, v in st.items():
+            out[f"{name}_{k}"] = v
+    return out
+
+
+def score_adaptation(result, detector="detector", adapt="adapt", trajectory="trajectory"):
+    """What was in force when: the stage changes of the adaptation (time, stage index,
+    feed, spindle, orbit), and the delay from the interface detection to the first
+    change of the feed command and of the trajectory's feed velocity."""
+    t = np.asarray(result.time, float)
+    stage = np.rint(np.asarray(result[f"{adapt}.stage"], float)).astype(int)
+    feed = np.asarray(result[f"{adapt}.feed_rate_cmd"], float)
+    spindle = np.asarray(result[f"{adapt}.spindle_speed"], float)
+    orbit = np.asarray(result[f"{adapt}.orbital_speed"], float)
+    changes = [0] + [int(i) for i in np.flatnonzero(np.diff(stage)) + 1]
+    in_force = [{"t_s": float(t[i]), "stage": int(stage[i]), "feed_rate_m_s": float(feed[-1] if i == changes[-1] else feed[j - 1]),
+                 } for i, j in zip(changes, changes[1:] + [len(t)])]
+    # target values of each stage = values once the ramp is through
+    for rec, j in zip(in_force, changes[1:] + [len(t)]):
+        rec["spindle_speed_rpm"] = float(spindle[j - 1])
+        rec["orbital_speed_rpm"] = float(orbit[j - 1])
+    t_int = last_value(result[f"{detector}.t_interface"])
+    out = {"stages_in_force": in_force, "t_interface_s": t_int}
+    if math.isfinite(t_int):
+        k0 = int(np.searchsorted(t, t_int - 1e-9))
+        f0 = feed[max(k0 - 1, 0)]
+        moved = np.flatnonzero(np.abs(feed[k0:] - f0) > 1e-12)
+        out["feed_cmd_change_delay_s"] = float(t[k0 + moved[0]] - t_int) if moved.size else math.nan
+        try:
+            v = np.asarray(result[f"{trajectory}.v_ref"], float)
+            a = np.asarray(result[f"{trajectory}.a_ref"], float)
+            moved = np.flatnonzero(np.abs(v[k0:] - v[max(k0 - 1, 0)]) > 1e-9)
+            out["feed_velocity_change_delay_s"] = float(t[k0 + moved[0]] - t_int) if moved.size else math.nan
+            win = (t >= t_int) & (t <= t_int + 1.0)
+            out["max_abs_a_ref_after_switch_m_s2"] = float(np.max(np.abs(a[win]))) if win.any() else math.nan
+        except KeyError:
+            pass
+    return out

@@ -1,0 +1,272 @@
+"""Unit tests of the interface detector and the cutting-parameter adaptation on
+synthetic, Fig.-3-shaped observed-thrust traces (no FMU, no master)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from controllers.adaptation import CuttingParameterAdaptation
+from controllers.detector_scoring import SyntheticHole, run_block_on_trace
+from controllers.interface_detector import InterfaceDetector, regression_weights
+
+MM = 1e-3
+
+
+def sharp(**kw):
+    """A hole with Fig. 3's "sharp rise" and narrow depression (0.05 mm engagement
+    and CFRP thinning above a gap, 50 ms observer lag)."""
+    kw.setdefault("engage", 0.05 * MM)
+    kw.setdefault("gap_thinning", 0.05 * MM)
+    kw.setdefault("lag", 0.05)
+    return SyntheticHole(**kw)
+
+
+def detect(hole: SyntheticHole, **settings):
+    t, x, _, Fo = hole.trace()
+    kw = dict(surface=hole.surface, thicknesses=(5 * MM, 4.5 * MM), max_gap=0.05 * MM)
+    kw.update(settings)
+    det = InterfaceDetector(**kw)
+    ts, out = run_block_on_trace(det, t, [Fo, x])
+    rec = {n: out[:, i] for i, n in enumerate(det.output_names())}
+    rec["t"] = ts
+    rec["x"] = np.interp(ts, t, x)
+    return det, rec
+
+
+def final(rec, name):
+    return float(rec[name][-1])
+
+
+# ------------------------------------------------------------------ regression
+def test_regression_prediction_exact_on_lines():
+    for n in (2, 5, 50, 150):
+        w = regression_weights(n)
+        j = np.arange(1, n + 1)
+        assert np.isclose(w @ (3.0 * j - 7.0), 3.0 * (n + 1) - 7.0)
+        assert np.isclose(w @ np.full(n, 42.0), 42.0)
+
+
+def test_rejects_bad_settings():
+    with pytest.raises(ValueError):
+        InterfaceDetector(thd3=30.0)
+    with pytest.raises(ValueError):
+        InterfaceDetector(exit_criterion="magic")
+    with pytest.raises(ValueError):
+        InterfaceDetector(sample_period=0.0)
+
+
+# ------------------------------------------------------------------ state machine
+@pytest.mark.parametrize("F_cfrp,F_ti", [(83.5, 277.0), (203.8, 714.0)])  # Table 3 holes 1 and 24
+def test_entry_interface_exit_without_gap(F_cfrp, F_ti):
+    h = sharp(F_cfrp=F_cfrp, F_ti=F_ti, gap=0.0, seed=1)
+    b = h.boundaries
+    det, rec = detect(h)
+    flag = rec["flag"]
+    assert np.all(np.diff(flag) >= 0) and final(rec, "flag") == 3
+    assert final(rec, "fail") == 0
+    # no detection before the tool touches the surface
+    assert np.all(flag[rec["x"] < b[0]] == 0)
+    dz_entry = final(rec, "x_entry") - b[0]
+    dz_int = final(rec, "x_interface") - b[1]
+    assert 0.0 < dz_entry <= 0.1 * MM
+    assert abs(dz_int) <= 0.05 * MM
+    # paper exit: at the start of the thinning drop, i.e. early; thinning: closer
+    dz_paper = final(rec, "x_exit_paper") - b[2]
+    dz_thin = final(rec, "x_exit_thinning") - b[2]
+    assert -h.exit_thinning - 0.05 * MM < dz_paper < -0.5 * h.exit_thinning
+    assert abs(dz_thin) < abs(dz_paper)
+    assert abs(dz_thin) <= 0.1 * MM
+    # flag / t_exit follow the selected criterion ("paper" by default)
+    assert final(rec, "x_exit") == final(rec, "x_exit_paper")
+    # the recorded times are those of the flag changes
+    for k, name in ((1, "t_entry"), (2, "t_interface"), (3, "t_exit")):
+        t_first = rec["t"][np.argmax(flag >= k)]
+        assert math.isclose(final(rec, name), t_first)
+
+
+def test_exit_criterion_thinning_sets_flag():
+    h = SyntheticHole(seed=2)
+    _, rec_p = detect(h, exit_criterion="paper")
+    _, rec_t = detect(h, exit_criterion="thinning")
+    assert final(rec_t, "x_exit") == final(rec_t, "x_exit_thinning")
+    # same hole, same paper / thinning estimates whatever the selected criterion
+    assert final(rec_t, "x_exit_paper") == final(rec_p, "x_exit_paper")
+    assert final(rec_t, "x_exit_thinning") == final(rec_p, "x_exit_thinning")
+    t3 = rec_t["t"][np.argmax(rec_t["flag"] >= 3)]
+    assert math.isclose(t3, final(rec_t, "t_exit_thinning"))
+
+
+@pytest.mark.parametrize("F_cfrp,F_ti", [(83.5, 277.0), (203.8, 714.0)])
+def test_interface_with_gap_depression(F_cfrp, F_ti):
+    h = sharp(F_cfrp=F_cfrp, F_ti=F_ti, gap=0.03 * MM, seed=3)
+    b = h.boundaries
+    _, rec = detect(h)
+    assert final(rec, "flag") == 3 and final(rec, "fail") == 0
+    dz_int = final(rec, "x_interface") - b[1]
+    assert abs(dz_int) <= 0.05 * MM
+    # the detection is either the depression (F~ < -thd2) or the Ti rise; the
+    # depression comes first for the high CFRP level (drop of 204 N >> thd2)
+    k = int(np.argmax(rec["flag"] >= 2))
+    if F_cfrp > 150:
+        assert rec["F_err"][k] < -50.0
+
+
+def test_no_detection_in_air_with_transients():
+    """Approach in air: noise, ripple and an acceleration transient below thd1."""
+    h = SyntheticHole(surface=1.0, noise=6.0, seed=4)  # surface never reached
+    t, x, _, Fo = h.trace()
+    t, x, Fo = t[t < 30.0], x[t < 30.0], Fo[t < 30.0]
+    Fo = Fo + 35.0 * np.exp(-((t - 10.0) / 0.05) ** 2)  # deceleration bump, 35 N
+    det = InterfaceDetector(surface=None)
+    _, out = run_block_on_trace(det, t, [Fo, x])
+    assert np.all(out[:, 0] == 0)
+
+
+def test_no_test_before_window_full():
+    det = InterfaceDetector(N=10, N_min=10)
+    det.reset(0.0)
+    for k in range(10):  # a huge value inside the warm-up does not count
+        y = det.step(0.02 * k, [1000.0 * (k == 9), 0.0])
+        assert y[0] == 0
+
+
+# ------------------------------------------------------------------ fail indicator
+def test_fail_when_interface_outside_expected_window():
+    h = SyntheticHole(t1=7 * MM, seed=5)  # nominal 5 mm CFRP, actual 7 mm
+    _, rec = detect(h, tolerance=0.5 * MM)
+    assert final(rec, "fail") == 1 and final(rec, "fail_code") == 2
+    # it fires when the encoder leaves the window, long before the late interface
+    k = int(np.argmax(rec["fail"] > 0))
+    x_hi = h.surface + 5 * MM + 0.05 * MM + 0.5 * MM
+    assert x_hi <= rec["x"][k] <= x_hi + 0.02 * MM
+    assert rec["flag"][k] == 1
+    # the late interface is still detected and recorded
+    assert final(rec, "x_interface") > h.surface + 6.9 * MM
+
+
+def test_fail_when_interface_early():
+    h = SyntheticHole(t1=3 * MM, seed=6)
+    _, rec = detect(h, tolerance=0.5 * MM)
+    assert final(rec, "fail") == 1 and final(rec, "fail_code") == 2
+    assert math.isclose(rec["t"][np.argmax(rec["fail"] > 0)], final(rec, "t_interface"))
+
+
+def test_fail_when_entry_missing():
+    h = SyntheticHole(surface=1.0, seed=7)  # no workpiece where it should be
+    t, x, _, Fo = h.trace()
+    keep = x < 3 * MM
+    det = InterfaceDetector(surface=1.0 * MM, tolerance=0.5 * MM)
+    _, out = run_block_on_trace(det, t[keep], [Fo[keep], x[keep]])
+    names = det.output_names()
+    o = dict(zip(names, out[-1]))
+    assert o["fail"] == 1 and o["fail_code"] == 1 and o["flag"] == 0
+
+
+def test_fail_on_time_frame_when_feed_stalls():
+    h = SyntheticHole(seed=8, t_after=60.0)
+    t, x, _, Fo = h.trace()
+    # the feed stalls 1 mm into the CFRP: the encoder stops, the force stays
+    x_stall = h.surface + 1 * MM
+    x = np.minimum(x, x_stall)
+    Fo = np.where(x >= x_stall, h.F_cfrp, Fo)
+    det = InterfaceDetector(surface=h.surface, feed_rate=h.feed, time_margin=2.0)
+    ts, out = run_block_on_trace(det, t, [Fo, x])
+    o = dict(zip(det.output_names(), out[-1]))
+    assert o["fail"] == 1 and o["fail_code"] == 2
+    k = int(np.argmax(out[:, det.output_names().index("fail")] > 0))
+    t_max = o["t_entry"] + 2.0 * (h.surface + 5.5 * MM - o["x_entry"]) / h.feed
+    assert abs(ts[k] - t_max) <= 0.021
+
+
+def test_rearm_prevents_false_exit_after_ti_ramp():
+    """Without re-arming, the over-prediction after the steep Ti engagement ramp
+    fires the (negative) exit test right after the interface."""
+    h = SyntheticHole(F_cfrp=203.8, F_ti=714.0, seed=9)
+    b = h.boundaries
+    _, bare = detect(h, rearm_samples=0)
+    _, rec = detect(h)
+    assert final(bare, "x_exit_paper") < b[1] + 0.5 * MM  # false exit near the interface
+    assert final(rec, "x_exit_paper") > b[2] - 0.5 * MM
+
+
+# ------------------------------------------------------------------ adaptation
+STAGES = [
+    dict(flag=0, name="cfrp", feed_rate=0.2e-3, spindle_speed=2000.0, orbital_speed=120.0),
+    dict(flag=2, name="ti", feed_rate=0.1e-3, spindle_speed=1000.0, orbital_speed=60.0),
+]
+
+
+def test_adaptation_switches_within_one_detector_period_and_ramps():
+    h = SyntheticHole(seed=10)
+    dt_fine = 1e-3
+    t, x, _, Fo = h.trace(dt_fine=dt_fine)
+    det = InterfaceDetector(surface=h.surface)
+    ad = CuttingParameterAdaptation(stages=STAGES, ramp_time=0.2)
+    det.reset(0.0)
+    ad.reset(0.0)
+    n_det = round(det.sample_period / dt_fine)
+    held = None
+    feed = np.empty(t.size)
+    spindle = np.empty(t.size)
+    flags = np.empty(t.size)
+    for k in range(t.size):  # the master's loop: detector at 0.02 s, adaptation every step
+        if k % n_det == 0:
+            held = det.step(t[k], [Fo[k], x[k]])
+        y = ad.step(t[k], [held[0], held[7]])
+        feed[k], spindle[k], flags[k] = y[0], y[1], held[0]
+    t_int = held[2]
+    assert math.isfinite(t_int)
+    k_int = int(np.argmax(flags >= 2))
+    assert math.isclose(t[k_int], t_int)
+    assert np.all(feed[:k_int] == 0.2e-3)
+    # changed already in the detection step, i.e. within one detector period
+    k_change = int(np.argmax(feed != 0.2e-3))
+    assert k_change == k_int and t[k_change] - t_int < det.sample_period
+    # raised-cosine ramp: reaches the Ti value after ramp_time, rate bounded
+    assert feed[k_int + 200] == pytest.approx(0.1e-3)
+    assert spindle[k_int + 200] == pytest.approx(1000.0)
+    rate = np.abs(np.diff(feed)) / dt_fine
+    assert rate.max() <= math.pi / 2 * 0.1e-3 / 0.2 * 1.01
+    assert [e[1] for e in ad.log] == ["cfrp", "ti"]
+    assert math.isclose(ad.log[1][0], t_int)
+
+
+def test_adaptation_fail_stage_and_validation():
+    ad = CuttingParameterAdaptation(stages=STAGES, ramp_time=0.0, fail_stage="ti")
+    ad.reset(0.0)
+    assert ad.step(0.0, [1.0, 0.0])[0] == 0.2e-3
+    y = ad.step(0.1, [1.0, 1.0])
+    assert y[0] == 0.1e-3 and y[3] == 1 and y[4] == 0.1
+    with pytest.raises(ValueError):
+        CuttingParameterAdaptation(stages=[dict(flag=0, feed_rate=1e-4, spindle_speed=1.0)])
+    with pytest.raises(ValueError):
+        CuttingParameterAdaptation(stages=STAGES[::-1])
+
+
+def test_slow_thinning_missed_by_paper_found_by_thinning_criterion():
+    """A Ti plate that thins out over 1.6 mm at Table 3's lowest Ti thrust: the thrust
+    falls ~0.7 N per detector sample, the regression follows it and F~ never reaches
+    thd3 (paper: missed exit, flag stays 2 and the fail indicator fires at the end of
+    the exit window); the thinning criterion still finds the exit."""
+    h = SyntheticHole(F_cfrp=83.5, F_ti=277.0, exit_thinning=1.6 * MM, seed=12, t_after=10.0)
+    b = h.boundaries
+    _, rec = detect(h, exit_criterion="paper")
+    assert math.isnan(final(rec, "x_exit_paper"))
+    assert final(rec, "flag") == 2 and final(rec, "fail") == 1 and final(rec, "fail_code") == 3
+    _, rec_t = detect(h, exit_criterion="thinning")
+    assert final(rec_t, "flag") == 3 and final(rec_t, "fail") == 0
+    # early by about exit_ratio * exit_thinning (0.16 mm) instead of the whole 1.6 mm
+    assert abs(final(rec_t, "x_exit_thinning") - b[2]) <= 0.25 * MM
+
+
+def test_non_finite_force_samples_are_skipped():
+    det = InterfaceDetector(N=10, N_min=5)
+    det.reset(0.0)
+    for k in range(8):
+        det.step(0.02 * k, [1.0, 0.0])
+    y = det.step(0.16, [float("nan"), 0.0])
+    assert y[0] == 0 and det.n_buf == 8 and np.isfinite(det.buf[:8]).all()
+    y = det.step(0.18, [100.0, 0.0])   # a step after the gap is still seen
+    assert y[0] == 1
