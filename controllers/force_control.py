@@ -78,6 +78,16 @@ While cutting, ``v_max`` (if finite) caps the feed rate through the velocity loo
 (``a_cmd <= Kv*(v_max - v_hat)``): it limits the run-away when the thrust vanishes
 (an air gap between layers, the exit) before the exit is confirmed.
 
+Calibration
+-----------
+``calibration_file`` (a ``thrust_calibration.json`` of the commissioning reference cut,
+scenario keio_thrust_constant_calibration, :mod:`controllers.calibration`): its
+``Kt_n_cal`` replaces ``force_constant_nominal`` in the current computation and the DOB.
+The mean thrust does not depend on it (the loop's integrator makes the *observer's*
+estimate exact, so the observer must get the same file); it makes the loop gain and the
+conversion acceleration -> current true. ``F_bias`` stays as given: the DOB absorbs any
+error of a static force.
+
 With ``force_control = false`` the block never leaves ``mode`` 0 -- the same stack at
 the trajectory's constant feed, for the side-by-side comparison.
 """
@@ -87,6 +97,7 @@ import math
 from typing import Sequence
 
 from cosim.block import Block, Port
+from controllers.calibration import load_calibration
 from controllers.position_control import RobustAcceleration
 from controllers.trajectory import profile_step
 
@@ -99,7 +110,8 @@ class ThrustForceController(Block):
     Settings (SI; defaults = Keio Table 2)
         Kp [1/s] 25, Kv [1/s] 100, Kf [1] 0.45 (force-servo gain: a_cmd = Kf*error/M_n),
         mass_nominal [kg] 3.95,
-        force_constant_nominal [N/A] 24.0, g_dob [rad/s] 1200, g_vel [rad/s] 2000,
+        force_constant_nominal [N/A] 24.0, calibration_file [path] (thrust_calibration.json:
+        its Kt_n_cal replaces force_constant_nominal), g_dob [rad/s] 1200, g_vel [rad/s] 2000,
         i_max [A] drive limit, F_bias [N] known static force in +z;
         F_cmd [N] default thrust command (start value of the ``F_cmd`` input);
         force_control [bool] (false = position control only);
@@ -147,8 +159,10 @@ class ThrustForceController(Block):
                  t_exit_confirm: float = 5e-3, z_limit: float = math.inf,
                  z_retract: float = 0.0, v_retract: float = 0.005, a_retract: float = 0.05,
                  v_max: float = math.inf, tau_switch: float = 0.01, dt: float = 1e-4,
-                 sample_period: float = 0.0):
+                 sample_period: float = 0.0, calibration_file: str | None = None):
         super().__init__(sample_period)
+        if calibration_file:
+            force_constant_nominal = load_calibration(calibration_file).Kt_n_cal
         for name, val in (("Kp", Kp), ("Kv", Kv), ("Kf", Kf), ("v_retract", v_retract),
                           ("a_retract", a_retract), ("v_max", v_max), ("tau_switch", tau_switch)):
             if not val > 0:

@@ -22,6 +22,8 @@ Definitions (all in :func:`force_scores`)
   there; ``peak_error_transient_N`` covers the whole layer incl. the change. Settling
   is judged up to the same depth (the exit is not a layer change).
 * ``i_ref_max_A`` / ``saturated`` from the controller's exact running maximum and latch.
+* ``thrust_constant``: the observer's force constant -- the commissioned ``Kt_n_cal`` of
+  its ``calibration_file`` (with the reference cut it came from) or the nominal ``Kt_n``.
 * Comparison (``compare_stage``): the same stack at constant feed with force control
   off, run side by side in the same scenario -- mean thrust per layer and the jump at
   each layer change, next to the (vanishing) jump under force control.
@@ -182,6 +184,9 @@ def force_scores(result, stage="stage", controller="controller", observer="obser
                         "mean_error": "F_dyn (raw) minus command, steady part of each layer",
                         "peak_error": f"max |F_dyn low-passed ({filter_time * 1e3:g} ms) - command|, steady part"},
     }
+    if f"{observer}.F_thrust_hat" in result:
+        from controllers.calibration import calibration_in_use   # (it imports this module)
+        out["thrust_constant"] = calibration_in_use(result, observer)
     if len(layers) >= 2:
         # thrust jumps under force control, for the side-by-side with constant feed
         out["layer_change_jumps_N"] = [
@@ -204,6 +209,18 @@ def force_scores(result, stage="stage", controller="controller", observer="obser
 
 
 # ----------------------------------------------------------------------------- figures
+def save_figure(fig, out_dir, file, title) -> Path:
+    """Title, lay out, write ``out_dir/file`` (110 dpi) and close a matplotlib figure."""
+    import matplotlib.pyplot as plt
+
+    fig.suptitle(title)
+    fig.tight_layout()
+    path = Path(out_dir) / file
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def force_figure(result, out_dir, stage="stage", controller="controller", observer="observer",
                  compare_stage=None, compare_controller=None, file="thrust_force_control.png",
                  title="Thrust force control", filter_time=0.005, prefix="force_control"):
@@ -264,6 +281,9 @@ def force_figure(result, out_dir, stage="stage", controller="controller", observ
                            f"settled in {x['settling_time_s'] * 1e3:.0f} ms")
         if summ.get("constant_feed_jumps_N"):
             txt.append("constant-feed jumps: " + ", ".join(f"{j:+.0f} N" for j in summ["constant_feed_jumps_N"]))
+        tc = summ.get("thrust_constant")
+        if tc:
+            txt.append(f"observer Kt_n {tc['Kt_n']:.3f} N/A ({'calibrated' if tc['calibrated'] else 'nominal'})")
         txt.append(f"max |i_ref| {summ['i_ref_max_A']:.2f} A" + (" (saturated)" if summ["saturated"] else ""))
         ax.text(0.99, 0.02, "\n".join(txt), transform=ax.transAxes, ha="right", va="bottom", fontsize=7,
                 bbox=dict(facecolor="white", alpha=0.8, edgecolor="0.8"))
@@ -287,9 +307,4 @@ def force_figure(result, out_dir, stage="stage", controller="controller", observ
     ax.set_xlabel("time [s]")
     ax.grid(alpha=0.3)
     ax2.legend(loc="upper right", fontsize=8)
-    fig.suptitle(title)
-    fig.tight_layout()
-    path = Path(out_dir) / file
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, out_dir, file, title)

@@ -40,7 +40,11 @@ Settings: ``M_n`` [kg], ``Kt_n`` [N/A], ``g_thrust`` [rad/s], ``F_grav_comp`` [N
 ``F_ripple`` (rows [k rad/m, a_sin N, a_cos N]), ``v_eps`` [m/s], ``v_stick`` [m/s],
 ``friction_file`` (friction.json of air_cut_friction_identification_keio: when given it
 replaces the friction settings *and* F_grav_comp, by its identified offset),
-``i_ref_timing``, ``sample_period`` [s] (> 0).
+``calibration_file`` (thrust_calibration.json of keio_thrust_constant_calibration, see
+:mod:`controllers.calibration`: when given its ``Kt_n_cal`` replaces ``Kt_n``, and the
+friction, cogging and gravity efforts -- identified through the uncalibrated constant, the
+friction file's ``force_constant_nominal`` or else the ``Kt_n`` setting -- are scaled by
+``Kt_n_cal`` over that constant), ``i_ref_timing``, ``sample_period`` [s] (> 0).
 
 Timing of ``i_ref``: the motion seen between the previous and this encoder sample was
 produced by the current reference applied over that interval. This block declares no
@@ -55,6 +59,7 @@ sample (100 us) of misalignment, the order of the plant's own current-loop lag.
 from __future__ import annotations
 
 from cosim.block import Block, Port
+from controllers.calibration import load_calibration, rescale_friction
 from controllers.friction import make_friction, resolve_path
 from controllers.nominal_models import KeioNominal, keio_model, zoh
 
@@ -72,7 +77,7 @@ class CuttingForceObserver(Block):
                  F_coulomb: float | None = None, b_viscous: float | None = None,
                  F_stribeck: float | None = None, v_stribeck: float | None = None,
                  F_ripple=None, v_eps: float = 1e-5, v_stick: float = 5e-5,
-                 friction_file: str | None = None,
+                 friction_file: str | None = None, calibration_file: str | None = None,
                  i_ref_timing: str = "held", sample_period: float = KeioNominal.sample_period):
         super().__init__(sample_period)
         self.nominal = KeioNominal(M_n=float(M_n), Kt_n=float(Kt_n), g_thrust=float(g_thrust))
@@ -91,6 +96,13 @@ class CuttingForceObserver(Block):
             self.F_grav_comp = -self.friction.offset
         else:
             self.F_grav_comp = float(F_grav_comp)
+        self.calibration = load_calibration(calibration_file) if calibration_file else None
+        if self.calibration is not None:
+            Kt_id = float(self.friction.info.get("force_constant_nominal", Kt_n)) if friction_file else float(Kt_n)
+            scale = self.calibration.Kt_n_cal / Kt_id
+            self.friction = rescale_friction(self.friction, scale)
+            self.F_grav_comp *= scale
+            self.nominal = KeioNominal(M_n=float(M_n), Kt_n=self.calibration.Kt_n_cal, g_thrust=float(g_thrust))
         if not v_stick >= 0:
             raise ValueError(f"CuttingForceObserver: v_stick must be >= 0 m/s, got {v_stick!r}")
         self.v_stick = float(v_stick)

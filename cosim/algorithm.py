@@ -8,7 +8,12 @@ Every communication step n (t = t0 + n*h)::
     check the condition events
     record the row (every `decimation` steps)
     write the inputs of every FMU          (one setReal per FMU)
-    doStep(t, h) on every FMU
+    doStep(t, h) on every FMU              (optionally with step rejection, below)
+
+With ``step_rejection_floor`` [s] (scenario key ``[scenario] step_rejection_floor``), a
+step that an FMU answers with Discard is rolled back for every FMU that can save its
+state and retried with halved steps down to the floor (:mod:`cosim.step_rejection`);
+without it a Discard stops the run, and the loop is exactly the plain one.
 
 All values travel on one flat Python list, the *bus*: each FMU output that anyone
 reads, each block output and each unconnected block input owns one slot. The loop
@@ -26,6 +31,7 @@ from .errors import ScenarioError, SimulationError
 from .manipulators import OPERATORS, Event, fire_step, parse_condition, setter_for
 from .recorder import Recorder, Result
 from .slave import TERMINATE_REQUESTED
+from .step_rejection import StepRejection, member_for
 
 CHUNK_STEPS = 4096          # steps between CSV flushes / progress updates
 PROGRESS_MIN_STEPS = 20000  # show a progress bar only on runs at least this long
@@ -43,12 +49,11 @@ class RunInfo:
     wall_time_s: float = 0.0
     events_fired: list = field(default_factory=list)
     error: str | None = None
+    step_rejection: dict | None = None   # floor, rejected, retried_steps, smallest_step [s]
 
     def as_dict(self) -> dict:
-        d = dict(self.__dict__)
-        if d["error"] is None:
-            d.pop("error")
-        return d
+        return {k: v for k, v in self.__dict__.items()
+                if v is not None or k not in ("error", "step_rejection")}
 
 
 def _getter(indices: list[int]):
@@ -105,7 +110,8 @@ def _fmu_reads(system, extra_signals) -> dict[str, list[str]]:
 
 
 def simulate(system, stop_time: float, recorder: Recorder | None = None,
-             events: list[Event] = (), progress: bool = False, extra_record=()) -> RunInfo:
+             events: list[Event] = (), progress: bool = False, extra_record=(),
+             step_rejection_floor: float | None = None) -> RunInfo:
     """Run ``system`` from its start time to ``stop_time`` [s] (or an earlier stop event).
 
     Rows go to ``recorder`` as they are produced; the caller finishes the recorder
@@ -179,6 +185,7 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
 
     # -- instantiate ---------------------------------------------------------------
     started, failed = [], None
+    rejection = None
     rows: list = []
     bar = None
     wall0 = _time.perf_counter()
@@ -200,6 +207,11 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                 gi, sc = inputs_of([f"{slave.name}.{v}" for v in in_names])
                 writes.append((put, ibuf, gi, sc, slave))
             steppers.append((do_step, slave))
+        if step_rejection_floor:
+            # one stepper that steps every FMU with rollback and retry: the loop is unchanged
+            rejection = StepRejection([member_for(slave, do_step) for do_step, slave in steppers],
+                                      step_rejection_floor)
+            steppers = [(rejection.step, _AnyOf(system.slaves))]
         values = bus.values
         bus_len = len(values)
 
@@ -326,12 +338,23 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
         raise err from e
     finally:
         info.wall_time_s = _time.perf_counter() - wall0
+        if rejection is not None:
+            st = rejection.stats
+            info.step_rejection = {"floor": step_rejection_floor, "rejected": st.rejected,
+                                   "retried_steps": st.retried_steps, "smallest_step": st.smallest_step}
         if recorder is not None and rows:
             recorder.write(rows)
         if bar is not None:
             bar.close()
         for slave in started:
             slave.free(failed=(slave.name == failed))
+
+
+class _AnyOf:
+    """Stands for all the slaves stepped together by :class:`StepRejection` (in messages)."""
+
+    def __init__(self, slaves):
+        self.name = "' or '".join(slaves)
 
 
 def _record_failure(info: RunInfo, e: SimulationError, n: int, t0: float, h: float) -> None:
@@ -365,15 +388,16 @@ def _unit(system, signal: str) -> str | None:
     return system.source(signal).unit
 
 
-def run(system, stop_time: float, recorder: Recorder | None = None, events=(), progress: bool = False
-        ) -> Result:
+def run(system, stop_time: float, recorder: Recorder | None = None, events=(), progress: bool = False,
+        step_rejection_floor: float | None = None) -> Result:
     """Python API without a scenario file: simulate and return the :class:`Result`.
 
     On a :class:`SimulationError` the partial result is attached as ``error.result``.
     """
     recorder = recorder if recorder is not None else Recorder()
     try:
-        info = simulate(system, stop_time, recorder, events, progress)
+        info = simulate(system, stop_time, recorder, events, progress,
+                        step_rejection_floor=step_rejection_floor)
     except SimulationError as e:
         e.result = recorder.finish()
         raise

@@ -1,4 +1,4 @@
-"""``drillcosim`` command line: run, list, info, plot."""
+"""``drillcosim`` command line: run, list, info, plot, validate."""
 from __future__ import annotations
 
 import argparse
@@ -72,11 +72,15 @@ def cmd_list(args) -> int:
 
 def cmd_info(args) -> int:
     from .errors import CosimError
-    from .slave import load_model, resolve_fmu_path
+    from .model_exchange import load_any_model
+    from .slave import resolve_fmu_path
     try:
-        model = load_model(resolve_fmu_path(args.fmu, Path.cwd()))
+        model = load_any_model(resolve_fmu_path(args.fmu, Path.cwd()))   # co-simulation or Model Exchange
     except (CosimError, OSError) as e:
         print(f"drillcosim: {e}", file=sys.stderr)
+        return 1
+    except Exception as e:     # not a zip, bad XML, ...
+        print(f"drillcosim: cannot read the FMU {args.fmu}: {type(e).__name__}: {e}", file=sys.stderr)
         return 1
     md = model.model_description
     kinds = [k for k, iface in (("CS", md.coSimulation), ("ME", md.modelExchange)) if iface is not None]
@@ -143,6 +147,11 @@ def main(argv: list[str] | None = None) -> int:
     pl.add_argument("--signals", nargs="+", help="signals to plot (default: all)")
     pl.add_argument("--out", help="PNG file (default RESULT_DIR/signals.png)")
     pl.set_defaults(func=cmd_plot)
+    from . import validate
+    v = sub.add_parser("validate", help="compare a run with a reference CSV (tolerance tubes); "
+                                        "exit 1 when a signal leaves its tube")
+    validate.add_arguments(v)
+    v.set_defaults(func=validate.run)
     args = p.parse_args(argv)
     return args.func(args)
 

@@ -3,11 +3,16 @@
 A connection copies one output (FMU output variable or block output port) to one
 input (FMU input variable or block input port) every communication step, optionally
 converted: ``to = scale * from + offset``. Names may differ on the two sides, which is
-also the name mapping that lets another tool's FMU stand in for a plant.
+also the name mapping that lets another tool's FMU stand in for a plant. Without a
+stated scale/offset, different declared units are converted (``mm`` -> ``m``, ``rpm`` ->
+``rad/s``) and different dimensions are refused.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Iterable
+
+from .units import connection_conversion
 
 # Spellings of "dimensionless" that mean the same thing to a reader.
 _DIMENSIONLESS = {"1", "-", ""}
@@ -31,18 +36,35 @@ def normalize_unit(unit: str | None) -> str | None:
     return "1" if u in _DIMENSIONLESS else u
 
 
-def unit_problem(from_signal: str, from_unit: str | None, to_signal: str, to_unit: str | None,
-                 converted: bool) -> str | None:
-    """Why this connection is refused, or None.
+def unit_conversion(from_signal: str, from_unit: str | None, to_signal: str, to_unit: str | None,
+                    model_descriptions: Iterable = ()) -> tuple[float, float] | None:
+    """``(scale, offset)`` that converts ``from_unit`` into ``to_unit``, or None when no
+    conversion is needed (same unit, or one side declares none: it cannot be checked).
 
-    Equal units pass; a unit an FMU does not declare cannot be checked and passes; a
-    mismatch passes only when the connection says how to convert (scale/offset given).
+    Definitions come from the FMUs' ``<UnitDefinitions>`` (``model_descriptions``), else
+    from the table of unambiguous names in :mod:`cosim.units`. Raises
+    :class:`cosim.units.UnitError` naming both ends when the dimensions disagree or a
+    unit is unknown.
     """
     a, b = normalize_unit(from_unit), normalize_unit(to_unit)
-    if a is None or b is None or a == b or converted:
+    if a is None or b is None or a == b:
         return None
-    return (f"unit mismatch: {from_signal} is [{from_unit}] but {to_signal} expects [{to_unit}]; "
-            f"give scale (and offset) to convert, to = scale * from + offset")
+    scale, offset, _how = connection_conversion(
+        from_unit, to_unit, [_Defined(md) for md in model_descriptions],
+        where=f"unit mismatch: {from_signal} is [{from_unit}] but {to_signal} expects [{to_unit}]")
+    return scale, offset
+
+
+class _Defined:
+    """The units an FMU defines: ``<Unit>`` entries with a ``<BaseUnit>``. A bare
+    ``<Unit name="m/s"/>`` names a unit without saying its dimension; it must not be
+    taken as dimensionless (m/s -> m would pass as identity), so it is left to the
+    table of known names."""
+
+    def __init__(self, model_description):
+        self.modelName = model_description.modelName
+        self.unitDefinitions = [u for u in model_description.unitDefinitions or []
+                                if u.baseUnit is not None]
 
 
 @dataclass(frozen=True)

@@ -55,7 +55,7 @@ def run_scenario(scenario, out_dir=None, overrides: dict | None = None, progress
                "overrides": sc.overrides}
     try:
         info = simulate(sc.system, sc.stop_time, recorder, sc.events, progress,
-                        extra_record=sc.plotted_signals())
+                        extra_record=sc.plotted_signals(), step_rejection_floor=sc.step_rejection_floor)
     except SimulationError as e:
         result = recorder.finish()
         summary.update(status="failed", stop_time=sc.stop_time, time_reached=e.time,

@@ -23,7 +23,8 @@ from pathlib import Path
 
 from .errors import AlgebraicLoopError, CosimError, ScenarioError
 from .manipulators import Event, parse_condition, setter_for
-from .slave import load_model, resolve_fmu_path
+from .model_exchange import SOLVERS, create_slave
+from .slave import resolve_fmu_path
 from .system import System
 
 # --- shape ---------------------------------------------------------------------------
@@ -35,8 +36,11 @@ SECTIONS = {"scenario": TABLE, "fmus": TABLE, "blocks": TABLE, "connections": "a
             "record": TABLE, "events": "an array of tables", "plots": "an array of tables",
             "scores": "an array of tables"}
 SCENARIO_KEYS = {"name": STRING, "description": STRING, "step_size": POSITIVE, "stop_time": POSITIVE,
-                 "start_time": NUMBER}
-FMU_KEYS = {"path": STRING, "parameters": TABLE, "logging": BOOL}
+                 "start_time": NUMBER, "step_rejection_floor": POSITIVE}
+INTERFACE, SOLVER = "'CS' or 'ME'", " or ".join(f"'{s}'" for s in SOLVERS)
+SOLVER_KEYS = ("solver", "solver_step", "rel_tol", "max_step")    # Model Exchange only
+FMU_KEYS = {"path": STRING, "parameters": TABLE, "logging": BOOL, "interface": INTERFACE,
+            "solver": SOLVER, "solver_step": POSITIVE, "rel_tol": POSITIVE, "max_step": POSITIVE}
 BLOCK_KEYS = {"class": STRING, "sample_period": NONNEG, "settings": TABLE}
 CONNECTION_KEYS = {"from": STRING, "to": STRING, "scale": NUMBER, "offset": NUMBER}
 RECORD_KEYS = {"signals": STRINGS, "decimation": INTEGER1}
@@ -72,6 +76,10 @@ def _type_ok(expected: str, v) -> bool:
         return _is_number(v) or isinstance(v, bool)
     if expected == EVENT_KEYS["action"]:
         return v in ("set", "stop")
+    if expected == INTERFACE:
+        return isinstance(v, str) and v.upper() in ("CS", "ME")
+    if expected == SOLVER:
+        return isinstance(v, str) and v.lower() in SOLVERS
     if expected == PLOT_KEYS["y"]:
         return isinstance(v, list) and v and (all(isinstance(x, str) for x in v) or all(
             isinstance(g, list) and g and all(isinstance(x, str) for x in g) for g in v))
@@ -190,6 +198,7 @@ class Scenario:
     stop_time: float
     start_time: float
     system: System
+    step_rejection_floor: float | None = None     # s; None: a Discard stops the run
     record_signals: list = field(default_factory=lambda: ["*"])
     decimation: int = 1
     events: list = field(default_factory=list)
@@ -226,6 +235,15 @@ def _construct_block(cls, name: str, spec: dict, c: _Checker):
         raise c.error(f"{key}.settings", f"{cls.__name__}(**settings) failed: {e}") from None
 
 
+def _fmu_error_key(spec: dict, opts: dict, message: str) -> str:
+    """The ``[fmus.<name>]`` key a :func:`create_slave` error is about."""
+    if "interface" in spec and " interface" in message:
+        return "interface"            # the FMU does not offer the interface asked for
+    if opts and "solver" in message:
+        return "solver" if "solver" in opts else next(iter(opts))   # solver options on a CS FMU
+    return "path"
+
+
 def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
           name_default: str = "scenario") -> Scenario:
     """Check ``raw`` (a parsed TOML dict, overrides applied) and build the :class:`Scenario`."""
@@ -240,16 +258,23 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
         raise c.error("scenario.stop_time", f"expected a time after start_time ({system.start_time} s), "
                                             f"got {sc['stop_time']!r}")
 
+    floor = sc.get("step_rejection_floor")
+    if floor is not None and floor >= system.step_size:
+        raise c.error("scenario.step_rejection_floor", f"expected a floor below step_size "
+                                                       f"({system.step_size!r} s), got {floor!r}")
+
     for name, spec in raw.get("fmus", {}).items():
         key = f"fmus.{name}"
+        opts = {k: spec[k] for k in SOLVER_KEYS if k in spec}
         try:
-            model = load_model(resolve_fmu_path(spec["path"], base_dir))
+            slave = create_slave(name, resolve_fmu_path(spec["path"], base_dir), spec.get("parameters", {}),
+                                 spec.get("logging", True), interface=spec.get("interface"), **opts)
         except CosimError as e:
-            raise c.error(f"{key}.path", str(e)) from None
+            raise c.error(f"{key}.{_fmu_error_key(spec, opts, str(e))}", str(e)) from None
         except Exception as e:   # not a zip, bad XML, ...
             raise c.error(f"{key}.path", f"cannot read the FMU: {type(e).__name__}: {e}") from None
         try:
-            system.add_fmu(name, model, spec.get("parameters", {}), spec.get("logging", True))
+            system.add_fmu(name, slave)
         except ScenarioError as e:
             raise c.error(f"{key}.{e.key}" if e.key else key, e.detail) from None
 
@@ -345,7 +370,8 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
 
     return Scenario(path=None, name=sc.get("name", name_default), description=sc.get("description", ""),
                     step_size=system.step_size, stop_time=float(sc["stop_time"]),
-                    start_time=system.start_time, system=system, record_signals=signals,
+                    start_time=system.start_time, system=system, step_rejection_floor=floor,
+                    record_signals=signals,
                     decimation=rec.get("decimation", 1), events=events, plots=plots, scores=scores, raw=raw)
 
 

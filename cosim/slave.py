@@ -212,16 +212,14 @@ class FMUSlave:
                                      logMessage=lambda env, status, cat, msg:
                                      self._log_message(status, cat, msg))
             else:
-                from fmpy.fmi2 import (FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE,
-                                       fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE)
+                from fmpy.fmi2 import FMU2Slave
+
+                from .model_exchange import fmi2_callbacks
                 self.fmu = FMU2Slave(**kw)
-                cb = fmi2CallbackFunctions()
-                cb.logger = fmi2CallbackLoggerTYPE(
-                    lambda env, inst, status, cat, msg: self._log_message(status, cat, msg))
-                cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
-                cb.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
-                from fmpy.logging import addLoggerProxy   # formats the C varargs of the message
-                addLoggerProxy(byref(cb))
+                # fmpy's native logger proxy holds ONE process-wide logger: a logger per
+                # instance would route every FMU's messages to the last instance (and call
+                # freed memory once it is gone). One dispatcher routes by instance instead.
+                cb = fmi2_callbacks(self)
                 self._callbacks = cb                      # keep alive while the FMU lives
                 self.fmu.instantiate(callbacks=cb, loggingOn=self.logging)
         except Exception as e:

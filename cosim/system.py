@@ -1,6 +1,7 @@
 """The system under simulation: FMU slaves, Python blocks and the connections between them.
 
-Everything here is checked when it is added (names, units, ports, sample periods, the
+Everything here is checked when it is added (names, units -- converted from the
+declared unit definitions when they differ --, ports, sample periods, the
 honest-physics guard), so that a wrong system fails before any FMU is instantiated.
 The block order (who runs first within a step) is derived from the connection graph.
 """
@@ -10,9 +11,10 @@ import re
 from dataclasses import dataclass
 
 from .block import Block
-from .connections import Connection, split_signal, unit_problem
+from .connections import Connection, split_signal, unit_conversion
 from .errors import AlgebraicLoopError, ScenarioError
 from .slave import FMUModel, FMUSlave
+from .units import UnitError
 
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 PERIOD_RTOL = 1e-9     # sample_period must be k*h within this relative tolerance
@@ -98,23 +100,30 @@ class System:
 
     def connect(self, src: str, dst: str, scale: float | None = None,
                 offset: float | None = None) -> Connection:
-        """``dst = scale * src + offset`` every step (errors carry key 'from'/'to')."""
+        """``dst = scale * src + offset`` every step (errors carry key 'from'/'to').
+
+        Without scale and offset, different declared units are converted (see
+        :func:`cosim.connections.unit_conversion`); a stated scale/offset wins.
+        """
         a = self._resolve(src, "from", want="output")
         b = self._resolve(dst, "to", want="input")
-        conn = Connection(a.signal, b.signal, scale, offset)
-        if b.signal in self._driven:
-            raise ScenarioError(f"{b.signal} is already connected from {self._driven[b.signal].src}; "
-                                "an input takes one connection", key="to")
-        problem = unit_problem(a.signal, a.unit, b.signal, b.unit, conn.converted)
-        if problem:
-            raise ScenarioError(problem, key="to")
-        if a.scoring_only and b.kind == "block":
+        if a.scoring_only and b.kind == "block":      # honest physics first, whatever the units
             block = self.blocks[b.instance]
             if not getattr(type(block), "scorer", False):
                 raise ScenarioError(
                     f"{a.signal} is scoring only ('{a.description}'); block '{b.instance}' "
                     f"({type(block).__name__}) may not read it: only blocks with class attribute "
                     "scorer = True may (the observers must not see the true plant)", key="from")
+        if b.signal in self._driven:
+            raise ScenarioError(f"{b.signal} is already connected from {self._driven[b.signal].src}; "
+                                "an input takes one connection", key="to")
+        if scale is None and offset is None:
+            mds = [self.slaves[x.instance].model.model_description for x in (a, b) if x.kind == "fmu"]
+            try:
+                scale, offset = unit_conversion(a.signal, a.unit, b.signal, b.unit, mds) or (None, None)
+            except UnitError as e:
+                raise ScenarioError(str(e), key="to") from None
+        conn = Connection(a.signal, b.signal, scale, offset)
         self.connections.append(conn)
         self._driven[b.signal] = conn
         return conn

@@ -77,3 +77,33 @@ def test_open_loop_linear_stage_smoke(tmp_path):
     assert r.summary["status"] == "completed" and len(r.time) == 151
     assert r["stage.z_enc"].max() > 1e-3          # 0.6 A overcomes the friction: it moves
     assert (tmp_path / "ol" / "open_loop.png").exists()
+
+
+def test_info_model_exchange_only_fmu(tmp_path, capsys):
+    from tests.third_party import c_test_fmu
+    try:
+        fmu = c_test_fmu.build(tmp_path, interfaces="ME")
+    except RuntimeError as e:
+        pytest.skip(str(e))
+    assert main(["info", str(fmu)]) == 0
+    out = capsys.readouterr().out
+    assert "FMI version: 2.0" in out and "kind: ME" in out and "model identifier: EventsDiscard" in out
+    line = next(l for l in out.splitlines() if l.strip().startswith("v "))
+    assert "output" in line and " m/s " in line and "ball velocity" in line
+    assert main(["info", str(tmp_path / "none.fmu")]) == 1 and "does not exist" in capsys.readouterr().err
+
+
+def test_validate_against_reference_csv(scenario_file, tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["run", str(scenario_file), "--out", str(out), "--quiet"]) == 0
+    capsys.readouterr()
+    ref = tmp_path / "reference.csv"             # as a Modelica tool writes it: time + named signals
+    rows = (out / "data.csv").read_text().splitlines()
+    ref.write_text("\n".join(["time,mass.x"] + [",".join(r.split(",")[:2]) for r in rows[1:]]) + "\n")
+    assert main(["validate", str(out), str(ref)]) == 0
+    assert "mass.x" in capsys.readouterr().out
+    off = [r.split(",")[:2] for r in rows[1:]]
+    ref.write_text("\n".join(["time,mass.x"] + [f"{t},{float(x) + 1e-3}" for t, x in off]) + "\n")
+    assert main(["validate", str(out), str(ref), "--abs-tol", "1e-4"]) == 1
+    printed = capsys.readouterr().out
+    assert "mass.x" in printed and "FAIL" in printed.upper()

@@ -216,3 +216,77 @@ def test_fmu_to_fmu_scaled_connections_and_block_input_events(mass_fmu):
     assert np.allclose(r["follower.u"], 1000.0 * r["mass.x"] + 1.0)  # recorded as written at t
     assert np.array_equal(r["probe.x"], 2.0 * r["mass.v"]) and np.array_equal(r["probe.y"], r["probe.x"])
     assert np.all(r["free.y"][r.time < 0.0295] == 0.0) and np.all(r["free.y"][r.time > 0.0295] == 7.0)
+
+
+# --- issue #7 wiring: FMI 2.0 logging per instance, units, step rejection ---------------
+@pytest.fixture(scope="module")
+def discard_fmu(tmp_path_factory):
+    """FMI 2.0 CS FMU (tests/third_party): x' = u, doStep above discard_above -> Discard
+    (logged), canGetAndSetFMUstate."""
+    from tests.third_party import c_test_fmu
+    try:
+        return c_test_fmu.build(tmp_path_factory.mktemp("discard"), interfaces="CS")
+    except RuntimeError as e:
+        pytest.skip(str(e))
+
+
+def test_fmi2_log_messages_reach_their_own_instance(discard_fmu):
+    """fmpy's native logger proxy is process-wide: the master routes by instance, so the
+    first instance's message lands in its log, and freeing the last one is harmless."""
+    import gc
+    a = FMUSlave("a", discard_fmu, {"discard_above": 0.03})
+    b = FMUSlave("b", discard_fmu)                    # created last: got every message before
+    try:
+        a.instantiate(0.0, 1.0)
+        b.instantiate(0.0, 1.0)
+        step_a = a.step_io([], [])[4]
+        assert step_a(0.0, 0.1) == 2                  # Discard, with a log message
+        assert "discarded" in a.last_message() and not any("discarded" in m for _s, _c, m in b.log)
+        b.free()
+        del b
+        gc.collect()
+        assert step_a(0.0, 0.1) == 2                  # logging after the other is gone: no crash
+        assert sum("discarded" in m for _s, _c, m in a.log) == 2
+    finally:
+        a.free()
+
+
+def test_units_converted_from_declared_definitions(mass_fmu):
+    s = System(step_size=1e-3)
+    s.add_fmu("mass", mass_fmu, parameters={"m": 1.0})
+    s.add_block("force", Constant(2.0, unit="kN"))
+    conn = s.connect("force.y", "mass.u")             # kN -> N: x1000, no scale needed
+    assert conn.factor == pytest.approx(1e3) and conn.bias == 0.0
+    s.add_block("p", Probe(unit="mm"))
+    s.connect("mass.x", "p.x")                        # m -> mm
+    r = run(s, 0.01, Recorder(["mass.u_seen", "mass.x", "p.y"]))
+    assert np.all(r["mass.u_seen"][1:] == 2000.0)
+    assert np.allclose(r["p.y"], 1e3 * r["mass.x"])
+    assert "step_rejection" not in r.summary                      # off unless asked for
+    s.add_block("q", Probe(unit="A"))
+    with pytest.raises(ScenarioError, match=r"mass\.v is \[m/s\] but q\.x expects \[A\].*dimension") as e:
+        s.connect("mass.v", "q.x")
+    assert e.value.key == "to"
+    assert s.connect("mass.v", "q.x", scale=0.5).factor == 0.5     # a stated scale wins
+    s.add_block("r", Probe(unit="A"))
+    with pytest.raises(ScenarioError, match="scoring only"):      # refused for that, not for units
+        s.connect("mass.x_true", "r.x")
+
+
+def test_step_rejection_in_the_master(discard_fmu):
+    def system():
+        s = System(step_size=0.1)
+        s.add_fmu("d", discard_fmu, {"discard_above": 0.03})
+        s.add_block("u", Constant(1.0, unit="m/s2"))
+        s.connect("u.y", "d.u")
+        return s
+    r = run(system(), 1.0, Recorder(["d.x", "d.n_steps_done"]), step_rejection_floor=1e-3)
+    assert np.allclose(r["d.x"], r.time, rtol=1e-12)              # x' = 1, every step retried
+    assert r["d.n_steps_done"][-1] == 40                          # 0.1 -> 0.05 -> 0.025
+    assert r.summary["step_rejection"] == {"floor": 1e-3, "rejected": 30, "retried_steps": 10,
+                                           "smallest_step": pytest.approx(0.025)}
+    with pytest.raises(SimulationError, match="floor"):
+        run(system(), 1.0, step_rejection_floor=0.04)
+    with pytest.raises(SimulationError, match="doStep returned Discard") as e:      # off: stops
+        run(system(), 1.0)
+    assert "discard_above" in e.value.fmu_message

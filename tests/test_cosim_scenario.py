@@ -190,3 +190,92 @@ def test_fmu_failure_in_scenario_keeps_rows_and_writes_summary(scenario_file, tm
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "failed" and summary["failed_instance"] == "mass"
     assert "simulated plant failure" in summary["fmu_message"] and summary["rows_recorded"] == 31
+
+
+# --- issue #7: Model Exchange FMUs, solver keys, step rejection --------------------------
+BALL = """
+[scenario]
+step_size = {h}
+stop_time = {stop}
+
+[fmus.ball]
+path = "{fmu}"
+[fmus.ball.parameters]
+{parameters}
+
+[blocks.push]
+class = "cosim.sources:Constant"
+[blocks.push.settings]
+value = {u}
+unit = "m/s2"
+
+[[connections]]
+from = "push.y"
+to = "ball.u"
+"""
+
+
+@pytest.fixture(scope="module")
+def ball_fmus(tmp_path_factory):
+    """The third-party test FMU (bouncing ball + x' = u, Discard above a step size) as
+    ME-only and as ME + CS."""
+    from tests.third_party import c_test_fmu
+    d = tmp_path_factory.mktemp("ball")
+    try:
+        return {k: c_test_fmu.build(d, interfaces=k) for k in ("ME", "both")}
+    except RuntimeError as e:
+        pytest.skip(str(e))
+
+
+def ball_scenario(tmp_path, fmu, h=0.01, stop=0.3, u=0.0, parameters="", **scenario_keys):
+    p = tmp_path / "ball.toml"
+    text = BALL.format(h=h, stop=stop, fmu=fmu, u=u, parameters=parameters)
+    extra = "".join(f"{k} = {v!r}\n" for k, v in scenario_keys.items())
+    p.write_text(text.replace("[fmus.ball]\n", "[fmus.ball]\n" + extra.replace("'", '"'), 1))
+    return p
+
+
+@pytest.mark.parametrize("solver", [{"solver": "rk4", "solver_step": 1e-3}, {"solver": "cvode", "rel_tol": 1e-8}])
+def test_model_exchange_fmu_with_solver_keys(ball_fmus, tmp_path, solver):
+    from cosim.model_exchange import ModelExchangeSlave
+    path = ball_scenario(tmp_path, ball_fmus["both"], interface="ME", **solver)
+    sc = load_scenario(path)
+    assert isinstance(sc.system.slaves["ball"], ModelExchangeSlave)
+    assert sc.system.slaves["ball"].solver_name == solver["solver"]
+    r = run_scenario(sc, out_dir=tmp_path / "out", progress=False)
+    assert np.allclose(r["ball.h"], 1.0 - 9.81 / 2 * r.time ** 2, atol=1e-6)   # free fall, no bounce yet
+
+
+def test_model_exchange_only_fmu_needs_no_interface_key(ball_fmus, tmp_path):
+    sc = load_scenario(ball_scenario(tmp_path, ball_fmus["ME"]))
+    assert type(sc.system.slaves["ball"]).__name__ == "ModelExchangeSlave"
+
+
+@pytest.mark.parametrize("fmu,keys,key,fragments", [
+    ("ME", {"solver": "euler"}, "fmus.ball.solver", ["expected 'rk4' or 'cvode'", "euler"]),
+    ("ME", {"interface": "CS"}, "fmus.ball.interface", ["no CS interface", "offers ME"]),
+    ("ME", {"interface": "XY"}, "fmus.ball.interface", ["expected 'CS' or 'ME'"]),
+    ("ME", {"rel_tol": -1.0}, "fmus.ball.rel_tol", ["expected a number > 0"]),
+    ("both", {"interface": "CS", "solver": "rk4"}, "fmus.ball.solver", ["only apply to Model Exchange"]),
+])
+def test_model_exchange_keys_are_checked(ball_fmus, tmp_path, fmu, keys, key, fragments):
+    expect_error(ball_scenario(tmp_path, ball_fmus[fmu], **keys), None, key, *fragments)
+
+
+def test_step_rejection_floor(ball_fmus, tmp_path):
+    """A CS FMU discards steps above 0.03 s: with a floor the master retries with halved
+    steps (stats in summary.json), without one the run stops with the FMU's message."""
+    path = ball_scenario(tmp_path, ball_fmus["both"], h=0.1, stop=1.0, u=1.0, parameters="discard_above = 0.03")
+    text = path.read_text()
+    path.write_text(text.replace("stop_time = 1.0\n", "stop_time = 1.0\nstep_rejection_floor = 1e-3\n"))
+    r = run_scenario(path, out_dir=tmp_path / "ok", progress=False)
+    assert np.allclose(r["ball.x"], r.time)
+    summary = json.loads((tmp_path / "ok" / "summary.json").read_text())
+    assert summary["step_rejection"] == {"floor": 1e-3, "rejected": 30, "retried_steps": 10,
+                                         "smallest_step": 0.025}
+    expect_error(path, {"scenario.step_rejection_floor": 0.1}, "scenario.step_rejection_floor",
+                 "below step_size")
+    path.write_text(text)
+    with pytest.raises(SimulationError, match="Discard"):
+        run_scenario(path, out_dir=tmp_path / "off", progress=False)
+    assert "step_rejection" not in json.loads((tmp_path / "off" / "summary.json").read_text())

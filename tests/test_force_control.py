@@ -7,15 +7,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from controllers.calibration import fit_thrust_constant, load_calibration, steady_levels
 from controllers.force_control import ThrustForceController
 from controllers.force_scoring import layer_scores, moving_average
 from controllers.trajectory import FeedTrajectory
-from fmus.spec import KT_TRUE
 from test_position_control_toyplant import ToyForceObserver, ToyStage, run_loop
 
 ROOT = Path(__file__).resolve().parents[1]
 FIG4 = ROOT / "scenarios" / "keio_fig4_composite_force_control.toml"
 FIG7 = ROOT / "scenarios" / "keio_fig7_aluminium_force_control.toml"
+CAL = ROOT / "scenarios" / "keio_thrust_constant_calibration.toml"
+CAL_FILE = ROOT / "scenarios" / "calibration" / "keio_stage_thrust_calibration.json"
+UNCALIBRATED = {"blocks.observer.settings.calibration_file": "",
+                "blocks.controller.settings.calibration_file": ""}
 F_BIAS = 3.95 * 9.81 - 40.0
 SURF = 1e-3
 # CFRP-like / 2.5x harder / CFRP-like, 0.5 mm each, at 3000 rpm: Kc_v = kc/50
@@ -105,23 +109,97 @@ def test_kf_readings_table2():
     assert n_si > 2.0 * n_servo
 
 
+# ----------------------------------------------------------------- thrust-constant calibration
+def _true_Kt() -> float:
+    """Scoring only: the plant's Kt, the start value in the FMU's model description."""
+    from cosim.slave import load_model, resolve_fmu_path
+    return float(load_model(resolve_fmu_path("LinearStage", ROOT / "scenarios")).variables["Kt"].start)
+
+
+def test_calibration_fit_keeps_offsets_out_of_the_gain():
+    """F_dyn = 0.97 F_hat - 0.4 N at three levels, plus noise that the level means remove:
+    the intercept takes the offset, the gain is exact; one level is refused."""
+    rng = np.random.default_rng(0)
+    t = np.arange(0.0, 3.0, 2e-4)
+    cmd = np.where(t < 1.0, 40.0, np.where(t < 2.0, 70.0, 30.0))
+    F_hat = cmd + rng.normal(0.0, 0.5, len(t))
+    F_dyn = 0.97 * cmd - 0.4 + rng.normal(0.0, 1.0, len(t))
+    levels = steady_levels(t, F_dyn, F_hat, cmd, np.ones(len(t), bool))
+    assert [x["F_cmd_N"] for x in levels] == [40.0, 70.0, 30.0]
+    fit = fit_thrust_constant(levels, 24.0)
+    assert fit["gain"] == pytest.approx(0.97, rel=2e-3)
+    assert fit["Kt_n_cal"] == pytest.approx(24.0 * 0.97, rel=2e-3)
+    assert fit["intercept_N"] == pytest.approx(-0.4, abs=0.15)
+    with pytest.raises(ValueError, match="two or more force levels"):
+        fit_thrust_constant(levels[:1], 24.0)
+
+
+def test_observer_and_controller_take_the_calibration_file():
+    from controllers.keio_observer import CuttingForceObserver
+    cal = load_calibration(CAL_FILE)
+    kw = dict(F_coulomb=8.0, b_viscous=30.0, F_grav_comp=0.7, F_ripple=[[392.7, -1.0, 0.0]])
+    nominal = CuttingForceObserver(**kw)
+    obs = CuttingForceObserver(calibration_file=str(CAL_FILE.relative_to(ROOT)), **kw)
+    s = cal.Kt_n_cal / 24.0
+    assert obs.nominal.Kt_n == cal.Kt_n_cal and nominal.nominal.Kt_n == 24.0
+    # efforts identified through the nominal 24 N/A are rescaled with it
+    assert obs.friction.coulomb == pytest.approx(8.0 * s) and obs.friction.viscous == pytest.approx(30.0 * s)
+    assert obs.F_grav_comp == pytest.approx(0.7 * s) and obs.friction.ripple[0][1] == pytest.approx(-s)
+    fc = ThrustForceController(calibration_file=str(CAL_FILE))
+    assert fc.core.Kt == cal.Kt_n_cal
+
+
+def test_no_block_reads_the_dynamometer():
+    """Calibration and control are sensorless: only scores / plots see F_dyn and the truth."""
+    import tomllib
+    for path in (CAL, FIG7, FIG4):
+        raw = tomllib.loads(path.read_text())
+        for c in raw["connections"]:
+            assert "F_dyn" not in c["from"] and "_true" not in c["from"], (path.name, c)
+
+
+@pytest.fixture(scope="module")
+def calibration_run(tmp_path_factory):
+    from cosim import run_scenario
+    out = tmp_path_factory.mktemp("cal")
+    return run_scenario(CAL, out_dir=out, progress=False), out
+
+
+def test_calibration_reference_cut_reproduces_the_shipped_constant(calibration_run, tmp_path):
+    r, out = calibration_run
+    s = r.summary["thrust_calibration"]
+    written = load_calibration(out / "thrust_calibration.json")
+    shipped = load_calibration(CAL_FILE)
+    assert written.Kt_n_cal == pytest.approx(shipped.Kt_n_cal, rel=0.005)      # re-run reproduces it
+    assert written.info["source"]["seed"] == 11 == shipped.info["source"]["seed"]
+    assert shipped.info["source"]["scenario"] == "keio_thrust_constant_calibration"
+    assert s["n_levels"] == 4 and s["residual_rms_N"] < 0.2 and abs(s["intercept_N"]) < 0.5
+    assert not r["controller.saturated_any"].max()
+    Kt = _true_Kt()                                                             # scoring only
+    assert Kt == pytest.approx(24.0 * 0.97)
+    assert written.Kt_n_cal == pytest.approx(Kt, rel=0.01)
+    assert s["Kt_n_cal_error_pct"] == pytest.approx(100 * (written.Kt_n_cal - Kt) / Kt)
+    assert (out / "thrust_calibration.png").exists()
+    # another reference cut (new noise) gives the same constant
+    other = _run(CAL, tmp_path, **{"fmus.stage.parameters.seed": 12})
+    assert other.summary["thrust_calibration"]["Kt_n_cal"] == pytest.approx(shipped.Kt_n_cal, rel=0.005)
+
+
 # ----------------------------------------------------------------- on the plant FMU (must show)
 def _run(path, tmp_path, **overrides):
     from cosim import run_scenario
     return run_scenario(path, out_dir=tmp_path, overrides=overrides or None, progress=False)
 
 
-def _check_layers(s, n_layers, kt_ratio=KT_TRUE / 24.0):
+def _check_layers(s, n_layers):
     layers = s["layers"]
     assert [x["layer"] for x in layers] == list(range(1, n_layers + 1))
+    assert s["thrust_constant"]["calibrated"]
     for x in layers:
         # the controller makes its feedback -- the observer's estimate -- exact on average
         assert abs(x["estimate_mean_error_pct"]) < 1.0, x
-        # the dynamometer: what is left is the observer's scale error Kt/Kt_n (the plant's Kt
-        # is 3 % below the nominal 24 N/A, invisible to any sensorless identification):
-        # mean thrust = F_cmd * Kt/Kt_n to within 0.5 %
-        assert x["mean_thrust_N"] == pytest.approx(x["F_cmd_N"] * kt_ratio, rel=0.005), x
-        assert abs(x["mean_error_pct"]) < 3.5, x
+        # the dynamometer, with the commissioned Kt_n_cal: mean thrust within 1 %
+        assert abs(x["mean_error_pct"]) < 1.0, x
         assert x["peak_error_N"] < 5.0, x                      # Keio Fig. 7: within 5 N
         assert x["settled"], x
         if x["segment"] != "entry":
@@ -142,22 +220,15 @@ def test_fig7_aluminium_on_the_fmu(tmp_path):
     assert len(sw) == 2 and all(di[k] < 0.05 for k in sw)
 
 
-def test_fig7_after_one_dynamometer_calibration_cut_mean_within_1pct(tmp_path):
-    """Must show "mean thrust within 1 % of the command" on the dynamometer: once the
-    observer's force constant is calibrated against a dynamometer in one cut (seed 7),
-    the next hole (seed 8, new noise) is within 1 % -- the controller adds nothing."""
-    cal = _run(FIG7, tmp_path / "cal").summary["force_control"]["layers"][0]
-    ratio = cal["mean_thrust_N"] / cal["F_cmd_N"]          # Kt/Kt_n seen by the dynamometer
-    o = "blocks.observer.settings."
-    ov = {o + "Kt_n": 24.0 * ratio, "fmus.stage.parameters.seed": 8}
-    # the air-cut identification, redone through the calibrated constant, scales the same way
-    for name, val in (("F_coulomb", 8.246), ("b_viscous", 30.93), ("F_stribeck", 3.09),
-                      ("F_grav_comp", 0.708)):
-        ov[o + name] = val * ratio
-    ov[o + "F_ripple"] = [[392.69908169872417, -1.0342 * ratio, 0.0006]]
-    s = _run(FIG7, tmp_path / "run", **ov).summary["force_control"]
-    _check_layers(s, 1, kt_ratio=1.0)
-    assert abs(s["layers"][0]["mean_error_pct"]) < 1.0
+def test_fig7_uncalibrated_is_off_by_the_force_constant(tmp_path):
+    """The documented --set override runs the nominal Kt_n = 24 N/A: the estimate is still
+    exact, the real thrust is low by Kt/Kt_n (-3 %) -- what the calibration removes."""
+    s = _run(FIG7, tmp_path, **UNCALIBRATED).summary["force_control"]
+    assert not s["thrust_constant"]["calibrated"]
+    x = s["layers"][0]
+    assert abs(x["estimate_mean_error_pct"]) < 0.1, x
+    assert x["mean_thrust_N"] == pytest.approx(x["F_cmd_N"] * _true_Kt() / 24.0, rel=0.005), x
+    assert x["mean_error_pct"] < -2.5 and x["peak_error_N"] < 5.0, x
 
 
 def test_fig4_composite_on_the_fmu_vs_constant_feed(tmp_path):
