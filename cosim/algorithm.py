@@ -190,6 +190,9 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
     bar = None
     wall0 = _time.perf_counter()
     n = 0
+    # Named before the try so that an error during set-up is reported, not masked.
+    phase = "setup"
+    block_name = ""
     try:
         for slave in system.slaves.values():
             started.append(slave)

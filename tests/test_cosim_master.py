@@ -290,3 +290,16 @@ def test_step_rejection_in_the_master(discard_fmu):
     with pytest.raises(SimulationError, match="doStep returned Discard") as e:      # off: stops
         run(system(), 1.0)
     assert "discard_above" in e.value.fmu_message
+
+
+def test_error_during_setup_is_reported_not_masked(mass_fmu):
+    # An exception before the first step (here: a block's reset) must surface as a
+    # SimulationError with the original message, not as an error of the error handler.
+    class BadReset(Raiser):
+        def reset(self, t0):
+            raise RuntimeError("cannot reset this block")
+
+    s = mass_system(mass_fmu)
+    s.add_block("bad", BadReset())
+    with pytest.raises(SimulationError, match="cannot reset this block"):
+        run(s, 0.01)
