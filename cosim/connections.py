@@ -50,21 +50,9 @@ def unit_conversion(from_signal: str, from_unit: str | None, to_signal: str, to_
     if a is None or b is None or a == b:
         return None
     scale, offset, _how = connection_conversion(
-        from_unit, to_unit, [_Defined(md) for md in model_descriptions],
+        from_unit, to_unit, model_descriptions,
         where=f"unit mismatch: {from_signal} is [{from_unit}] but {to_signal} expects [{to_unit}]")
     return scale, offset
-
-
-class _Defined:
-    """The units an FMU defines: ``<Unit>`` entries with a ``<BaseUnit>``. A bare
-    ``<Unit name="m/s"/>`` names a unit without saying its dimension; it must not be
-    taken as dimensionless (m/s -> m would pass as identity), so it is left to the
-    table of known names."""
-
-    def __init__(self, model_description):
-        self.modelName = model_description.modelName
-        self.unitDefinitions = [u for u in model_description.unitDefinitions or []
-                                if u.baseUnit is not None]
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 A Model Exchange FMU only evaluates its equations; the importer integrates them.
 :class:`ModelExchangeSlave` does that over each communication step ``[t, t+h]`` and
-offers the same interface as :class:`cosim.slave.FMUSlave` (``instantiate``,
+is a :class:`cosim.slave.FMUSlave` with the same interface (``instantiate``,
 ``set_value(s)``, ``get_value``, ``step_io``, ``free``, ``variables``, ``variable``,
 ``last_message``), so the master steps either kind the same way. :func:`create_slave`
 is the factory that picks the kind from the model description.
@@ -50,7 +50,6 @@ FMUs report ``can_get_state == False``.
 """
 from __future__ import annotations
 
-import collections
 import functools
 import itertools
 import math
@@ -65,8 +64,8 @@ import fmpy
 from fmpy.model_description import read_model_description
 
 from .errors import CosimError, SimulationError
-from .slave import (LOG_KEEP, TERMINATE_REQUESTED, FMUSlave, Variable, _FMI3_INT_TYPES, _STATUS,
-                    _extract, load_model)
+from .slave import (TERMINATE_REQUESTED, FMUSlave, ModelDescription, _STATUS, cached_model, load_model,
+                    model_variables)
 
 __all__ = ["MEModel", "ModelExchangeSlave", "create_slave", "fmu_kinds", "load_any_model", "SOLVERS",
            "TERMINATE_REQUESTED"]
@@ -75,7 +74,7 @@ SOLVERS = ("rk4", "cvode")
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
 
 
-class MEModel:
+class MEModel(ModelDescription):
     """Model description of a Model Exchange FMU (same attributes as ``FMUModel``)."""
 
     kind = "ME"
@@ -102,35 +101,14 @@ class MEModel:
         self.can_get_and_set_state = bool(getattr(me, "canGetAndSetFMUstate", False)
                                           or getattr(me, "canGetAndSetFMUState", False))
         self.needs_completed_integrator_step = bool(getattr(me, "needsCompletedIntegratorStep", True))
-        self.variables: dict[str, Variable] = {}
-        for v in md.modelVariables:
-            if v.causality == "independent":
-                continue
-            unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
-            self.variables[v.name] = Variable(
-                name=v.name, vr=v.valueReference, type=v.type, causality=v.causality,
-                variability=v.variability, initial=v.initial, unit=unit or None,
-                start=v.start, description=v.description or "")
+        self.variables = model_variables(md, skip_causality=("independent",))
         self.has_discrete_states = any(
             v.variability == "discrete" and v.causality in ("local", "output")
             for v in md.modelVariables)
 
-    @property
-    def is_fmi3(self) -> bool:
-        return self.fmi_version.startswith("3")
-
-    def names(self, causality: str) -> list[str]:
-        return [n for n, v in self.variables.items() if v.causality == causality]
-
-
-@functools.lru_cache(maxsize=None)
-def _load_me_model(path: str, mtime_ns: int) -> MEModel:
-    return MEModel(path)
-
 
 def load_me_model(path: str | os.PathLike) -> MEModel:
-    p = Path(path).resolve()
-    return _load_me_model(str(p), p.stat().st_mtime_ns)
+    return cached_model(MEModel, path)
 
 
 def fmu_kinds(path: str | os.PathLike) -> tuple[str, ...]:
@@ -203,22 +181,21 @@ class _Terminate(Exception):
 class ModelExchangeSlave(FMUSlave):
     """One Model Exchange FMU instance, integrated over each communication step.
 
-    Same public interface as :class:`cosim.slave.FMUSlave` (a subclass, so that
-    ``System.add_fmu(name, slave)`` accepts it as is; every method is overridden, the
-    base constructor is not called); extra keyword arguments choose the solver (see
-    module docstring).
+    Same public interface as :class:`cosim.slave.FMUSlave`, its base class: the
+    description, the log and the typed values are inherited; the life cycle, the step
+    and the rollback are its own. Extra keyword arguments choose the solver (see module
+    docstring).
     """
 
     kind = "ME"
+    model_loader = staticmethod(load_me_model)
+    fmpy_kind = "Model"
 
-    def __init__(self, name: str, model: MEModel | str | os.PathLike, parameters: dict | None = None,  # noqa: super
+    def __init__(self, name: str, model: MEModel | str | os.PathLike, parameters: dict | None = None,
                  logging: bool = True, solver: str = "cvode", solver_step: float | None = None,
                  rel_tol: float = 1e-6, max_step: float | None = None, event_tol: float = 1e-12,
                  event_z_tol: float = 1e-10, max_event_iterations: int = 100):
-        self.name = name
-        self.model = model if isinstance(model, MEModel) else load_me_model(model)
-        self.parameters = dict(parameters or {})
-        self.logging = logging
+        super().__init__(name, model, parameters, logging)
         solver = (solver or "cvode").lower()
         if solver not in SOLVERS:
             raise CosimError(f"FMU '{name}': unknown Model Exchange solver '{solver}' (one of {', '.join(SOLVERS)})")
@@ -233,9 +210,6 @@ class ModelExchangeSlave(FMUSlave):
         self.event_tol = float(event_tol)
         self.event_z_tol = float(event_z_tol)
         self.max_event_iterations = int(max_event_iterations)
-        self.log: collections.deque = collections.deque(maxlen=LOG_KEEP)
-        self.fmu = None
-        self._initialized = False
         self._solver = None
         self._next_event_defined = False
         self._next_event_time = math.inf
@@ -248,65 +222,14 @@ class ModelExchangeSlave(FMUSlave):
         self.n_input_events = 0
         self.n_rhs = 0
 
-    # -- description (as FMUSlave) ----------------------------------------------------
-    @property
-    def variables(self) -> dict[str, Variable]:
-        return self.model.variables
-
-    def variable(self, name: str) -> Variable:
-        try:
-            return self.model.variables[name]
-        except KeyError:
-            raise CosimError(f"FMU '{self.name}' ({self.model.path.name}) has no variable '{name}'") from None
-
-    def _log_message(self, status: int, category, message) -> None:
-        def text(b):
-            return b.decode("utf-8", "replace") if isinstance(b, bytes) else str(b or "")
-        self.log.append((status, text(category), text(message)))
-
-    def last_message(self) -> str | None:
-        for status, _cat, msg in reversed(self.log):
-            if status >= 1:
-                return f"[{_STATUS[status] if 0 <= status < 6 else status}] {msg}"
-        if self.log:
-            return self.log[-1][2]
-        return None
-
-    def _fail(self, what: str, time: float | None, exc: Exception | None = None) -> SimulationError:
-        detail = f"{what} failed" + (f" ({exc})" if exc is not None else "")
-        return SimulationError(detail, time=time, instance=self.name, fmu_message=self.last_message())
-
     # -- life cycle ---------------------------------------------------------------------
     def instantiate(self, start_time: float = 0.0, stop_time: float | None = None) -> None:
         """Load, instantiate, apply parameters, initialise, first event iteration."""
-        m = self.model
-        unzipdir = _extract(m.path)
-        kw = dict(guid=m.guid, unzipDirectory=unzipdir, modelIdentifier=m.model_identifier,
-                  instanceName=self.name)
-        try:
-            if m.is_fmi3:
-                self.fmu = fmpy.fmi3.FMU3Model(**kw)
-                self.fmu.instantiate(loggingOn=self.logging,
-                                     logMessage=lambda env, status, cat, msg:
-                                     self._log_message(status, cat, msg))
-            else:
-                from fmpy.fmi2 import FMU2Model
-                self.fmu = FMU2Model(**kw)
-                cb = fmi2_callbacks(self)
-                self._callbacks = cb
-                self.fmu.instantiate(callbacks=cb, loggingOn=self.logging)
-        except Exception as e:
-            raise self._fail("instantiate", start_time, e) from e
+        self._create_instance(start_time)
         self._bind()
         self.time = float(start_time)
         try:
-            self.set_values(self.parameters)
-            if m.is_fmi3:
-                self.fmu.enterInitializationMode(startTime=start_time, stopTime=stop_time)
-            else:
-                self.fmu.setupExperiment(startTime=start_time, stopTime=stop_time)
-                self.fmu.enterInitializationMode()
-            self.fmu.exitInitializationMode()
+            self._enter_and_exit_initialization(start_time, stop_time)
             self._event_iteration()            # initial event iteration (fmi2/3: still in event mode)
             self.fmu.enterContinuousTimeMode()
         except _Terminate:
@@ -323,20 +246,8 @@ class ModelExchangeSlave(FMUSlave):
         self._inputs_changed = False
 
     def free(self, failed: bool = False) -> None:
-        if self.fmu is None:
-            return
-        try:
-            if self._initialized and not failed:
-                self.fmu.terminate()
-        except Exception:
-            pass
         self._solver = None
-        try:
-            self.fmu.freeInstance()
-        except Exception:
-            pass
-        self.fmu = None
-        self._initialized = False
+        super().free(failed)
 
     # -- raw bindings ------------------------------------------------------------------
     def _bind(self) -> None:
@@ -393,32 +304,19 @@ class ModelExchangeSlave(FMUSlave):
             raise self._fail("getDerivatives", t)
         return self._dx[:nx].copy()
 
-    # -- values (as FMUSlave) -------------------------------------------------------------
-    def set_values(self, values: dict) -> None:
-        for name, value in values.items():
-            self.set_value(name, value)
-
+    # -- values (typed writes and get_value inherited from FMUSlave) ---------------------
     def set_value(self, name: str, value) -> None:
+        """As :meth:`FMUSlave.set_value`; after initialisation a discrete input or a
+        tunable parameter is set in event mode (with an event iteration)."""
         v = self.variable(name)
-        f, t = self.fmu, v.type
-        fmi3 = self.model.is_fmi3
         discrete_change = (self._initialized and
                            (v.variability in ("discrete", "tunable", "fixed") or v.kind != "real"))
         try:
             if discrete_change:           # FMI: discrete inputs / tunable parameters in event mode
                 self.fmu.enterEventMode()
+            self._write_value(v, value)
             if v.kind == "real":
-                (f.setFloat64 if fmi3 else f.setReal)([v.vr], [float(value)])
                 self._real_set_cache[v.vr] = float(value)
-            elif v.kind == "integer":
-                setter = getattr(f, f"set{t}" if t in _FMI3_INT_TYPES else ("setInt64" if fmi3 else "setInteger"))
-                setter([v.vr], [int(value)])
-            elif v.kind == "boolean":
-                f.setBoolean([v.vr], [bool(value)])
-            elif v.kind == "string":
-                f.setString([v.vr], [str(value)])
-            else:
-                raise CosimError(f"cannot set variable '{name}' of type {t}")
             if discrete_change:
                 self._event_iteration()
                 self.fmu.enterContinuousTimeMode()
@@ -430,20 +328,6 @@ class ModelExchangeSlave(FMUSlave):
         except Exception as e:
             raise self._fail(f"setting {name} = {value!r}", self.time, e) from e
         self._inputs_changed = True
-
-    def get_value(self, name: str):
-        v = self.variable(name)
-        f = self.fmu
-        fmi3 = self.model.is_fmi3
-        if v.kind == "real":
-            return (f.getFloat64 if fmi3 else f.getReal)([v.vr])[0]
-        if v.kind == "integer":
-            getter = getattr(f, f"get{v.type}" if v.type in _FMI3_INT_TYPES else "getInt64") if fmi3 \
-                else f.getInteger
-            return getter([v.vr])[0]
-        if v.kind == "boolean":
-            return f.getBoolean([v.vr])[0]
-        raise CosimError(f"cannot read variable '{name}' of type {v.type}")
 
     # -- per-step primitives (as FMUSlave.step_io) ---------------------------------------
     def step_io(self, outputs: list[str], inputs: list[str]):

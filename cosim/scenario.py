@@ -10,12 +10,18 @@ Validation happens in two passes, both before any FMU is instantiated:
 Every problem is a :class:`ScenarioError` whose message names the file, the key path
 (``connections[3].to``) and what was expected. The format is described in
 ``docs/scenario_format.md``.
+
+Inheritance (``[scenario] extends = "base.toml"``) is resolved first (:func:`load_raw`):
+the base is loaded recursively and the extending file deep-merged over it, while an
+:class:`Origins` map remembers which file wrote each key, so that errors name that file
+and a relative FMU ``path`` resolves against it.
 """
 from __future__ import annotations
 
 import copy
 import importlib
 import inspect
+import os
 import re
 import tomllib
 from dataclasses import dataclass, field
@@ -35,8 +41,10 @@ ANY = "any value"
 SECTIONS = {"scenario": TABLE, "fmus": TABLE, "blocks": TABLE, "connections": "an array of tables",
             "record": TABLE, "events": "an array of tables", "plots": "an array of tables",
             "scores": "an array of tables"}
-SCENARIO_KEYS = {"name": STRING, "description": STRING, "step_size": POSITIVE, "stop_time": POSITIVE,
-                 "start_time": NUMBER, "step_rejection_floor": POSITIVE}
+SCENARIO_KEYS = {"name": STRING, "description": STRING, "extends": STRING, "step_size": POSITIVE,
+                 "stop_time": POSITIVE, "start_time": NUMBER, "step_rejection_floor": POSITIVE}
+ARRAYS = tuple(k for k, v in SECTIONS.items() if v.startswith("an array"))   # appended by extends
+NOT_INHERITED = ("name", "description", "extends")                          # of [scenario]
 INTERFACE, SOLVER = "'CS' or 'ME'", " or ".join(f"'{s}'" for s in SOLVERS)
 SOLVER_KEYS = ("solver", "solver_step", "rel_tol", "max_step")    # Model Exchange only
 FMU_KEYS = {"path": STRING, "parameters": TABLE, "logging": BOOL, "interface": INTERFACE,
@@ -92,12 +100,63 @@ def _show(v) -> str:
     return f"{type(v).__name__} {v!r}" if not isinstance(v, (dict, list)) else type(v).__name__
 
 
+class Origins(dict):
+    """Which file wrote each key of a merged scenario (``[scenario] extends``).
+
+    Maps a key path of the merged dict (``fmus.stage.path``, ``connections[3]``) to
+    ``(file, key path as written in that file)``; the two paths differ for the items of
+    an appended array (``connections[3]`` may be ``connections[1]`` of the extending
+    file). Keys are recorded down to the tables' keys and the arrays' items; a deeper
+    key belongs to its nearest recorded parent, an unrecorded one to ``main``.
+    """
+
+    def __init__(self, main: str = "<scenario>"):
+        super().__init__()
+        self.main = main
+
+    def locate(self, key: str) -> tuple[str, str]:
+        """``(file, key path in that file)`` of a merged key path."""
+        k = key
+        while k:
+            if k in self:
+                file, local = self[k]
+                return file, local + key[len(k):]
+            k = k[:max(k.rfind("."), k.rfind("["), 0)]
+        return self.main, key
+
+    def file_of(self, key: str) -> str:
+        return self.locate(key)[0]
+
+    def record(self, value, path: str, file: str, local: str | None = None) -> None:
+        """``value`` (written at ``path`` of ``file``, ``local`` there) and its keys."""
+        local = path if local is None else local
+        if path:
+            self[path] = (file, local)
+        if isinstance(value, dict):
+            for k, v in value.items():
+                self.record(v, f"{path}.{k}" if path else k, file, f"{local}.{k}" if local else k)
+        elif not path.count(".") and path in ARRAYS and isinstance(value, list):
+            for i, v in enumerate(value):
+                self[f"{path}[{i}]"] = (file, f"{local}[{i}]")
+
+    def drop(self, path: str) -> None:
+        """Forget ``path`` and every key below it (its value was replaced)."""
+        for k in [k for k in self if k == path or k.startswith((path + ".", path + "["))]:
+            del self[k]
+
+
 class _Checker:
-    def __init__(self, file: str):
+    def __init__(self, file: str, origins: Origins | None = None):
         self.file = file
+        self.origins = origins
 
     def error(self, key: str, message: str) -> ScenarioError:
-        return ScenarioError(message, self.file, key)
+        if self.origins is None:
+            return ScenarioError(message, self.file, key)
+        file, local = self.origins.locate(key)
+        if local != key:          # an appended array item: its index in the merged scenario
+            message += f" (merged scenario key {key})"
+        return ScenarioError(message, file, local)
 
     def table(self, d: dict, key: str, allowed: dict, required=()) -> None:
         for k, v in d.items():
@@ -111,8 +170,8 @@ class _Checker:
                 raise self.error(f"{key}.{k}" if key else k, f"missing required key '{k}' ({allowed[k]})")
 
 
-def check_shape(raw: dict, file: str) -> None:
-    c = _Checker(file)
+def check_shape(raw: dict, file: str, origins: Origins | None = None) -> None:
+    c = _Checker(file, origins)
     c.table(raw, "", SECTIONS)
     c.table(raw.get("scenario", {}), "scenario", SCENARIO_KEYS, required=("stop_time",))
     if "scenario" not in raw:
@@ -245,11 +304,18 @@ def _fmu_error_key(spec: dict, opts: dict, message: str) -> str:
 
 
 def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
-          name_default: str = "scenario") -> Scenario:
-    """Check ``raw`` (a parsed TOML dict, overrides applied) and build the :class:`Scenario`."""
-    check_shape(raw, file)
-    c = _Checker(file)
+          name_default: str = "scenario", origins: Origins | None = None) -> Scenario:
+    """Check ``raw`` (a parsed TOML dict, overrides applied) and build the :class:`Scenario`.
+
+    ``origins`` (from :func:`load_raw`): the file each key of a merged scenario comes
+    from, for error messages and for FMU paths relative to the file that wrote them.
+    """
+    check_shape(raw, file, origins)
+    c = _Checker(file, origins)
     sc = raw["scenario"]
+    if "extends" in sc:
+        raise c.error("scenario.extends", "extends is resolved when a file is loaded (load_scenario / "
+                                          "load_raw); build() takes the merged scenario")
     try:
         system = System(sc.get("step_size", 1e-4), sc.get("start_time", 0.0))
     except ScenarioError as e:
@@ -266,8 +332,11 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
     for name, spec in raw.get("fmus", {}).items():
         key = f"fmus.{name}"
         opts = {k: spec[k] for k in SOLVER_KEYS if k in spec}
+        fmu_dir = base_dir
+        if origins is not None and origins.file_of(f"{key}.path") != file:   # written in a base file
+            fmu_dir = Path(origins.file_of(f"{key}.path")).parent.resolve()
         try:
-            slave = create_slave(name, resolve_fmu_path(spec["path"], base_dir), spec.get("parameters", {}),
+            slave = create_slave(name, resolve_fmu_path(spec["path"], fmu_dir), spec.get("parameters", {}),
                                  spec.get("logging", True), interface=spec.get("interface"), **opts)
         except CosimError as e:
             raise c.error(f"{key}.{_fmu_error_key(spec, opts, str(e))}", str(e)) from None
@@ -299,7 +368,8 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
     try:
         system.block_order()
     except AlgebraicLoopError as e:
-        raise AlgebraicLoopError(e.detail, file, "connections") from None
+        raise AlgebraicLoopError(e.detail, c.origins.file_of("connections") if origins else file,
+                                 "connections") from None
 
     def check_signal(sig: str, key: str) -> None:
         try:
@@ -375,6 +445,90 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
                     decimation=rec.get("decimation", 1), events=events, plots=plots, scores=scores, raw=raw)
 
 
+# --- inheritance ---------------------------------------------------------------------------
+def _merge(base: dict, ext: dict, origins: Origins, file: str, prefix: str = "") -> None:
+    """Deep-merge ``ext`` (the dict of ``file``) into ``base`` in place: tables key by key,
+    the top-level arrays of tables appended, any other value replaced."""
+    for k, v in ext.items():
+        path = f"{prefix}.{k}" if prefix else k
+        old = base.get(k)
+        if isinstance(old, dict) and isinstance(v, dict):
+            origins[path] = (file, path)          # the table is (also) written here
+            _merge(old, v, origins, file, path)
+        elif not prefix and k in ARRAYS and isinstance(old, list) and isinstance(v, list):
+            n = len(old)
+            for i in range(len(v)):
+                origins[f"{k}[{n + i}]"] = (file, f"{k}[{i}]")
+            origins[k] = (file, k)
+            base[k] = old + v
+        else:
+            origins.drop(path)
+            base[k] = v
+            origins.record(v, path, file)
+
+
+def _load_chain(path: Path, chain: list[Path], shown: list[str]) -> tuple[dict, Origins]:
+    file = str(path)
+    raw = read_toml(path)
+    sc = raw.get("scenario")
+    extends = sc.pop("extends", None) if isinstance(sc, dict) else None
+    if extends is None:
+        origins = Origins(file)
+        origins.record(raw, "", file)
+        return raw, origins
+    if not isinstance(extends, str) or not extends:
+        raise ScenarioError(f"expected {STRING} (a scenario file, relative to this one), got {_show(extends)}",
+                            file, "scenario.extends")
+    base_path = Path(os.path.normpath(path.parent / extends))
+    chain, shown = chain + [path.resolve()], shown + [file]
+    if base_path.resolve() in chain:
+        cycle = shown[chain.index(base_path.resolve()):] + [str(base_path)]
+        raise ScenarioError(f"extends cycle: {' -> '.join(cycle)}", file, "scenario.extends")
+    if not base_path.is_file():
+        raise ScenarioError(f"cannot extend '{extends}': no file {base_path}", file, "scenario.extends")
+    base, origins = _load_chain(base_path, chain, shown)
+    bsc = base.get("scenario")
+    if isinstance(bsc, dict):
+        for k in NOT_INHERITED:
+            bsc.pop(k, None)
+            origins.drop(f"scenario.{k}")
+    _merge(base, raw, origins, file)
+    origins.main = file
+    return base, origins
+
+
+def _override_path(key: str) -> str:
+    """An override key (``connections.2.scale``) as a merged key path (``connections[2].scale``)."""
+    parts = re.sub(r"\[(\d+)\]", r".\1", key).split(".")
+    out = parts[0]
+    for i in range(1, len(parts)):
+        if parts[i - 1] in ("parameters", "settings"):
+            return f"{out}.{'.'.join(parts[i:])}"
+        out += f"[{parts[i]}]" if parts[i].isdigit() else f".{parts[i]}"
+    return out
+
+
+def load_raw(path, overrides: dict | None = None, origins: Origins | None = None) -> dict:
+    """The parsed scenario file with its ``extends`` chain merged and ``overrides`` applied
+    (not validated). Pass an empty :class:`Origins` to learn which file wrote each key
+    (``origins.file_of("fmus.stage.path")``: the file a relative FMU path is relative to)."""
+    path = Path(path)
+    raw, found = _load_chain(path, [], [])
+    if any(_override_path(k) == "scenario.extends" for k in (overrides or {})):
+        raise ScenarioError("extends cannot be overridden (write a scenario file that extends the "
+                            "other one)", str(path), "overrides")
+    raw = apply_overrides(raw, overrides, str(path))
+    for key in overrides or {}:                 # an overridden key was written by the caller
+        k = _override_path(key)
+        found.drop(k)
+        found[k] = (str(path), k)
+    if origins is not None:
+        origins.clear()
+        origins.update(found)
+        origins.main = found.main
+    return raw
+
+
 def read_toml(path: Path) -> dict:
     try:
         with open(path, "rb") as f:
@@ -388,8 +542,9 @@ def read_toml(path: Path) -> dict:
 def load_scenario(path, overrides: dict | None = None) -> Scenario:
     """Load and fully validate a scenario file; ``overrides`` are dotted keys set first."""
     path = Path(path)
-    raw = apply_overrides(read_toml(path), overrides, str(path))
-    scenario = build(raw, str(path), path.parent.resolve(), path.stem)
+    origins = Origins()
+    raw = load_raw(path, overrides, origins)
+    scenario = build(raw, str(path), path.parent.resolve(), path.stem, origins)
     scenario.path = path
     scenario.overrides = dict(overrides or {})
     return scenario

@@ -19,6 +19,7 @@ from __future__ import annotations
 import atexit
 import collections
 import functools
+import importlib
 import os
 import shutil
 from ctypes import byref
@@ -88,7 +89,36 @@ def resolve_fmu_path(spec: str, base_dir: str | os.PathLike | None = None) -> Pa
     return p.resolve()
 
 
-class FMUModel:
+def model_variables(md, skip_causality: tuple = ()) -> dict[str, Variable]:
+    """The variables of a parsed model description, by name (unit: the variable's or its
+    declared type's)."""
+    out: dict[str, Variable] = {}
+    for v in md.modelVariables:
+        if v.causality in skip_causality:
+            continue
+        unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
+        out[v.name] = Variable(
+            name=v.name, vr=v.valueReference, type=v.type, causality=v.causality,
+            variability=v.variability, initial=v.initial, unit=unit or None,
+            start=v.start, description=v.description or "")
+    return out
+
+
+class ModelDescription:
+    """What the co-simulation and the Model Exchange model descriptions share."""
+
+    fmi_version: str
+    variables: dict[str, Variable]
+
+    @property
+    def is_fmi3(self) -> bool:
+        return self.fmi_version.startswith("3")
+
+    def names(self, causality: str) -> list[str]:
+        return [n for n, v in self.variables.items() if v.causality == causality]
+
+
+class FMUModel(ModelDescription):
     """The model description of one FMU file (shared by all its instances)."""
 
     def __init__(self, path: str | os.PathLike):
@@ -101,31 +131,23 @@ class FMUModel:
                              "the master steps FMUs with doStep")
         self.model_identifier = md.coSimulation.modelIdentifier
         self.guid = md.guid
-        self.variables: dict[str, Variable] = {}
-        for v in md.modelVariables:
-            unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
-            self.variables[v.name] = Variable(
-                name=v.name, vr=v.valueReference, type=v.type, causality=v.causality,
-                variability=v.variability, initial=v.initial, unit=unit or None,
-                start=v.start, description=v.description or "")
-
-    @property
-    def is_fmi3(self) -> bool:
-        return self.fmi_version.startswith("3")
-
-    def names(self, causality: str) -> list[str]:
-        return [n for n, v in self.variables.items() if v.causality == causality]
+        self.variables = model_variables(md)
 
 
 @functools.lru_cache(maxsize=None)
-def _load_model(path: str, mtime_ns: int) -> FMUModel:
-    return FMUModel(path)
+def _load_cached(cls, path: str, mtime_ns: int):
+    return cls(path)
+
+
+def cached_model(cls, path: str | os.PathLike):
+    """``cls(path)`` (a model description class), read once per file version."""
+    p = Path(path).resolve()
+    return _load_cached(cls, str(p), p.stat().st_mtime_ns)
 
 
 def load_model(path: str | os.PathLike) -> FMUModel:
     """Model description of ``path``, read once per file version."""
-    p = Path(path).resolve()
-    return _load_model(str(p), p.stat().st_mtime_ns)
+    return cached_model(FMUModel, path)
 
 
 _EXTRACTED: dict[tuple[str, int], str] = {}
@@ -158,10 +180,13 @@ TERMINATE_REQUESTED = 100   # pseudo status: FMI 3.0 doStep asked to terminate t
 class FMUSlave:
     """One FMU instance in the co-simulation."""
 
+    model_loader = staticmethod(load_model)   # path -> model description (ME slaves: their own)
+    fmpy_kind = "Slave"                       # fmpy's FMU2Slave / FMU3Slave (ME: FMU2Model / FMU3Model)
+
     def __init__(self, name: str, model: FMUModel | str | os.PathLike,
                  parameters: dict | None = None, logging: bool = True):
         self.name = name
-        self.model = model if isinstance(model, FMUModel) else load_model(model)
+        self.model = self.model_loader(model) if isinstance(model, (str, os.PathLike)) else model
         self.parameters = dict(parameters or {})
         self.logging = logging
         self.log: collections.deque = collections.deque(maxlen=LOG_KEEP)
@@ -199,23 +224,24 @@ class FMUSlave:
         return SimulationError(detail, time=time, instance=self.name, fmu_message=self.last_message())
 
     # -- life cycle ---------------------------------------------------------------------
-    def instantiate(self, start_time: float = 0.0, stop_time: float | None = None) -> None:
-        """Load, instantiate, apply parameter overrides and initialise the FMU."""
+    def _fmu_class(self):
+        """fmpy's ``FMU<2|3><fmpy_kind>`` class for this FMU."""
+        v = 3 if self.model.is_fmi3 else 2
+        return getattr(importlib.import_module(f"fmpy.fmi{v}"), f"FMU{v}{self.fmpy_kind}")
+
+    def _create_instance(self, start_time: float) -> None:
+        """Load the library and instantiate (:meth:`_fmu_class`), with this slave's logger."""
         m = self.model
-        unzipdir = _extract(m.path)
-        kw = dict(guid=m.guid, unzipDirectory=unzipdir, modelIdentifier=m.model_identifier,
+        kw = dict(guid=m.guid, unzipDirectory=_extract(m.path), modelIdentifier=m.model_identifier,
                   instanceName=self.name)
         try:
+            self.fmu = self._fmu_class()(**kw)
             if m.is_fmi3:
-                self.fmu = fmpy.fmi3.FMU3Slave(**kw)
                 self.fmu.instantiate(loggingOn=self.logging,
                                      logMessage=lambda env, status, cat, msg:
                                      self._log_message(status, cat, msg))
             else:
-                from fmpy.fmi2 import FMU2Slave
-
                 from .model_exchange import fmi2_callbacks
-                self.fmu = FMU2Slave(**kw)
                 # fmpy's native logger proxy holds ONE process-wide logger: a logger per
                 # instance would route every FMU's messages to the last instance (and call
                 # freed memory once it is gone). One dispatcher routes by instance instead.
@@ -224,14 +250,22 @@ class FMUSlave:
                 self.fmu.instantiate(callbacks=cb, loggingOn=self.logging)
         except Exception as e:
             raise self._fail("instantiate", start_time, e) from e
+
+    def _enter_and_exit_initialization(self, start_time: float, stop_time: float | None) -> None:
+        """Parameters, then the initialisation mode (FMI 2.0: after setupExperiment)."""
+        self.set_values(self.parameters)
+        if self.model.is_fmi3:
+            self.fmu.enterInitializationMode(startTime=start_time, stopTime=stop_time)
+        else:
+            self.fmu.setupExperiment(startTime=start_time, stopTime=stop_time)
+            self.fmu.enterInitializationMode()
+        self.fmu.exitInitializationMode()
+
+    def instantiate(self, start_time: float = 0.0, stop_time: float | None = None) -> None:
+        """Load, instantiate, apply parameter overrides and initialise the FMU."""
+        self._create_instance(start_time)
         try:
-            self.set_values(self.parameters)
-            if m.is_fmi3:
-                self.fmu.enterInitializationMode(startTime=start_time, stopTime=stop_time)
-            else:
-                self.fmu.setupExperiment(startTime=start_time, stopTime=stop_time)
-                self.fmu.enterInitializationMode()
-            self.fmu.exitInitializationMode()
+            self._enter_and_exit_initialization(start_time, stop_time)
         except SimulationError:
             raise
         except Exception as e:
@@ -262,22 +296,26 @@ class FMUSlave:
         for name, value in values.items():
             self.set_value(name, value)
 
+    def _write_value(self, v: Variable, value) -> None:
+        """One set call of the variable's type (CosimError for a type that cannot be set)."""
+        f, t = self.fmu, v.type
+        if v.kind == "real":
+            (f.setFloat64 if self.model.is_fmi3 else f.setReal)([v.vr], [float(value)])
+        elif v.kind == "integer":
+            setter = getattr(f, f"set{t}" if t in _FMI3_INT_TYPES else
+                             ("setInt64" if self.model.is_fmi3 else "setInteger"))
+            setter([v.vr], [int(value)])
+        elif v.kind == "boolean":
+            f.setBoolean([v.vr], [bool(value)])
+        elif v.kind == "string":
+            f.setString([v.vr], [str(value)])
+        else:
+            raise CosimError(f"cannot set variable '{v.name}' of type {t}")
+
     def set_value(self, name: str, value) -> None:
         v = self.variable(name)
-        f, t = self.fmu, v.type
         try:
-            if v.kind == "real":
-                (f.setFloat64 if self.model.is_fmi3 else f.setReal)([v.vr], [float(value)])
-            elif v.kind == "integer":
-                setter = getattr(f, f"set{t}" if t in _FMI3_INT_TYPES else
-                                 ("setInt64" if self.model.is_fmi3 else "setInteger"))
-                setter([v.vr], [int(value)])
-            elif v.kind == "boolean":
-                f.setBoolean([v.vr], [bool(value)])
-            elif v.kind == "string":
-                f.setString([v.vr], [str(value)])
-            else:
-                raise CosimError(f"cannot set variable '{name}' of type {t}")
+            self._write_value(v, value)
         except CosimError:
             raise
         except Exception as e:

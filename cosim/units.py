@@ -17,7 +17,10 @@ rpm and Hz do not). :func:`conversion` does exactly that and raises
 Where definitions come from (:func:`resolve_unit`, in this order):
 
 1. the ``<UnitDefinitions>`` of the FMUs on both ends of the connection (the FMU
-   that declares a unit is the authority for it);
+   that declares a unit is the authority for it). Only a ``<Unit>`` with a
+   ``<BaseUnit>`` defines one: a bare ``<Unit name="m/s"/>`` names a unit without
+   saying its dimension, so it is *declared without definition* (not dimensionless
+   with factor 1, which would let m/s -> m pass as identity) and the next rule applies;
 2. unless ``strict=True``: a small table of unambiguous names (SI coherent units such
    as ``m``, ``N``, ``rad/s`` and common machine-tool units ``mm``, ``um``, ``rpm``,
    ``mm/min``, ``deg``, ...) so that Python block ports, which carry only a unit
@@ -70,12 +73,14 @@ class UnitDef:
         return "*".join(parts) if parts else "1"
 
     @classmethod
-    def from_fmpy(cls, unit, source: str = "modelDescription") -> "UnitDef":
-        """From an ``fmpy.model_description.Unit`` (or a ``BaseUnit`` plus a name)."""
+    def from_fmpy(cls, unit, source: str = "modelDescription") -> "UnitDef | None":
+        """From an ``fmpy.model_description.Unit`` (or a ``BaseUnit`` plus a name);
+        ``None`` for a ``<Unit name="..."/>`` without ``<BaseUnit>`` (declared without
+        definition: its dimension is unknown)."""
         b = getattr(unit, "baseUnit", unit)
         name = getattr(unit, "name", None) or "?"
-        if b is None:   # <Unit name="..."/> without BaseUnit: dimensionless, factor 1 (FMI default)
-            return cls(name, source=source)
+        if b is None:
+            return None
         return cls(name, *(int(getattr(b, e, 0) or 0) for e in _EXPONENTS),
                    factor=float(getattr(b, "factor", 1.0) or 1.0),
                    offset=float(getattr(b, "offset", 0.0) or 0.0), source=source)
@@ -120,8 +125,11 @@ def conversion(from_unit_def, to_unit_def) -> tuple[float, float]:
         missing = "source" if from_unit_def is None else "destination"
         raise UnitError(f"cannot convert units: the {missing} unit is not declared "
                         "(no <UnitDefinitions> entry)")
-    a = from_unit_def if isinstance(from_unit_def, UnitDef) else UnitDef.from_fmpy(from_unit_def)
-    b = to_unit_def if isinstance(to_unit_def, UnitDef) else UnitDef.from_fmpy(to_unit_def)
+    a, b = (d if isinstance(d, UnitDef) else UnitDef.from_fmpy(d) for d in (from_unit_def, to_unit_def))
+    for d, fmpy_unit in ((a, from_unit_def), (b, to_unit_def)):
+        if d is None:
+            raise UnitError(f"unit '{fmpy_unit.name}' is declared without a <BaseUnit> (its dimension "
+                            "is unknown)")
     if a.exponents != b.exponents:
         raise UnitError(f"units disagree in dimension: '{a.name}' is {a.dimension()} ({a.source}), "
                         f"'{b.name}' is {b.dimension()} ({b.source})")
@@ -142,27 +150,35 @@ def variable_unit(model_description, variable) -> str | None:
     return u or None
 
 
-def _declared(model_description, name: str):
-    for u in getattr(model_description, "unitDefinitions", None) or []:
-        if u.name == name:
-            return UnitDef.from_fmpy(u, source=f"declared by {model_description.modelName}")
-    return None
+def _declarations(model_descriptions: Iterable, name: str):
+    """``(model description, fmpy Unit)`` of every ``<Unit name=name>`` declared."""
+    for md in model_descriptions:
+        for u in getattr(md, "unitDefinitions", None) or []:
+            if u.name == name:
+                yield md, u
 
 
 def resolve_unit(name: str | None, model_descriptions: Iterable = (), strict: bool = False) -> UnitDef | None:
-    """Definition of the unit ``name``: declared by one of the FMUs, else (unless
-    ``strict``) the builtin table; ``None`` when nobody defines it."""
+    """Definition of the unit ``name``: declared (with a ``<BaseUnit>``) by one of the
+    FMUs, else (unless ``strict``) the builtin table; ``None`` when nobody defines it."""
     if name is None:
         return None
-    for md in model_descriptions:
-        if md is None:
-            continue
-        d = _declared(md, name)
+    for md, u in _declarations(model_descriptions, name):
+        d = UnitDef.from_fmpy(u, source=f"declared by {md.modelName}")
         if d is not None:
             return d
     if not strict:
         return BUILTIN_UNITS.get(name)
     return None
+
+
+def _undefined(name: str, model_descriptions: list, strict: bool) -> str:
+    """Why ``name`` has no definition (for the error message)."""
+    bare = [md.modelName for md, u in _declarations(model_descriptions, name) if u.baseUnit is None]
+    if not bare:
+        return f"unit '{name}' is not declared (no <UnitDefinitions> entry)"
+    table = "strict units: the table of known names is not used" if strict else "not a known name"
+    return f"unit '{name}' is declared without a <BaseUnit> by {', '.join(bare)} ({table})"
 
 
 def connection_conversion(from_unit: str | None, to_unit: str | None, model_descriptions: Iterable = (),
@@ -185,12 +201,15 @@ def connection_conversion(from_unit: str | None, to_unit: str | None, model_desc
         return 1.0, 0.0, "dimensionless"
     if fu == tu:
         return 1.0, 0.0, "same unit"
-    mds = list(model_descriptions)
+    mds = [md for md in model_descriptions if md is not None]
     a = resolve_unit(fu, mds, strict)
     b = resolve_unit(tu, mds, strict)
     try:
         if fu is None or tu is None:
             raise UnitError(f"one side declares unit '{fu or tu}', the other none")
+        for name, d in ((fu, a), (tu, b)):
+            if d is None:
+                raise UnitError(_undefined(name, mds, strict))
         s, o = conversion(a, b)
     except UnitError as e:
         raise UnitError(f"{where}: {fu or '(none)'} -> {tu or '(none)'}: {e}; "

@@ -279,3 +279,129 @@ def test_step_rejection_floor(ball_fmus, tmp_path):
     with pytest.raises(SimulationError, match="Discard"):
         run_scenario(path, out_dir=tmp_path / "off", progress=False)
     assert "step_rejection" not in json.loads((tmp_path / "off" / "summary.json").read_text())
+
+
+# --- [scenario] extends: inheritance ------------------------------------------------------
+@pytest.fixture
+def base_tree(tmp_path, mass_fmu):
+    """``fmus/mass.fmu``, ``bases/base.toml`` (the test scenario, FMU path relative to it)
+    and the folder ``runs/`` for the extending files."""
+    import shutil
+    (tmp_path / "fmus").mkdir()
+    shutil.copy(mass_fmu, tmp_path / "fmus" / "mass.fmu")
+    (tmp_path / "bases").mkdir()
+    (tmp_path / "runs").mkdir()
+    base = tmp_path / "bases" / "base.toml"
+    base.write_text(BASE.format(fmu="../fmus/mass.fmu"))
+    return tmp_path
+
+
+EXTENDS = """
+[scenario]
+extends = "../bases/base.toml"
+stop_time = 0.05
+
+[fmus.mass.parameters]
+m = 3.0
+
+[blocks.probe2]
+class = "cosim_helpers:Probe"
+
+[[connections]]
+from = "mass.v"
+to = "probe2.x"
+scale = 1.0
+
+[record]
+signals = ["mass.v"]
+"""
+
+
+def test_extends_merges_tables_appends_arrays_replaces_values(base_tree):
+    from cosim.scenario import Origins, load_raw
+    ext = base_tree / "runs" / "heavy.toml"
+    ext.write_text(EXTENDS)
+    sc = load_scenario(ext)
+    assert sc.name == "heavy" and sc.description == ""          # name/description not inherited
+    assert sc.stop_time == 0.05 and sc.step_size == 1e-3         # replaced / inherited
+    raw = sc.raw
+    assert raw["fmus"]["mass"]["parameters"] == {"m": 3.0, "n_sub": 2, "frozen": False}
+    assert raw["fmus"]["mass"]["path"] == "../fmus/mass.fmu"     # relative to bases/base.toml
+    assert sc.system.slaves["mass"].model.path == (base_tree / "fmus" / "mass.fmu").resolve()
+    assert [(c["from"], c["to"]) for c in raw["connections"]] == [
+        ("force.y", "mass.u"), ("mass.x", "probe.x"), ("mass.v", "probe2.x")]
+    assert sc.record_signals == ["mass.v"]                       # arrays of scalars are replaced
+    assert list(sc.system.blocks) == ["force", "probe", "probe2"]
+    assert len(sc.events) == 1 and len(sc.plots) == 2 and len(sc.scores) == 1
+    assert "extends" not in raw["scenario"]
+    origins = Origins()
+    load_raw(ext, {"connections[0].scale": 1.0}, origins)
+    assert origins.locate("fmus.mass.parameters.n_sub") == (str(base_tree / "bases" / "base.toml"),
+                                                            "fmus.mass.parameters.n_sub")
+    assert origins.locate("fmus.mass.parameters.m") == (str(ext), "fmus.mass.parameters.m")
+    assert origins.locate("connections[2].to") == (str(ext), "connections[0].to")
+    assert origins.locate("connections[0].scale") == (str(ext), "connections[0].scale")   # override
+    assert origins.file_of("connections[0].to") == str(base_tree / "bases" / "base.toml")
+
+
+def test_extends_chain_and_overrides(base_tree):
+    mid = base_tree / "runs" / "heavy.toml"
+    mid.write_text(EXTENDS)
+    top = base_tree / "top.toml"
+    top.write_text('[scenario]\nextends = "runs/heavy.toml"\nname = "top_run"\n'
+                   '[fmus.mass.parameters]\nn_sub = 5\n[[events]]\ntime = 0.01\naction = "stop"\n')
+    sc = load_scenario(top, {"fmus.mass.parameters.frozen": True})
+    assert sc.name == "top_run" and sc.stop_time == 0.05
+    assert sc.raw["fmus"]["mass"]["parameters"] == {"m": 3.0, "n_sub": 5, "frozen": True}
+    assert len(sc.raw["connections"]) == 3 and [e.action for e in sc.events] == ["set", "stop"]
+
+
+def test_extends_cycle_is_an_error_naming_the_files(tmp_path):
+    a, b = tmp_path / "a.toml", tmp_path / "b.toml"
+    a.write_text('[scenario]\nextends = "b.toml"\nstop_time = 1.0\n')
+    b.write_text('[scenario]\nextends = "a.toml"\n')
+    msg = expect_error(a, None, "scenario.extends", "extends cycle", str(a), str(b))
+    assert f"{a} -> {b} -> {a}" in msg
+    a.write_text('[scenario]\nextends = "a.toml"\n')
+    expect_error(a, None, "scenario.extends", f"{a} -> {a}")
+    a.write_text('[scenario]\nextends = "missing.toml"\n')
+    expect_error(a, None, "scenario.extends", "missing.toml")
+
+
+def test_extends_errors_name_the_file_that_wrote_the_key(base_tree):
+    base = base_tree / "bases" / "base.toml"
+    base.write_text(base.read_text().replace('to = "probe.x"', 'to = "probe.q"'))
+    ext = base_tree / "runs" / "heavy.toml"
+    ext.write_text(EXTENDS)
+    with pytest.raises(ScenarioError) as ei:
+        load_scenario(ext)
+    assert ei.value.file == str(base) and ei.value.key == "connections[1].to", str(ei.value)
+    assert "no input port 'q'" in str(ei.value)
+    base.write_text(BASE.format(fmu="../fmus/mass.fmu").replace("decimation = 1", "decimation = 0"))
+    expect_error(base, None, "record.decimation", "integer >= 1")     # the base alone
+    with pytest.raises(ScenarioError) as ei:
+        load_scenario(ext)
+    assert ei.value.file == str(base) and ei.value.key == "record.decimation"
+    # an appended item: the key as written in the extending file, the merged index too
+    base.write_text(BASE.format(fmu="../fmus/mass.fmu"))
+    ext.write_text(EXTENDS.replace('to = "probe2.x"', 'to = "probe2.nope"'))
+    with pytest.raises(ScenarioError) as ei:
+        load_scenario(ext)
+    assert ei.value.file == str(ext) and ei.value.key == "connections[0].to"
+    assert "merged scenario key connections[2].to" in str(ei.value)
+    ext.write_text(EXTENDS.replace("m = 3.0", 'mm = 3.0'))
+    expect_error(ext, None, "fmus.mass.parameters.mm", "no variable 'mm'")
+
+
+def test_extends_fmu_path_relative_to_the_base(base_tree):
+    """A relative FMU path written in a base resolves against the base, one written (or
+    overridden) in the extending file against the extending file."""
+    ext = base_tree / "runs" / "heavy.toml"
+    ext.write_text(EXTENDS)
+    assert load_scenario(ext).system.slaves["mass"].model.path.parent == base_tree / "fmus"
+    expect_error(ext, {"fmus.mass.path": "mass.fmu"}, "fmus.mass.path", "does not exist",
+                 str(base_tree / "runs" / "mass.fmu"))
+    import shutil
+    shutil.copy(base_tree / "fmus" / "mass.fmu", base_tree / "runs" / "mass.fmu")
+    ext.write_text(EXTENDS + '\n[fmus.mass]\npath = "mass.fmu"\n')
+    assert load_scenario(ext).system.slaves["mass"].model.path.parent == base_tree / "runs"

@@ -126,6 +126,40 @@ def test_undeclared_units_and_scenario_scale():
     assert conversion(UnitDef("a", m=1, factor=3.0), UnitDef("b", m=1, factor=2.0)) == (1.5, 0.0)
 
 
+class _BareMD:
+    """A model description declaring units without <BaseUnit> (``<Unit name="m/s"/>``)."""
+
+    def __init__(self, *names):
+        from fmpy.model_description import Unit
+        self.modelName = "bare"
+        self.unitDefinitions = [Unit(name=n) for n in names]
+
+
+def test_unit_declared_without_base_unit_is_not_dimensionless():
+    """Regression: a bare <Unit name="m/s"/> was taken as dimensionless with factor 1, so
+    m/s -> m passed as identity. Declared without definition, the table of known names
+    decides (strict: refused)."""
+    from cosim.connections import unit_conversion
+    md = _BareMD("m/s", "mm/s", "furlong")
+    assert UnitDef.from_fmpy(md.unitDefinitions[0]) is None
+    assert resolve_unit("m/s", [md]) == resolve_unit("m/s")            # the builtin definition
+    with pytest.raises(UnitError, match="dimension"):
+        connection_conversion("m/s", "m", [md])
+    with pytest.raises(UnitError, match="dimension"):
+        unit_conversion("a.v", "m/s", "b.x", "m", [md])               # the connection rule
+    assert connection_conversion("mm/s", "m/s", [md])[0] == pytest.approx(1e-3)
+    assert unit_conversion("a.v", "mm/s", "b.v", "m/s", [md]) == pytest.approx((1e-3, 0.0))
+    with pytest.raises(UnitError, match="without a <BaseUnit> by bare"):
+        connection_conversion("mm/s", "m/s", [md], strict=True)
+    with pytest.raises(UnitError, match="'furlong' is declared without a <BaseUnit>"):
+        connection_conversion("furlong", "m", [md])
+    with pytest.raises(UnitError, match="without a <BaseUnit>"):
+        conversion(md.unitDefinitions[0], resolve_unit("m"))
+    # a definition elsewhere (another FMU) still counts
+    full = _MD({"mm/s": dict(m=1, s=-1, factor=2e-3), "m/s": dict(m=1, s=-1)})
+    assert connection_conversion("mm/s", "m/s", [md, full], strict=True)[0] == pytest.approx(2e-3)
+
+
 def test_plant_fmu_units_convert(tmp_path):
     """The project's own plant declares rpm through a BaseUnit: rpm -> rad/s from it."""
     from cosim.slave import resolve_fmu_path

@@ -22,22 +22,12 @@ typedef struct {
     int nsub;
 } ModelData;
 
-const ModelInfo MODEL_INFO = {
-    MODEL_NAME, MODEL_GUID,
-    MODEL_REAL_VARS, sizeof(MODEL_REAL_VARS) / sizeof(MODEL_REAL_VARS[0]),
-    MODEL_INT_VARS, sizeof(MODEL_INT_VARS) / sizeof(MODEL_INT_VARS[0]),
-    sizeof(ModelData)
-};
+MODEL_INFO_DEFINE(ModelData);
 
 void model_set_defaults(void *data)
 {
-    ModelData *d = (ModelData *)data;
-    size_t k;
-    for (k = 0; k < MODEL_INFO.n_reals; k++)
-        *(double *)((char *)data + MODEL_REAL_VARS[k].offset) = MODEL_REAL_VARS[k].start;
-    for (k = 0; k < MODEL_INFO.n_ints; k++)
-        *(int *)((char *)data + MODEL_INT_VARS[k].offset) = (int)MODEL_INT_VARS[k].start;
-    d->last_H = -1.0;
+    MODEL_SET_START_VALUES(data);
+    ((ModelData *)data)->last_H = -1.0;     /* no sub-step cached yet */
 }
 
 #define CHECK(cond, ...) do { if (!(cond)) { snprintf(msg, n, __VA_ARGS__); return 1; } } while (0)

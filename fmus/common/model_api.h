@@ -30,7 +30,33 @@ typedef struct {
 
 extern const ModelInfo MODEL_INFO;
 
-/* Put every variable at its start value and clear the states. */
+/* In a model file, after its <Model>_vars.h (MODEL_NAME, MODEL_GUID, MODEL_REAL_VARS,
+ * MODEL_INT_VARS) and the definition of its data block type:
+ *
+ *   MODEL_INFO_DEFINE(ModelData);              -- defines MODEL_INFO
+ *   void model_set_defaults(void *data) {
+ *       MODEL_SET_START_VALUES(data);          -- every variable at its start value
+ *       ... the model's own initial states ...
+ *   }
+ */
+#define MODEL_INFO_DEFINE(DataType)                                                    \
+    const ModelInfo MODEL_INFO = {                                                     \
+        MODEL_NAME, MODEL_GUID,                                                        \
+        MODEL_REAL_VARS, sizeof(MODEL_REAL_VARS) / sizeof(MODEL_REAL_VARS[0]),         \
+        MODEL_INT_VARS, sizeof(MODEL_INT_VARS) / sizeof(MODEL_INT_VARS[0]),            \
+        sizeof(DataType)                                                               \
+    }
+
+#define MODEL_SET_START_VALUES(data)                                                   \
+    do {                                                                               \
+        size_t k_;                                                                     \
+        for (k_ = 0; k_ < MODEL_INFO.n_reals; k_++)                                    \
+            *(double *)((char *)(data) + MODEL_REAL_VARS[k_].offset) = MODEL_REAL_VARS[k_].start; \
+        for (k_ = 0; k_ < MODEL_INFO.n_ints; k_++)                                     \
+            *(int *)((char *)(data) + MODEL_INT_VARS[k_].offset) = (int)MODEL_INT_VARS[k_].start; \
+    } while (0)
+
+/* Put every variable at its start value (MODEL_SET_START_VALUES) and set the states. */
 void model_set_defaults(void *data);
 /* Check all parameters; on failure write a message naming the variable and what was
  * expected into msg and return nonzero. */
