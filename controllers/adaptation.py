@@ -131,3 +131,31 @@ class CuttingParameterAdaptation(Block):
             r = 1.0 if s >= 1.0 else 0.5 * (1.0 - math.cos(math.pi * max(s, 0.0)))
         self.value = [a + (b - a) * r for a, b in zip(self.start, target)]
         return (*self.value, float(self.index), self.t_switch, r)
+
+
+class OneStepDelay(Block):
+    """``y(t_k) = u(t_{k-1})``: a signal one sample late (``initial`` before the first).
+
+    Not direct feed-through, so it closes a loop of feed-through blocks: the commanded
+    orbital speed goes back from the adaptation to the observer whose thrust the detector,
+    and so the adaptation, read in the same step (observer -> detector -> adapt ->
+    observer). One sample (1e-4 s) against a 0.2 s ramp changes nothing measurable.
+    Settings: ``unit`` of u and y, ``initial`` (y before the first sample, in that unit;
+    make it the value the source starts with), ``sample_period`` [s] (0 = every step).
+    """
+
+    direct_feedthrough = False
+
+    def __init__(self, unit: str = "1", initial: float = 0.0, sample_period: float = 0.0):
+        super().__init__(sample_period)
+        self.initial = float(initial)
+        self.inputs = (Port("u", unit, "signal"),)
+        self.outputs = (Port("y", unit, "the signal one sample late", self.initial),)
+        self.reset(0.0)
+
+    def reset(self, t0: float) -> None:
+        self._held = self.initial
+
+    def step(self, t, u):
+        y, self._held = self._held, float(u[0])
+        return (y,)

@@ -55,7 +55,8 @@ from pathlib import Path
 
 import numpy as np
 
-from controllers.force_scoring import moving_average, save_figure
+from controllers.force_scoring import moving_average
+from controllers.plotting import pyplot, save_figure
 from controllers.friction import FrictionModel, resolve_path
 from controllers.nominal_models import KeioNominal
 
@@ -148,12 +149,12 @@ def fit_thrust_constant(levels: list[dict], Kt_n_reference: float) -> dict:
 
 def _scenario_raw(result) -> dict:
     """The run's scenario (with its overrides), for provenance; {} for a Python-API run."""
-    from cosim.scenario import apply_overrides, read_toml
+    from cosim.scenario import load_raw
 
     summ = getattr(result, "summary", None) or {}
     if not summ.get("file"):
         return {}
-    return apply_overrides(read_toml(Path(summ["file"])), summ.get("overrides") or {}, summ["file"])
+    return load_raw(summ["file"], summ.get("overrides") or {})
 
 
 def calibration_in_use(result, block: str) -> dict:
@@ -227,9 +228,7 @@ def calibration_figure(result, out_dir, stage="stage", observer="observer", cont
                        prefix="thrust_calibration"):
     """``[[plots]]`` function: the reference cut (thrust, estimate, command, data windows)
     and the fit of the level means."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     t = result.time
     n = max(1, int(round(filter_time / float(np.median(np.diff(t))))))

@@ -66,6 +66,8 @@ from pathlib import Path
 
 import numpy as np
 
+from controllers.plotting import pyplot, save_figure
+
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "fang_table5_campaign.toml"
 PLANT = "drive"
@@ -216,15 +218,14 @@ def write_table3(path: Path, rows) -> None:
     for layer in ("cfrp", "ti"):
         cols += [f"{layer}_table3_measured_N", f"{layer}_measured_N", f"{layer}_observed_N",
                  f"{layer}_eps_rms_N", f"{layer}_deviation_pct"]
-    with open(path, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(cols)
-        for r in rows:
-            line = [r["hole"], f"{r['gap_mm']:.3f}", r["seed"]]
-            for layer, tgt in (("cfrp", r["target_cfrp_N"]), ("ti", r["target_ti_N"])):
-                line += [f"{tgt:.2f}"] + [f"{_num(r.get(f'{layer}_{k}')):.2f}"
-                                          for k in ("measured", "observed", "eps_rms", "deviation_pct")]
-            w.writerow(line)
+    lines = []
+    for r in rows:
+        line = [r["hole"], f"{r['gap_mm']:.3f}", r["seed"]]
+        for layer, tgt in (("cfrp", r["target_cfrp_N"]), ("ti", r["target_ti_N"])):
+            line += [f"{tgt:.2f}"] + [f"{_num(r.get(f'{layer}_{k}')):.2f}"
+                                      for k in ("measured", "observed", "eps_rms", "deviation_pct")]
+        lines.append(line)
+    _write_csv(path, cols, lines)
 
 
 def write_table5(path: Path, rows) -> None:
@@ -233,17 +234,23 @@ def write_table5(path: Path, rows) -> None:
         cols += [f"{k}_dt_s", f"{k}_dz_mm"]
     cols += ["paper_entry_dz_mm", "paper_interface_dz_mm", "paper_exit_dz_mm",
              "flag_before_entry", "n_missed", "fail", "status"]
+    lines = []
+    for r in rows:
+        line = [r["hole"], f"{r['gap_mm']:.3f}", r["seed"], f"{r['exit_thinning_mm']:.3f}"]
+        for k in EVENT_KEYS:
+            line += [f"{_num(r.get(f'{k}_dt_s')):.3f}", f"{_num(r.get(f'{k}_dz_mm')):.4f}"]
+        line += [f"{v:.3f}" for v in TABLE5_DZ[r["hole"] - 1]]
+        line += [int(bool(r.get("flag_before_entry", True))), r.get("n_missed", ""),
+                 r.get("fail", ""), r.get("status", "")]
+        lines.append(line)
+    _write_csv(path, cols, lines)
+
+
+def _write_csv(path: Path, cols, lines) -> None:
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(cols)
-        for r in rows:
-            line = [r["hole"], f"{r['gap_mm']:.3f}", r["seed"], f"{r['exit_thinning_mm']:.3f}"]
-            for k in EVENT_KEYS:
-                line += [f"{_num(r.get(f'{k}_dt_s')):.3f}", f"{_num(r.get(f'{k}_dz_mm')):.4f}"]
-            line += [f"{v:.3f}" for v in TABLE5_DZ[r["hole"] - 1]]
-            line += [int(bool(r.get("flag_before_entry", True))), r.get("n_missed", ""),
-                     r.get("fail", ""), r.get("status", "")]
-            w.writerow(line)
+        w.writerows(lines)
 
 
 def summarize(rows) -> dict:
@@ -254,13 +261,17 @@ def summarize(rows) -> dict:
         dz = np.array([_num(r.get(f"{k}_dz_mm")) for r in rows])
         dt = np.array([_num(r.get(f"{k}_dt_s")) for r in rows])
         ok = np.isfinite(dz)
+
+        def stat(fn, v):   # over the holes where the event was detected
+            return float(fn(v[ok])) if ok.any() else math.nan
+
         out["events"][k] = {
-            "worst_abs_dz_mm": float(np.max(np.abs(dz[ok]))) if ok.any() else math.nan,
-            "mean_abs_dz_mm": float(np.mean(np.abs(dz[ok]))) if ok.any() else math.nan,
-            "mean_dz_mm": float(np.mean(dz[ok])) if ok.any() else math.nan,
-            "min_dz_mm": float(np.min(dz[ok])) if ok.any() else math.nan,
-            "max_dz_mm": float(np.max(dz[ok])) if ok.any() else math.nan,
-            "worst_abs_dt_s": float(np.max(np.abs(dt[ok]))) if ok.any() else math.nan,
+            "worst_abs_dz_mm": stat(np.max, np.abs(dz)),
+            "mean_abs_dz_mm": stat(np.mean, np.abs(dz)),
+            "mean_dz_mm": stat(np.mean, dz),
+            "min_dz_mm": stat(np.min, dz),
+            "max_dz_mm": stat(np.max, dz),
+            "worst_abs_dt_s": stat(np.max, np.abs(dt)),
             "n_detected": int(ok.sum()),
         }
     paper = np.array([TABLE5_DZ[r["hole"] - 1] for r in rows])
@@ -305,9 +316,7 @@ def _load_run(out_dir):
 
 def plot_fig8(path: Path, rows, max_holes=4) -> None:
     """Like Fang Fig. 8: observed DC thrust with the detected time nodes, a few holes."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     sel = rows if len(rows) <= max_holes else [rows[i] for i in np.linspace(0, len(rows) - 1, max_holes).astype(int)]
     fig, axes = plt.subplots(len(sel), 1, figsize=(9, 2.4 * len(sel)), sharex=False, squeeze=False)
@@ -334,17 +343,13 @@ def plot_fig8(path: Path, rows, max_holes=4) -> None:
                      fontsize=9)
     axes[-1, 0].set_xlabel("time [s]")
     axes[0, 0].legend(fontsize=7, ncol=3, loc="upper left")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path.parent, path.name, dpi=120)
 
 
 def plot_fig9(path: Path, rows) -> None:
     """Like Fang Fig. 9: depth error of entry, interface, exit per hole (both exit
     criteria), with the paper's Table 5 values for the same holes."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     holes = [r["hole"] for r in rows]
     x = np.arange(len(rows))
@@ -368,9 +373,7 @@ def plot_fig9(path: Path, rows) -> None:
         ax.legend(fontsize=7)
     axes[-1].set_xticks(x, [str(h) for h in holes])
     axes[-1].set_xlabel("hole (Table 3 test number)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path.parent, path.name, dpi=120)
 
 
 # ------------------------------------------------------------------ CLI

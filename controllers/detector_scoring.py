@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from controllers.signal_tools import centred_mean
+
 EVENTS = ("entry", "interface", "exit")
 
 
@@ -159,23 +161,13 @@ def _transitions(time, layer):
     return {"entry": mid(i_entry), "interface": mid(i_int), "exit": mid(i_exit), "ti_top": mid(i_ti)}
 
 
-def _moving_average(y, n):
-    if n <= 1:
-        return np.asarray(y, float)
-    c = np.cumsum(np.insert(np.asarray(y, float), 0, 0.0))
-    out = np.full(len(y), np.nan)
-    half = n // 2
-    out[half:half + len(y) - n + 1] = (c[n:] - c[:-n]) / n
-    return out
-
-
 def layer_thrust_stats(time, x_tool, F_dyn, F_obs, x_lo, x_hi, orbital_period=0.5):
     """Table 3 columns for one layer: mean DC thrust of the dynamometer (moving
     average over one orbital period) and of the observer over x_tool in
     [x_lo, x_hi], RMS of their difference, deviation in %."""
     time = np.asarray(time, float)
     dt = float(np.median(np.diff(time))) if time.size > 1 else 1.0
-    dc = _moving_average(F_dyn, max(1, int(round(orbital_period / dt))))
+    dc = centred_mean(F_dyn, max(1, int(round(orbital_period / dt))), edges="nan")
     sel = (np.asarray(x_tool) >= x_lo) & (np.asarray(x_tool) <= x_hi) & np.isfinite(dc)
     if not sel.any():
         return {"measured": math.nan, "observed": math.nan, "eps_rms": math.nan, "deviation_pct": math.nan}

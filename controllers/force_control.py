@@ -98,10 +98,21 @@ from typing import Sequence
 
 from cosim.block import Block, Port
 from controllers.calibration import load_calibration
-from controllers.position_control import RobustAcceleration
+from controllers.position_control import (CORE_PORTS, ENCODER_PORT, TRAJECTORY_PORTS, RobustAcceleration,
+                                          pd_feedforward)
 from controllers.trajectory import profile_step
 
 MODE_APPROACH, MODE_FORCE, MODE_RETRACT = 0, 1, 2
+
+
+def held_for(condition: bool, t: float, since: float | None, duration: float) -> tuple[float | None, bool]:
+    """Debounce: returns (time the condition became true, or None while it is false;
+    True once it has held for ``duration`` s)."""
+    if not condition:
+        return None, False
+    if since is None:
+        since = t
+    return since, t - since >= duration - 1e-12
 
 
 class ThrustForceController(Block):
@@ -136,12 +147,9 @@ class ThrustForceController(Block):
     """
 
     outputs = (
-        Port("i_ref", "A", "current reference (saturated at i_max)"),
-        Port("v_hat", "m/s", "velocity from the pseudo-differentiator"),
+        CORE_PORTS["i_ref"], CORE_PORTS["v_hat"],
         Port("mode", "1", "0 approach (position), 1 force, 2 retract (position)"),
-        Port("a_cmd", "m/s2", "acceleration reference of the robust acceleration loop"),
-        Port("F_dis_hat", "N", "disturbance-observer estimate"),
-        Port("saturated", "1", "1 while the current reference is clipped at i_max"),
+        CORE_PORTS["a_cmd"], CORE_PORTS["F_dis_hat"], CORE_PORTS["saturated"],
         Port("F_cmd_out", "N", "thrust command while in force mode, else 0"),
         Port("z_contact", "m", "encoder position when contact was detected (nan before)",
              start=float("nan")),
@@ -180,10 +188,7 @@ class ThrustForceController(Block):
         self.core = RobustAcceleration(mass_nominal, force_constant_nominal, g_dob, g_vel, i_max,
                                        F_bias, sample_period if sample_period > 0 else dt)
         self.inputs = (
-            Port("z_ref", "m", "approach reference position"),
-            Port("v_ref", "m/s", "approach velocity feed-forward"),
-            Port("a_ref", "m/s2", "approach acceleration feed-forward"),
-            Port("z", "m", "encoder position"),
+            *TRAJECTORY_PORTS, ENCODER_PORT,       # the approach trajectory
             Port("F_cmd", "N", "thrust-force command", start=float(F_cmd)),
             Port("F_thrust_hat", "N", "cutting-force observer estimate"),
         )
@@ -217,26 +222,22 @@ class ThrustForceController(Block):
         prev_mode = self.mode
         # --- mode logic (observer estimate only, never the plant's truth) ---
         if self.mode == MODE_APPROACH and self.force_control:
-            if F_hat > self.F_contact and z >= self.z_contact_min:
-                if self.t_above is None:
-                    self.t_above = t
-                if t - self.t_above >= self.t_confirm - 1e-12:
-                    self._switch(t, MODE_FORCE, z, v_hat)
-            else:
-                self.t_above = None
+            self.t_above, contact = held_for(F_hat > self.F_contact and z >= self.z_contact_min,
+                                             t, self.t_above, self.t_confirm)
+            if contact:
+                self._switch(t, MODE_FORCE, z, v_hat)
         elif self.mode == MODE_FORCE:
             if z >= self.z_limit:
                 self._switch(t, MODE_RETRACT, z, v_hat)
-            elif z - self.z_contact >= self.exit_min_depth and F_hat < self.F_exit_ratio * F_cmd:
-                if self.t_below is None:
-                    self.t_below = t
-                if t - self.t_below >= self.t_exit_confirm - 1e-12:
-                    self._switch(t, MODE_RETRACT, z, v_hat)
             else:
-                self.t_below = None
+                self.t_below, exited = held_for(
+                    z - self.z_contact >= self.exit_min_depth and F_hat < self.F_exit_ratio * F_cmd,
+                    t, self.t_below, self.t_exit_confirm)
+                if exited:
+                    self._switch(t, MODE_RETRACT, z, v_hat)
         # --- acceleration reference of the active law ---
         if self.mode == MODE_APPROACH:
-            a_raw = a_ff + self.Kv * (self.Kp * (z_ref - z) + v_ff - v_hat)
+            a_raw = pd_feedforward(self.Kp, self.Kv, z_ref, z, v_ff, v_hat, a_ff)
         elif self.mode == MODE_FORCE:
             a_raw = self.Kf * (F_cmd - F_hat) / core.M
             if self.v_max < math.inf:
@@ -244,7 +245,7 @@ class ThrustForceController(Block):
         else:
             zr, vr = self.zr, self.vr
             z1, v1, ar = profile_step(zr, vr, self.z_retract, self.v_retract, self.a_retract, core.dt)
-            a_raw = ar + self.Kv * (self.Kp * (zr - z) + vr - v_hat)
+            a_raw = pd_feedforward(self.Kp, self.Kv, zr, z, vr, v_hat, ar)
             self.zr, self.vr = z1, v1
         # --- bumpless transfer ---
         if self.mode != prev_mode:

@@ -30,22 +30,15 @@ Definitions (all in :func:`force_scores`)
 """
 from __future__ import annotations
 
-import math
-from pathlib import Path
-
 import numpy as np
+
+from controllers.plotting import pyplot, save_figure
+from controllers.signal_tools import centred_mean
 
 
 def moving_average(x: np.ndarray, n: int) -> np.ndarray:
     """Centred moving average over ``n`` samples (shrinking window at the ends)."""
-    x = np.asarray(x, float)
-    if n <= 1 or len(x) == 0:
-        return x.copy()
-    c = np.concatenate(([0.0], np.cumsum(x)))
-    k = np.arange(len(x))
-    lo = np.clip(k - n // 2, 0, len(x))
-    hi = np.clip(k - n // 2 + n, 0, len(x))
-    return (c[hi] - c[lo]) / (hi - lo)
+    return centred_mean(x, n, edges="shrink")
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -209,26 +202,12 @@ def force_scores(result, stage="stage", controller="controller", observer="obser
 
 
 # ----------------------------------------------------------------------------- figures
-def save_figure(fig, out_dir, file, title) -> Path:
-    """Title, lay out, write ``out_dir/file`` (110 dpi) and close a matplotlib figure."""
-    import matplotlib.pyplot as plt
-
-    fig.suptitle(title)
-    fig.tight_layout()
-    path = Path(out_dir) / file
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
 def force_figure(result, out_dir, stage="stage", controller="controller", observer="observer",
                  compare_stage=None, compare_controller=None, file="thrust_force_control.png",
                  title="Thrust force control", filter_time=0.005, prefix="force_control"):
     """``[[plots]]`` function: thrust vs command with layer marks, feed rate, current
     (Keio Figs. 4 and 7); with ``compare_stage`` the constant-feed run side by side."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     t = result.time
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1e-4

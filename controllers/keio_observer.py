@@ -58,13 +58,13 @@ sample (100 us) of misalignment, the order of the plant's own current-loop lag.
 """
 from __future__ import annotations
 
-from cosim.block import Block, Port
+from cosim.block import Port
 from controllers.calibration import load_calibration, rescale_friction
 from controllers.friction import make_friction, resolve_path
-from controllers.nominal_models import KeioNominal, keio_model, zoh
+from controllers.nominal_models import DiscretisedBlock, KeioNominal, keio_model, zoh
 
 
-class CuttingForceObserver(Block):
+class CuttingForceObserver(DiscretisedBlock):
     inputs = (Port("i_ref", "A", "current reference to the drive"),
               Port("z", "m", "linear encoder, feed coordinate (positive into the workpiece)"))
     outputs = (Port("F_thrust_hat", "N", "observed thrust force, eq. 1"),
@@ -110,22 +110,16 @@ class CuttingForceObserver(Block):
         self._F_static = abs(fm.coulomb) + abs(fm.stribeck)
         # the nominal model (derived symbolically once; checks observability of z -> F_dis)
         self.model = keio_model(self.nominal)
-        self._Ts_used = None
-        self._discretise()
+        self.ensure_discretised()
         self.reset(0.0)
 
-    def _discretise(self):
-        Ts = self.sample_period
-        if not Ts > 0:
-            raise ValueError("CuttingForceObserver needs sample_period > 0 (its filter is discretised to it)")
+    def _discretise(self, Ts):
         Ad, Bd = zoh([[-self.nominal.g_thrust]], [[self.nominal.g_thrust]], Ts)
         self._a = float(Ad[0, 0])
         self._b = float(Bd[0, 0])            # = 1 - a
-        self._Ts_used = Ts
 
     def reset(self, t0: float) -> None:
-        if self._Ts_used != self.sample_period:
-            self._discretise()
+        self.ensure_discretised()
         self._first = True
         self._z_prev = 0.0
         self._v_prev = 0.0

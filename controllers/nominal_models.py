@@ -35,6 +35,8 @@ import casadi as ca
 import numpy as np
 import scipy.linalg
 
+from cosim.block import Block
+
 
 # --------------------------------------------------------------------------- parameters
 @dataclass(frozen=True)
@@ -129,6 +131,30 @@ def zoh(A, B, dt: float) -> tuple[np.ndarray, np.ndarray]:
     M[:n, n:] = B
     E = scipy.linalg.expm(M * dt)
     return E[:n, :n].copy(), E[:n, n:].copy()
+
+
+class DiscretisedBlock(Block):
+    """A block whose filters are discretised (exact ZOH) to its own sample period.
+
+    Subclasses implement ``_discretise(Ts)`` (Ts > 0 s, the period to discretise to) and
+    call :meth:`ensure_discretised` at the end of their constructor and at the start of
+    ``reset``: the master may change ``sample_period`` between construction and the run,
+    and the matrices are then derived again, once, before the first sample.
+    """
+
+    _Ts_used: float | None = None
+
+    def _discretise(self, Ts: float) -> None:
+        raise NotImplementedError
+
+    def ensure_discretised(self) -> float:
+        Ts = self.sample_period
+        if Ts != self._Ts_used:
+            if not Ts > 0:
+                raise ValueError(f"{type(self).__name__} needs sample_period > 0 (it is discretised to it)")
+            self._discretise(Ts)
+            self._Ts_used = Ts
+        return Ts
 
 
 def discretise(ss: StateSpace, dt: float) -> StateSpace:

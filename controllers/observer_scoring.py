@@ -27,6 +27,8 @@ import numpy as np
 
 from controllers.friction import identify_friction
 from controllers.nominal_models import FangNominal, KeioNominal
+from controllers.plotting import pyplot, save_figure
+from controllers.signal_tools import centred_mean
 
 MATERIALS = {0: "air", 1: "CFRP", 2: "Ti-6Al-4V", 3: "aluminium"}
 
@@ -37,16 +39,19 @@ def true_parameters(result, instance: str) -> dict:
 
     Scoring only: reads the scenario file named in ``result.summary`` again.
     """
-    from cosim.scenario import apply_overrides, read_toml
+    from cosim.scenario import Origins, load_raw
     from cosim.slave import load_model, resolve_fmu_path
 
     summ = getattr(result, "summary", None) or {}
     file = summ.get("file")
     if not file:
         raise ValueError("true_parameters: the result does not name its scenario file")
-    raw = apply_overrides(read_toml(Path(file)), summ.get("overrides") or {}, file)
+    # load_raw follows `extends`; the FMU path is relative to the file that wrote it.
+    origins = Origins()
+    raw = load_raw(file, summ.get("overrides") or {}, origins)
     spec = raw["fmus"][instance]
-    path = resolve_fmu_path(spec["path"], Path(file).parent.resolve())
+    fmu_dir = Path(origins.file_of(f"fmus.{instance}.path")).parent.resolve()
+    path = resolve_fmu_path(spec["path"], fmu_dir)
     model = load_model(path)
     out = {}
     for name, v in model.variables.items():
@@ -60,19 +65,6 @@ def true_parameters(result, instance: str) -> dict:
     return out
 
 
-def centred_mean(x: np.ndarray, n: int) -> np.ndarray:
-    """Centred moving average over ``n`` samples (edges: shrinking window)."""
-    x = np.asarray(x, float)
-    if n <= 1:
-        return x.copy()
-    c = np.concatenate([[0.0], np.cumsum(x)])
-    i = np.arange(len(x))
-    lo = np.clip(i - n // 2, 0, len(x))
-    hi = np.clip(lo + n, 0, len(x))
-    lo = np.clip(hi - n, 0, len(x))
-    return (c[hi] - c[lo]) / (hi - lo)
-
-
 def first_run(mask: np.ndarray) -> np.ndarray:
     """Indices of the first contiguous run of True in ``mask`` (empty if none)."""
     idx = np.nonzero(mask)[0]
@@ -82,11 +74,13 @@ def first_run(mask: np.ndarray) -> np.ndarray:
     return idx[: breaks[0] + 1] if len(breaks) else idx
 
 
-def fit_sinusoid(t, y, f):
-    """Least squares ``y ~ S sin(2 pi f t) + C cos(2 pi f t) + c0 + c1 t`` -> (amplitude, phase)
-    (the phase of ``A sin(2 pi f t + phase)``; the linear trend absorbs a drifting DC part)."""
+def fit_sinusoid(t, y, f, phase=None):
+    """Least squares ``y ~ S sin(phi) + C cos(phi) + c0 + c1 t`` -> (amplitude, phase), with
+    ``phi = 2 pi f t`` or the given orbital angle ``phase`` [rad] per sample (a changing
+    speed); the phase returned is that of ``A sin(phi + phase)``; the linear trend absorbs
+    a drifting DC part."""
     t = np.asarray(t, float)
-    ph = 2 * np.pi * f * t
+    ph = 2 * np.pi * f * t if phase is None else np.asarray(phase, float)
     X = np.column_stack([np.sin(ph), np.cos(ph), np.ones_like(ph), t - t.mean()])
     (S, C, _, _), *_ = np.linalg.lstsq(X, np.asarray(y, float), rcond=None)
     return float(np.hypot(S, C)), float(np.arctan2(C, S))
@@ -94,6 +88,34 @@ def fit_sinusoid(t, y, f):
 
 def wrap(a):
     return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def orbital_reference(result, fmu: str, orbital_speed_rpm: float = 120.0,
+                      orbital_speed_signal: str | None = None):
+    """What the Fang scores compare against, per recorded sample: ``(t, F_dyn, dc, rpm,
+    n_avg, phi)`` -- the dynamometer thrust, its DC part (centred mean over ``n_avg``
+    samples = one orbital period), the orbital speed [rpm] and angle [rad]. The speed is
+    the constant ``orbital_speed_rpm`` (``phi`` None: ``2 pi f t``) or the recorded signal
+    ``orbital_speed_signal`` (e.g. ``"adapt.orbital_speed"``, the commanded speed that the
+    plant and the observer follow), whose angle is integrated from the first sample.
+    ``"auto"``: the plant's orbital-speed input ``<fmu>.orbital_speed`` when the run
+    recorded it (a scenario that changes the speed records it), else the constant."""
+    t = result.time
+    dt = float(np.median(np.diff(t)))
+    if orbital_speed_signal == "auto":
+        orbital_speed_signal = f"{fmu}.orbital_speed" if f"{fmu}.orbital_speed" in result else None
+    if orbital_speed_signal:
+        rpm = np.asarray(result[orbital_speed_signal], float)
+        w = 2 * np.pi * rpm / 60.0
+        phi = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))])
+    else:
+        rpm = np.full(len(t), float(orbital_speed_rpm))
+        phi = None
+    with np.errstate(divide="ignore"):
+        per = np.where(rpm > 0, 1.0 / (rpm / 60.0) / dt, 1.0)
+    n_avg = np.maximum(1, np.rint(per)).astype(int)
+    F_dyn = result[f"{fmu}.F_dyn"]
+    return t, F_dyn, centred_mean(F_dyn, n_avg), rpm, n_avg, phi
 
 
 def _out_dir(result, out_dir=None) -> Path:
@@ -181,7 +203,8 @@ def air_cut_friction(result, fmu: str = "drive", drive: str = "BallScrewDrive",
 # --------------------------------------------------------------------------- Fang Table 3
 def fang_table3(result, fmu: str = "drive", observer: str = "observer", orbital_speed_rpm: float = 120.0,
                 ripple_settle: float = 5.0, ripple_end_margin: float = 3.0, ripple_window: float = 1.0,
-                ripple_reference: str = "F_dyn", print_table: bool = True) -> dict:
+                ripple_reference: str = "F_dyn", orbital_speed_signal: str | None = "auto",
+                print_table: bool = True) -> dict:
     """Table-3-style comparison per layer plus the ripple amplitude / phase errors.
 
     Ripple: in windows of ``ripple_window`` s from ``ripple_settle`` s after the layer start
@@ -191,20 +214,18 @@ def fang_table3(result, fmu: str = "drive", observer: str = "observer", orbital_
     ``ripple_phase_hat`` (window means). Not ``F_ripple_true`` alone: the ripple force
     makes the table vibrate by a fraction of a micrometre, which the stiff tool contact
     turns into a few newtons of extra 2 Hz thrust -- part of the thrust the dynamometer
-    and the observer both see.
+    and the observer both see. ``orbital_speed_signal``: a recorded orbital speed [rpm]
+    instead of the constant ``orbital_speed_rpm``, for runs that change it; default "auto",
+    the plant's ``orbital_speed`` input when recorded (:func:`orbital_reference`).
     """
-    t = result.time
-    dt = float(np.median(np.diff(t)))
-    f_orb = orbital_speed_rpm / 60.0
-    n_avg = max(1, int(round(1.0 / f_orb / dt))) if f_orb > 0 else 1
-    F_dyn = result[f"{fmu}.F_dyn"]
-    dc_meas = centred_mean(F_dyn, n_avg)
+    t, F_dyn, dc_meas, rpm, n_all, phi = orbital_reference(result, fmu, orbital_speed_rpm, orbital_speed_signal)
     dc_obs = result[f"{observer}.F_dc_hat"]
     layer = np.rint(result[f"{fmu}.layer"]).astype(int)
     material = np.rint(result[f"{fmu}.material"]).astype(int) if f"{fmu}.material" in result else None
     rows = []
     for L in sorted(set(layer[layer > 0])):
         idx = first_run(layer == L)
+        n_avg = int(n_all[idx].max())
         if len(idx) < 2 * n_avg + 2:
             continue
         sel = idx[n_avg // 2: len(idx) - n_avg // 2]
@@ -218,13 +239,14 @@ def fang_table3(result, fmu: str = "drive", observer: str = "observer", orbital_
                "eps_rms_N": eps, "deviation_pct": 100.0 * eps / abs(m_meas) if m_meas else float("nan"),
                "mean_deviation_pct": float(100.0 * (np.mean(dc_obs[sel]) - m_meas) / m_meas) if m_meas else float("nan")}
         # ripple: 1-s windows of the converged part, true ripple vs the observer's estimate
-        if f_orb > 0 and f"{fmu}.{ripple_reference}" in result and f"{observer}.ripple_amplitude_hat" in result:
+        if np.all(rpm[idx] > 0) and f"{fmu}.{ripple_reference}" in result and f"{observer}.ripple_amplitude_hat" in result:
             t0, t1 = t[idx[0]] + ripple_settle, t[idx[-1]] - ripple_end_margin
             amp_err, ph_err = [], []
             w0 = t0
             while w0 + ripple_window <= t1 + 1e-9:
                 w = (t >= w0) & (t < w0 + ripple_window)
-                a_true, p_true = fit_sinusoid(t[w], result[f"{fmu}.{ripple_reference}"][w], f_orb)
+                a_true, p_true = fit_sinusoid(t[w], result[f"{fmu}.{ripple_reference}"][w],
+                                              float(np.median(rpm[w])) / 60.0, None if phi is None else phi[w])
                 a_hat = float(np.mean(result[f"{observer}.ripple_amplitude_hat"][w]))
                 p_hat = float(np.angle(np.mean(np.exp(1j * result[f"{observer}.ripple_phase_hat"][w]))))
                 if a_true > 0:
@@ -266,19 +288,13 @@ def fang_table3(result, fmu: str = "drive", observer: str = "observer", orbital_
 
 
 def fang_fig7(result, out_dir, fmu: str = "drive", observer: str = "observer", orbital_speed_rpm: float = 120.0,
-              file: str = "fig7_fang_observer.png", zoom: float = 3.0, title: str | None = None) -> Path:
+              file: str = "fig7_fang_observer.png", zoom: float = 3.0, title: str | None = None,
+              orbital_speed_signal: str | None = "auto") -> Path:
     """Fang Fig. 7: (a) dynamometer thrust, (b) DC measured vs observed, (c) AC measured vs
     ripple estimate (full run and a zoom of ``zoom`` seconds in the middle of each layer)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    t = result.time
-    dt = float(np.median(np.diff(t)))
-    f_orb = orbital_speed_rpm / 60.0
-    n_avg = max(1, int(round(1.0 / f_orb / dt))) if f_orb > 0 else 1
-    F_dyn = result[f"{fmu}.F_dyn"]
-    dc = centred_mean(F_dyn, n_avg)
+    plt = pyplot()
+    t, F_dyn, dc, rpm, _, _ = orbital_reference(result, fmu, orbital_speed_rpm, orbital_speed_signal)
+    f_orb = " -> ".join(f"{v:g}" for v in dict.fromkeys(np.round(rpm[[0, -1]] / 60.0, 3)))
     fig, ax = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
     ax[0].plot(t, F_dyn, lw=0.4, color="tab:gray")
     ax[0].set_ylabel("thrust [N]")
@@ -289,17 +305,12 @@ def fang_fig7(result, out_dir, fmu: str = "drive", observer: str = "observer", o
     ax[1].set_title("(b) DC component: measured vs observed")
     ax[1].legend(loc="upper left", fontsize=8)
     ax[2].plot(t, F_dyn - dc, lw=0.4, label="measured AC (dynamometer - DC)")
-    ax[2].plot(t, result[f"{observer}.F_ripple_hat"], lw=0.8, label=f"ripple estimate (eq. 8, {f_orb:g} Hz)")
+    ax[2].plot(t, result[f"{observer}.F_ripple_hat"], lw=0.8, label=f"ripple estimate (eq. 8, {f_orb} Hz)")
     ax[2].set_ylabel("AC thrust [N]")
     ax[2].set_xlabel("time [s]")
     ax[2].set_title("(c) AC component: measured vs ripple estimate")
     ax[2].legend(loc="upper left", fontsize=8)
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    path = Path(out_dir) / file
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    path = save_figure(fig, out_dir, file, title)
     # zoom on the AC part in the middle of each layer
     if f"{fmu}.layer" in result and zoom > 0:
         layer = np.rint(result[f"{fmu}.layer"]).astype(int)
@@ -315,9 +326,7 @@ def fang_fig7(result, out_dir, fmu: str = "drive", observer: str = "observer", o
                 a.set_title(f"layer {L}: AC part (zoom)")
                 a.set_xlabel("time [s]")
                 a.legend(fontsize=7)
-            fig.tight_layout()
-            fig.savefig(Path(out_dir) / file.replace(".png", "_ac_zoom.png"), dpi=110)
-            plt.close(fig)
+            save_figure(fig, out_dir, file.replace(".png", "_ac_zoom.png"))
     return path
 
 
@@ -387,9 +396,7 @@ def keio_fig3_scores(result, fmu: str = "stage", observer: str = "observer", a_r
 def keio_fig3(result, out_dir, fmu: str = "stage", observer: str = "observer", a_ref: str = "trajectory.a_ref",
               file: str = "fig3_keio_force_monitoring.png", title: str | None = None) -> Path:
     """Keio Fig. 3: dynamometer, observed thrust (eq. 1) and force reference (eq. 2)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     t = result.time
     fig, ax = plt.subplots(3, 1, figsize=(10, 8), sharex=True, gridspec_kw={"height_ratios": [3, 1.2, 1.2]})
@@ -404,11 +411,7 @@ def keio_fig3(result, out_dir, fmu: str = "stage", observer: str = "observer", a
     ax[2].plot(t, result[a_ref], lw=0.8, color="tab:red")
     ax[2].set_ylabel("a_ref [m/s2]")
     ax[2].set_xlabel("time [s]")
-    fig.tight_layout()
-    path = Path(out_dir) / file
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, out_dir, file)
 
 
 def write_json(path, data) -> Path:

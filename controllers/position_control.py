@@ -72,6 +72,36 @@ def nominal_loop_poles(Kp: float, Kv: float) -> np.ndarray:
     return np.roots([1.0, Kv, Kv * Kp])
 
 
+def pd_feedforward(Kp: float, Kv: float, z_ref: float, z: float, v_ff: float, v_hat: float,
+                   a_ff: float) -> float:
+    """The position loop: ``a_ref = a_ff + Kv*(Kp*(z_ref - z) + v_ff - v_hat)`` [m/s2]."""
+    return a_ff + Kv * (Kp * (z_ref - z) + v_ff - v_hat)
+
+
+def ball_screw_linear(J_en: float, K_Tn: float, K_pitch: float) -> tuple[float, float]:
+    """A rotary drive in the table's linear coordinate ``x = K_pitch*theta``: (mass
+    ``J_en/K_pitch**2`` [kg], force constant ``K_Tn/K_pitch`` [N/A])."""
+    if not K_pitch > 0:
+        raise ValueError(f"ball-screw drive: K_pitch must be > 0 m/rad, got {K_pitch!r}")
+    return J_en / K_pitch ** 2, K_Tn / K_pitch
+
+
+# ports shared by the position and the force controller (same meaning, same unit)
+TRAJECTORY_PORTS = (
+    Port("z_ref", "m", "reference position"),
+    Port("v_ref", "m/s", "velocity feed-forward"),
+    Port("a_ref", "m/s2", "acceleration feed-forward"),
+)
+ENCODER_PORT = Port("z", "m", "encoder position")
+CORE_PORTS = {
+    "i_ref": Port("i_ref", "A", "current reference (saturated at i_max)"),
+    "v_hat": Port("v_hat", "m/s", "velocity from the pseudo-differentiator"),
+    "F_dis_hat": Port("F_dis_hat", "N", "disturbance-observer estimate"),
+    "a_cmd": Port("a_cmd", "m/s2", "acceleration reference of the robust acceleration loop"),
+    "saturated": Port("saturated", "1", "1 while the current reference is clipped at i_max"),
+}
+
+
 class RobustAcceleration:
     """Pseudo-differentiator + disturbance observer + current computation (not a block).
 
@@ -158,19 +188,8 @@ class PositionController(Block):
         saturated [1] (1 while the unsaturated current exceeds i_max).
     """
 
-    inputs = (
-        Port("z_ref", "m", "reference position"),
-        Port("v_ref", "m/s", "velocity feed-forward"),
-        Port("a_ref", "m/s2", "acceleration feed-forward"),
-        Port("z", "m", "encoder position"),
-    )
-    outputs = (
-        Port("i_ref", "A", "current reference (saturated at i_max)"),
-        Port("v_hat", "m/s", "velocity from the pseudo-differentiator"),
-        Port("F_dis_hat", "N", "disturbance-observer estimate"),
-        Port("a_cmd", "m/s2", "acceleration reference of the robust acceleration loop"),
-        Port("saturated", "1", "1 while the current reference is clipped at i_max"),
-    )
+    inputs = (*TRAJECTORY_PORTS, ENCODER_PORT)
+    outputs = tuple(CORE_PORTS[n] for n in ("i_ref", "v_hat", "F_dis_hat", "a_cmd", "saturated"))
     direct_feedthrough = True
 
     def __init__(self, Kp: float = 25.0, Kv: float = 100.0, mass_nominal: float = 3.95,
@@ -195,10 +214,7 @@ class PositionController(Block):
         (stored as ``.eta``: cutting force = eta * F_dis_hat). Other keywords as the
         constructor (``mass_nominal`` / ``force_constant_nominal`` are computed).
         """
-        if not K_pitch > 0:
-            raise ValueError(f"for_ball_screw: K_pitch must be > 0 m/rad, got {K_pitch!r}")
-        kw["mass_nominal"] = J_en / K_pitch ** 2
-        kw["force_constant_nominal"] = K_Tn / K_pitch
+        kw["mass_nominal"], kw["force_constant_nominal"] = ball_screw_linear(J_en, K_Tn, K_pitch)
         obj = cls(**kw)
         obj.eta = float(eta)
         return obj
@@ -219,7 +235,7 @@ class PositionController(Block):
         z_ref, v_ff, a_ff, z = u
         core = self.core
         v_hat = core.measure(t, z)
-        a_cmd = a_ff + self.Kv * (self.Kp * (z_ref - z) + v_ff - v_hat)
+        a_cmd = pd_feedforward(self.Kp, self.Kv, z_ref, z, v_ff, v_hat, a_ff)
         i = core.current(a_cmd)
         return (i, v_hat, core.F_dis, a_cmd, 1.0 if core.saturated else 0.0)
 
@@ -233,10 +249,7 @@ class BallScrewPositionController(PositionController):
 
     def __init__(self, J_en: float = 0.0003, K_Tn: float = 1.10, K_pitch: float = 0.637e-3,
                  eta: float = 0.95, **kw):
-        if not K_pitch > 0:
-            raise ValueError(f"BallScrewPositionController: K_pitch must be > 0 m/rad, got {K_pitch!r}")
-        kw["mass_nominal"] = J_en / K_pitch ** 2
-        kw["force_constant_nominal"] = K_Tn / K_pitch
+        kw["mass_nominal"], kw["force_constant_nominal"] = ball_screw_linear(J_en, K_Tn, K_pitch)
         super().__init__(**kw)
         self.eta = float(eta)
 

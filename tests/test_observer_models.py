@@ -122,3 +122,17 @@ def test_friction_file_roundtrip_and_precedence(tmp_path):
 def test_friction_sign_is_smooth_inside_v_eps():
     fm = FrictionModel(coulomb=1.0, viscous=0.0, v_eps=1e-3)
     assert fm.force(0.0) == 0.0 and fm.force(5e-4) == pytest.approx(0.5) and fm.force(-1.0) == -1.0
+
+
+def test_true_parameters_follow_scenario_inheritance():
+    # Scoring reads the plant's true parameters back from the run's scenario; a scenario
+    # that `extends` another one declares its FMU only in the base file.
+    from types import SimpleNamespace
+
+    from controllers.observer_scoring import true_parameters
+
+    result = SimpleNamespace(summary={"file": "scenarios/fang_table5_campaign.toml",
+                                      "overrides": {"fmus.drive.parameters.seed": 5}})
+    p = true_parameters(result, "drive")
+    assert p["seed"] == 5
+    assert p["K_T"] == pytest.approx(1.10 * 0.97, rel=1e-9)   # the plant's hidden -3 %
