@@ -1,11 +1,14 @@
 """Campaigns: one scenario run many times with different overrides, in parallel processes.
 
-Each run writes its own folder ``<out_dir>/run_NNN`` and returns its summary. A run
-that fails is recorded with its error; the others go on. ``campaign.json`` in
+Each run writes its own folder ``<out_dir>/run_NNN`` and returns its summary; what a
+run prints (score tables, warnings) goes to ``run_NNN/log.txt``, since the parallel
+workers' output would interleave on the terminal. A run that fails is recorded with its
+error; the others go on. ``campaign.json`` in
 ``out_dir`` collects every summary.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import sys
@@ -15,8 +18,10 @@ from pathlib import Path
 
 def _one_run(path: str, out_dir: str, overrides: dict, index: int) -> dict:
     from .runner import run_scenario      # imported in the worker process
+    Path(out_dir).mkdir(parents=True, exist_ok=True)
     try:
-        result = run_scenario(path, out_dir=out_dir, overrides=overrides, progress=False)
+        with open(Path(out_dir) / "log.txt", "w") as log, contextlib.redirect_stdout(log):
+            result = run_scenario(path, out_dir=out_dir, overrides=overrides, progress=False)
         summary = dict(result.summary)
     except Exception as e:  # noqa: BLE001 - a campaign records every failure and goes on
         summary = {"status": "failed", "error": f"{type(e).__name__}: {e}"}

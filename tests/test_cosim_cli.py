@@ -65,6 +65,8 @@ def test_campaign_two_runs_one_failing(scenario_file, tmp_path):
     assert bad["status"] == "failed" and "simulated plant failure" in bad["error"]
     saved = json.loads((tmp_path / "camp" / "campaign.json").read_text())
     assert [s["run"] for s in saved] == [0, 1]
+    # what each worker printed is kept per run, not interleaved on the terminal
+    assert all((tmp_path / "camp" / f"run_{i:03d}" / "log.txt").exists() for i in (0, 1))
 
 
 def test_open_loop_linear_stage_smoke(tmp_path):
