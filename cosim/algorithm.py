@@ -30,7 +30,7 @@ from operator import itemgetter
 from .errors import ScenarioError, SimulationError
 from .manipulators import OPERATORS, Event, fire_step, parse_condition, setter_for
 from .recorder import Recorder, Result
-from .slave import TERMINATE_REQUESTED
+from .slave import TERMINATE_REQUESTED, status_name
 from .step_rejection import StepRejection, member_for
 
 CHUNK_STEPS = 4096          # steps between CSV flushes / progress updates
@@ -61,10 +61,8 @@ def _getter(indices: list[int]):
     if not indices:
         return itemgetter(slice(0, 0))
     i0 = indices[0]
-    if indices == list(range(i0, i0 + len(indices))):
+    if indices == list(range(i0, i0 + len(indices))):   # also one slot: itemgetter(i) gives no sequence
         return itemgetter(slice(i0, i0 + len(indices)))
-    if len(indices) == 1:
-        return itemgetter(slice(i0, i0 + 1))
     return itemgetter(*indices)
 
 
@@ -128,9 +126,10 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
     # -- compile: signals -> bus slots ---------------------------------------------
     columns = recorder.resolve(system, extra_record) if recorder is not None else []
     conditions = [parse_condition(e.when) for e in events if e.when is not None]
+    units = []
     for c in columns:   # every recorded name must exist (FMU variable, block output or input)
         try:
-            system.input(c) if _is_block_input(system, c) else system.source(c)
+            units.append(system.readable(c).unit)
         except ScenarioError as e:
             raise ScenarioError(e.detail, key="record.signals") from None
     bus = _Bus(system)
@@ -181,7 +180,7 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
     rec_get, rec_scaled = inputs_of(columns)
     decimation = recorder.decimation if recorder is not None else 0
     if recorder is not None:
-        recorder.start(columns, [_unit(system, c) for c in columns])
+        recorder.start(columns, units)
 
     # -- instantiate ---------------------------------------------------------------
     started, failed = [], None
@@ -216,7 +215,6 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                                       step_rejection_floor)
             steppers = [(rejection.step, _AnyOf(system.slaves))]
         values = bus.values
-        bus_len = len(values)
 
         def apply(ev, t):
             info.events_fired.append({"time": t, "event": ev.describe()})
@@ -235,8 +233,6 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                        desc="co-simulation", mininterval=0.5, leave=False)
         next_timed = timed[0][0] if timed else -1
         stop = False
-        phase = "read"
-        block_name = ""
         while True:
             n_end = min(n + CHUNK_STEPS, n_last + 1)
             while n < n_end:
@@ -307,9 +303,6 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                 n += 1
                 if stop:        # FMU asked to terminate: record nothing past the last step
                     break
-            if len(values) != bus_len:
-                raise SimulationError("the signal bus changed size (a block returned the wrong "
-                                      "number of outputs)", time=t0 + n * h)
             if recorder is not None:
                 recorder.write(rows)
                 rows = []
@@ -370,25 +363,13 @@ def _record_failure(info: RunInfo, e: SimulationError, n: int, t0: float, h: flo
 
 def _check(status: int, what: str, slave, t: float) -> None:
     if status >= 2:    # Discard, Error, Fatal (Warning is logged, the run goes on)
-        name = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"][status] if status < 6 else str(status)
-        raise SimulationError(f"{what} returned {name}", time=t, instance=slave.name,
+        raise SimulationError(f"{what} returned {status_name(status)}", time=t, instance=slave.name,
                               fmu_message=slave.last_message())
 
 
 def _bad_output(name, y, nb, t):
     return SimulationError(f"step() returned {len(y)} values, the block declares {nb} outputs",
                            time=t, instance=name)
-
-
-def _is_block_input(system, signal: str) -> bool:
-    inst, var = signal.split(".", 1) if "." in signal else (signal, "")
-    return inst in system.blocks and var in system.blocks[inst].input_names()
-
-
-def _unit(system, signal: str) -> str | None:
-    if _is_block_input(system, signal):
-        return system.input(signal).unit
-    return system.source(signal).unit
 
 
 def run(system, stop_time: float, recorder: Recorder | None = None, events=(), progress: bool = False,

@@ -68,11 +68,10 @@ def fire_step(time: float, start_time: float, step_size: float) -> int:
 
 
 def setter_for(system, target: str):
-    """A function ``apply(value, bus)`` that performs ``target = value``, after checking it.
-
-    ``bus`` is the master's signal list; block inputs live in it (``input_slot`` maps a
-    block input signal to its slot, filled in by the algorithm). Raises ValueError
-    explaining what can be set.
+    """How to perform ``target = value`` during the run, after checking that it can be set:
+    ``("call", apply)`` with ``apply(value, bus)``, or ``("block_input", target)`` for an
+    unconnected block input, which lives on ``bus`` (the master's signal list) and is
+    written there by the algorithm. Raises ValueError explaining what can be set.
     """
     inst, name = target.split(".", 1) if "." in target else (target, "")
     if inst in system.blocks:

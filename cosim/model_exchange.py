@@ -64,8 +64,8 @@ import fmpy
 from fmpy.model_description import read_model_description
 
 from .errors import CosimError, SimulationError
-from .slave import (TERMINATE_REQUESTED, FMUSlave, ModelDescription, _STATUS, cached_model, load_model,
-                    model_variables)
+from .slave import (TERMINATE_REQUESTED, FMUSlave, ModelDescription, cached_model, load_model,
+                    model_variables, status_name)
 
 __all__ = ["MEModel", "ModelExchangeSlave", "create_slave", "fmu_kinds", "load_any_model", "SOLVERS",
            "TERMINATE_REQUESTED"]
@@ -275,7 +275,7 @@ class ModelExchangeSlave(FMUSlave):
 
     def _check(self, status: int, what: str) -> None:
         if status > WARNING:
-            raise self._fail(f"{what} returned {_STATUS[status] if 0 <= status < 6 else status}", self.time)
+            raise self._fail(f"{what} returned {status_name(status)}", self.time)
 
     def _set_time(self, t: float) -> None:
         self._c_set_time(self._comp, t)
@@ -693,7 +693,6 @@ def create_slave(name: str, path: str | os.PathLike, parameters: dict | None = N
     if solver_options:
         raise CosimError(f"FMU '{name}': solver options {sorted(solver_options)} only apply to "
                          "Model Exchange FMUs")
-    from .slave import FMUSlave
     return FMUSlave(name, load_model(path), parameters, logging)
 
 

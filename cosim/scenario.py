@@ -373,10 +373,7 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
 
     def check_signal(sig: str, key: str) -> None:
         try:
-            inst, var = sig.split(".", 1) if "." in sig else (sig, "")
-            if inst in system.blocks and var in system.blocks[inst].input_names():
-                return
-            system.source(sig)
+            system.readable(sig)
         except ScenarioError as e:
             raise c.error(key, e.detail) from None
 

@@ -174,6 +174,13 @@ def _cleanup_extracted() -> None:
 _cleanup_extracted.owner = os.getpid()
 
 _STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
+
+
+def status_name(status: int) -> str:
+    """``2`` -> ``"Discard"`` (an unknown status as its number), for messages."""
+    return _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
+
+
 TERMINATE_REQUESTED = 100   # pseudo status: FMI 3.0 doStep asked to terminate the simulation
 
 
@@ -214,7 +221,7 @@ class FMUSlave:
         """The FMU's last error/warning message (else its last message), or None."""
         for status, _cat, msg in reversed(self.log):
             if status >= 1:
-                return f"[{_STATUS[status] if 0 <= status < 6 else status}] {msg}"
+                return f"[{status_name(status)}] {msg}"
         if self.log:
             return self.log[-1][2]
         return None

@@ -33,11 +33,11 @@ from dataclasses import dataclass, field
 from typing import Callable, Iterable, Sequence
 
 from .errors import SimulationError
+from .slave import TERMINATE_REQUESTED, status_name
 
 __all__ = ["StepRejectedError", "StepRejection", "Member", "member_for", "DISCARD"]
 
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
-_NAMES = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
 
 
 class StepRejectedError(SimulationError):
@@ -76,7 +76,6 @@ def member_for(slave, do_step: Callable[[float, float], int] | None = None) -> M
     """
     name = getattr(slave, "name", None) or getattr(slave, "instanceName", "fmu")
     last_message = getattr(slave, "last_message", None)
-    from .slave import TERMINATE_REQUESTED
     if do_step is None:
         if hasattr(slave, "do_step"):
             do_step = slave.do_step
@@ -138,13 +137,13 @@ class StepRejection:
         pseudo status; raises :class:`StepRejectedError` / :class:`SimulationError`."""
         self.stats.steps += 1
         retried_before = self.stats.rejected
-        status = self._advance(self.members, t, h, depth=0)
+        status = self._advance(self.members, t, h)
         if self.stats.rejected != retried_before:
             self.stats.retried_steps += 1
         return status
 
     # -- internals --------------------------------------------------------------------
-    def _advance(self, members: Sequence[Member], t: float, h: float, depth: int) -> int:
+    def _advance(self, members: Sequence[Member], t: float, h: float) -> int:
         saved = {}
         for m in members:
             if m.can_get_state:
@@ -163,7 +162,7 @@ class StepRejection:
                 if st == DISCARD:
                     discarded = m
                     break
-                raise SimulationError(f"doStep({t:.9g}, {h:.3g}) returned {_NAMES[st] if 0 <= st < 6 else st}",
+                raise SimulationError(f"doStep({t:.9g}, {h:.3g}) returned {status_name(st)}",
                                       time=t, instance=m.name, fmu_message=_msg(m))
             if discarded is None:
                 if h < self.stats.smallest_step:
@@ -193,10 +192,10 @@ class StepRejection:
                     retry.append(m)
             everyone = len(retry) == len(members)
             half = h / 2
-            st1 = self._advance(retry, t, half, depth + 1)
+            st1 = self._advance(retry, t, half)
             if self.exchange is not None and everyone:
                 self.exchange(t + half)
-            st2 = self._advance(retry, t + half, h - half, depth + 1)
+            st2 = self._advance(retry, t + half, h - half)
             for st in (st1, st2):
                 if st != OK:
                     return st

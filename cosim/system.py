@@ -178,6 +178,14 @@ class System:
     def input(self, signal: str) -> Signal:
         return self._resolve(signal, None, want="input")
 
+    def readable(self, signal: str) -> Signal:
+        """A signal the master can record or test: a :meth:`source`, or a block input
+        (its value is on the bus, connected or held)."""
+        inst, _, var = signal.partition(".")
+        if inst in self.blocks and var in self.blocks[inst].input_names():
+            return self.input(signal)
+        return self.source(signal)
+
     def driven_by(self, input_signal: str) -> Connection | None:
         return self._driven.get(input_signal)
 

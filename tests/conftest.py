@@ -25,3 +25,21 @@ def mass_fmu3(tmp_path_factory) -> Path:
     """FMI 3.0 co-simulation variant of the same model."""
     from cosim_helpers import build_mass_fmu
     return build_mass_fmu(tmp_path_factory.mktemp("fmu3"), 3)
+
+
+@pytest.fixture(scope="session")
+def events_fmu(tmp_path_factory):
+    """``events_fmu(interfaces)``: the third-party test FMU EventsDiscard
+    (tests/third_party/c_test_fmu.py) with ``"both"``, ``"ME"`` or ``"CS"``, built once per
+    session; skips the test when it cannot be built (no gcc)."""
+    from tests.third_party import c_test_fmu
+    built: dict[str, Path] = {}
+
+    def get(interfaces: str = "both") -> Path:
+        if interfaces not in built:
+            try:
+                built[interfaces] = c_test_fmu.build(tmp_path_factory.mktemp("events_fmu"), interfaces)
+            except RuntimeError as e:
+                pytest.skip(str(e))
+        return built[interfaces]
+    return get

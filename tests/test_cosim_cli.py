@@ -81,12 +81,8 @@ def test_open_loop_linear_stage_smoke(tmp_path):
     assert (tmp_path / "ol" / "open_loop.png").exists()
 
 
-def test_info_model_exchange_only_fmu(tmp_path, capsys):
-    from tests.third_party import c_test_fmu
-    try:
-        fmu = c_test_fmu.build(tmp_path, interfaces="ME")
-    except RuntimeError as e:
-        pytest.skip(str(e))
+def test_info_model_exchange_only_fmu(events_fmu, tmp_path, capsys):
+    fmu = events_fmu("ME")
     assert main(["info", str(fmu)]) == 0
     out = capsys.readouterr().out
     assert "FMI version: 2.0" in out and "kind: ME" in out and "model identifier: EventsDiscard" in out

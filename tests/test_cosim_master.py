@@ -220,14 +220,10 @@ def test_fmu_to_fmu_scaled_connections_and_block_input_events(mass_fmu):
 
 # --- issue #7 wiring: FMI 2.0 logging per instance, units, step rejection ---------------
 @pytest.fixture(scope="module")
-def discard_fmu(tmp_path_factory):
+def discard_fmu(events_fmu):
     """FMI 2.0 CS FMU (tests/third_party): x' = u, doStep above discard_above -> Discard
     (logged), canGetAndSetFMUstate."""
-    from tests.third_party import c_test_fmu
-    try:
-        return c_test_fmu.build(tmp_path_factory.mktemp("discard"), interfaces="CS")
-    except RuntimeError as e:
-        pytest.skip(str(e))
+    return events_fmu("CS")
 
 
 def test_fmi2_log_messages_reach_their_own_instance(discard_fmu):

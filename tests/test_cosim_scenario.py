@@ -216,15 +216,10 @@ to = "ball.u"
 
 
 @pytest.fixture(scope="module")
-def ball_fmus(tmp_path_factory):
+def ball_fmus(events_fmu):
     """The third-party test FMU (bouncing ball + x' = u, Discard above a step size) as
     ME-only and as ME + CS."""
-    from tests.third_party import c_test_fmu
-    d = tmp_path_factory.mktemp("ball")
-    try:
-        return {k: c_test_fmu.build(d, interfaces=k) for k in ("ME", "both")}
-    except RuntimeError as e:
-        pytest.skip(str(e))
+    return {k: events_fmu(k) for k in ("ME", "both")}
 
 
 def ball_scenario(tmp_path, fmu, h=0.01, stop=0.3, u=0.0, parameters="", **scenario_keys):

@@ -14,7 +14,6 @@ import pytest
 from cosim.errors import CosimError
 from cosim.model_exchange import ModelExchangeSlave, create_slave, fmu_kinds
 from cosim.slave import FMUSlave
-from tests.third_party import c_test_fmu
 
 G1, G2, E, T_SWITCH = 9.81, 3.0, 0.8, 0.5
 
@@ -37,11 +36,8 @@ def ball_exact(t):
 
 
 @pytest.fixture(scope="module")
-def me2(tmp_path_factory):
-    try:
-        return c_test_fmu.build(tmp_path_factory.mktemp("me2"), interfaces="both")
-    except RuntimeError as e:
-        pytest.skip(str(e))
+def me2(events_fmu):
+    return events_fmu("both")
 
 
 def _run(slave, h, n, outputs, u=None):
@@ -114,9 +110,8 @@ def test_rollback_reproduces_the_step(me2, solver, tol):
         s.free()
 
 
-def test_factory_picks_the_interface(tmp_path, me2):
-    me_only = c_test_fmu.build(tmp_path, interfaces="ME")
-    cs_only = c_test_fmu.build(tmp_path, interfaces="CS")
+def test_factory_picks_the_interface(events_fmu, me2):
+    me_only, cs_only = events_fmu("ME"), events_fmu("CS")
     assert fmu_kinds(me2) == ("CS", "ME")
     assert type(create_slave("a", me2)) is FMUSlave                      # CS preferred
     assert isinstance(create_slave("b", me2, solver="rk4"), ModelExchangeSlave)

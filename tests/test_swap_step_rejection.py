@@ -2,8 +2,9 @@
 size; the helper rolls every FMU that can save its state back and retries with halved
 steps down to a floor, else stops with a clear error.
 
-The test FMU (tests/third_party/events_discard_fmu2.c, built here with gcc) integrates
-x' = u exactly in co-simulation and discards any step larger than ``discard_above``.
+The test FMU (tests/third_party/events_discard_fmu2.c, built with gcc by the ``events_fmu``
+fixture of tests/conftest.py) integrates x' = u exactly in co-simulation and discards any
+step larger than ``discard_above``.
 """
 from __future__ import annotations
 
@@ -12,18 +13,14 @@ import pytest
 from cosim.errors import SimulationError
 from cosim.slave import FMUSlave
 from cosim.step_rejection import StepRejectedError, StepRejection, member_for
-from tests.third_party import c_test_fmu
 
 H = 0.1          # communication step [s]
 N = 10
 
 
 @pytest.fixture(scope="module")
-def cs_fmu(tmp_path_factory):
-    try:
-        return c_test_fmu.build(tmp_path_factory.mktemp("discard"), interfaces="CS")
-    except RuntimeError as e:
-        pytest.skip(str(e))
+def cs_fmu(events_fmu):
+    return events_fmu("CS")
 
 
 def _slave(path, name, discard_above):
