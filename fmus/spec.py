@@ -79,7 +79,7 @@ KC_TI = 6.5e7
 KC_AL = 2.5e6
 
 
-def common_vars(*, surface, spindle_default, ripple_ratio, ripple_phase) -> list[Var]:
+def common_vars(*, surface, ripple_ratio, ripple_phase) -> list[Var]:
     """Drill and layered workpiece parameters (same names in both FMUs)."""
     v = [
         P("surface", "m", surface, "Feed coordinate of the top surface of the stack", tunable=False),
@@ -166,7 +166,7 @@ LINEAR_STAGE = [
     P("cog_pitch", "m", 0.016, "Cogging period along the stroke"),
     P("z0", "m", 0.0, "Initial stage position", tunable=False),
     P("orbital_speed", "rpm", 0.0, "Orbital speed for the optional ripple (parameter here, input in BallScrewDrive)"),
-] + common_vars(surface=1.0e-3, spindle_default=3000.0, ripple_ratio=0.0, ripple_phase=0.0)
+] + common_vars(surface=1.0e-3, ripple_ratio=0.0, ripple_phase=0.0)
 
 # --------------------------------------------------------------------------- BallScrewDrive
 J_TRUE = 0.0003 * 1.05
@@ -204,7 +204,7 @@ BALL_SCREW = [
     P("motor_enc_counts", None, 131072, "Motor encoder counts per revolution", tunable=False,
       type="Integer", min=1),
     P("x0", "m", 0.0, "Initial table position (motor angle starts at 0)", tunable=False),
-] + common_vars(surface=1.0e-3, spindle_default=2000.0, ripple_ratio=0.15, ripple_phase=0.6)
+] + common_vars(surface=1.0e-3, ripple_ratio=0.15, ripple_phase=0.6)
 
 MODELS = {
     "LinearStage": dict(

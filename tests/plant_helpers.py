@@ -118,8 +118,7 @@ def run_constant_current(name, i_ref, t_end, dt=1e-4, params=None, outputs=()):
     pl.set("i_ref", i_ref)
     try:
         for k in range(n):
-            pl.fmu.doStep(pl.t, dt)
-            pl.t += dt
+            pl.step(dt)
             out[k] = pl.fmu.getReal(vrs)
     finally:
         pl.close()
@@ -161,8 +160,7 @@ def run_feed(name, feed_rate, t_end, dt=1e-3, params=None, outputs=(), omega=60.
             a_cmd = kp * e + kd * (feed_rate - v) + ki * integ
             i_ref = (m_eq * a_cmd - f_bias) / kf
             pl.fmu.setReal(vr_in, [i_ref])
-            pl.fmu.doStep(t, dt)
-            pl.t += dt
+            pl.step(dt)
             x, v = pl.fmu.getReal(vr_x)
             v *= vscale
             out[k] = pl.fmu.getReal(vr_out)

@@ -16,11 +16,9 @@ typedef struct {
     double theta, w, i_motor;
     CutState cut;
     Prng rng;
-    /* derived / cached */
+    /* derived */
     Stack stack;
     double tau_fric;
-    double last_H, hs, exp_i, last_tau_i;
-    int nsub;
 } ModelData;
 
 MODEL_INFO_DEFINE(ModelData);
@@ -28,7 +26,6 @@ MODEL_INFO_DEFINE(ModelData);
 void model_set_defaults(void *data)
 {
     MODEL_SET_START_VALUES(data);
-    ((ModelData *)data)->last_H = -1.0;     /* no sub-step cached yet */
 }
 
 #define CHECK(cond, ...) do { if (!(cond)) { snprintf(msg, n, __VA_ARGS__); return 1; } } while (0)
@@ -91,13 +88,10 @@ static void compute_outputs(ModelData *d, double F_dc, double F_r)
     v->w_m_true = d->w;
 }
 
-static void thrust(const ModelData *d, double n_rps, double *F_dc, double *F_r, double *kce)
+static double thrust(const ModelData *d, double n_rps, double *F_dc, double *F_r)
 {
-    double x = d->v.x0 + d->v.K_pitch * d->theta;
-    *kce = drill_kc_eff(&d->stack, d->cut.c);
-    *F_dc = drill_force_dc(&d->stack, *kce, d->cut.c, x, d->v.K_pitch * d->w, n_rps);
-    *F_r = d->stack.ripple_ratio > 0.0
-               ? d->stack.ripple_ratio * (*F_dc) * sin(d->cut.phi + d->stack.ripple_phase) : 0.0;
+    return drill_thrust(&d->stack, &d->cut, d->v.x0 + d->v.K_pitch * d->theta, d->v.K_pitch * d->w,
+                        n_rps, F_dc, F_r);
 }
 
 static void rebuild(ModelData *d)
@@ -110,7 +104,7 @@ static void rebuild(ModelData *d)
 void model_initialize(void *data, double start_time)
 {
     ModelData *d = (ModelData *)data;
-    double F_dc, F_r, kce;
+    double F_dc, F_r;
     (void)start_time;
     rebuild(d);
     d->theta = 0.0;
@@ -119,9 +113,8 @@ void model_initialize(void *data, double start_time)
     d->cut.c = d->v.x0; /* a start inside the stack means: pre-drilled to x0 */
     d->cut.phi = 0.0;
     d->tau_fric = 0.0;
-    d->last_H = -1.0;
     prng_seed(&d->rng, (int64_t)d->v.seed);
-    thrust(d, fabs(d->v.spindle_speed) / 60.0, &F_dc, &F_r, &kce);
+    thrust(d, fabs(d->v.spindle_speed) / 60.0, &F_dc, &F_r);
     compute_outputs(d, F_dc, F_r);
 }
 
@@ -131,10 +124,11 @@ int model_do_step(void *data, double t, double H, char *msg, size_t n)
     ModelVars *v = &d->v;
     const double n_rps = fabs(v->spindle_speed) / 60.0;
     const double w_orb = 2.0 * M_PI * v->orbital_speed / 60.0;
-    const double tau_static = v->tau_coulomb + v->tau_stribeck;
     const double inv_J = 1.0 / v->J_e;
     const double ext_gain = v->K_pitch / v->eta;   /* tau_ext = F K_pitch / eta (eq. 6) */
-    double i_cmd = v->i_ref, F_dc = 0.0, F_r = 0.0, kce;
+    double i_cmd = v->i_ref, F_dc = 0.0, F_r = 0.0, kce, h;
+    const int nsub = substeps(H, v->h_internal, &h);
+    const double exp_i = 1.0 - exp(-h / v->tau_i);
     int k;
     (void)t;
     if (!isfinite(i_cmd)) {
@@ -143,43 +137,23 @@ int model_do_step(void *data, double t, double H, char *msg, size_t n)
     }
     if (i_cmd > v->i_max) i_cmd = v->i_max;
     if (i_cmd < -v->i_max) i_cmd = -v->i_max;
-    if (H != d->last_H || v->tau_i != d->last_tau_i) {
-        d->nsub = (int)ceil(H / v->h_internal - 1e-9);
-        if (d->nsub < 1) d->nsub = 1;
-        d->hs = H / d->nsub;
-        d->exp_i = 1.0 - exp(-d->hs / v->tau_i);
-        d->last_H = H;
-        d->last_tau_i = v->tau_i;
-    }
     rebuild(d);
     if (H > 0.0) {
-        const double h = d->hs;
-        for (k = 0; k < d->nsub; k++) {
+        for (k = 0; k < nsub; k++) {
             double tau_ext, acc, w_new, x_old = v->x0 + v->K_pitch * d->theta, x_new;
-            thrust(d, n_rps, &F_dc, &F_r, &kce);
+            kce = thrust(d, n_rps, &F_dc, &F_r);
             /* J_e dw/dt = K_T i - tau_d, tau_d = F K_pitch/eta + tau_cog sin(h theta) + tau_f(w)
              * (Fang eqs. 1-4, 6) */
             tau_ext = v->K_T * d->i_motor - (F_dc + F_r) * ext_gain;
             if (v->tau_cog != 0.0) tau_ext -= v->tau_cog * sin(v->cog_harmonic * d->theta);
-            if (d->w == 0.0) {
-                if (fabs(tau_ext) <= tau_static) {
-                    d->tau_fric = tau_ext;
-                    acc = 0.0;
-                } else {
-                    d->tau_fric = tau_ext > 0.0 ? tau_static : -tau_static;
-                    acc = (tau_ext - d->tau_fric) * inv_J;
-                }
-            } else {
-                double aw = fabs(d->w), x = aw / v->w_stribeck;
-                double Tk = v->tau_coulomb + (x < 6.0 ? v->tau_stribeck * exp(-x * x) : 0.0);
-                d->tau_fric = (d->w > 0.0 ? Tk : -Tk) + v->D_viscous * d->w;
-                acc = (tau_ext - d->tau_fric) * inv_J;
-            }
+            d->tau_fric = stick_slip_friction(tau_ext, d->w, v->tau_coulomb, v->tau_stribeck, v->w_stribeck,
+                                              v->D_viscous);
+            acc = (tau_ext - d->tau_fric) * inv_J;  /* 0 while stuck */
             w_new = d->w + acc * h;
             if (d->w != 0.0 && w_new * d->w < 0.0) w_new = 0.0;
             d->w = w_new;
             d->theta += w_new * h;
-            d->i_motor += (i_cmd - d->i_motor) * d->exp_i;
+            d->i_motor += (i_cmd - d->i_motor) * exp_i;
             x_new = v->x0 + v->K_pitch * d->theta;
             d->cut.c = drill_advance_front(&d->stack, kce, d->cut.c, x_old, x_new, h, n_rps);
             d->cut.phi += w_orb * h;
@@ -191,7 +165,7 @@ int model_do_step(void *data, double t, double H, char *msg, size_t n)
                  d->theta, d->w, d->i_motor, d->cut.c);
         return 1;
     }
-    thrust(d, n_rps, &F_dc, &F_r, &kce);
+    thrust(d, n_rps, &F_dc, &F_r);
     compute_outputs(d, F_dc, F_r);
     return 0;
 }

@@ -15,11 +15,9 @@ typedef struct {
     double z, vel, i_motor;
     CutState cut;
     Prng rng;
-    /* derived / cached */
+    /* derived */
     Stack stack;
     double F_fric;
-    double last_H, hs, exp_i, last_tau_i;
-    int nsub;
 } ModelData;
 
 MODEL_INFO_DEFINE(ModelData);
@@ -27,7 +25,6 @@ MODEL_INFO_DEFINE(ModelData);
 void model_set_defaults(void *data)
 {
     MODEL_SET_START_VALUES(data);
-    ((ModelData *)data)->last_H = -1.0;     /* no sub-step cached yet */
 }
 
 #define CHECK(cond, ...) do { if (!(cond)) { snprintf(msg, n, __VA_ARGS__); return 1; } } while (0)
@@ -82,12 +79,9 @@ static void compute_outputs(ModelData *d, double F_dc, double F_r)
     v->v_true = d->vel;
 }
 
-static void thrust(const ModelData *d, double n_rps, double *F_dc, double *F_r, double *kce)
+static double thrust(const ModelData *d, double n_rps, double *F_dc, double *F_r)
 {
-    *kce = drill_kc_eff(&d->stack, d->cut.c);
-    *F_dc = drill_force_dc(&d->stack, *kce, d->cut.c, d->z, d->vel, n_rps);
-    *F_r = d->stack.ripple_ratio > 0.0
-               ? d->stack.ripple_ratio * (*F_dc) * sin(d->cut.phi + d->stack.ripple_phase) : 0.0;
+    return drill_thrust(&d->stack, &d->cut, d->z, d->vel, n_rps, F_dc, F_r);
 }
 
 static void rebuild(ModelData *d)
@@ -100,7 +94,7 @@ static void rebuild(ModelData *d)
 void model_initialize(void *data, double start_time)
 {
     ModelData *d = (ModelData *)data;
-    double F_dc, F_r, kce;
+    double F_dc, F_r;
     (void)start_time;
     rebuild(d);
     d->z = d->v.z0;
@@ -109,9 +103,8 @@ void model_initialize(void *data, double start_time)
     d->cut.c = d->v.z0; /* a start inside the stack means: pre-drilled to z0 */
     d->cut.phi = 0.0;
     d->F_fric = 0.0;
-    d->last_H = -1.0;
     prng_seed(&d->rng, (int64_t)d->v.seed);
-    thrust(d, fabs(d->v.spindle_speed) / 60.0, &F_dc, &F_r, &kce);
+    thrust(d, fabs(d->v.spindle_speed) / 60.0, &F_dc, &F_r);
     compute_outputs(d, F_dc, F_r);
 }
 
@@ -121,57 +114,38 @@ int model_do_step(void *data, double t, double H, char *msg, size_t n)
     ModelVars *v = &d->v;
     const double n_rps = fabs(v->spindle_speed) / 60.0;
     const double w_orb = 2.0 * M_PI * v->orbital_speed / 60.0;
-    const double F_static = v->F_coulomb + v->F_stribeck;
     const double F_bias = v->M * v->g - v->F_gc;
     const double inv_M = 1.0 / v->M;
     const double k_cog = 2.0 * M_PI / v->cog_pitch;
-    double i_cmd = v->i_ref, F_dc = 0.0, F_r = 0.0, kce;
+    double i_cmd = v->i_ref, F_dc = 0.0, F_r = 0.0, kce, h;
+    const int nsub = substeps(H, v->h_internal, &h);
+    const double exp_i = 1.0 - exp(-h / v->tau_i);
     int k;
     (void)t;
-    if (i_cmd > v->i_max) i_cmd = v->i_max;
-    if (i_cmd < -v->i_max) i_cmd = -v->i_max;
     if (!isfinite(i_cmd)) {
         snprintf(msg, n, "input i_ref = %g is not finite", v->i_ref);
         return 1;
     }
-    if (H != d->last_H || v->tau_i != d->last_tau_i) {
-        d->nsub = (int)ceil(H / v->h_internal - 1e-9);
-        if (d->nsub < 1) d->nsub = 1;
-        d->hs = H / d->nsub;
-        d->exp_i = 1.0 - exp(-d->hs / v->tau_i);
-        d->last_H = H;
-        d->last_tau_i = v->tau_i;
-    }
+    if (i_cmd > v->i_max) i_cmd = v->i_max;
+    if (i_cmd < -v->i_max) i_cmd = -v->i_max;
     rebuild(d);
     if (H > 0.0) {
-        const double h = d->hs;
-        for (k = 0; k < d->nsub; k++) {
+        for (k = 0; k < nsub; k++) {
             double F_ext, acc, v_new, z_old = d->z;
-            thrust(d, n_rps, &F_dc, &F_r, &kce);
+            kce = thrust(d, n_rps, &F_dc, &F_r);
             /* M a = Kt i + M g - F_gc - F_thrust + F_cog sin(2 pi z / p) - F_fric */
             F_ext = v->Kt * d->i_motor + F_bias - (F_dc + F_r);
             if (v->F_cog != 0.0) F_ext += v->F_cog * sin(k_cog * d->z);
-            if (d->vel == 0.0) {          /* stuck: static friction holds up to F_static */
-                if (fabs(F_ext) <= F_static) {
-                    d->F_fric = F_ext;
-                    acc = 0.0;
-                } else {
-                    d->F_fric = F_ext > 0.0 ? F_static : -F_static;
-                    acc = (F_ext - d->F_fric) * inv_M;
-                }
-            } else {
-                double av = fabs(d->vel), x = av / v->v_stribeck;
-                double Fk = v->F_coulomb + (x < 6.0 ? v->F_stribeck * exp(-x * x) : 0.0);
-                d->F_fric = (d->vel > 0.0 ? Fk : -Fk) + v->b_viscous * d->vel;
-                acc = (F_ext - d->F_fric) * inv_M;
-            }
+            d->F_fric = stick_slip_friction(F_ext, d->vel, v->F_coulomb, v->F_stribeck, v->v_stribeck,
+                                            v->b_viscous);
+            acc = (F_ext - d->F_fric) * inv_M;      /* 0 while stuck */
             /* semi-implicit (symplectic) Euler; a velocity sign change sticks at 0 */
             v_new = d->vel + acc * h;
             if (d->vel != 0.0 && v_new * d->vel < 0.0) v_new = 0.0;
             d->vel = v_new;
             d->z += v_new * h;
             /* current loop: exact first-order lag over the sub-step */
-            d->i_motor += (i_cmd - d->i_motor) * d->exp_i;
+            d->i_motor += (i_cmd - d->i_motor) * exp_i;
             /* cutting: advance the cut front, orbital phase */
             d->cut.c = drill_advance_front(&d->stack, kce, d->cut.c, z_old, d->z, h, n_rps);
             d->cut.phi += w_orb * h;
@@ -183,7 +157,7 @@ int model_do_step(void *data, double t, double H, char *msg, size_t n)
                  d->z, d->vel, d->i_motor, d->cut.c);
         return 1;
     }
-    thrust(d, n_rps, &F_dc, &F_r, &kce);
+    thrust(d, n_rps, &F_dc, &F_r);
     compute_outputs(d, F_dc, F_r);
     return 0;
 }

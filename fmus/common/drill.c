@@ -44,6 +44,29 @@ double prng_gauss(Prng *r)
     return rad * cos(2.0 * M_PI * u2);
 }
 
+/* ---------------------------------------------------------------- machine */
+
+int substeps(double H, double h_internal, double *hs)
+{
+    int nsub = (int)ceil(H / h_internal - 1e-9);
+    if (nsub < 1) nsub = 1;
+    *hs = H / nsub;
+    return nsub;
+}
+
+double stick_slip_friction(double F_ext, double v, double F_c, double F_s, double v_s, double b)
+{
+    if (v == 0.0) {
+        double F_static = F_c + F_s;
+        if (fabs(F_ext) <= F_static) return F_ext;
+        return F_ext > 0.0 ? F_static : -F_static;
+    } else {
+        double x = fabs(v) / v_s;
+        double Fk = F_c + (x < 6.0 ? F_s * exp(-x * x) : 0.0);
+        return (v > 0.0 ? Fk : -Fk) + b * v;
+    }
+}
+
 /* ---------------------------------------------------------------- validation */
 
 #define CHECK(cond, ...) do { if (!(cond)) { snprintf(msg, n, __VA_ARGS__); return 1; } } while (0)
@@ -162,6 +185,15 @@ double drill_force_dc(const Stack *s, double kce, double c, double z, double v, 
     a = kce > 0.0 ? s->k * n_rps / kce : 0.0;
     F = s->k * e + s->d * (v - a * e);
     return F > 0.0 ? F : 0.0;
+}
+
+double drill_thrust(const Stack *s, const CutState *cut, double z, double v, double n_rps,
+                    double *F_dc, double *F_r)
+{
+    double kce = drill_kc_eff(s, cut->c);
+    *F_dc = drill_force_dc(s, kce, cut->c, z, v, n_rps);
+    *F_r = s->ripple_ratio > 0.0 ? s->ripple_ratio * (*F_dc) * sin(cut->phi + s->ripple_phase) : 0.0;
+    return kce;
 }
 
 /* Exact solution of de/dt = v - a e over h with v = (z1 - z0)/h (unconditionally stable,

@@ -1,4 +1,5 @@
-/* Drill and layered workpiece model, noise generator: shared by both plant FMUs.
+/* Drill and layered workpiece model, noise generator, guide friction and sub-stepping:
+ * shared by both plant FMUs.
  * Equations: docs/plants.md. SI units; spindle/orbital speeds in rpm at the interface. */
 #ifndef DRILLCOSIM_DRILL_H
 #define DRILLCOSIM_DRILL_H
@@ -22,6 +23,15 @@ typedef struct {
 void prng_seed(Prng *r, int64_t seed);
 double prng_uniform(Prng *r);   /* (0, 1) */
 double prng_gauss(Prng *r);     /* N(0, 1), Box-Muller */
+
+/* ---------------------------------------------------------------- machine */
+/* Number of fixed internal sub-steps for a communication step H, ceil(H/h_internal)
+ * (at least 1); *hs = H / that number. */
+int substeps(double H, double h_internal, double *hs);
+/* Friction (force or torque, with the velocity v on the same side) of a guide or drive:
+ * stuck (v == 0) it balances F_ext up to F_c + F_s (Karnopp); sliding it is
+ * F_c + F_s exp(-(v/v_s)^2) against the motion plus the viscous b v. */
+double stick_slip_friction(double F_ext, double v, double F_c, double F_s, double v_s, double b);
 
 /* ---------------------------------------------------------------- drill / workpiece */
 typedef struct {
@@ -87,6 +97,10 @@ void drill_build(Stack *s, const DrillParams *p);
 double drill_kc_eff(const Stack *s, double c);
 /* DC thrust (contact force) for tool tip z, velocity v, spindle n_rps [rev/s] */
 double drill_force_dc(const Stack *s, double kce, double c, double z, double v, double n_rps);
+/* Thrust on the tool at tip z, velocity v: DC part (drill_force_dc) and orbital ripple
+ * ripple_ratio F_dc sin(phi + ripple_phase) (Fang eq. 8); returns kc_eff at the cut front. */
+double drill_thrust(const Stack *s, const CutState *cut, double z, double v, double n_rps,
+                    double *F_dc, double *F_r);
 /* advance the cut front over a sub-step in which the tool tip moved z0 -> z1 */
 double drill_advance_front(const Stack *s, double kce, double c, double z0, double z1, double h,
                            double n_rps);

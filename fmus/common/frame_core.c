@@ -116,11 +116,7 @@ int frame_reset(FrameInstance *inst)
 int frame_do_step(FrameInstance *inst, double t, double H, const char *fn)
 {
     char msg[512];
-    if (!inst) return FR_ERROR;
-    if (inst->mode != MODE_STEP) {
-        FRAME_ERR(inst, "%s: not allowed in the current state (%d)", fn, (int)inst->mode);
-        return FR_ERROR;
-    }
+    if (!frame_check_mode(inst, MODE_STEP, fn)) return FR_ERROR;
     if (!(H >= 0.0) || !isfinite(H)) {
         FRAME_ERR(inst, "%s: communicationStepSize = %g, expected a finite value >= 0", fn, H);
         return FR_ERROR;
