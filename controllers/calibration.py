@@ -157,10 +157,12 @@ def _scenario_raw(result) -> dict:
     return load_raw(summ["file"], summ.get("overrides") or {})
 
 
-def calibration_in_use(result, block: str) -> dict:
+def calibration_in_use(result, block: str, raw: dict | None = None) -> dict:
     """Which force constant block ``block`` of the run used: its ``calibration_file`` and
-    ``Kt_n_cal`` with the file's provenance, or the uncalibrated nominal constant."""
-    settings = (_scenario_raw(result).get("blocks", {}).get(block, {}).get("settings") or {})
+    ``Kt_n_cal`` with the file's provenance, or the uncalibrated nominal constant.
+    ``raw``: the run's scenario when the caller has it already (:func:`_scenario_raw`)."""
+    raw = _scenario_raw(result) if raw is None else raw
+    settings = (raw.get("blocks", {}).get(block, {}).get("settings") or {})
     f = settings.get("calibration_file")
     if not f:
         return {"block": block, "calibration_file": None,
@@ -187,13 +189,14 @@ def thrust_constant_calibration(result, stage="stage", observer="observer", cont
     """``[[scores]]`` function: fit ``Kt_n_cal`` from the reference cut, write ``out_file``
     into the run's folder (module docstring). ``Kt_n``: the observer's constant in the
     run (default: its ``Kt_n`` setting in the scenario, else the nominal 24 N/A)."""
-    used = calibration_in_use(result, observer)
+    raw = _scenario_raw(result)
+    used = calibration_in_use(result, observer, raw)
     if used["calibrated"]:
         raise ValueError(f"the reference cut's observer '{observer}' must run uncalibrated "
                          f"(it has calibration_file = {used['calibration_file']!r})")
     Kt_ref = float(Kt_n if Kt_n is not None else used["Kt_n"])
     fit = fit_thrust_constant(_levels_of(result, stage, observer, controller, settle, margin), Kt_ref)
-    params = (_scenario_raw(result).get("fmus", {}).get(stage, {}).get("parameters") or {})
+    params = (raw.get("fmus", {}).get(stage, {}).get("parameters") or {})
     name = (result.summary or {}).get("scenario")
     fit["source"] = {"scenario": name, "produced_by": f"drillcosim run {name}: [[scores]] "
                      "controllers.calibration:thrust_constant_calibration on the recorded reference cut",

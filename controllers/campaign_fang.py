@@ -66,6 +66,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim.recorder import Result
 from controllers.plotting import pyplot, save_figure
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -302,18 +303,6 @@ def summarize(rows) -> dict:
 
 
 # ------------------------------------------------------------------ plots
-def _load_run(out_dir):
-    """A hole's recorded signals from its data.csv (column names without units)."""
-    path = Path(out_dir) / "data.csv"
-    with open(path) as f:
-        header = next(csv.reader(f))
-    names = [h.split(" [")[0] for h in header]
-    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    if data.shape[0] == 0:
-        raise ValueError(f"{path}: no rows")
-    return {n: data[:, i] for i, n in enumerate(names)}
-
-
 def plot_fig8(path: Path, rows, max_holes=4) -> None:
     """Like Fang Fig. 8: observed DC thrust with the detected time nodes, a few holes."""
     plt = pyplot()
@@ -322,11 +311,13 @@ def plot_fig8(path: Path, rows, max_holes=4) -> None:
     fig, axes = plt.subplots(len(sel), 1, figsize=(9, 2.4 * len(sel)), sharex=False, squeeze=False)
     for ax, r in zip(axes[:, 0], sel):
         try:
-            d = _load_run(r["out_dir"])
+            d = Result.from_csv(r["out_dir"])
         except (OSError, KeyError, ValueError, IndexError, StopIteration):
+            d = None
+        if d is None or len(d) == 0:
             ax.set_title(f"hole {r['hole']}: no data ({r.get('status', '?')})", fontsize=9)
             continue
-        t = d["time"] if "time" in d else d[next(iter(d))]
+        t = d.time
         ax.plot(t, d[f"{PLANT}.F_dyn"], color="0.8", lw=0.5, label="dynamometer")
         ax.plot(t, d["observer.F_dc_hat"], color="C0", lw=1.0, label="observed DC thrust")
         for key, color, label in (("entry", "C2", "entry"), ("interface", "C1", "interface"),

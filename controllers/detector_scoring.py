@@ -240,12 +240,10 @@ def score_adaptation(result, detector="detector", adapt="adapt", trajectory="tra
     spindle = np.asarray(result[f"{adapt}.spindle_speed"], float)
     orbit = np.asarray(result[f"{adapt}.orbital_speed"], float)
     changes = [0] + [int(i) for i in np.flatnonzero(np.diff(stage)) + 1]
-    in_force = [{"t_s": float(t[i]), "stage": int(stage[i]), "feed_rate_m_s": float(feed[-1] if i == changes[-1] else feed[j - 1]),
-                 } for i, j in zip(changes, changes[1:] + [len(t)])]
-    # target values of each stage = values once the ramp is through
-    for rec, j in zip(in_force, changes[1:] + [len(t)]):
-        rec["spindle_speed_rpm"] = float(spindle[j - 1])
-        rec["orbital_speed_rpm"] = float(orbit[j - 1])
+    # target values of each stage = values at its last sample, once the ramp is through
+    in_force = [{"t_s": float(t[i]), "stage": int(stage[i]), "feed_rate_m_s": float(feed[j - 1]),
+                 "spindle_speed_rpm": float(spindle[j - 1]), "orbital_speed_rpm": float(orbit[j - 1])}
+                for i, j in zip(changes, changes[1:] + [len(t)])]
     t_int = last_value(result[f"{detector}.t_interface"])
     out = {"stages_in_force": in_force, "t_interface_s": t_int}
     if math.isfinite(t_int):

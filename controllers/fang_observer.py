@@ -167,6 +167,8 @@ class AdaptiveThrustObserver(DiscretisedBlock):
             raise ValueError("AdaptiveThrustObserver: A - K C is not stable")
         self.P, self.K, self.A_K, self.C = P, K, AK, C
         self.sx = sx
+        self._y_theta = sx * self.nominal.K_pitch      # motor angle [rad] -> y [position_unit]
+        self._kf = self.nominal.force_per_torque       # eta/K_pitch: torque -> table force
         self._cont = (AK, B, K, G)
         self.ensure_discretised()
         self.reset(0.0)
@@ -208,7 +210,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
             theta = float(u[2])
             k = 3
         if self.measurement == "theta":
-            y = self.sx * self.nominal.K_pitch * theta
+            y = self._y_theta * theta
         else:
             y = self.sx * float(u[1])
         Ts = self._Ts_used
@@ -269,8 +271,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._Si = (a * s00 + b * c0 * c0, a * s01 + b * c0 * c1, a * s11 + b * c1 * c1)
 
         # ---- outputs at t (eq. 5-9)
-        nom = self.nominal
-        kf = nom.eta / nom.K_pitch
+        kf = self._kf
         w_hat = xn[1]
         tau_dc = xn[2]
         if self._use_theta:   # friction speed: motor-encoder difference, low-passed (g_fric_vel)

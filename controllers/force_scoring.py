@@ -115,7 +115,7 @@ def layer_scores(t, F, F_cmd, layer, active, z_tool=None, *, band=5.0, settle_wi
     return {"layers": out_layers, "force_control_active": True}
 
 
-def constant_feed_jumps(t, F, layer, *, filter_time=0.005, settle_window=0.2, moving=None,
+def constant_feed_jumps(t, F, layer, *, settle_window=0.2, moving=None,
                         z_tool=None, z_steady_end=None) -> dict:
     """Mean thrust per layer at constant feed and the jumps between consecutive layers."""
     t = np.asarray(t, float)
@@ -129,9 +129,9 @@ def constant_feed_jumps(t, F, layer, *, filter_time=0.005, settle_window=0.2, mo
         # split the run at layer changes
         cut = [s0] + [k for k in range(s0 + 1, s1) if layer[k] != layer[k - 1]] + [s1]
         for a, b in zip(cut[:-1], cut[1:]):
-            sel = (np.arange(len(t)) >= a) & (np.arange(len(t)) < b) & (t >= t[a] + settle_window)
+            Fs = F[a:b][t[a:b] >= t[a] + settle_window]
             means.append({"layer": int(layer[a]), "t_change_s": float(t[a]),
-                          "mean_thrust_N": float(F[sel].mean()) if sel.sum() >= 3 else None})
+                          "mean_thrust_N": float(Fs.mean()) if len(Fs) >= 3 else None})
     jumps = []
     for p, q in zip(means[:-1], means[1:]):
         if p["mean_thrust_N"] is not None and q["mean_thrust_N"] is not None:
@@ -193,7 +193,7 @@ def force_scores(result, stage="stage", controller="controller", observer="obser
         if cc and f"{cc}.v_hat" in result:
             moving = result[f"{cc}.v_hat"] > 1e-5     # feeding (not the retract through the stack)
         z_cf = result[f"{cs}.z_tool_true"] if f"{cs}.z_tool_true" in result else None
-        cf = constant_feed_jumps(t, moving_average(result[f"{cs}.F_dyn"], 1), result[f"{cs}.layer"],
+        cf = constant_feed_jumps(t, result[f"{cs}.F_dyn"], result[f"{cs}.layer"],
                                  settle_window=settle_window, moving=moving, z_tool=z_cf,
                                  z_steady_end=z_steady_end)
         out["constant_feed"] = cf

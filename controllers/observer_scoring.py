@@ -19,7 +19,6 @@ the neighbouring layer.
 """
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -412,9 +411,3 @@ def keio_fig3(result, out_dir, fmu: str = "stage", observer: str = "observer", a
     ax[2].set_ylabel("a_ref [m/s2]")
     ax[2].set_xlabel("time [s]")
     return save_figure(fig, out_dir, file)
-
-
-def write_json(path, data) -> Path:
-    path = Path(path)
-    path.write_text(json.dumps(data, indent=2, default=float))
-    return path
