@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from controllers import campaign_fang as cf
+from analysis import campaign_fang as cf
 
 REF = Path("/work/shared/reference")
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from controllers.adaptation import CuttingParameterAdaptation
-from controllers.detector_scoring import SyntheticHole, run_block_on_trace
+from analysis.detector_scoring import SyntheticHole, run_block_on_trace
 from controllers.interface_detector import InterfaceDetector, regression_weights
 
 MM = 1e-3

@@ -7,9 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from controllers.calibration import fit_thrust_constant, load_calibration, steady_levels
+from analysis.calibration import fit_thrust_constant, steady_levels
+from controllers.calibration import load_calibration
 from controllers.force_control import ThrustForceController
-from controllers.force_scoring import layer_scores, moving_average
+from analysis.force_scoring import layer_scores, moving_average
 from controllers.trajectory import FeedTrajectory
 from test_position_control_toyplant import ToyForceObserver, ToyStage, run_loop
 

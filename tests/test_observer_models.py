@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from controllers.friction import FrictionModel, identify_friction, make_friction, VelocitySegments
+from analysis.identification import identify_friction
+from controllers.friction import FrictionModel, make_friction, VelocitySegments
 from controllers.nominal_models import (FangNominal, KeioNominal, ObservabilityError, StateSpace,
                                         check_observable, discretise, fang_model,
                                         fang_physical_dynamics, keio_model, linearise, zoh)
@@ -129,7 +130,7 @@ def test_true_parameters_follow_scenario_inheritance():
     # that `extends` another one declares its FMU only in the base file.
     from types import SimpleNamespace
 
-    from controllers.observer_scoring import true_parameters
+    from analysis.observer_scoring import true_parameters
 
     result = SimpleNamespace(summary={"file": "scenarios/fang_table5_campaign.toml",
                                       "overrides": {"fmus.drive.parameters.seed": 5}})

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controllers.signal_tools import centred_mean
+from analysis.signal_tools import centred_mean
 
 EVENTS = ("entry", "interface", "exit")
 

@@ -24,10 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-from controllers.friction import identify_friction
+from analysis.identification import identify_friction
 from controllers.nominal_models import FangNominal, KeioNominal
-from controllers.plotting import pyplot, save_figure
-from controllers.signal_tools import centred_mean
+from analysis.plotting import pyplot, save_figure
+from analysis.signal_tools import centred_mean
 
 MATERIALS = {0: "air", 1: "CFRP", 2: "Ti-6Al-4V", 3: "aluminium"}
 

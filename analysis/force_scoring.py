@@ -32,8 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from controllers.plotting import pyplot, save_figure
-from controllers.signal_tools import centred_mean
+from analysis.plotting import pyplot, save_figure
+from analysis.signal_tools import centred_mean
 
 
 def moving_average(x: np.ndarray, n: int) -> np.ndarray:
@@ -178,7 +178,7 @@ def force_scores(result, stage="stage", controller="controller", observer="obser
                         "peak_error": f"max |F_dyn low-passed ({filter_time * 1e3:g} ms) - command|, steady part"},
     }
     if f"{observer}.F_thrust_hat" in result:
-        from controllers.calibration import calibration_in_use   # (it imports this module)
+        from analysis.calibration import calibration_in_use   # (it imports this module)
         out["thrust_constant"] = calibration_in_use(result, observer)
     if len(layers) >= 2:
         # thrust jumps under force control, for the side-by-side with constant feed

@@ -1,0 +1,236 @@
+"""Thrust-constant calibration of the sensorless thrust estimate: a commissioning step.
+
+One job: turn a recorded *reference cut* -- a dynamometer on the table, the stage under
+force control at several thrust levels -- into the calibrated force constant
+``Kt_n_cal`` [N/A] of the cutting-force observer, and write it to
+``thrust_calibration.json``. After this one cut the dynamometer is removed; the
+observer (``controllers.keio_observer:CuttingForceObserver``) and the force controller
+(``controllers.force_control:ThrustForceController``) read the file through their
+``calibration_file`` setting. Like a score function (and like the air-cut friction
+identification, :mod:`controllers.friction`) it uses only signals recorded during the run,
+after the run: no block ever reads the dynamometer.
+
+Why it is needed. Every sensorless effort of the observer is the current times the
+nominal constant ``Kt_n``; friction, cogging and gravity offsets identified by the air cut
+are measured through the same ``Kt_n``. With the true constant ``Kt`` the whole estimate
+(eq. 1, steady cutting, inertia term averaging out) is therefore scaled::
+
+    F_thrust_hat = (Kt_n / Kt) * F_thrust  (+ a constant left by the identification)
+
+and no sensorless measurement can see the factor (the LinearStage's Kt is 3 % below the
+nominal 24 N/A: force control makes the estimate exact, the real thrust 3 % low).
+
+Model of the fit (:func:`fit_thrust_constant`). For each commanded force level ``j``
+(steady part of the run at constant ``F_cmd``), the mean dynamometer thrust and the mean
+observer estimate obey::
+
+    mean F_dyn_j = k * mean F_thrust_hat_j + c           (least squares over the levels)
+    Kt_n_cal     = k * Kt_n                               [N/A]
+
+``Kt_n`` is the constant the observer used in the reference cut. The intercept ``c`` [N]
+takes whatever constant offset the friction / gravity identification left (Coulomb or
+gravity error), so it cannot leak into the gain ``k``; this needs two or more levels, and
+the levels are commanded out of order (not monotonic in time or depth) so that a drift
+with depth does not alias into the slope. Means over whole steady windows make the
+measurement noise (dynamometer 1 N, estimate quantisation) irrelevant to the slope -- a
+sample-by-sample regression on the noisy estimate would be biased low. ``c`` is reported,
+not applied: it is an identification error of the air cut, not of the force constant.
+
+Applying it (:func:`rescale_friction`): the observer replaces ``Kt_n`` by ``Kt_n_cal``
+*and* scales the efforts identified through the old constant (friction, Stribeck,
+cogging, gravity compensation) by ``Kt_n_cal / Kt_n_identified`` -- they are in
+"``Kt_n`` newtons" too; without this a 3 % error of the ~9 N friction (0.3 N, 0.6 % of
+50 N) would remain in the estimate.
+
+``thrust_calibration.json``: ``Kt_n_cal`` [N/A], ``Kt_n_reference`` [N/A] (the observer's
+constant in the reference cut), ``gain`` = k, ``intercept_N`` = c, ``residual_rms_N`` (RMS
+of the level-mean residuals), the levels and their data windows, the scenario, its seed and
+the settings of the fit.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+
+from analysis.force_scoring import moving_average
+from analysis.plotting import pyplot, save_figure
+from controllers.calibration import ThrustCalibration, load_calibration  # noqa: F401 (the file format)
+from controllers.nominal_models import KeioNominal
+
+MODEL = ("mean F_dyn_j = gain * mean F_thrust_hat_j + intercept over the steady windows j of "
+         "constant commanded force; Kt_n_cal = gain * Kt_n_reference")
+
+
+# --------------------------------------------------------------------------- the fit
+def steady_levels(t, F_meas, F_hat, F_cmd, active, *, settle=0.25, margin=0.02) -> list[dict]:
+    """Windows of constant commanded force while force control runs, ``settle`` [s] after
+    each change of the command (or the contact) to ``margin`` [s] before the next, with the
+    mean measured thrust and mean estimate in each."""
+    t = np.asarray(t, float)
+    F_cmd = np.asarray(F_cmd, float)
+    on = np.asarray(active, bool)
+    out = []
+    k = 0
+    while k < len(t):
+        if not on[k]:
+            k += 1
+            continue
+        j = k
+        while j + 1 < len(t) and on[j + 1] and F_cmd[j + 1] == F_cmd[k]:
+            j += 1
+        sel = np.zeros(len(t), bool)
+        sel[k:j + 1] = True
+        sel &= (t >= t[k] + settle) & (t <= t[j] - margin)
+        if sel.sum() >= 10:
+            out.append({"F_cmd_N": float(F_cmd[k]), "t_from_s": float(t[sel][0]),
+                        "t_to_s": float(t[sel][-1]), "samples": int(sel.sum()),
+                        "F_dyn_mean_N": float(np.mean(np.asarray(F_meas)[sel])),
+                        "F_thrust_hat_mean_N": float(np.mean(np.asarray(F_hat)[sel]))})
+        k = j + 1
+    return out
+
+
+def fit_thrust_constant(levels: list[dict], Kt_n_reference: float) -> dict:
+    """Least squares ``F_dyn = gain * F_thrust_hat + intercept`` over the level means."""
+    if len({round(x["F_cmd_N"], 9) for x in levels}) < 2:
+        raise ValueError("thrust calibration needs steady cutting at two or more force levels, "
+                         f"found {[x['F_cmd_N'] for x in levels]}")
+    x = np.array([v["F_thrust_hat_mean_N"] for v in levels])
+    y = np.array([v["F_dyn_mean_N"] for v in levels])
+    (gain, c), *_ = np.linalg.lstsq(np.column_stack([x, np.ones_like(x)]), y, rcond=None)
+    res = y - (gain * x + c)
+    for v, r in zip(levels, res):
+        v["residual_N"] = float(r)
+    return {"Kt_n_cal": float(gain * Kt_n_reference), "unit": "N/A",
+            "Kt_n_reference": float(Kt_n_reference), "gain": float(gain), "intercept_N": float(c),
+            "residual_rms_N": float(np.sqrt(np.mean(res ** 2))),
+            "residual_max_N": float(np.abs(res).max()), "model": MODEL, "levels": levels}
+
+
+def _scenario_raw(result) -> dict:
+    """The run's scenario (with its overrides), for provenance; {} for a Python-API run."""
+    from cosim.scenario import load_raw
+
+    summ = getattr(result, "summary", None) or {}
+    if not summ.get("file"):
+        return {}
+    return load_raw(summ["file"], summ.get("overrides") or {})
+
+
+def calibration_in_use(result, block: str, raw: dict | None = None) -> dict:
+    """Which force constant block ``block`` of the run used: its ``calibration_file`` and
+    ``Kt_n_cal`` with the file's provenance, or the uncalibrated nominal constant.
+    ``raw``: the run's scenario when the caller has it already (:func:`_scenario_raw`)."""
+    raw = _scenario_raw(result) if raw is None else raw
+    settings = (raw.get("blocks", {}).get(block, {}).get("settings") or {})
+    f = settings.get("calibration_file")
+    if not f:
+        return {"block": block, "calibration_file": None,
+                "Kt_n": float(settings.get("Kt_n", settings.get("force_constant_nominal", KeioNominal.Kt_n))),
+                "calibrated": False}
+    cal = load_calibration(f)
+    src = cal.info.get("source") or {}
+    return {"block": block, "calibration_file": f, "Kt_n": cal.Kt_n_cal, "calibrated": True,
+            "Kt_n_reference": cal.Kt_n_reference, "from_scenario": src.get("scenario"),
+            "from_seed": src.get("seed"),
+            "uncalibrated_run": f"--set 'blocks.{block}.settings.calibration_file=\"\"' (and the same "
+                                f"for the controller) gives the nominal-Kt_n result"}
+
+
+def _levels_of(result, stage, observer, controller, settle, margin):
+    return steady_levels(result.time, result[f"{stage}.F_dyn"], result[f"{observer}.F_thrust_hat"],
+                         result[f"{controller}.F_cmd_out"], result[f"{controller}.mode"] == 1,
+                         settle=settle, margin=margin)
+
+
+def thrust_constant_calibration(result, stage="stage", observer="observer", controller="controller",
+                                settle=0.25, margin=0.02, Kt_n=None,
+                                out_file="thrust_calibration.json", prefix="thrust_calibration") -> dict:
+    """``[[scores]]`` function: fit ``Kt_n_cal`` from the reference cut, write ``out_file``
+    into the run's folder (module docstring). ``Kt_n``: the observer's constant in the
+    run (default: its ``Kt_n`` setting in the scenario, else the nominal 24 N/A)."""
+    raw = _scenario_raw(result)
+    used = calibration_in_use(result, observer, raw)
+    if used["calibrated"]:
+        raise ValueError(f"the reference cut's observer '{observer}' must run uncalibrated "
+                         f"(it has calibration_file = {used['calibration_file']!r})")
+    Kt_ref = float(Kt_n if Kt_n is not None else used["Kt_n"])
+    fit = fit_thrust_constant(_levels_of(result, stage, observer, controller, settle, margin), Kt_ref)
+    params = (raw.get("fmus", {}).get(stage, {}).get("parameters") or {})
+    name = (result.summary or {}).get("scenario")
+    fit["source"] = {"scenario": name, "produced_by": f"drillcosim run {name}: [[scores]] "
+                     "analysis.calibration:thrust_constant_calibration on the recorded reference cut",
+                     "file": (result.summary or {}).get("file"),
+                     "overrides": (result.summary or {}).get("overrides") or {},
+                     "seed": params.get("seed"),
+                     "signals": {"measured": f"{stage}.F_dyn", "estimate": f"{observer}.F_thrust_hat",
+                                 "command": f"{controller}.F_cmd_out", "force_mode": f"{controller}.mode == 1"},
+                     "window": {"settle_s": settle, "margin_s": margin}}
+    out_dir = Path(getattr(result, "out_dir", None) or ".")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / out_file
+    path.write_text(json.dumps(fit, indent=2) + "\n")
+    scores = {k: fit[k] for k in ("Kt_n_cal", "Kt_n_reference", "gain", "intercept_N",
+                                  "residual_rms_N", "residual_max_N")}
+    scores["n_levels"] = len(fit["levels"])
+    scores["file"] = str(path)
+    try:   # scoring only: the plant's true constant, from the FMU's model description
+        from analysis.observer_scoring import true_parameters
+        Kt_true = true_parameters(result, stage)["Kt"]
+        scores.update(Kt_true=Kt_true, Kt_n_cal_error_pct=100.0 * (fit["Kt_n_cal"] - Kt_true) / Kt_true,
+                      Kt_n_reference_error_pct=100.0 * (Kt_ref - Kt_true) / Kt_true)
+    except Exception as e:     # no scenario file (Python API run)
+        scores["Kt_true"] = f"unavailable: {e}"
+    return {prefix: scores}
+
+
+# --------------------------------------------------------------------------- figure
+def calibration_figure(result, out_dir, stage="stage", observer="observer", controller="controller",
+                       settle=0.25, margin=0.02, filter_time=0.005, file="thrust_calibration.png",
+                       title="Thrust-constant calibration (reference cut with dynamometer)",
+                       prefix="thrust_calibration"):
+    """``[[plots]]`` function: the reference cut (thrust, estimate, command, data windows)
+    and the fit of the level means."""
+    plt = pyplot()
+
+    t = result.time
+    n = max(1, int(round(filter_time / float(np.median(np.diff(t))))))
+    levels = _levels_of(result, stage, observer, controller, settle, margin)
+    summ = (result.summary or {}).get(prefix) or {}
+    Kt_ref = summ.get("Kt_n_reference", KeioNominal.Kt_n)
+    fit = fit_thrust_constant(levels, Kt_ref)
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [1.8, 1]})
+    ax.plot(t, moving_average(result[f"{stage}.F_dyn"], n), color="C0", lw=1.0,
+            label=f"dynamometer F_dyn ({filter_time * 1e3:g} ms average)")
+    ax.plot(t, moving_average(result[f"{observer}.F_thrust_hat"], n), color="C2", lw=0.8, ls="--",
+            label=f"observer estimate (Kt_n = {Kt_ref:g} N/A)", zorder=3)
+    mode = result[f"{controller}.mode"]
+    ax.plot(t, np.where(mode == 1, result[f"{controller}.F_cmd_out"], np.nan), color="k", lw=1.0,
+            label="command")
+    for v in levels:
+        ax.axvspan(v["t_from_s"], v["t_to_s"], color="C1", alpha=0.15, lw=0)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("thrust [N]")
+    ax.set_title("reference cut (shaded: data windows)", fontsize=9)
+    ax.legend(loc="upper left", fontsize=8)
+    ax.grid(alpha=0.3)
+    x = np.array([v["F_thrust_hat_mean_N"] for v in levels])
+    y = np.array([v["F_dyn_mean_N"] for v in levels])
+    xs = np.linspace(0.0, x.max() * 1.1, 2)
+    bx.plot(xs, xs, color="0.6", lw=0.8, ls=":", label="uncalibrated (F_dyn = estimate)")
+    bx.plot(xs, fit["gain"] * xs + fit["intercept_N"], color="C3", lw=1.0,
+            label=f"fit: gain {fit['gain']:.4f}, intercept {fit['intercept_N']:+.2f} N")
+    bx.plot(x, y, "o", color="C0", label="level means")
+    txt = [f"Kt_n_cal = {fit['Kt_n_cal']:.3f} N/A", f"residual rms {fit['residual_rms_N']:.3f} N"]
+    if isinstance(summ.get("Kt_true"), float):
+        txt.append(f"(scoring: true Kt {summ['Kt_true']:.3f} N/A, error {summ['Kt_n_cal_error_pct']:+.2f} %)")
+    bx.text(0.98, 0.03, "\n".join(txt), transform=bx.transAxes, ha="right", va="bottom", fontsize=8,
+            bbox=dict(facecolor="white", alpha=0.8, edgecolor="0.8"))
+    bx.set_xlabel("mean observer estimate [N]")
+    bx.set_ylabel("mean dynamometer thrust [N]")
+    bx.legend(loc="upper left", fontsize=8)
+    bx.grid(alpha=0.3)
+    return save_figure(fig, out_dir, file, title)
