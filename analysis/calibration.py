@@ -12,12 +12,12 @@ after the run: no block ever reads the dynamometer.
 
 Why it is needed. Every sensorless effort of the observer is the current times the
 nominal constant ``Kt_n``; friction, cogging and gravity offsets identified by the air cut
-are measured through the same ``Kt_n``. With the true constant ``Kt`` the whole estimate
+are measured through the same ``Kt_n``. With the true constant ``K_true`` the whole estimate
 (eq. 1, steady cutting, inertia term averaging out) is therefore scaled::
 
-    F_thrust_hat = (Kt_n / Kt) * F_thrust  (+ a constant left by the identification)
+    F_thrust_hat = (Kt_n / K_true) * F_thrust  (+ a constant left by the identification)
 
-and no sensorless measurement can see the factor (the LinearStage's Kt is 3 % below the
+and no sensorless measurement can see the factor (the LinearStage's true constant is 3 % below the
 nominal 24 N/A: force control makes the estimate exact, the real thrust 3 % low).
 
 Model of the fit (:func:`fit_thrust_constant`). For each commanded force level ``j``
@@ -58,7 +58,9 @@ import numpy as np
 from analysis.force_scoring import moving_average
 from analysis.plotting import pyplot, save_figure
 from controllers.calibration import ThrustCalibration, load_calibration  # noqa: F401 (the file format)
+from analysis.plant_info import true_parameters
 from controllers.nominal_models import KeioNominal
+from cosim.scores import needs
 
 MODEL = ("mean F_dyn_j = gain * mean F_thrust_hat_j + intercept over the steady windows j of "
          "constant commanded force; Kt_n_cal = gain * Kt_n_reference")
@@ -94,7 +96,7 @@ def steady_levels(t, F_meas, F_hat, F_cmd, active, *, settle=0.25, margin=0.02) 
 
 
 def fit_thrust_constant(levels: list[dict], Kt_n_reference: float) -> dict:
-    """Least squares ``F_dyn = gain * F_thrust_hat + intercept`` over the level means."""
+    """Least squares ``F_meas = gain * F_thrust_hat + intercept`` over the level means."""
     if len({round(x["F_cmd_N"], 9) for x in levels}) < 2:
         raise ValueError("thrust calibration needs steady cutting at two or more force levels, "
                          f"found {[x['F_cmd_N'] for x in levels]}")
@@ -141,14 +143,15 @@ def calibration_in_use(result, block: str, raw: dict | None = None) -> dict:
 
 
 def _levels_of(result, stage, observer, controller, settle, margin):
-    return steady_levels(result.time, result[f"{stage}.F_dyn"], result[f"{observer}.F_thrust_hat"],
+    return steady_levels(result.time, result[f"{stage}.thrust_dyn"], result[f"{observer}.F_thrust_hat"],
                          result[f"{controller}.F_cmd_out"], result[f"{controller}.mode"] == 1,
                          settle=settle, margin=margin)
 
 
+@needs("{stage}.thrust_dyn", "{observer}.F_thrust_hat", "{controller}.F_cmd_out", "{controller}.mode")
 def thrust_constant_calibration(result, stage="stage", observer="observer", controller="controller",
                                 settle=0.25, margin=0.02, Kt_n=None,
-                                out_file="thrust_calibration.json", prefix="thrust_calibration") -> dict:
+                                out_file="thrust_calibration.json") -> dict:
     """``[[scores]]`` function: fit ``Kt_n_cal`` from the reference cut, write ``out_file``
     into the run's folder (module docstring). ``Kt_n``: the observer's constant in the
     run (default: its ``Kt_n`` setting in the scenario, else the nominal 24 N/A)."""
@@ -159,14 +162,15 @@ def thrust_constant_calibration(result, stage="stage", observer="observer", cont
                          f"(it has calibration_file = {used['calibration_file']!r})")
     Kt_ref = float(Kt_n if Kt_n is not None else used["Kt_n"])
     fit = fit_thrust_constant(_levels_of(result, stage, observer, controller, settle, margin), Kt_ref)
-    params = (raw.get("fmus", {}).get(stage, {}).get("parameters") or {})
+    spec = raw.get("fmus", {}).get(stage, {})
+    params = {**(spec.get("parameters") or {}), **(spec.get("plant_parameters") or {})}
     name = (result.summary or {}).get("scenario")
     fit["source"] = {"scenario": name, "produced_by": f"drillcosim run {name}: [[scores]] "
                      "analysis.calibration:thrust_constant_calibration on the recorded reference cut",
                      "file": (result.summary or {}).get("file"),
                      "overrides": (result.summary or {}).get("overrides") or {},
                      "seed": params.get("seed"),
-                     "signals": {"measured": f"{stage}.F_dyn", "estimate": f"{observer}.F_thrust_hat",
+                     "signals": {"measured": f"{stage}.thrust_dyn", "estimate": f"{observer}.F_thrust_hat",
                                  "command": f"{controller}.F_cmd_out", "force_mode": f"{controller}.mode == 1"},
                      "window": {"settle_s": settle, "margin_s": margin}}
     out_dir = Path(getattr(result, "out_dir", None) or ".")
@@ -177,21 +181,21 @@ def thrust_constant_calibration(result, stage="stage", observer="observer", cont
                                   "residual_rms_N", "residual_max_N")}
     scores["n_levels"] = len(fit["levels"])
     scores["file"] = str(path)
-    try:   # scoring only: the plant's true constant, from the FMU's model description
-        from analysis.observer_scoring import true_parameters
-        Kt_true = true_parameters(result, stage)["Kt"]
+    Kt_true = true_parameters(result, stage).get("force_constant")   # scoring only, optional
+    if Kt_true:
         scores.update(Kt_true=Kt_true, Kt_n_cal_error_pct=100.0 * (fit["Kt_n_cal"] - Kt_true) / Kt_true,
                       Kt_n_reference_error_pct=100.0 * (Kt_ref - Kt_true) / Kt_true)
-    except Exception as e:     # no scenario file (Python API run)
-        scores["Kt_true"] = f"unavailable: {e}"
-    return {prefix: scores}
+    else:
+        scores["Kt_true"] = "unavailable: the plant's binding offers no true force_constant"
+    return scores
 
 
 # --------------------------------------------------------------------------- figure
+@needs("{stage}.thrust_dyn", "{observer}.F_thrust_hat", "{controller}.F_cmd_out", "{controller}.mode")
 def calibration_figure(result, out_dir, stage="stage", observer="observer", controller="controller",
                        settle=0.25, margin=0.02, filter_time=0.005, file="thrust_calibration.png",
                        title="Thrust-constant calibration (reference cut with dynamometer)",
-                       prefix="thrust_calibration"):
+                       score="thrust_calibration"):
     """``[[plots]]`` function: the reference cut (thrust, estimate, command, data windows)
     and the fit of the level means."""
     plt = pyplot()
@@ -199,12 +203,12 @@ def calibration_figure(result, out_dir, stage="stage", observer="observer", cont
     t = result.time
     n = max(1, int(round(filter_time / float(np.median(np.diff(t))))))
     levels = _levels_of(result, stage, observer, controller, settle, margin)
-    summ = (result.summary or {}).get(prefix) or {}
+    summ = ((result.summary or {}).get("scores") or {}).get(score) or {}
     Kt_ref = summ.get("Kt_n_reference", KeioNominal.Kt_n)
     fit = fit_thrust_constant(levels, Kt_ref)
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [1.8, 1]})
-    ax.plot(t, moving_average(result[f"{stage}.F_dyn"], n), color="C0", lw=1.0,
-            label=f"dynamometer F_dyn ({filter_time * 1e3:g} ms average)")
+    ax.plot(t, moving_average(result[f"{stage}.thrust_dyn"], n), color="C0", lw=1.0,
+            label=f"dynamometer F_meas ({filter_time * 1e3:g} ms average)")
     ax.plot(t, moving_average(result[f"{observer}.F_thrust_hat"], n), color="C2", lw=0.8, ls="--",
             label=f"observer estimate (Kt_n = {Kt_ref:g} N/A)", zorder=3)
     mode = result[f"{controller}.mode"]
@@ -220,13 +224,13 @@ def calibration_figure(result, out_dir, stage="stage", observer="observer", cont
     x = np.array([v["F_thrust_hat_mean_N"] for v in levels])
     y = np.array([v["F_dyn_mean_N"] for v in levels])
     xs = np.linspace(0.0, x.max() * 1.1, 2)
-    bx.plot(xs, xs, color="0.6", lw=0.8, ls=":", label="uncalibrated (F_dyn = estimate)")
+    bx.plot(xs, xs, color="0.6", lw=0.8, ls=":", label="uncalibrated (F_meas = estimate)")
     bx.plot(xs, fit["gain"] * xs + fit["intercept_N"], color="C3", lw=1.0,
             label=f"fit: gain {fit['gain']:.4f}, intercept {fit['intercept_N']:+.2f} N")
     bx.plot(x, y, "o", color="C0", label="level means")
     txt = [f"Kt_n_cal = {fit['Kt_n_cal']:.3f} N/A", f"residual rms {fit['residual_rms_N']:.3f} N"]
     if isinstance(summ.get("Kt_true"), float):
-        txt.append(f"(scoring: true Kt {summ['Kt_true']:.3f} N/A, error {summ['Kt_n_cal_error_pct']:+.2f} %)")
+        txt.append(f"(scoring: true K {summ['Kt_true']:.3f} N/A, error {summ['Kt_n_cal_error_pct']:+.2f} %)")
     bx.text(0.98, 0.03, "\n".join(txt), transform=bx.transAxes, ha="right", va="bottom", fontsize=8,
             bbox=dict(facecolor="white", alpha=0.8, edgecolor="0.8"))
     bx.set_xlabel("mean observer estimate [N]")

@@ -2,14 +2,14 @@
 synthetic thrust traces for unit tests.
 
 Event truth: the time ``t_true`` at which the tool tip (scoring-only plant signal
-``x_tool_true``) reaches the event's boundary of the *actual* stack: the top
+``tool_position``) reaches the event's boundary of the *actual* stack: the top
 surface (entry), the bottom of the first layer (interface: the paper's stack is a
 5 mm CFRP plate on the Ti, so the interface is known 5 mm below the surface; a
 slight gap is not known to the operator and makes the Ti start ``gap`` deeper),
 the bottom of the second layer (exit).
 As in the paper ("drilling depth is calculated by the feed rate which multiplies
 the time"), the depth error is the feed travelled between the true and the
-detected time, measured on the table encoder: ``dz = x_enc(t_det) - x_enc(t_true)``;
+detected time, measured on the table encoder: ``dz = x_table(t_det) - x_table(t_true)``;
 negative = found early, positive = late.
 """
 from __future__ import annotations
@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.signal_tools import centred_mean
+from cosim.scores import needs
 
 EVENTS = ("entry", "interface", "exit")
 
@@ -161,13 +162,13 @@ def _transitions(time, layer):
     return {"entry": mid(i_entry), "interface": mid(i_int), "exit": mid(i_exit), "ti_top": mid(i_ti)}
 
 
-def layer_thrust_stats(time, x_tool, F_dyn, F_obs, x_lo, x_hi, orbital_period=0.5):
+def layer_thrust_stats(time, x_tool, F_meas, F_obs, x_lo, x_hi, orbital_period=0.5):
     """Table 3 columns for one layer: mean DC thrust of the dynamometer (moving
     average over one orbital period) and of the observer over x_tool in
     [x_lo, x_hi], RMS of their difference, deviation in %."""
     time = np.asarray(time, float)
     dt = float(np.median(np.diff(time))) if time.size > 1 else 1.0
-    dc = centred_mean(F_dyn, max(1, int(round(orbital_period / dt))), edges="nan")
+    dc = centred_mean(F_meas, max(1, int(round(orbital_period / dt))), edges="nan")
     sel = (np.asarray(x_tool) >= x_lo) & (np.asarray(x_tool) <= x_hi) & np.isfinite(dc)
     if not sel.any():
         return {"measured": math.nan, "observed": math.nan, "eps_rms": math.nan, "deviation_pct": math.nan}
@@ -178,7 +179,10 @@ def layer_thrust_stats(time, x_tool, F_dyn, F_obs, x_lo, x_hi, orbital_period=0.
             "deviation_pct": 100.0 * eps / meas if meas else math.nan}
 
 
-def score_hole(result, plant="plant", observer="observer", detector="detector",
+@needs("{plant}.tool_position_true", "{plant}.layer_index", "{plant}.thrust_dyn", "{observer}.F_dc_hat",
+       "{detector}.t_entry", "{detector}.t_interface", "{detector}.t_exit_paper", "{detector}.t_exit_thinning",
+       "{detector}.fail", "{detector}.fail_code", "{detector}.flag")
+def score_hole(result, plant="drive", observer="observer", detector="detector",
                entry_margin=0.2e-3, end_margin=0.2e-3, exit_margin=0.6e-3, orbital_period=0.5):
     """Scores of one drilled hole (a ``[[scores]]`` function of the scenario).
 
@@ -191,8 +195,8 @@ def score_hole(result, plant="plant", observer="observer", detector="detector",
     """
     t = np.asarray(result.time, float)
     g = lambda name: np.asarray(result[name], float)  # noqa: E731
-    x_tool = g(f"{plant}.x_tool_true")
-    truth = _transitions(t, g(f"{plant}.layer"))
+    x_tool = g(f"{plant}.tool_position_true")
+    truth = _transitions(t, g(f"{plant}.layer_index"))
     det = {n: last_value(result[f"{detector}.{n}"]) for n in
            ("t_entry", "t_interface", "t_exit_paper", "t_exit_thinning", "fail", "fail_code", "flag")}
     pairs = {
@@ -221,15 +225,17 @@ def score_hole(result, plant="plant", observer="observer", detector="detector",
     # Table 3 (observer vs dynamometer per layer)
     x_e, x_i = interp_at(t, x_tool, truth["entry"]), interp_at(t, x_tool, truth["interface"])
     x_ti, x_x = interp_at(t, x_tool, truth["ti_top"]), interp_at(t, x_tool, truth["exit"])
-    F_dyn, F_obs = g(f"{plant}.F_dyn"), g(f"{observer}.F_dc_hat")
+    F_meas, F_obs = g(f"{plant}.thrust_dyn"), g(f"{observer}.F_dc_hat")
     for name, lo, hi in (("cfrp", x_e + entry_margin, x_i - end_margin),
                          ("ti", x_ti + entry_margin, x_x - exit_margin)):
-        st = layer_thrust_stats(t, x_tool, F_dyn, F_obs, lo, hi, orbital_period)
+        st = layer_thrust_stats(t, x_tool, F_meas, F_obs, lo, hi, orbital_period)
         for k, v in st.items():
             out[f"{name}_{k}"] = v
     return out
 
 
+@needs("{adapt}.stage", "{adapt}.feed_rate_cmd", "{adapt}.spindle_speed", "{adapt}.orbital_speed",
+       "{detector}.t_interface", "{trajectory}.v_ref", "{trajectory}.a_ref")
 def score_adaptation(result, detector="detector", adapt="adapt", trajectory="trajectory"):
     """What was in force when: the stage changes of the adaptation (time, stage index,
     feed, spindle, orbit), and the delay from the interface detection to the first

@@ -1,7 +1,7 @@
 """Scores and figures of the thrust-force-control scenarios (Keio Figs. 4 and 7).
 
 One job: judge a recorded run of :class:`controllers.force_control.ThrustForceController`
-against its command, per layer of the stack, with the dynamometer (``F_dyn``, a
+against its command, per layer of the stack, with the dynamometer (``F_meas``, a
 scoring-only plant output), and draw the paper-like figure.
 
 Definitions (all in :func:`force_scores`)
@@ -34,6 +34,7 @@ import numpy as np
 
 from analysis.plotting import pyplot, save_figure
 from analysis.signal_tools import centred_mean
+from cosim.scores import needs
 
 
 def moving_average(x: np.ndarray, n: int) -> np.ndarray:
@@ -140,20 +141,24 @@ def constant_feed_jumps(t, F, layer, *, settle_window=0.2, moving=None,
     return {"layers": means, "jumps": jumps}
 
 
+@needs("{stage}.thrust_dyn", "{stage}.layer_index", "{stage}.tool_position_true?", "{controller}.mode",
+       "{controller}.F_cmd_out", "{controller}.i_ref_max", "{controller}.saturated_any",
+       "{observer}.F_thrust_hat?", "{compare_stage}.thrust_dyn?", "{compare_stage}.layer_index?",
+       "{compare_stage}.tool_position_true?", "{compare_controller}.v_hat?")
 def force_scores(result, stage="stage", controller="controller", observer="observer",
                  band=5.0, settle_window=0.2, filter_time=0.005, z_steady_end=None,
-                 compare_stage=None, compare_controller=None, prefix="force_control") -> dict:
+                 compare_stage=None, compare_controller=None) -> dict:
     """``[[scores]]`` function: per-layer thrust-control scores (module docstring)."""
     t = result.time
     mode = result[f"{controller}.mode"]
     F_cmd = result[f"{controller}.F_cmd_out"]
     active = mode == 1
-    z_tool = result[f"{stage}.z_tool_true"] if f"{stage}.z_tool_true" in result else None
-    sc = layer_scores(t, result[f"{stage}.F_dyn"], F_cmd, result[f"{stage}.layer"], active, z_tool,
+    z_tool = result[f"{stage}.tool_position_true"] if f"{stage}.tool_position_true" in result else None
+    sc = layer_scores(t, result[f"{stage}.thrust_dyn"], F_cmd, result[f"{stage}.layer_index"], active, z_tool,
                       band=band, settle_window=settle_window, z_steady_end=z_steady_end,
                       filter_time=filter_time)
     if f"{observer}.F_thrust_hat" in result:
-        est = layer_scores(t, result[f"{observer}.F_thrust_hat"], F_cmd, result[f"{stage}.layer"],
+        est = layer_scores(t, result[f"{observer}.F_thrust_hat"], F_cmd, result[f"{stage}.layer_index"],
                            active, z_tool, band=band, settle_window=settle_window,
                            z_steady_end=z_steady_end, filter_time=filter_time)
         for a, b in zip(sc["layers"], est["layers"]):
@@ -174,8 +179,8 @@ def force_scores(result, stage="stage", controller="controller", observer="obser
         "t_retract_s": float(t[np.nonzero(mode == 2)[0][0]]) if (mode == 2).any() else None,
         "definitions": {"band_N": band, "settle_window_s": settle_window,
                         "filter_time_s": filter_time, "z_steady_end_m": z_steady_end,
-                        "mean_error": "F_dyn (raw) minus command, steady part of each layer",
-                        "peak_error": f"max |F_dyn low-passed ({filter_time * 1e3:g} ms) - command|, steady part"},
+                        "mean_error": "F_meas (raw) minus command, steady part of each layer",
+                        "peak_error": f"max |F_meas low-passed ({filter_time * 1e3:g} ms) - command|, steady part"},
     }
     if f"{observer}.F_thrust_hat" in result:
         from analysis.calibration import calibration_in_use   # (it imports this module)
@@ -192,19 +197,22 @@ def force_scores(result, stage="stage", controller="controller", observer="obser
         moving = None
         if cc and f"{cc}.v_hat" in result:
             moving = result[f"{cc}.v_hat"] > 1e-5     # feeding (not the retract through the stack)
-        z_cf = result[f"{cs}.z_tool_true"] if f"{cs}.z_tool_true" in result else None
-        cf = constant_feed_jumps(t, result[f"{cs}.F_dyn"], result[f"{cs}.layer"],
+        z_cf = result[f"{cs}.tool_position_true"] if f"{cs}.tool_position_true" in result else None
+        cf = constant_feed_jumps(t, result[f"{cs}.thrust_dyn"], result[f"{cs}.layer_index"],
                                  settle_window=settle_window, moving=moving, z_tool=z_cf,
                                  z_steady_end=z_steady_end)
         out["constant_feed"] = cf
         out["constant_feed_jumps_N"] = [j["jump_N"] for j in cf["jumps"]]
-    return {prefix: out}
+    return out
 
 
 # ----------------------------------------------------------------------------- figures
+@needs("{stage}.thrust_dyn", "{stage}.layer_index", "{controller}.mode", "{controller}.F_cmd_out",
+       "{controller}.v_hat", "{controller}.i_ref", "{observer}.F_thrust_hat?", "{compare_stage}.thrust_dyn?",
+       "{compare_stage}.layer_index?", "{compare_controller}.v_hat?")
 def force_figure(result, out_dir, stage="stage", controller="controller", observer="observer",
                  compare_stage=None, compare_controller=None, file="thrust_force_control.png",
-                 title="Thrust force control", filter_time=0.005, prefix="force_control"):
+                 title="Thrust force control", filter_time=0.005, score="force_control"):
     """``[[plots]]`` function: thrust vs command with layer marks, feed rate, current
     (Keio Figs. 4 and 7); with ``compare_stage`` the constant-feed run side by side."""
     plt = pyplot()
@@ -212,23 +220,23 @@ def force_figure(result, out_dir, stage="stage", controller="controller", observ
     t = result.time
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1e-4
     n = max(1, int(round(filter_time / dt)))
-    F = result[f"{stage}.F_dyn"]
+    F = result[f"{stage}.thrust_dyn"]
     mode = result[f"{controller}.mode"]
     F_cmd = result[f"{controller}.F_cmd_out"]
-    layer = result[f"{stage}.layer"]
+    layer = result[f"{stage}.layer_index"]
     fig, axes = plt.subplots(3, 1, sharex=True, figsize=(9, 8.5),
                              gridspec_kw={"height_ratios": [2.2, 1.2, 1]})
     ax = axes[0]
-    ax.plot(t, F, color="0.8", lw=0.5, label="dynamometer F_dyn (raw)")
+    ax.plot(t, F, color="0.8", lw=0.5, label="dynamometer F_meas (raw)")
     ax.plot(t, moving_average(F, n), color="C0", lw=1.2,
-            label=f"F_dyn ({filter_time * 1e3:g} ms average), force control")
+            label=f"F_meas ({filter_time * 1e3:g} ms average), force control")
     if f"{observer}.F_thrust_hat" in result:
         ax.plot(t, moving_average(result[f"{observer}.F_thrust_hat"], n), color="C2", lw=0.8, ls="--",
                 label="observer estimate F_thrust_hat")
     cmd = np.where(mode == 1, F_cmd, np.nan)
     ax.plot(t, cmd, color="k", lw=1.0, label="command F_cmd")
     if compare_stage:
-        ax.plot(t, moving_average(result[f"{compare_stage}.F_dyn"], n), color="C3", lw=1.0,
+        ax.plot(t, moving_average(result[f"{compare_stage}.thrust_dyn"], n), color="C3", lw=1.0,
                 label="constant feed, force control off")
     # layer marks (A), (B), ...
     # layer changes while drilling (not the retract back up through the stack)
@@ -241,7 +249,7 @@ def force_figure(result, out_dir, stage="stage", controller="controller", observ
         ax.annotate(lab, (t[k], 1.0), xycoords=("data", "axes fraction"), xytext=(3, -12),
                     textcoords="offset points", color="C1")
     if compare_stage:
-        cl = result[f"{compare_stage}.layer"]
+        cl = result[f"{compare_stage}.layer_index"]
         fwd = (result[f"{compare_controller}.v_hat"] > 1e-5 if compare_controller
                and f"{compare_controller}.v_hat" in result else np.ones(len(cl), bool))
         for k in range(1, len(cl)):
@@ -251,7 +259,7 @@ def force_figure(result, out_dir, stage="stage", controller="controller", observ
     ax.set_ylabel("thrust [N]")
     ax.legend(loc="upper left", fontsize=8)
     ax.grid(alpha=0.3)
-    summ = result.summary.get(prefix) if isinstance(result.summary, dict) else None
+    summ = ((result.summary or {}).get("scores") or {}).get(score)     # the named [[scores]] entry
     if summ:
         txt = []
         for x in summ.get("layers", []):

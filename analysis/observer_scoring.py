@@ -25,6 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from analysis.identification import identify_friction
+from analysis.plant_info import plant_kind, true_parameters
+from cosim.scores import needs
 from controllers.nominal_models import FangNominal, KeioNominal
 from analysis.plotting import pyplot, save_figure
 from analysis.signal_tools import centred_mean
@@ -33,37 +35,6 @@ MATERIALS = {0: "air", 1: "CFRP", 2: "Ti-6Al-4V", 3: "aluminium"}
 
 
 # --------------------------------------------------------------------------- helpers
-def true_parameters(result, instance: str) -> dict:
-    """The plant's true parameter values of FMU ``instance`` (defaults + scenario + overrides).
-
-    Scoring only: reads the scenario file named in ``result.summary`` again.
-    """
-    from cosim.scenario import Origins, load_raw
-    from cosim.slave import load_model, resolve_fmu_path
-
-    summ = getattr(result, "summary", None) or {}
-    file = summ.get("file")
-    if not file:
-        raise ValueError("true_parameters: the result does not name its scenario file")
-    # load_raw follows `extends`; the FMU path is relative to the file that wrote it.
-    origins = Origins()
-    raw = load_raw(file, summ.get("overrides") or {}, origins)
-    spec = raw["fmus"][instance]
-    fmu_dir = Path(origins.file_of(f"fmus.{instance}.path")).parent.resolve()
-    path = resolve_fmu_path(spec["path"], fmu_dir)
-    model = load_model(path)
-    out = {}
-    for name, v in model.variables.items():
-        if v.causality == "parameter" and v.start is not None:
-            try:
-                out[name] = float(v.start)
-            except (TypeError, ValueError):
-                pass
-    out.update({k: float(v) for k, v in (spec.get("parameters") or {}).items()
-                if isinstance(v, (int, float))})
-    return out
-
-
 def first_run(mask: np.ndarray) -> np.ndarray:
     """Indices of the first contiguous run of True in ``mask`` (empty if none)."""
     idx = np.nonzero(mask)[0]
@@ -89,22 +60,24 @@ def wrap(a):
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
-def orbital_reference(result, fmu: str, orbital_speed_rpm: float = 120.0,
+def orbital_reference(result, plant: str, orbital_speed_rpm: float = 120.0,
                       orbital_speed_signal: str | None = None):
-    """What the Fang scores compare against, per recorded sample: ``(t, F_dyn, dc, rpm,
+    """What the Fang scores compare against, per recorded sample: ``(t, F_meas, dc, rpm,
     n_avg, phi)`` -- the dynamometer thrust, its DC part (centred mean over ``n_avg``
     samples = one orbital period), the orbital speed [rpm] and angle [rad]. The speed is
     the constant ``orbital_speed_rpm`` (``phi`` None: ``2 pi f t``) or the recorded signal
     ``orbital_speed_signal`` (e.g. ``"adapt.orbital_speed"``, the commanded speed that the
     plant and the observer follow), whose angle is integrated from the first sample.
-    ``"auto"``: the plant's orbital-speed input ``<fmu>.orbital_speed`` when the run
+    ``"auto"``: the plant's orbital-speed role ``<plant>.orbital_speed`` [rad/s] when the run
     recorded it (a scenario that changes the speed records it), else the constant."""
     t = result.time
     dt = float(np.median(np.diff(t)))
     if orbital_speed_signal == "auto":
-        orbital_speed_signal = f"{fmu}.orbital_speed" if f"{fmu}.orbital_speed" in result else None
+        orbital_speed_signal = f"{plant}.orbital_speed" if f"{plant}.orbital_speed" in result else None
     if orbital_speed_signal:
         rpm = np.asarray(result[orbital_speed_signal], float)
+        if result.unit(orbital_speed_signal) == "rad/s":       # a plant role is SI
+            rpm = rpm * (60.0 / (2 * np.pi))
         w = 2 * np.pi * rpm / 60.0
         phi = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))])
     else:
@@ -113,8 +86,8 @@ def orbital_reference(result, fmu: str, orbital_speed_rpm: float = 120.0,
     with np.errstate(divide="ignore"):
         per = np.where(rpm > 0, 1.0 / (rpm / 60.0) / dt, 1.0)
     n_avg = np.maximum(1, np.rint(per)).astype(int)
-    F_dyn = result[f"{fmu}.F_dyn"]
-    return t, F_dyn, centred_mean(F_dyn, n_avg), rpm, n_avg, phi
+    F_meas = result[f"{plant}.thrust_dyn"]
+    return t, F_meas, centred_mean(F_meas, n_avg), rpm, n_avg, phi
 
 
 def _out_dir(result, out_dir=None) -> Path:
@@ -123,36 +96,36 @@ def _out_dir(result, out_dir=None) -> Path:
 
 
 # --------------------------------------------------------------------------- air cut
-def air_cut_friction(result, fmu: str = "drive", drive: str = "BallScrewDrive",
-                     current: str = "drive.i_meas", position: str = "drive.theta_enc",
-                     v_ref: str = "reference.v_ref", ripple_k=tuple(range(1, 13)),
-                     settle: float = 0.3, out_file: str = "friction.json",
+@needs("{plant}.i_meas?", "{current}", "{plant}.motor_angle?", "{plant}.table_position", "{v_ref}")
+def air_cut_friction(result, plant: str = "drive", v_ref: str = "reference.v_ref", current: str | None = None,
+                     ripple_k=tuple(range(1, 13)), settle: float = 0.3, out_file: str = "friction.json",
                      force_constant_nominal: float | None = None, v_stribeck=None,
                      fit_offset: bool = True, print_table: bool = True) -> dict:
     """Identify the friction (+ position ripple) from an air-cutting run, write ``friction.json``.
 
-    ``drive = "BallScrewDrive"``: effort ``K_Tn i`` [N m], position = motor angle [rad],
-    ripple harmonics ``ripple_k`` per revolution. ``drive = "LinearStage"``: effort
-    ``Kt_n i`` [N], position = stage position [m], ``ripple_k`` in rad/m (e.g. 2 pi / magnet
-    pitch) -- or none. The identification sees only the current, the encoder and the
-    commanded velocity; the plant's true parameters are read afterwards, to score it.
+    By the plant's kind (its binding): a ball screw gives effort ``K_Tn i`` [N m] against
+    the motor angle [rad], ripple harmonics ``ripple_k`` per revolution; a linear stage
+    ``Kt_n i`` [N] against the table position [m], ``ripple_k`` in rad/m (e.g. 2 pi / magnet
+    pitch) -- or none. ``current``: the current signal the observer will use (default the
+    plant's ``i_meas`` role; the Keio observer uses the reference ``i_ref``). The
+    identification sees only the plant's roles in SI (current, encoder) and the commanded
+    velocity; the true parameters the binding offers are read
+    afterwards, to score it, and only when it offers them.
     """
-    if drive == "BallScrewDrive":
+    kind = plant_kind(result, plant)
+    if kind == "ball_screw":
         Kn = force_constant_nominal or FangNominal.K_Tn
         units = dict(effort_unit="N m", velocity_unit="rad/s", position_unit="rad")
-        true_names = ("tau_coulomb", "D_viscous", "K_T")
-    elif drive == "LinearStage":
+        position = f"{plant}.motor_angle"
+    else:
         Kn = force_constant_nominal or KeioNominal.Kt_n
         units = dict(effort_unit="N", velocity_unit="m/s", position_unit="m")
-        true_names = ("F_coulomb", "b_viscous", "Kt")
-
-    else:
-        raise ValueError(f"air_cut_friction: drive must be BallScrewDrive or LinearStage, got {drive!r}")
+        position = f"{plant}.table_position"
     t = result.time
-    fm = identify_friction(t, result[position], Kn * result[current], result[v_ref],
+    fm = identify_friction(t, result[position], Kn * result[current or f"{plant}.i_meas"], result[v_ref],
                            ripple_k=tuple(float(k) for k in ripple_k), v_stribeck=v_stribeck,
                            fit_offset=fit_offset, settle=settle, **units)
-    fm.info.update(drive=drive, force_constant_nominal=Kn, source=str(getattr(result, "out_dir", "")))
+    fm.info.update(kind=kind, force_constant_nominal=Kn, source=str(getattr(result, "out_dir", "")))
     path = fm.save(_out_dir(result) / out_file)
 
     scores = {"friction_file": str(path), "friction_coulomb": fm.coulomb, "friction_viscous": fm.viscous,
@@ -162,33 +135,30 @@ def air_cut_friction(result, fmu: str = "drive", drive: str = "BallScrewDrive",
         big = max(fm.ripple, key=lambda r: math.hypot(r[1], r[2]))
         scores["friction_ripple_main"] = {"k": big[0], "amplitude": math.hypot(big[1], big[2]),
                                           "phase": math.atan2(big[2], big[1])}
-    try:
-        tp = true_parameters(result, fmu)
-    except Exception as e:   # scoring is optional: no scenario file (Python API run)
-        scores["friction_true_error"] = f"true parameters unavailable: {e}"
-        tp = None
-    if tp is not None:
-        c_true, v_true, k_true = (tp[n] for n in true_names)
-        scores.update(friction_coulomb_true=c_true, friction_viscous_true=v_true,
-                      friction_coulomb_error_pct=100 * (fm.coulomb - c_true) / c_true,
-                      friction_viscous_error_pct=100 * (fm.viscous - v_true) / v_true,
-                      friction_force_constant_ratio=Kn / k_true)
-        if drive == "BallScrewDrive" and tp.get("tau_cog", 0) > 0:
-            h = tp["cog_harmonic"]
-            row = [r for r in fm.ripple if abs(r[0] - h) < 1e-9]
-            if row:
-                a = math.hypot(row[0][1], row[0][2])
-                scores["friction_cogging_true"] = tp["tau_cog"]
-                scores["friction_cogging_error_pct"] = 100 * (a - tp["tau_cog"]) / tp["tau_cog"]
-        if drive == "LinearStage":
-            if fm.stribeck:
-                scores.update(friction_stribeck=fm.stribeck, friction_v_stribeck=fm.v_stribeck,
-                              friction_stribeck_true=tp["F_stribeck"], friction_v_stribeck_true=tp["v_stribeck"])
-            net = tp["M"] * tp["g"] - tp["F_gc"]
-            scores["friction_gravity_true"] = net
-            scores["friction_gravity_identified"] = -fm.offset
+    tp = true_parameters(result, plant)      # scoring only, optional
+    for key, mine in (("coulomb", fm.coulomb), ("viscous", fm.viscous)):
+        if tp.get(key):
+            scores[f"friction_{key}_true"] = tp[key]
+            scores[f"friction_{key}_error_pct"] = 100 * (mine - tp[key]) / tp[key]
+    if tp.get("force_constant"):
+        scores["friction_force_constant_ratio"] = Kn / tp["force_constant"]
+    if tp.get("cogging") and tp.get("cogging_harmonic"):
+        row = [r for r in fm.ripple if abs(r[0] - tp["cogging_harmonic"]) < 1e-9]
+        if row:
+            scores["friction_cogging_true"] = tp["cogging"]
+            scores["friction_cogging_error_pct"] = 100 * (math.hypot(row[0][1], row[0][2]) - tp["cogging"]) / tp["cogging"]
+    if fm.stribeck:
+        scores.update(friction_stribeck=fm.stribeck, friction_v_stribeck=fm.v_stribeck)
+        if "stribeck" in tp and "v_stribeck" in tp:
+            scores.update(friction_stribeck_true=tp["stribeck"], friction_v_stribeck_true=tp["v_stribeck"])
+    if kind == "linear_stage":
+        scores["friction_gravity_identified"] = -fm.offset
+        if "gravity_net" in tp:
+            scores["friction_gravity_true"] = tp["gravity_net"]
+    if not tp:
+        scores["friction_true_error"] = "the plant's binding offers no true parameters to compare with"
     if print_table:
-        print(f"friction identification ({drive}, {fm.info['n_segments']} segments):")
+        print(f"friction identification ({kind}, {fm.info['n_segments']} segments):")
         for key in ("coulomb", "viscous"):
             val = scores[f"friction_{key}"]
             line = f"  {key:8s} {val:.5g} {fm.to_dict()['units'][key]}"
@@ -200,9 +170,12 @@ def air_cut_friction(result, fmu: str = "drive", drive: str = "BallScrewDrive",
 
 
 # --------------------------------------------------------------------------- Fang Table 3
-def fang_table3(result, fmu: str = "drive", observer: str = "observer", orbital_speed_rpm: float = 120.0,
+@needs("{plant}.thrust_dyn", "{plant}.layer_index", "{plant}.material_index?", "{observer}.F_dc_hat",
+       "{plant}.orbital_speed?", "{observer}.ripple_amplitude_hat?", "{observer}.ripple_phase_hat?",
+       "{observer}.F_ripple_hat?")
+def fang_table3(result, plant: str = "drive", observer: str = "observer", orbital_speed_rpm: float = 120.0,
                 ripple_settle: float = 5.0, ripple_end_margin: float = 3.0, ripple_window: float = 1.0,
-                ripple_reference: str = "F_dyn", orbital_speed_signal: str | None = "auto",
+                ripple_reference: str = "thrust_dyn", orbital_speed_signal: str | None = "auto",
                 print_table: bool = True) -> dict:
     """Table-3-style comparison per layer plus the ripple amplitude / phase errors.
 
@@ -210,17 +183,17 @@ def fang_table3(result, fmu: str = "drive", observer: str = "observer", orbital_
     to ``ripple_end_margin`` s before its end ("once converged"), the orbital-frequency
     component of the measured thrust (``ripple_reference``: the dynamometer, as Fang Fig. 7c;
     least-squares sinusoid + trend) against the observer's ``ripple_amplitude_hat`` and
-    ``ripple_phase_hat`` (window means). Not ``F_ripple_true`` alone: the ripple force
+    ``ripple_phase_hat`` (window means). Not the true ripple alone: the ripple force
     makes the table vibrate by a fraction of a micrometre, which the stiff tool contact
     turns into a few newtons of extra 2 Hz thrust -- part of the thrust the dynamometer
     and the observer both see. ``orbital_speed_signal``: a recorded orbital speed [rpm]
     instead of the constant ``orbital_speed_rpm``, for runs that change it; default "auto",
-    the plant's ``orbital_speed`` input when recorded (:func:`orbital_reference`).
+    the plant's ``orbital_speed`` role when recorded (:func:`orbital_reference`).
     """
-    t, F_dyn, dc_meas, rpm, n_all, phi = orbital_reference(result, fmu, orbital_speed_rpm, orbital_speed_signal)
+    t, F_meas, dc_meas, rpm, n_all, phi = orbital_reference(result, plant, orbital_speed_rpm, orbital_speed_signal)
     dc_obs = result[f"{observer}.F_dc_hat"]
-    layer = np.rint(result[f"{fmu}.layer"]).astype(int)
-    material = np.rint(result[f"{fmu}.material"]).astype(int) if f"{fmu}.material" in result else None
+    layer = np.rint(result[f"{plant}.layer_index"]).astype(int)
+    material = np.rint(result[f"{plant}.material_index"]).astype(int) if f"{plant}.material_index" in result else None
     rows = []
     for L in sorted(set(layer[layer > 0])):
         idx = first_run(layer == L)
@@ -238,13 +211,13 @@ def fang_table3(result, fmu: str = "drive", observer: str = "observer", orbital_
                "eps_rms_N": eps, "deviation_pct": 100.0 * eps / abs(m_meas) if m_meas else float("nan"),
                "mean_deviation_pct": float(100.0 * (np.mean(dc_obs[sel]) - m_meas) / m_meas) if m_meas else float("nan")}
         # ripple: 1-s windows of the converged part, true ripple vs the observer's estimate
-        if np.all(rpm[idx] > 0) and f"{fmu}.{ripple_reference}" in result and f"{observer}.ripple_amplitude_hat" in result:
+        if np.all(rpm[idx] > 0) and f"{plant}.{ripple_reference}" in result and f"{observer}.ripple_amplitude_hat" in result:
             t0, t1 = t[idx[0]] + ripple_settle, t[idx[-1]] - ripple_end_margin
             amp_err, ph_err = [], []
             w0 = t0
             while w0 + ripple_window <= t1 + 1e-9:
                 w = (t >= w0) & (t < w0 + ripple_window)
-                a_true, p_true = fit_sinusoid(t[w], result[f"{fmu}.{ripple_reference}"][w],
+                a_true, p_true = fit_sinusoid(t[w], result[f"{plant}.{ripple_reference}"][w],
                                               float(np.median(rpm[w])) / 60.0, None if phi is None else phi[w])
                 a_hat = float(np.mean(result[f"{observer}.ripple_amplitude_hat"][w]))
                 p_hat = float(np.angle(np.mean(np.exp(1j * result[f"{observer}.ripple_phase_hat"][w]))))
@@ -260,7 +233,7 @@ def fang_table3(result, fmu: str = "drive", observer: str = "observer", orbital_
                            ripple_phase_error_deg_mean=float(np.mean(ph_err)))
             # AC part (Fig. 7c): dynamometer minus its DC vs the ripple estimate
             if f"{observer}.F_ripple_hat" in result:
-                ac = F_dyn[sel] - dc_meas[sel]
+                ac = F_meas[sel] - dc_meas[sel]
                 row["ac_rms_measured_N"] = float(np.sqrt(np.mean(ac ** 2)))
                 row["ac_rms_error_N"] = float(np.sqrt(np.mean((result[f"{observer}.F_ripple_hat"][sel] - ac) ** 2)))
         rows.append(row)
@@ -286,16 +259,18 @@ def fang_table3(result, fmu: str = "drive", observer: str = "observer", orbital_
     return scores
 
 
-def fang_fig7(result, out_dir, fmu: str = "drive", observer: str = "observer", orbital_speed_rpm: float = 120.0,
+@needs("{plant}.thrust_dyn", "{plant}.layer_index?", "{observer}.F_dc_hat", "{observer}.F_ripple_hat?",
+       "{plant}.orbital_speed?")
+def fang_fig7(result, out_dir, plant: str = "drive", observer: str = "observer", orbital_speed_rpm: float = 120.0,
               file: str = "fig7_fang_observer.png", zoom: float = 3.0, title: str | None = None,
               orbital_speed_signal: str | None = "auto") -> Path:
     """Fang Fig. 7: (a) dynamometer thrust, (b) DC measured vs observed, (c) AC measured vs
     ripple estimate (full run and a zoom of ``zoom`` seconds in the middle of each layer)."""
     plt = pyplot()
-    t, F_dyn, dc, rpm, _, _ = orbital_reference(result, fmu, orbital_speed_rpm, orbital_speed_signal)
+    t, F_meas, dc, rpm, _, _ = orbital_reference(result, plant, orbital_speed_rpm, orbital_speed_signal)
     f_orb = " -> ".join(f"{v:g}" for v in dict.fromkeys(np.round(rpm[[0, -1]] / 60.0, 3)))
     fig, ax = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
-    ax[0].plot(t, F_dyn, lw=0.4, color="tab:gray")
+    ax[0].plot(t, F_meas, lw=0.4, color="tab:gray")
     ax[0].set_ylabel("thrust [N]")
     ax[0].set_title("(a) thrust force recorded by the dynamometer")
     ax[1].plot(t, dc, lw=1.0, label="measured DC (dynamometer, 1-orbit mean)")
@@ -303,7 +278,7 @@ def fang_fig7(result, out_dir, fmu: str = "drive", observer: str = "observer", o
     ax[1].set_ylabel("DC thrust [N]")
     ax[1].set_title("(b) DC component: measured vs observed")
     ax[1].legend(loc="upper left", fontsize=8)
-    ax[2].plot(t, F_dyn - dc, lw=0.4, label="measured AC (dynamometer - DC)")
+    ax[2].plot(t, F_meas - dc, lw=0.4, label="measured AC (dynamometer - DC)")
     ax[2].plot(t, result[f"{observer}.F_ripple_hat"], lw=0.8, label=f"ripple estimate (eq. 8, {f_orb} Hz)")
     ax[2].set_ylabel("AC thrust [N]")
     ax[2].set_xlabel("time [s]")
@@ -311,8 +286,8 @@ def fang_fig7(result, out_dir, fmu: str = "drive", observer: str = "observer", o
     ax[2].legend(loc="upper left", fontsize=8)
     path = save_figure(fig, out_dir, file, title)
     # zoom on the AC part in the middle of each layer
-    if f"{fmu}.layer" in result and zoom > 0:
-        layer = np.rint(result[f"{fmu}.layer"]).astype(int)
+    if f"{plant}.layer_index" in result and zoom > 0:
+        layer = np.rint(result[f"{plant}.layer_index"]).astype(int)
         Ls = sorted(set(layer[layer > 0]))
         if Ls:
             fig, axs = plt.subplots(1, len(Ls), figsize=(5 * len(Ls), 3.2), squeeze=False)
@@ -320,7 +295,7 @@ def fang_fig7(result, out_dir, fmu: str = "drive", observer: str = "observer", o
                 idx = first_run(layer == L)
                 tm = t[idx[len(idx) // 2]]
                 w = (t >= tm - zoom / 2) & (t <= tm + zoom / 2)
-                a.plot(t[w], (F_dyn - dc)[w], lw=0.5, label="measured AC")
+                a.plot(t[w], (F_meas - dc)[w], lw=0.5, label="measured AC")
                 a.plot(t[w], result[f"{observer}.F_ripple_hat"][w], lw=1.0, label="ripple estimate")
                 a.set_title(f"layer {L}: AC part (zoom)")
                 a.set_xlabel("time [s]")
@@ -330,13 +305,15 @@ def fang_fig7(result, out_dir, fmu: str = "drive", observer: str = "observer", o
 
 
 # --------------------------------------------------------------------------- Keio Fig. 3
-def keio_fig3_scores(result, fmu: str = "stage", observer: str = "observer", a_ref: str = "trajectory.a_ref",
-                     a_fraction: float = 0.5, reference: str = "F_dyn", print_table: bool = True) -> dict:
+@needs("{plant}.{reference}", "{plant}.thrust_true?", "{plant}.layer_index?", "{observer}.F_thrust_hat",
+       "{observer}.F_ref", "{a_ref}")
+def keio_fig3_scores(result, plant: str = "stage", observer: str = "observer", a_ref: str = "trajectory.a_ref",
+                     a_fraction: float = 0.5, reference: str = "thrust_dyn", print_table: bool = True) -> dict:
     """RMS error of ``F_thrust_hat`` (eq. 1) and of ``F_ref`` (eq. 2) against the dynamometer,
     during the acceleration phases (``|a_ref| > a_fraction * max|a_ref|``), during the
     constant-velocity cut and overall; plus a per-layer Table-3-style line."""
     t = result.time
-    ref = result[f"{fmu}.{reference}"]
+    ref = result[f"{plant}.{reference}"]
     Fh = result[f"{observer}.F_thrust_hat"]
     Fr = result[f"{observer}.F_ref"]
     a = result[a_ref]
@@ -350,8 +327,8 @@ def keio_fig3_scores(result, fmu: str = "stage", observer: str = "observer", a_r
           "rms_observer_accel_N": rms(Fh - ref, acc), "rms_Fref_accel_N": rms(Fr - ref, acc),
           "rms_observer_all_N": rms(Fh - ref, np.ones_like(acc)), "rms_Fref_all_N": rms(Fr - ref, np.ones_like(acc))}
     sc["rms_ratio_accel"] = sc["rms_Fref_accel_N"] / sc["rms_observer_accel_N"]
-    if f"{fmu}.F_thrust_true" in result:
-        tru = result[f"{fmu}.F_thrust_true"]
+    if f"{plant}.thrust_true" in result:
+        tru = result[f"{plant}.thrust_true"]
         sc["rms_observer_accel_vs_true_N"] = rms(Fh - tru, acc)
         sc["rms_Fref_accel_vs_true_N"] = rms(Fr - tru, acc)
         sc["rms_ratio_accel_vs_true"] = sc["rms_Fref_accel_vs_true_N"] / sc["rms_observer_accel_vs_true_N"]
@@ -367,8 +344,8 @@ def keio_fig3_scores(result, fmu: str = "stage", observer: str = "observer", a_r
                            "a_ref": float(np.mean(a[c])), "rms_observer_N": rms(Fh - ref, m),
                            "rms_Fref_N": rms(Fr - ref, m)})
     sc["acceleration_phases"] = phases
-    if f"{fmu}.layer" in result:
-        layer = np.rint(result[f"{fmu}.layer"]).astype(int)
+    if f"{plant}.layer_index" in result:
+        layer = np.rint(result[f"{plant}.layer_index"]).astype(int)
         rows = []
         for L in sorted(set(layer[layer > 0])):
             sel = first_run(layer == L)
@@ -392,14 +369,15 @@ def keio_fig3_scores(result, fmu: str = "stage", observer: str = "observer", a_r
     return sc
 
 
-def keio_fig3(result, out_dir, fmu: str = "stage", observer: str = "observer", a_ref: str = "trajectory.a_ref",
+@needs("{plant}.thrust_dyn", "{observer}.F_thrust_hat", "{observer}.F_ref", "{a_ref}")
+def keio_fig3(result, out_dir, plant: str = "stage", observer: str = "observer", a_ref: str = "trajectory.a_ref",
               file: str = "fig3_keio_force_monitoring.png", title: str | None = None) -> Path:
     """Keio Fig. 3: dynamometer, observed thrust (eq. 1) and force reference (eq. 2)."""
     plt = pyplot()
 
     t = result.time
     fig, ax = plt.subplots(3, 1, figsize=(10, 8), sharex=True, gridspec_kw={"height_ratios": [3, 1.2, 1.2]})
-    ax[0].plot(t, result[f"{fmu}.F_dyn"], lw=0.5, color="tab:gray", label="dynamometer F_dyn")
+    ax[0].plot(t, result[f"{plant}.thrust_dyn"], lw=0.5, color="tab:gray", label="dynamometer")
     ax[0].plot(t, result[f"{observer}.F_ref"], lw=0.8, color="tab:orange", label="force reference F_ref (eq. 2)")
     ax[0].plot(t, result[f"{observer}.F_thrust_hat"], lw=0.8, color="tab:blue", label="observer F_thrust_hat (eq. 1)")
     ax[0].set_ylabel("thrust [N]")

@@ -79,13 +79,19 @@ class _Bus:
         self.values.append(float(start))
         return self.slot[signal]
 
-    def ref(self, signal: str) -> tuple[int, float, float]:
-        """(slot, scale, offset) that yields ``signal``'s value."""
+    def ref(self, signal: str, wire: bool = False) -> tuple[int, float, float]:
+        """(slot, scale, offset) that yields ``signal``'s value. ``wire``: ``signal`` names
+        an FMU variable itself, never the plant role of that name (a role may share its
+        name with the variable that plays it, in another unit: ``spindle_speed``)."""
+        alias = None if wire else self.system.alias(signal)   # a plant role: its variable, converted
+        if alias is not None:
+            i, s, o = self.ref(alias[0], wire=True)
+            return i, alias[1] * s, alias[1] * o + alias[2]
         if signal in self.slot:
             return self.slot[signal], 1.0, 0.0
         conn = self.system.driven_by(signal)
         if conn is not None:
-            i, s, o = self.ref(conn.src)
+            i, s, o = self.ref(conn.src, wire=True)
             return i, s * conn.factor, o * conn.factor + conn.bias
         raise ScenarioError(f"'{signal}' is not available on the bus")
 
@@ -95,6 +101,8 @@ def _fmu_reads(system, extra_signals) -> dict[str, list[str]]:
     reads: dict[str, list[str]] = {name: [] for name in system.slaves}
     wanted = [c.src for c in system.connections] + list(extra_signals)
     for sig in wanted:
+        alias = system.alias(sig)                  # a plant role: read the FMU variable behind it
+        sig = alias[0] if alias else sig
         inst, var = sig.split(".", 1)
         if inst in system.slaves:
             system.source(sig)                     # checks it is a readable Real variable
@@ -155,8 +163,8 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
             if system.driven_by(sig) is None:
                 bus.add(sig, p.start)
 
-    def inputs_of(signals):
-        refs = [bus.ref(s) for s in signals]
+    def inputs_of(signals, wire=False):
+        refs = [bus.ref(s, wire) for s in signals]
         scaled = tuple((j, s, o) for j, (_i, s, o) in enumerate(refs) if (s, o) != (1.0, 0.0))
         return _getter([r[0] for r in refs]), scaled
 
@@ -206,7 +214,7 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
             if names:
                 reads.append((get, obuf, a, b, slave))
             if in_names:
-                gi, sc = inputs_of([f"{slave.name}.{v}" for v in in_names])
+                gi, sc = inputs_of([f"{slave.name}.{v}" for v in in_names], wire=True)
                 writes.append((put, ibuf, gi, sc, slave))
             steppers.append((do_step, slave))
         if step_rejection_floor:

@@ -73,6 +73,11 @@ def setter_for(system, target: str):
     unconnected block input, which lives on ``bus`` (the master's signal list) and is
     written there by the algorithm. Raises ValueError explaining what can be set.
     """
+    alias = system.alias(target) if "." in target else None
+    if alias is not None:         # a plant role: set the FMU variable behind it, converted
+        kind, apply_raw = setter_for(system, alias[0])
+        scale, offset = alias[1], alias[2]
+        return kind, lambda value, bus: apply_raw((float(value) - offset) / scale, bus)
     inst, name = target.split(".", 1) if "." in target else (target, "")
     if inst in system.blocks:
         block = system.blocks[inst]

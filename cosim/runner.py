@@ -69,10 +69,14 @@ def run_scenario(scenario, out_dir=None, overrides: dict | None = None, progress
     summary.update(info.as_dict())
     summary["rows_recorded"] = len(result.time)
     summary["out_dir"] = str(out)
+    summary["plants"] = {name: {"binding": b.file, "kind": b.kind, "roles": {r: x.variable for r, x in b.bound.items()}}
+                         for name, b in sc.system.bindings.items()}
+    summary["scores"] = {}
     result.summary = summary
+    result.system = sc.system        # scorers reach the plant's binding (roles, true parameters) here
 
     problems = []
-    for spec, fn, settings in sc.scores:
+    for spec, fn, settings, name in sc.scores:
         try:
             scores = fn(result, **settings)
             if not isinstance(scores, dict):
@@ -80,8 +84,7 @@ def run_scenario(scenario, out_dir=None, overrides: dict | None = None, progress
         except Exception as e:
             problems.append(f"score {spec}: {type(e).__name__}: {e}")
             continue
-        for k, v in scores.items():
-            summary[k if k not in summary else f"score.{k}"] = v
+        summary["scores"][name] = scores
     for p in sc.plots:
         try:
             if "function" in p:

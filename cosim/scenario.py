@@ -29,7 +29,9 @@ from pathlib import Path
 
 from .errors import AlgebraicLoopError, CosimError, ScenarioError
 from .manipulators import Event, parse_condition, setter_for
-from .model_exchange import SOLVERS, create_slave
+from .model_exchange import SOLVERS, create_slave, load_any_model
+from .plant import load_binding
+from .scores import bind_settings, needed_signals
 from .slave import resolve_fmu_path
 from .system import System
 
@@ -47,16 +49,18 @@ ARRAYS = tuple(k for k, v in SECTIONS.items() if v.startswith("an array"))   # a
 NOT_INHERITED = ("name", "description", "extends")                          # of [scenario]
 INTERFACE, SOLVER = "'CS' or 'ME'", " or ".join(f"'{s}'" for s in SOLVERS)
 SOLVER_KEYS = ("solver", "solver_step", "rel_tol", "max_step")    # Model Exchange only
-FMU_KEYS = {"path": STRING, "parameters": TABLE, "logging": BOOL, "interface": INTERFACE,
-            "solver": SOLVER, "solver_step": POSITIVE, "rel_tol": POSITIVE, "max_step": POSITIVE}
+FMU_KEYS = {"path": STRING, "plant": STRING, "parameters": TABLE, "plant_parameters": TABLE, "logging": BOOL,
+            "interface": INTERFACE, "solver": SOLVER, "solver_step": POSITIVE, "rel_tol": POSITIVE,
+            "max_step": POSITIVE}
+REBIND_KEYS = ("path", "plant")       # an extending file that changes one of them re-binds the plant
 BLOCK_KEYS = {"class": STRING, "sample_period": NONNEG, "settings": TABLE}
-CONNECTION_KEYS = {"from": STRING, "to": STRING, "scale": NUMBER, "offset": NUMBER}
+CONNECTION_KEYS = {"from": STRING, "to": STRING, "scale": NUMBER, "offset": NUMBER, "remove": BOOL}
 RECORD_KEYS = {"signals": STRINGS, "decimation": INTEGER1}
 EVENT_KEYS = {"time": NUMBER, "when": STRING, "set": STRING, "value": "a number or true/false",
               "action": "'set' or 'stop'"}
 PLOT_KEYS = {"file": STRING, "title": STRING, "y": "a list of signal names, or a list of such lists",
              "function": STRING, "settings": TABLE}
-SCORE_KEYS = {"function": STRING, "settings": TABLE}
+SCORE_KEYS = {"function": STRING, "settings": TABLE, "name": STRING}
 
 
 def _is_number(v) -> bool:
@@ -176,13 +180,20 @@ def check_shape(raw: dict, file: str, origins: Origins | None = None) -> None:
     c.table(raw.get("scenario", {}), "scenario", SCENARIO_KEYS, required=("stop_time",))
     if "scenario" not in raw:
         raise c.error("scenario", "missing table [scenario] (with at least stop_time [s])")
-    for kind, keys, req in (("fmus", FMU_KEYS, ("path",)), ("blocks", BLOCK_KEYS, ("class",))):
+    for kind, keys, req in (("fmus", FMU_KEYS, ()), ("blocks", BLOCK_KEYS, ("class",))):
         for name, spec in raw.get(kind, {}).items():
             if not isinstance(spec, dict):
                 raise c.error(f"{kind}.{name}", f"expected a table [{kind}.{name}], got {_show(spec)}")
             c.table(spec, f"{kind}.{name}", keys, req)
+            if kind == "fmus" and "path" not in spec and "plant" not in spec:
+                raise c.error(f"fmus.{name}.path", "missing required key 'path' (the FMU) or 'plant' "
+                                                   "(a plant binding file, scenarios/plants/*.toml)")
     for i, spec in enumerate(raw.get("connections", [])):
-        c.table(spec, f"connections[{i}]", CONNECTION_KEYS, ("from", "to"))
+        c.table(spec, f"connections[{i}]", CONNECTION_KEYS, ("to",) if spec.get("remove") else ("from", "to"))
+        if spec.get("remove"):
+            raise c.error(f"connections[{i}].remove", f"removes no connection: no base scenario connects "
+                                                      f"into {spec.get('to')!r} (remove applies to a base's "
+                                                      "connection, by its 'to')")
     c.table(raw.get("record", {}), "record", RECORD_KEYS)
     for i, spec in enumerate(raw.get("events", [])):
         c.table(spec, f"events[{i}]", EVENT_KEYS)
@@ -262,12 +273,14 @@ class Scenario:
     decimation: int = 1
     events: list = field(default_factory=list)
     plots: list = field(default_factory=list)       # dicts: file/title/y or function/settings
-    scores: list = field(default_factory=list)      # (function spec, function, settings)
+    scores: list = field(default_factory=list)      # (function spec, function, settings, name)
+    needed_signals: list = field(default_factory=list)   # read by score / plot functions
     overrides: dict = field(default_factory=dict)
     raw: dict = field(default_factory=dict)
 
     def plotted_signals(self) -> list[str]:
-        out = []
+        """Signals recorded whatever ``[record]`` says: plotted, or read by a score / plot function."""
+        out = list(dict.fromkeys(self.needed_signals))
         for p in self.plots:
             for g in p.get("groups", []):
                 out += [s for s in g if s not in out]
@@ -303,6 +316,45 @@ def _fmu_error_key(spec: dict, opts: dict, message: str) -> str:
     return "path"
 
 
+def _dir_of(origins: Origins | None, key: str, file: str, base_dir: Path | None) -> Path | None:
+    """The folder a relative path at ``key`` resolves against: that of the file that wrote it."""
+    if origins is not None and origins.file_of(key) != file:   # written in a base file
+        return Path(origins.file_of(key)).parent.resolve()
+    return base_dir
+
+
+def _binding(spec: dict, key: str, c: "_Checker", origins, file: str, base_dir):
+    """The plant binding file named by ``[fmus.<name>] plant`` (relative to the file that wrote it)."""
+    where = _dir_of(origins, f"{key}.plant", file, base_dir)
+    path = Path(spec["plant"]).expanduser()
+    if not path.is_absolute() and where is not None:
+        path = where / path
+    try:
+        return load_binding(path)
+    except ScenarioError as e:
+        raise c.error(f"{key}.plant", str(e)) from None
+
+
+def _function_needs(fn, spec: dict, key: str, positional: int, c: "_Checker", check_signal) -> list[str]:
+    """Bind a score / plot function's settings to its signature and check the signals it
+    declares (:func:`cosim.scores.needs`); returns those to record."""
+    try:
+        bound = bind_settings(fn, spec.get("settings", {}), positional)
+    except TypeError as e:
+        raise c.error(f"{key}.settings", f"{spec['function']}: the settings do not fit its signature "
+                                         f"{inspect.signature(fn)}: {e}") from None
+    out = []
+    for sig, required in needed_signals(fn, bound):
+        try:
+            check_signal(sig, f"{key}.settings")
+        except ScenarioError:
+            if required:
+                raise
+            continue
+        out.append(sig)
+    return out
+
+
 def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
           name_default: str = "scenario", origins: Origins | None = None) -> Scenario:
     """Check ``raw`` (a parsed TOML dict, overrides applied) and build the :class:`Scenario`.
@@ -332,18 +384,38 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
     for name, spec in raw.get("fmus", {}).items():
         key = f"fmus.{name}"
         opts = {k: spec[k] for k in SOLVER_KEYS if k in spec}
-        fmu_dir = base_dir
-        if origins is not None and origins.file_of(f"{key}.path") != file:   # written in a base file
-            fmu_dir = Path(origins.file_of(f"{key}.path")).parent.resolve()
+        binding = _binding(spec, key, c, origins, file, base_dir) if "plant" in spec else None
+        if "path" in spec:
+            fmu_spec, fmu_key, fmu_dir = spec["path"], f"{key}.path", _dir_of(origins, f"{key}.path", file, base_dir)
+        else:
+            fmu_spec, fmu_key, fmu_dir = binding.path, f"{key}.plant", binding.base_dir
         try:
-            slave = create_slave(name, resolve_fmu_path(spec["path"], fmu_dir), spec.get("parameters", {}),
-                                 spec.get("logging", True), interface=spec.get("interface"), **opts)
+            fmu_path = resolve_fmu_path(fmu_spec, fmu_dir)
+            parameters = dict(spec.get("parameters", {}))
+            if binding is not None:
+                try:
+                    binding.bind(load_any_model(fmu_path))
+                except ScenarioError as e:      # names the binding file, its key and the role
+                    raise c.error(f"{key}.plant", str(e)) from None
+                try:
+                    contract = binding.parameter_values(spec.get("plant_parameters", {}))
+                except ScenarioError as e:
+                    raise c.error(f"{key}.{e.key}", e.detail) from None
+                parameters = {**binding.parameters, **contract, **parameters}
+            elif "plant_parameters" in spec:
+                raise c.error(f"{key}.plant_parameters", "contract parameters need a plant binding "
+                                                         "(plant = \"scenarios/plants/<name>.toml\")")
+            slave = create_slave(name, fmu_path, parameters, spec.get("logging", True),
+                                 interface=spec.get("interface"), **opts)
+        except ScenarioError:
+            raise
         except CosimError as e:
-            raise c.error(f"{key}.{_fmu_error_key(spec, opts, str(e))}", str(e)) from None
+            err_key = _fmu_error_key(spec, opts, str(e))
+            raise c.error(fmu_key if err_key == "path" else f"{key}.{err_key}", str(e)) from None
         except Exception as e:   # not a zip, bad XML, ...
-            raise c.error(f"{key}.path", f"cannot read the FMU: {type(e).__name__}: {e}") from None
+            raise c.error(fmu_key, f"cannot read the FMU: {type(e).__name__}: {e}") from None
         try:
-            system.add_fmu(name, slave)
+            system.add_fmu(name, slave, binding=binding)
         except ScenarioError as e:
             raise c.error(f"{key}.{e.key}" if e.key else key, e.detail) from None
 
@@ -408,7 +480,7 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
                 raise c.error(f"{key}.set", str(e)) from None
         events.append(ev)
 
-    plots = []
+    plots, needed = [], []
     for i, spec in enumerate(raw.get("plots", [])):
         key = f"plots[{i}]"
         if "function" in spec:
@@ -416,6 +488,7 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
                 fn = import_object(spec["function"])
             except (ImportError, AttributeError) as e:
                 raise c.error(f"{key}.function", f"cannot import {spec['function']!r}: {e}") from None
+            needed += _function_needs(fn, spec, key, 2, c, check_signal)
             plots.append({"function": fn, "spec": spec["function"], "settings": spec.get("settings", {})})
         else:
             y = spec["y"]
@@ -433,25 +506,42 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
             fn = import_object(spec["function"])
         except (ImportError, AttributeError) as e:
             raise c.error(f"scores[{i}].function", f"cannot import {spec['function']!r}: {e}") from None
-        scores.append((spec["function"], fn, spec.get("settings", {})))
+        needed += _function_needs(fn, spec, f"scores[{i}]", 1, c, check_signal)
+        name = spec.get("name") or getattr(fn, "__name__", spec["function"])
+        if name in [x[3] for x in scores]:
+            raise c.error(f"scores[{i}].name", f"two scores are named '{name}' (summary.json keys its scores "
+                                               "by name): give this one a name = \"...\"")
+        scores.append((spec["function"], fn, spec.get("settings", {}), name))
 
     return Scenario(path=None, name=sc.get("name", name_default), description=sc.get("description", ""),
                     step_size=system.step_size, stop_time=float(sc["stop_time"]),
                     start_time=system.start_time, system=system, step_rejection_floor=floor,
                     record_signals=signals,
-                    decimation=rec.get("decimation", 1), events=events, plots=plots, scores=scores, raw=raw)
+                    decimation=rec.get("decimation", 1), events=events, plots=plots, scores=scores, raw=raw,
+                    needed_signals=needed)
 
 
 # --- inheritance ---------------------------------------------------------------------------
 def _merge(base: dict, ext: dict, origins: Origins, file: str, prefix: str = "") -> None:
     """Deep-merge ``ext`` (the dict of ``file``) into ``base`` in place: tables key by key,
-    the top-level arrays of tables appended, any other value replaced."""
+    the top-level arrays of tables appended (a connection into an input the base already
+    drives replaces the base's, ``remove = true`` deletes it), any other value replaced.
+    An FMU whose ``path`` or ``plant`` changes is re-bound: the base's ``parameters`` (FMU
+    variable names of the other plant) are dropped, its ``plant_parameters`` kept."""
     for k, v in ext.items():
         path = f"{prefix}.{k}" if prefix else k
         old = base.get(k)
+        if prefix == "fmus" and isinstance(old, dict) and isinstance(v, dict) and any(
+                r in v and v[r] != old.get(r) for r in REBIND_KEYS):
+            for gone in ("parameters", *REBIND_KEYS):
+                if gone in old and gone not in v:
+                    del old[gone]
+                    origins.drop(f"{path}.{gone}")
         if isinstance(old, dict) and isinstance(v, dict):
             origins[path] = (file, path)          # the table is (also) written here
             _merge(old, v, origins, file, path)
+        elif not prefix and k == "connections" and isinstance(old, list) and isinstance(v, list):
+            _merge_connections(base, v, origins, file)
         elif not prefix and k in ARRAYS and isinstance(old, list) and isinstance(v, list):
             n = len(old)
             for i in range(len(v)):
@@ -462,6 +552,27 @@ def _merge(base: dict, ext: dict, origins: Origins, file: str, prefix: str = "")
             origins.drop(path)
             base[k] = v
             origins.record(v, path, file)
+
+
+def _merge_connections(base: dict, ext: list, origins: Origins, file: str) -> None:
+    """The extending file's connections over the base's, keyed by ``to`` (an input takes
+    one connection): replace the base's, delete it (``remove = true``), or append."""
+    items = [(c, origins.locate(f"connections[{i}]")) for i, c in enumerate(base["connections"])]
+    for j, c in enumerate(ext):
+        mine = (file, f"connections[{j}]")
+        hit = next((n for n, (b, _) in enumerate(items) if isinstance(c, dict) and isinstance(b, dict)
+                    and "to" in c and b.get("to") == c["to"]), None)
+        if hit is None:
+            items.append((c, mine))          # a `remove` with nothing to remove fails the shape check
+        elif c.get("remove") is True:
+            del items[hit]
+        else:
+            items[hit] = (c, mine)
+    origins.drop("connections")
+    origins["connections"] = (file, "connections")
+    base["connections"] = [c for c, _ in items]
+    for i, (_, where) in enumerate(items):
+        origins[f"connections[{i}]"] = where
 
 
 def _load_chain(path: Path, chain: list[Path], shown: list[str]) -> tuple[dict, Origins]:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from .block import Block
 from .connections import Connection, split_signal, unit_conversion
 from .errors import AlgebraicLoopError, ScenarioError
+from .plant import ROLES, PlantBinding
 from .slave import FMUModel, FMUSlave
 from .units import UnitError
 
@@ -32,6 +33,14 @@ class Signal:
     unit: str | None
     description: str = ""
     scoring_only: bool = False
+    raw: str = ""        # a plant role: the FMU variable ("drive.x_enc") that plays it ...
+    scale: float = 1.0   # ... and value = scale * raw value + offset, in the role's SI unit
+    offset: float = 0.0
+
+    @property
+    def wire(self) -> str:
+        """The name the master reads or writes (the FMU variable behind a role)."""
+        return self.raw or self.signal
 
 
 def sample_ratio(sample_period: float, step_size: float) -> int:
@@ -57,6 +66,7 @@ class System:
         self.blocks: dict[str, Block] = {}
         self.connections: list[Connection] = []
         self._driven: dict[str, Connection] = {}     # input signal -> its connection
+        self.bindings: dict[str, PlantBinding] = {}  # FMU instance -> its plant roles (bound)
 
     # -- building -------------------------------------------------------------------
     def _check_name(self, name: str) -> None:
@@ -68,11 +78,15 @@ class System:
         if name in self.slaves or name in self.blocks:
             raise ScenarioError(f"instance name '{name}' is used twice")
 
-    def add_fmu(self, name: str, fmu, parameters: dict | None = None, logging: bool = True) -> FMUSlave:
-        """Add an FMU instance; ``fmu`` is a path, an :class:`FMUModel` or an :class:`FMUSlave`."""
+    def add_fmu(self, name: str, fmu, parameters: dict | None = None, logging: bool = True,
+                binding: PlantBinding | None = None) -> FMUSlave:
+        """Add an FMU instance; ``fmu`` is a path, an :class:`FMUModel` or an :class:`FMUSlave`.
+        ``binding``: its plant roles (:mod:`cosim.plant`), already bound to its model."""
         self._check_name(name)
         slave = fmu if isinstance(fmu, FMUSlave) else FMUSlave(name, fmu, parameters, logging)
         slave.name = name
+        if binding is not None:
+            self.bindings[name] = binding
         for pname, value in slave.parameters.items():
             problem = parameter_problem(slave.model, pname, value)
             if problem:
@@ -114,18 +128,24 @@ class System:
                     f"{a.signal} is scoring only ('{a.description}'); block '{b.instance}' "
                     f"({type(block).__name__}) may not read it: only blocks with class attribute "
                     "scorer = True may (the observers must not see the true plant)", key="from")
-        if b.signal in self._driven:
-            raise ScenarioError(f"{b.signal} is already connected from {self._driven[b.signal].src}; "
-                                "an input takes one connection", key="to")
         if scale is None and offset is None:
             mds = [self.slaves[x.instance].model.model_description for x in (a, b) if x.kind == "fmu"]
             try:
                 scale, offset = unit_conversion(a.signal, a.unit, b.signal, b.unit, mds) or (None, None)
             except UnitError as e:
                 raise ScenarioError(str(e), key="to") from None
-        conn = Connection(a.signal, b.signal, scale, offset)
+        if a.raw or b.raw:     # plant roles: fold their conversion into the connection's
+            s1 = 1.0 if scale is None else float(scale)
+            o1 = 0.0 if offset is None else float(offset)
+            scale, offset = s1 * a.scale / b.scale, (s1 * a.offset + o1 - b.offset) / b.scale
+            if (scale, offset) == (1.0, 0.0):
+                scale = offset = None
+        if b.wire in self._driven:
+            raise ScenarioError(f"{b.signal} is already connected from {self._driven[b.wire].src}; "
+                                "an input takes one connection", key="to")
+        conn = Connection(a.wire, b.wire, scale, offset)
         self.connections.append(conn)
-        self._driven[b.signal] = conn
+        self._driven[b.wire] = conn
         return conn
 
     # -- looking things up -----------------------------------------------------------
@@ -135,6 +155,9 @@ class System:
         except ValueError as e:
             raise ScenarioError(str(e), key=key) from None
         if inst in self.slaves:
+            role = self._role(inst, name, key, want)
+            if role is not None:
+                return role
             model = self.slaves[inst].model
             v = model.variables.get(name)
             if v is None:
@@ -150,7 +173,8 @@ class System:
             if want in ("input", "output") and not v.is_real:
                 raise ScenarioError(f"'{signal}' is of type {v.type}; connections carry Real/Float64 "
                                     "values only", key=key)
-            return Signal(signal, "fmu", inst, name, v.causality, v.unit, v.description, v.scoring_only)
+            return Signal(signal, "fmu", inst, name, v.causality, v.unit, v.description,
+                          self._scoring_only(inst, v))
         if inst in self.blocks:
             block = self.blocks[inst]
             ports = {"output": block.outputs, "input": block.inputs}[want]
@@ -162,6 +186,40 @@ class System:
         raise ScenarioError(f"no FMU or block named '{inst}' in '{signal}' "
                             f"(instances: {', '.join([*self.slaves, *self.blocks]) or 'none'})", key=key)
 
+    def _role(self, inst: str, name: str, key: str | None, want: str) -> Signal | None:
+        """``inst.name`` as a plant role of FMU ``inst`` (None: not a role name, or no binding)."""
+        binding = self.bindings.get(inst)
+        if binding is None or name not in ROLES:
+            return None
+        b = binding.bound.get(name)
+        if b is None:
+            raise ScenarioError(f"plant '{inst}' binds no role '{name}' ({ROLES[name].description}); "
+                                f"add it to [roles] of {binding.file} (bound: {', '.join(binding.bound)})",
+                                key=key)
+        r = ROLES[name]
+        if want in ("input", "output") and r.direction != want and not (want == "output" and r.direction == "input"
+                                                                          and key is None):
+            raise ScenarioError(f"role '{inst}.{name}' is an {r.direction} of the plant; "
+                                f"connect {'to' if r.direction == 'input' else 'from'} it", key=key)
+        return Signal(f"{inst}.{name}", "fmu", inst, name, r.direction, b.unit, r.description, b.scoring_only,
+                      raw=f"{inst}.{b.variable}", scale=b.scale, offset=b.offset)
+
+    def _scoring_only(self, inst: str, v) -> bool:
+        """Scoring only by the FMU's description (the project's plants) or by the role the
+        variable plays in the plant's binding (any FMU)."""
+        binding = self.bindings.get(inst)
+        bound = binding.role_of_variable(v.name) if binding is not None else None
+        return v.scoring_only or (bound is not None and bound.scoring_only)
+
+    def alias(self, signal: str) -> tuple[str, float, float] | None:
+        """A plant role as ``(FMU variable signal, scale, offset)``: value = scale * raw + offset."""
+        inst, _, name = signal.partition(".")
+        binding = self.bindings.get(inst)
+        b = binding.bound.get(name) if binding is not None else None
+        if b is None or (b.variable == name and (b.scale, b.offset) == (1.0, 0.0)):
+            return None
+        return f"{inst}.{b.variable}", b.scale, b.offset
+
     def source(self, signal: str) -> Signal:
         """An output that can be read (connection source, recorded signal, condition)."""
         inst = signal.split(".", 1)[0]
@@ -170,9 +228,13 @@ class System:
                 _, name = split_signal(signal)
             except ValueError as e:
                 raise ScenarioError(str(e)) from None
+            role = self._role(inst, name, None, "output")
+            if role is not None:
+                return role
             v = self.slaves[inst].model.variables.get(name)
             if v is not None and v.is_real:
-                return Signal(signal, "fmu", inst, name, v.causality, v.unit, v.description, v.scoring_only)
+                return Signal(signal, "fmu", inst, name, v.causality, v.unit, v.description,
+                              self._scoring_only(inst, v))
         return self._resolve(signal, None, want="output")
 
     def input(self, signal: str) -> Signal:
@@ -187,14 +249,20 @@ class System:
         return self.source(signal)
 
     def driven_by(self, input_signal: str) -> Connection | None:
-        return self._driven.get(input_signal)
+        """The connection into an input (a plant role: into the FMU variable that plays it)."""
+        alias = self.alias(input_signal) if self.bindings else None
+        return self._driven.get(alias[0] if alias else input_signal)   # keyed by the FMU variable
 
     def all_outputs(self) -> list[str]:
         """Every FMU output (Real) and every block output: what ``record = ["*"]`` means."""
         out = []
         for name, s in self.slaves.items():
+            binding = self.bindings.get(name)
+            roles = binding.bound if binding is not None else {}
+            out += [f"{name}.{r}" for r, b in roles.items() if ROLES[r].direction == "output"]
+            played = {b.variable for b in roles.values()}
             out += [f"{name}.{v.name}" for v in s.model.variables.values()
-                    if v.causality == "output" and v.is_real]
+                    if v.causality == "output" and v.is_real and v.name not in played]
         for name, b in self.blocks.items():
             out += [f"{name}.{p.name}" for p in b.outputs]
         return out

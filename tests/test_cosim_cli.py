@@ -61,7 +61,7 @@ def test_campaign_two_runs_one_failing(scenario_file, tmp_path):
                                              {"fmus.mass.parameters.fail_time": 0.02}],
                              out_dir=tmp_path / "camp", progress=False)
     ok, bad = summaries
-    assert ok["status"] == "completed" and ok["run"] == 0 and "final_position_mm" in ok
+    assert ok["status"] == "completed" and ok["run"] == 0 and "final_position_mm" in ok["scores"]["final_position_score"]
     assert bad["status"] == "failed" and "simulated plant failure" in bad["error"]
     saved = json.loads((tmp_path / "camp" / "campaign.json").read_text())
     assert [s["run"] for s in saved] == [0, 1]
@@ -77,7 +77,7 @@ def test_open_loop_linear_stage_smoke(tmp_path):
     r = run_scenario(scenario_dir() / "open_loop_linear_stage.toml", out_dir=tmp_path / "ol",
                      overrides={"scenario.stop_time": 0.15}, progress=False)
     assert r.summary["status"] == "completed" and len(r.time) == 151
-    assert r["stage.z_enc"].max() > 1e-3          # 0.6 A overcomes the friction: it moves
+    assert r["stage.table_position"].max() > 1e-3          # 0.6 A overcomes the friction: it moves
     assert (tmp_path / "ol" / "open_loop.png").exists()
 
 

@@ -168,7 +168,7 @@ def test_full_run_writes_csv_mat_summary_png(scenario_file, tmp_path):
     mat = scipy.io.loadmat(out / "data.mat", simplify_cells=True)
     assert np.allclose(mat["mass"]["x"], r["mass.x"]) and mat["units"]["mass"]["v"] == "m/s"
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["scenario"] == "mass_test" and summary["final_position_mm"] == pytest.approx(
+    assert summary["scenario"] == "mass_test" and summary["scores"]["final_position_score"]["final_position_mm"] == pytest.approx(
         r["mass.x"][-1] * 1000)
     assert summary["steps"] == len(r.time) - 1 and summary["wall_time_s"] > 0
     assert {p.name for p in out.glob("*.png")} == {"motion.png", "custom.png"}

@@ -29,11 +29,11 @@ def test_fail_indicator_when_interface_outside_expected_window(tmp_path):
     assert fail[-1] == 1 and res["detector.fail_code"][-1] == 2
     k = int(np.argmax(fail > 0))
     x_hi = 1.0 * MM + 5.0 * MM + 0.05 * MM + 0.5 * MM   # surface + t1 + max_gap + tolerance
-    assert x_hi <= res["drive.x_enc"][k] <= x_hi + 0.01 * MM
+    assert x_hi <= res["drive.table_position"][k] <= x_hi + 0.01 * MM
     assert res["detector.flag"][k] == 1          # entry found, interface not (yet)
-    assert res["drive.layer"][k] == 1            # the tool is still in the CFRP
+    assert res["drive.layer_index"][k] == 1            # the tool is still in the CFRP
     assert res["detector.flag"][t < t[k]].max() <= 1
-    assert res.summary["fail"] == 1
+    assert res.summary["scores"]["score_hole"]["fail"] == 1
 
 
 # the Ti stage of fang_table5_hole.toml (CFRP: 2.0e-4 m/s, 2000 rpm, 120 rpm)
@@ -48,7 +48,7 @@ def adapt_hole(tmp_path_factory):
 
 def test_adaptation_changes_feed_within_one_detector_period(adapt_hole):
     res = adapt_hole
-    s = res.summary
+    s = {**res.summary["scores"]["score_hole"], **res.summary["scores"]["score_adaptation"]}
     t_int = s["t_interface_s"]
     assert math.isfinite(t_int)
     assert abs(s["interface_dz_mm"]) <= 0.05
@@ -72,7 +72,7 @@ def test_adaptation_changes_feed_within_one_detector_period(adapt_hole):
     assert s["max_abs_a_ref_after_switch_m_s2"] < 2e-3
     assert res["adapt.spindle_speed"][after] == pytest.approx(TI_SPINDLE)
     # the plant and the observer both got the commanded orbit
-    assert res["drive.orbital_speed"][after] == pytest.approx(TI_ORBIT)
+    assert res["drive.orbital_speed"][after] == pytest.approx(TI_ORBIT * 2 * math.pi / 60.0)   # the plant role is in rad/s
 
 
 def test_observer_ripple_follows_the_adapted_orbital_speed(adapt_hole):
@@ -85,9 +85,9 @@ def test_observer_ripple_follows_the_adapted_orbital_speed(adapt_hole):
 
     res = adapt_hole
     t, F_dyn, dc, rpm, _, phi = orbital_reference(res, "drive", orbital_speed_signal="drive.orbital_speed")
-    ti = np.nonzero(res["drive.layer"] == 2)[0]
+    ti = np.nonzero(res["drive.layer_index"] == 2)[0]
     t_end = t[ti[-1]]
-    assert t_end - res.summary["t_interface_s"] > 20.0        # a long Ti stretch at the new speed
+    assert t_end - res.summary["scores"]["score_adaptation"]["t_interface_s"] > 20.0        # a long Ti stretch at the new speed
     for w0 in np.arange(t_end - 14.0, t_end - 4.0 - 1e-9, 2.0):
         w = (t >= w0) & (t < w0 + 2.0)
         assert rpm[w] == pytest.approx(TI_ORBIT)

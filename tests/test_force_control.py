@@ -156,7 +156,7 @@ def test_no_block_reads_the_dynamometer():
     for path in (CAL, FIG7, FIG4):
         raw = tomllib.loads(path.read_text())
         for c in raw["connections"]:
-            assert "F_dyn" not in c["from"] and "_true" not in c["from"], (path.name, c)
+            assert "thrust_dyn" not in c["from"] and "_true" not in c["from"], (path.name, c)
 
 
 @pytest.fixture(scope="module")
@@ -168,7 +168,7 @@ def calibration_run(tmp_path_factory):
 
 def test_calibration_reference_cut_reproduces_the_shipped_constant(calibration_run, tmp_path):
     r, out = calibration_run
-    s = r.summary["thrust_calibration"]
+    s = r.summary["scores"]["thrust_calibration"]
     written = load_calibration(out / "thrust_calibration.json")
     shipped = load_calibration(CAL_FILE)
     assert written.Kt_n_cal == pytest.approx(shipped.Kt_n_cal, rel=0.005)      # re-run reproduces it
@@ -183,7 +183,7 @@ def test_calibration_reference_cut_reproduces_the_shipped_constant(calibration_r
     assert (out / "thrust_calibration.png").exists()
     # another reference cut (new noise) gives the same constant
     other = _run(CAL, tmp_path, **{"fmus.stage.parameters.seed": 12})
-    assert other.summary["thrust_calibration"]["Kt_n_cal"] == pytest.approx(shipped.Kt_n_cal, rel=0.005)
+    assert other.summary["scores"]["thrust_calibration"]["Kt_n_cal"] == pytest.approx(shipped.Kt_n_cal, rel=0.005)
 
 
 # ----------------------------------------------------------------- on the plant FMU (must show)
@@ -211,7 +211,7 @@ def _check_layers(s, n_layers):
 
 def test_fig7_aluminium_on_the_fmu(tmp_path):
     r = _run(FIG7, tmp_path)
-    s = r.summary["force_control"]
+    s = r.summary["scores"]["force_control"]
     _check_layers(s, 1)
     assert (tmp_path / "fig7_thrust_force_control.png").exists()
     # bumpless: no current step at the switches larger than the largest step elsewhere in force mode
@@ -224,7 +224,7 @@ def test_fig7_aluminium_on_the_fmu(tmp_path):
 def test_fig7_uncalibrated_is_off_by_the_force_constant(tmp_path):
     """The documented --set override runs the nominal Kt_n = 24 N/A: the estimate is still
     exact, the real thrust is low by Kt/Kt_n (-3 %) -- what the calibration removes."""
-    s = _run(FIG7, tmp_path, **UNCALIBRATED).summary["force_control"]
+    s = _run(FIG7, tmp_path, **UNCALIBRATED).summary["scores"]["force_control"]
     assert not s["thrust_constant"]["calibrated"]
     x = s["layers"][0]
     assert abs(x["estimate_mean_error_pct"]) < 0.1, x
@@ -234,7 +234,7 @@ def test_fig7_uncalibrated_is_off_by_the_force_constant(tmp_path):
 
 def test_fig4_composite_on_the_fmu_vs_constant_feed(tmp_path):
     r = _run(FIG4, tmp_path)
-    s = r.summary["force_control"]
+    s = r.summary["scores"]["force_control"]
     _check_layers(s, 3)
     # force control removes the jumps that the constant feed shows at (A) and (B)
     jumps_cf = s["constant_feed_jumps_N"]

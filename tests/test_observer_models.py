@@ -125,15 +125,17 @@ def test_friction_sign_is_smooth_inside_v_eps():
     assert fm.force(0.0) == 0.0 and fm.force(5e-4) == pytest.approx(0.5) and fm.force(-1.0) == -1.0
 
 
-def test_true_parameters_follow_scenario_inheritance():
-    # Scoring reads the plant's true parameters back from the run's scenario; a scenario
-    # that `extends` another one declares its FMU only in the base file.
+def test_true_parameters_come_from_the_binding_and_follow_inheritance():
+    # Scoring reads the plant's true parameters through its binding's [true_parameters], in
+    # SI under contract names; a scenario that `extends` another one binds its plant only
+    # in the base file, and the run's parameter overrides count.
     from types import SimpleNamespace
 
-    from analysis.observer_scoring import true_parameters
+    from analysis.plant_info import true_parameters
+    from cosim import load_scenario
 
-    result = SimpleNamespace(summary={"file": "scenarios/fang_table5_campaign.toml",
-                                      "overrides": {"fmus.drive.parameters.seed": 5}})
-    p = true_parameters(result, "drive")
-    assert p["seed"] == 5
-    assert p["K_T"] == pytest.approx(1.10 * 0.97, rel=1e-9)   # the plant's hidden -3 %
+    sc = load_scenario("scenarios/fang_table5_campaign.toml", {"fmus.drive.parameters.tau_coulomb": 0.05})
+    p = true_parameters(SimpleNamespace(system=sc.system), "drive")
+    assert p["force_constant"] == pytest.approx(1.10 * 0.97, rel=1e-9)   # the plant's hidden -3 %
+    assert p["coulomb"] == 0.05
+    assert true_parameters(SimpleNamespace(summary={}), "drive") == {}      # not at hand: nothing

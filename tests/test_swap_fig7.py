@@ -56,7 +56,7 @@ def pythonfmu_fmu(tmp_path_factory):
 
 
 def _compare(c, r, thrust_name, t_end=None):
-    t_ref, F_ref = c.time, c["stage.F_thrust_true"]
+    t_ref, F_ref = c.time, c["stage.thrust_true"]
     t, F = r.time, r[thrust_name]
     if t_end is not None:
         keep = t_ref <= t_end + 1e-12
@@ -68,11 +68,11 @@ def _compare(c, r, thrust_name, t_end=None):
     assert t_contact == pytest.approx(c.time[np.argmax(mode_c == 1)], abs=2e-3)
     # steady cutting: from 0.2 s after contact until the C tool reaches the last
     # exit_thinning of the plate (where the thrust falls towards the exit)
-    z_c = c["stage.z_tool_true"]
+    z_c = c["stage.tool_position_true"]
     t_thin = c.time[np.argmax(z_c >= swap.steady_end(swap.fig7_raw()))]
     steady = (mode == 1) & (t > t_contact + 0.2) & (t < t_thin)
     assert steady.sum() > 100
-    d = F[steady] - np.interp(t[steady], c.time, c["stage.F_thrust_true"])
+    d = F[steady] - np.interp(t[steady], c.time, c["stage.thrust_true"])
     assert np.max(np.abs(d)) <= STEADY_MAX
     assert abs(np.mean(d)) <= MEAN_MAX
     return float(np.max(np.abs(d)))

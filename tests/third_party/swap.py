@@ -13,14 +13,16 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 FIG7 = ROOT / "scenarios" / "keio_fig7_aluminium_force_control.toml"
 
-# signal contract name -> (this tool's name, scale stated in the scenario or None)
+# plant role -> (this tool's name, scale stated in the scenario or None). This swap maps
+# names connection by connection, as a tool without plant roles would; the role way is a
+# binding file (scenarios/plants/, tests/test_plant_roles.py).
 MAPS = {
     # casadi declares its units (mm, rad/s): no scale, the master converts via BaseUnits
-    "casadi": {"stage.z_enc": ("stage.position_mm", None), "stage.i_ref": ("stage.current_ref", None),
-               "stage.F_thrust_true": ("stage.thrust_force", None), "stage.v_true": ("stage.feed_velocity", None)},
+    "casadi": {"stage.table_position": ("stage.position_mm", None), "stage.i_ref": ("stage.current_ref", None),
+               "stage.thrust_true": ("stage.thrust_force", None), "stage.velocity_true": ("stage.feed_velocity", None)},
     # PythonFMU declares no units: the scenario states the scale (um -> m)
-    "pythonfmu": {"stage.z_enc": ("stage.z_um", 1e-6), "stage.i_ref": ("stage.iq_ref", None),
-                  "stage.F_thrust_true": ("stage.thrust", None), "stage.v_true": ("stage.feed_speed", None)},
+    "pythonfmu": {"stage.table_position": ("stage.z_um", 1e-6), "stage.i_ref": ("stage.iq_ref", None),
+                  "stage.thrust_true": ("stage.thrust", None), "stage.velocity_true": ("stage.feed_speed", None)},
 }
 
 ME_SOLVER = {"interface": "ME", "solver": "rk4", "solver_step": 1e-5}
@@ -33,7 +35,7 @@ def fig7_raw() -> dict:
 
 def _workpiece(raw: dict) -> dict:
     """The C FMU's workpiece parameters of the scenario under the swapped FMU's names."""
-    p = raw["fmus"]["stage"]["parameters"]
+    p = {**raw["fmus"]["stage"].get("parameters", {}), **raw["fmus"]["stage"].get("plant_parameters", {})}
     assert p.get("n_layers", 1) == 1 and p.get("layer1_material", 3) == 3, "one aluminium layer expected"
     from tests.third_party.casadi_linear_stage import _spec_defaults
     spec = _spec_defaults()
