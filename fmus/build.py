@@ -368,14 +368,20 @@ def build(name: str, force: bool = False, verbose: bool = True) -> Path:
 
 
 def build_all(force: bool = False, verbose: bool = True) -> dict[str, Path]:
-    """Build every plant FMU (FMI 2.0 and 3.0) that is stale (or all with ``force``);
-    returns name -> .fmu path."""
-    return {name: build(name, force=force, verbose=verbose) for name in VARIANTS}
+    """Build every plant FMU (FMI 2.0 and 3.0, and the foreign-plant fixture of
+    fmus/foreign/) that is stale (or all with ``force``); returns name -> .fmu path."""
+    from .foreign import build as foreign
+    return {**{name: build(name, force=force, verbose=verbose) for name in VARIANTS},
+            **foreign.build_all(force=force, verbose=verbose)}
 
 
 def fmu_path(name: str) -> Path:
     """Path of the built-in FMU ``name`` ("LinearStage", "BallScrewDrive" for FMI 2.0,
-    "LinearStage3", "BallScrewDrive3" for FMI 3.0), building it when missing or stale."""
+    "LinearStage3", "BallScrewDrive3" for FMI 3.0, "ForeignBallScrew", "ForeignZStage" for
+    the foreign-plant fixture), building it when missing or stale."""
+    from .foreign import build as foreign
+    if name in foreign.FOREIGN:
+        return foreign.fmu_path(name)
     _variant(name)
     fmu = _fmu_file(name)
     if fmu.exists() and _up_to_date(name):
@@ -385,11 +391,13 @@ def fmu_path(name: str) -> Path:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m fmus.build", description=__doc__.splitlines()[0])
-    ap.add_argument("names", nargs="*", help=f"FMUs to build (default: all of {', '.join(VARIANTS)})")
+    ap.add_argument("names", nargs="*", help=f"FMUs to build (default: all of {', '.join(VARIANTS)} and "
+                    "the foreign fixture)")
     ap.add_argument("--force", action="store_true", help="rebuild even when up to date")
     args = ap.parse_args(argv)
-    for n in args.names or list(VARIANTS):
-        build(n, force=args.force)
+    from .foreign import build as foreign
+    for n in args.names or list(VARIANTS) + list(foreign.FOREIGN):
+        (foreign.build if n in foreign.FOREIGN else build)(n, force=args.force)
     return 0
 
 

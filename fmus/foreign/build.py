@@ -1,0 +1,116 @@
+"""Build the foreign-plant FMUs (issue 10 fixture): ``python -m fmus.foreign.build [--force]``.
+
+Each ``fmus/foreign/<Name>/`` holds a hand-written FMI 3.0 co-simulation model:
+``<Name>.c`` + ``modelDescription.xml``; both share ``fglue.c`` (the FMI 3.0 API) and
+``cut.c`` (drill and stack), and nothing of ``fmus/common``. Compiled against the FMI 3.0
+headers shipped with fmpy and packed as ``fmus/build/<Name>.fmu``; skipped when the .fmu is
+newer than every input. ``python -m fmus.build`` builds them too.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import zipfile
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+SHARED_SOURCES = ["fglue.c", "cut.c"]
+SHARED_HEADERS = ["fglue.h", "cut.h"]
+FOREIGN = ("ForeignBallScrew", "ForeignZStage")
+
+__all__ = ["FOREIGN", "build", "build_all", "fmu_path"]
+
+
+def _check(name: str) -> None:
+    if name not in FOREIGN:
+        raise KeyError(f"unknown foreign plant FMU {name!r}: expected one of {', '.join(FOREIGN)}")
+
+
+def _sources(name: str) -> list[Path]:
+    return [HERE / name / f"{name}.c"] + [HERE / s for s in SHARED_SOURCES]
+
+
+def _inputs(name: str) -> list[Path]:
+    return (_sources(name) + [HERE / h for h in SHARED_HEADERS]
+            + [HERE / name / "modelDescription.xml", HERE / name / "README.md", Path(__file__).resolve()])
+
+
+def _build_description(name: str) -> str:
+    files = "\n".join(f'      <SourceFile name="{p.name}"/>' for p in _sources(name))
+    return ('<?xml version="1.0" encoding="UTF-8"?>\n<fmiBuildDescription fmiVersion="3.0">\n'
+            f'  <BuildConfiguration modelIdentifier="{name}">\n'
+            f'    <SourceFileSet language="C99">\n{files}\n    </SourceFileSet>\n'
+            '    <Library name="m"/>\n  </BuildConfiguration>\n</fmiBuildDescription>\n')
+
+
+def _fmu_file(name: str) -> Path:
+    from fmus.build import BUILD_DIR
+    return BUILD_DIR / f"{name}.fmu"
+
+
+def _up_to_date(name: str) -> bool:
+    fmu = _fmu_file(name)
+    return fmu.exists() and all(p.stat().st_mtime <= fmu.stat().st_mtime for p in _inputs(name))
+
+
+def build(name: str, force: bool = False, verbose: bool = True) -> Path:
+    """Build one foreign FMU if stale (or ``force``); returns the .fmu path."""
+    _check(name)
+    import fmpy
+    from fmus.build import BUILD_DIR, _fmi_include, _Lock
+    with _Lock(BUILD_DIR / ".lock"):
+        fmu = _fmu_file(name)
+        if not force and _up_to_date(name):
+            if verbose:
+                print(f"{name}: up to date ({fmu})")
+            return fmu
+        ext = {"darwin64": ".dylib", "win64": ".dll", "win32": ".dll"}.get(fmpy.platform, ".so")
+        with tempfile.TemporaryDirectory(dir=BUILD_DIR) as tmp:
+            lib = Path(tmp) / f"{name}{ext}"
+            cmd = [os.environ.get("CC", "gcc"), "-O2", "-shared", "-fPIC", "-std=gnu11", "-Wall", "-Wextra",
+                   "-Wno-unused-parameter", f"-I{_fmi_include()}", f"-I{HERE}", "-o", str(lib)]
+            cmd += [str(s) for s in _sources(name)] + ["-lm"]
+            res = subprocess.run(cmd, capture_output=True, text=True)
+            if res.returncode != 0:
+                raise RuntimeError(f"compiling {name} failed:\n{' '.join(cmd)}\n{res.stdout}{res.stderr}")
+            if res.stderr.strip() and verbose:
+                print(res.stderr, file=sys.stderr)
+            tmp_fmu = Path(tmp) / f"{name}.fmu"
+            with zipfile.ZipFile(tmp_fmu, "w", zipfile.ZIP_DEFLATED) as zf:
+                zf.write(HERE / name / "modelDescription.xml", "modelDescription.xml")
+                zf.write(lib, f"binaries/{fmpy.platform_tuple}/{name}{ext}")
+                for f in _sources(name) + [HERE / h for h in SHARED_HEADERS]:
+                    zf.write(f, f"sources/{f.name}")
+                zf.writestr("sources/buildDescription.xml", _build_description(name))
+                zf.write(HERE / name / "README.md", "documentation/README.md")
+            os.replace(tmp_fmu, fmu)
+        if verbose:
+            print(f"{name}: built {fmu}")
+        return fmu
+
+
+def build_all(force: bool = False, verbose: bool = True) -> dict[str, Path]:
+    return {name: build(name, force=force, verbose=verbose) for name in FOREIGN}
+
+
+def fmu_path(name: str) -> Path:
+    """Path of ``fmus/build/<name>.fmu``, built when missing or stale."""
+    _check(name)
+    return _fmu_file(name) if _up_to_date(name) else build(name, verbose=False)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m fmus.foreign.build", description=__doc__.splitlines()[0])
+    ap.add_argument("names", nargs="*", help=f"FMUs to build (default: {', '.join(FOREIGN)})")
+    ap.add_argument("--force", action="store_true", help="rebuild even when up to date")
+    args = ap.parse_args(argv)
+    for n in args.names or FOREIGN:
+        build(n, force=args.force)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
