@@ -6,7 +6,8 @@ end. :class:`Result` gives the recorded signals as numpy arrays.
 
 The CSV opens as it comes in other tools (``fmpy.util.read_csv``, ``numpy.genfromtxt(
 names=True)``, pandas): its header is ``time`` and the plain signal names. Units and
-FMI types go to a sidecar, ``data.columns.json`` (``{"time": {"unit": "s", "type":
+FMI types go to a sidecar, ``data.columns.json`` (``<name>.columns.json`` for
+another CSV name) (``{"time": {"unit": "s", "type":
 "Float64"}, "stage.z_enc": {"unit": "m", "type": "Float64"}, ...}``), and to data.mat
 (``units``); :meth:`Result.from_csv` reads both back. Values: reals as the shortest
 exact repr, integers as integers, Booleans as 1/0, strings as CSV fields (quoted when
@@ -23,7 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-COLUMNS_FILE = "data.columns.json"
+
+
+def columns_file(csv_path: Path) -> Path:
+    """The units/types sidecar of a CSV: ``data.csv`` -> ``data.columns.json``."""
+    return Path(csv_path).with_suffix(".columns.json")
+
 _LABEL = re.compile(r"^(.*?)(?: \[(.*)\])?$")      # pre-issue-14 headers: "stage.z_enc [m]"
 _NUMERIC = ("real", "integer", "boolean")
 
@@ -101,8 +107,8 @@ class Result:
         if path.is_dir():
             path = path / "data.csv"
         meta = {}
-        if (path.parent / COLUMNS_FILE).exists() and path.name == "data.csv":
-            meta = json.loads((path.parent / COLUMNS_FILE).read_text())
+        if columns_file(path).exists():
+            meta = json.loads(columns_file(path).read_text())
         with open(path, newline="") as f:
             rows = list(csv.reader(f))
         if not rows:
@@ -152,7 +158,8 @@ def _formatter(fmi_type: str | None):
 class Recorder:
     """Keep ``signals`` (names, or ``["*"]`` for every output) every ``decimation`` steps."""
 
-    def __init__(self, signals=("*",), decimation: int = 1, out_dir: str | Path | None = None):
+    def __init__(self, signals=("*",), decimation: int = 1, out_dir: str | Path | None = None,
+                 csv_name: str = "data.csv"):
         if isinstance(signals, str):
             signals = [signals]
         if int(decimation) != decimation or decimation < 1:
@@ -160,6 +167,7 @@ class Recorder:
         self.requested = list(signals)
         self.decimation = int(decimation)
         self.out_dir = Path(out_dir) if out_dir is not None else None
+        self.csv_name = csv_name
         self.columns: list[str] = []
         self.units: dict[str, str | None] = {}
         self.types: dict[str, str] = {}
@@ -187,8 +195,9 @@ class Recorder:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             meta = {"time": {"unit": "s", "type": "Float64"}}
             meta.update({c: {"unit": self.units[c], "type": self.types[c]} for c in columns})
-            (self.out_dir / COLUMNS_FILE).write_text(json.dumps(meta, indent=1) + "\n")
-            self._file = open(self.out_dir / "data.csv", "w", newline="")
+            csv_path = self.out_dir / self.csv_name
+            columns_file(csv_path).write_text(json.dumps(meta, indent=1) + "\n")
+            self._file = open(csv_path, "w", newline="")
             self._file.write(",".join(["time", *map(_header_field, columns)]) + "\n")
             self._file.flush()
 

@@ -34,7 +34,7 @@ from .errors import CosimError, SimulationError
 from .fmi_types import (coerce_all, element_names, io_order, kind_of, parse_start, typed_reader,
                          typed_writer)
 
-BUILTIN_FMUS = ("LinearStage", "BallScrewDrive")
+BUILTIN_FMUS = ("LinearStage", "BallScrewDrive", "LinearStage3", "BallScrewDrive3")   # FMI 2.0, 3.0
 LOG_KEEP = 20          # log messages kept per instance
 
 @dataclass(frozen=True)
@@ -93,6 +93,9 @@ def resolve_fmu_path(spec: str, base_dir: str | os.PathLike | None = None) -> Pa
         p = Path(base_dir) / p
     if not p.exists():
         raise CosimError(f"FMU file '{p}' does not exist (built-in names: {', '.join(BUILTIN_FMUS)})")
+    if p.is_dir():
+        raise CosimError(f"'{p}' is a folder; expected a .fmu file or a built-in name "
+                         f"({', '.join(BUILTIN_FMUS)})")
     return p.resolve()
 
 
@@ -389,7 +392,7 @@ class FMUSlave:
             def do_step(t, h):
                 status = raw_step(comp, t, h, True, ev, term, early, last_ref)
                 if terminate.value and status < 2:
-                    self.terminated_at = last.value if early.value else t + h
+                    self.terminated_at = last.value if flags[2].value else t + h
                     return TERMINATE_REQUESTED
                 return status
         else:
