@@ -125,8 +125,8 @@ class Result:
             raw = [r[k] for r in body]
             kind = _kind(types[n])
             if kind in _NUMERIC:
-                raw = [float(x) if kind == "real" else int(float(x)) if x not in ("True", "False")
-                       else x == "True" for x in raw]
+                raw = [float(x) if kind == "real" else int(x) if kind == "integer" else x in ("1", "True")
+                       for x in raw]
             cols.append(_column_array(raw, types[n]))
         summary = {}
         sfile = path.parent / "summary.json"
