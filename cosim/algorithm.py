@@ -22,6 +22,7 @@ dictionary lookups per step -- so the master costs little next to the FMU calls.
 """
 from __future__ import annotations
 
+import math
 import sys
 import time as _time
 from dataclasses import dataclass, field
@@ -33,6 +34,7 @@ from .recorder import Recorder, Result
 from .slave import TERMINATE_REQUESTED, status_name
 from .step_rejection import StepRejection, member_for
 
+GRID_RTOL = 1e-9            # stop_time within this fraction of a step from the grid is on it
 CHUNK_STEPS = 4096          # steps between CSV flushes / progress updates
 PROGRESS_MIN_STEPS = 20000  # show a progress bar only on runs at least this long
 
@@ -74,9 +76,10 @@ class _Bus:
         self.values: list[float] = []
         self.slot: dict[str, int] = {}
 
-    def add(self, signal: str, start: float) -> int:
+    def add(self, signal: str, start) -> int:
+        """A slot holding ``start`` (a float, or an int/bool/str/bytes of a typed FMU variable)."""
         self.slot[signal] = len(self.values)
-        self.values.append(float(start))
+        self.values.append(start)
         return self.slot[signal]
 
     def ref(self, signal: str, wire: bool = False) -> tuple[int, float, float]:
@@ -97,21 +100,25 @@ class _Bus:
 
 
 def _fmu_reads(system, extra_signals) -> dict[str, list[str]]:
-    """Per FMU, the variables read each step: connection sources, recorded, conditions."""
+    """Per FMU, the variables read each step (whole variables, in the slave's typed I/O
+    order): connection sources, recorded, conditions."""
     reads: dict[str, list[str]] = {name: [] for name in system.slaves}
     wanted = [c.src for c in system.connections] + list(extra_signals)
     for sig in wanted:
         alias = system.alias(sig)                  # a plant role: read the FMU variable behind it
         sig = alias[0] if alias else sig
-        inst, var = sig.split(".", 1)
+        inst = sig.split(".", 1)[0]
         if inst in system.slaves:
-            system.source(sig)                     # checks it is a readable Real variable
+            var = system.source(sig).name          # checks it is readable; an element's array
             if system.driven_by(sig) is not None:
                 # a connected FMU input: the bus has the value written in this step; a
                 # getReal before the write would show the previous step's value
                 continue
             if var not in reads[inst]:
                 reads[inst].append(var)
+    for inst, names in reads.items():
+        slave = system.slaves[inst]
+        reads[inst] = [v.name for v in slave.io_order([slave.variable(n) for n in names])]
     return reads
 
 
@@ -124,22 +131,28 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
     (also after a :class:`SimulationError`, which keeps every row recorded so far).
     """
     h, t0 = system.step_size, system.start_time
-    n_last = round((stop_time - t0) / h)
-    if n_last < 1:
-        raise ScenarioError(f"stop_time {stop_time!r} s must be at least one step ({h!r} s) after "
-                            f"the start time {t0!r} s", key="stop_time")
+    # stop_time off the step grid: a last, shorter step ends exactly at stop_time (as fmpy
+    # and OMSimulator do); blocks keep sampling on the grid (docs/conformance.md)
+    n_last = max(1, math.ceil((stop_time - t0) / h - GRID_RTOL))
+    h_last = stop_time - (t0 + (n_last - 1) * h)
+    n_short = n_last - 1 if abs(h_last - h) > GRID_RTOL * h else -1
+    if not stop_time - t0 > GRID_RTOL * h:
+        raise ScenarioError(f"stop_time {stop_time!r} s must be after the start time {t0!r} s",
+                            key="stop_time")
     info = RunInfo(stop_time=float(stop_time))
     order = system.block_order()
 
     # -- compile: signals -> bus slots ---------------------------------------------
     columns = recorder.resolve(system, extra_record) if recorder is not None else []
     conditions = [parse_condition(e.when) for e in events if e.when is not None]
-    units = []
+    units, types = [], []
     for c in columns:   # every recorded name must exist (FMU variable, block output or input)
         try:
-            units.append(system.readable(c).unit)
+            sig = system.readable(c)
         except ScenarioError as e:
             raise ScenarioError(e.detail, key="record.signals") from None
+        units.append(sig.unit)
+        types.append(sig.type)
     bus = _Bus(system)
     fmu_vars = _fmu_reads(system, [c for c in columns if c.split(".", 1)[0] in system.slaves]
                           + [c[0] for c in conditions if c[0].split(".", 1)[0] in system.slaves])
@@ -148,20 +161,22 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
         names = fmu_vars[name]
         a = len(bus.values)
         for var in names:
-            bus.add(f"{name}.{var}", 0.0)
+            v = slave.variable(var)
+            for e, start in zip(v.elements, v.start_values()):
+                bus.add(f"{name}.{e}", start)
         read_plan.append((slave, names, a, len(bus.values)))
     block_plan = []
     for name in order:
         block = system.blocks[name]
         a = len(bus.values)
         for p in block.outputs:
-            bus.add(f"{name}.{p.name}", p.start)
+            bus.add(f"{name}.{p.name}", float(p.start))
         block_plan.append((name, block, a, len(bus.values)))
     for name in order:                  # unconnected block inputs hold their start value
         for p in system.blocks[name].inputs:
             sig = f"{name}.{p.name}"
             if system.driven_by(sig) is None:
-                bus.add(sig, p.start)
+                bus.add(sig, float(p.start))
 
     def inputs_of(signals, wire=False):
         refs = [bus.ref(s, wire) for s in signals]
@@ -188,7 +203,7 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
     rec_get, rec_scaled = inputs_of(columns)
     decimation = recorder.decimation if recorder is not None else 0
     if recorder is not None:
-        recorder.start(columns, units)
+        recorder.start(columns, units, types)
 
     # -- instantiate ---------------------------------------------------------------
     started, failed = [], None
@@ -208,13 +223,21 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
             block.reset(t0)
         reads, writes, steppers = [], [], []
         for slave, names, a, b in read_plan:
-            in_names = [v for v, vv in slave.variables.items()
-                        if vv.causality == "input" and system.driven_by(f"{slave.name}.{v}")]
+            in_vars = slave.io_order([vv for vv in slave.variables.values() if vv.causality == "input"
+                                      and any(system.driven_by(f"{slave.name}.{e}") for e in vv.elements)])
+            in_names = [vv.name for vv in in_vars]
+            in_signals = []
+            for vv in in_vars:         # an array input is written whole: undriven elements hold start
+                for e, start in zip(vv.elements, vv.start_values()):
+                    sig = f"{slave.name}.{e}"
+                    if not system.driven_by(sig):
+                        bus.add(sig, start)
+                    in_signals.append(sig)
             get, obuf, put, ibuf, do_step = slave.step_io(names, in_names)
             if names:
                 reads.append((get, obuf, a, b, slave))
             if in_names:
-                gi, sc = inputs_of([f"{slave.name}.{v}" for v in in_names], wire=True)
+                gi, sc = inputs_of(in_signals, wire=True)
                 writes.append((put, ibuf, gi, sc, slave))
             steppers.append((do_step, slave))
         if step_rejection_floor:
@@ -237,14 +260,14 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
 
         if progress and n_last >= PROGRESS_MIN_STEPS:
             from tqdm import tqdm
-            bar = tqdm(total=n_last, unit="step", unit_scale=True, file=sys.stderr,
-                       desc="co-simulation", mininterval=0.5, leave=False)
+            bar = tqdm(total=n_last, unit="step", unit_scale=True, file=sys.stderr, disable=None,
+                       desc="co-simulation", mininterval=0.5, leave=False)   # None: only on a TTY
         next_timed = timed[0][0] if timed else -1
         stop = False
         while True:
             n_end = min(n + CHUNK_STEPS, n_last + 1)
             while n < n_end:
-                t = t0 + n * h
+                t = t0 + n * h if n < n_last else stop_time
                 # 1. plant outputs at t
                 phase = "read"
                 for get, obuf, a, b, slave in reads:
@@ -300,12 +323,14 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                     if status:
                         _check(status, "setReal", slave, t)
                 phase = "doStep"
+                hn = h if n != n_short else h_last
                 for do_step, slave in steppers:
-                    status = do_step(t, h)
+                    status = do_step(t, hn)
                     if status:
                         if status == TERMINATE_REQUESTED:
                             stop = True
-                            info.stop_reason = f"FMU '{slave.name}' asked to terminate at t = {t + h:g} s"
+                            t_end = _terminated_at(system, t + hn)
+                            info.stop_reason = f"FMU '{slave.name}' asked to terminate at t = {t_end:g} s"
                         else:
                             _check(status, "doStep", slave, t)
                 n += 1
@@ -319,7 +344,9 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
             if stop or n >= n_last:
                 break
         info.steps = n
-        info.time_reached = t0 + n * h
+        info.time_reached = t0 + n * h if n < n_last else stop_time
+        if stop and info.stop_reason.startswith("FMU"):
+            info.time_reached = _terminated_at(system, info.time_reached)
         if stop:
             info.status = "stopped"
             if not info.stop_reason:
@@ -352,6 +379,12 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
             bar.close()
         for slave in started:
             slave.free(failed=(slave.name == failed))
+
+
+def _terminated_at(system, default: float) -> float:
+    """[s] the time an FMU that asked to terminate reached (its last successful time)."""
+    times = [s.terminated_at for s in system.slaves.values() if getattr(s, "terminated_at", None) is not None]
+    return min(times) if times else default
 
 
 class _AnyOf:

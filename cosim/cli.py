@@ -1,10 +1,15 @@
-"""``drillcosim`` command line: run, list, info, plot, validate."""
+"""``drillcosim`` command line: run, simulate, list, info, plot, validate, conformance."""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
-import tomllib
 from pathlib import Path
+
+try:
+    import tomllib
+except ModuleNotFoundError:       # Python 3.10
+    import tomli as tomllib
 
 
 def _parse_set(items: list[str]) -> dict:
@@ -83,7 +88,9 @@ def cmd_info(args) -> int:
         print(f"drillcosim: cannot read the FMU {args.fmu}: {type(e).__name__}: {e}", file=sys.stderr)
         return 1
     md = model.model_description
-    kinds = [k for k, iface in (("CS", md.coSimulation), ("ME", md.modelExchange)) if iface is not None]
+    kinds = [k for k, iface in (("CS", md.coSimulation), ("ME", md.modelExchange),
+                                ("SE (Scheduled Execution)", getattr(md, "scheduledExecution", None)))
+             if iface is not None]
     print(f"file: {model.path}")
     print(f"FMI version: {md.fmiVersion}")
     print(f"kind: {', '.join(kinds)}")
@@ -93,15 +100,19 @@ def cmd_info(args) -> int:
         print(f"description: {md.description}")
     if md.defaultExperiment is not None and md.defaultExperiment.stepSize:
         print(f"default step size: {md.defaultExperiment.stepSize} s")
-    rows = [("name", "causality", "type", "unit", "start", "description")]
+    unsupported = getattr(model, "unsupported", None)
+    if unsupported:
+        print(f"not runnable: {unsupported}")
+    rows = [("name", "causality", "type", "dims", "unit", "start", "description")]
     order = {"input": 0, "output": 1, "parameter": 2}
     for v in sorted(model.variables.values(), key=lambda v: (order.get(v.causality, 3), v.vr)):
-        rows.append((v.name, v.causality, v.type, v.unit or "", v.start if v.start is not None else "",
+        dims = "x".join(map(str, v.dims)) if v.dims else "scalar"
+        rows.append((v.name, v.causality, v.type, dims, v.unit or "", v.start if v.start is not None else "",
                      v.description))
-    widths = [max(len(str(r[i])) for r in rows) for i in range(5)]
+    widths = [max(len(str(r[i])) for r in rows) for i in range(6)]
     print("variables:")
     for r in rows:
-        print("  " + "  ".join(f"{str(c):<{w}}" for c, w in zip(r[:5], widths)) + "  " + r[5])
+        print("  " + "  ".join(f"{str(c):<{w}}" for c, w in zip(r[:6], widths)) + "  " + r[6])
     return 0
 
 
@@ -119,15 +130,78 @@ def cmd_plot(args) -> int:
         print(f"drillcosim: not recorded: {', '.join(missing)} (recorded: {', '.join(result.signals)})",
               file=sys.stderr)
         return 1
-    out = Path(args.out) if args.out else Path(args.result_dir) / "signals.png"
+    src = Path(args.result_dir)
+    out = Path(args.out) if args.out else (src / "signals.png" if src.is_dir() else src.with_suffix(".png"))
     plot_groups(result, group_by_unit(result, signals), out, result.summary.get("scenario", ""))
-    print(f"png: {out}")
+    print(f"{out.suffix.lstrip('.').lower() or 'png'}: {out}")
     return 0
+
+
+def _start_values(items: list[str]) -> dict:
+    """``NAME=VALUE`` (TOML value: 3, 0.5, true, "text", [1, 2]) -> dict."""
+    out = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not sep or not name:
+            raise SystemExit(f"drillcosim: --start-values expects NAME=VALUE, got {item!r}")
+        try:
+            out[name.strip()] = tomllib.loads(f"v = {value}")["v"]
+        except tomllib.TOMLDecodeError:
+            out[name.strip()] = value
+    return out
+
+
+def cmd_simulate(args) -> int:
+    """A bare FMU, as ``fmpy simulate`` / ``cosim run-single``: every output recorded."""
+    from fmpy import read_model_description
+    from .algorithm import simulate
+    from .errors import CosimError
+    from .model_exchange import create_slave
+    from .recorder import Recorder
+    from .slave import resolve_fmu_path
+    from .system import System
+    try:
+        path = resolve_fmu_path(args.fmu, Path.cwd())
+        de = read_model_description(str(path), validate=False).defaultExperiment
+        start = args.start_time if args.start_time is not None else float(de.startTime or 0) if de else 0.0
+        stop = args.stop_time if args.stop_time is not None else float(de.stopTime or 1) if de and de.stopTime else 1.0
+        step = args.step_size or (float(de.stepSize) if de and de.stepSize else (stop - start) / 500)
+        opts = {"solver": args.solver} if args.solver else {}
+        slave = create_slave("fmu", path, _start_values(args.start_values), interface=args.interface, **opts)
+        system = System(step_size=step, start_time=start)
+        name = slave.model.model_description.modelName or path.stem
+        system.add_fmu(_identifier(name), slave)
+        out = Path(args.output) if args.output else Path(f"{path.stem}_out.csv")
+        recorder = Recorder(["*"], out_dir=out.parent, csv_name=out.name)
+        info = simulate(system, stop, recorder, progress=not args.quiet)
+    except CosimError as e:
+        print(f"drillcosim: {e}", file=sys.stderr)
+        return 1
+    finally:
+        if "recorder" in locals():
+            recorder.finish(write_mat=False)
+    if not args.quiet:
+        print(f"{path.name}: {info.status} at t = {info.time_reached:g} s ({info.stop_reason}), "
+              f"{info.steps} steps of {step:g} s")
+    print(f"csv: {out}")
+    return 0
+
+
+def _identifier(name: str) -> str:
+    import re
+    s = re.sub(r"\W", "_", name)
+    return s if s and not s[0].isdigit() else "fmu_" + s
+
+
+def cmd_conformance(args) -> int:
+    from .conformance import main as conformance_main
+    return conformance_main(["--no-write"] if args.no_write else [])
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="drillcosim", description="Co-simulation of drilling feed drives: "
                                 "plant FMUs + Python observers/controllers, configured by scenario files.")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("run", help="run a scenario file; prints the paths of CSV, PNG, summary")
     r.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
@@ -139,21 +213,55 @@ def main(argv: list[str] | None = None) -> int:
     li = sub.add_parser("list", help="list the scenarios with their description")
     li.add_argument("--dir", help="folder of scenario files (default scenarios/)")
     li.set_defaults(func=cmd_list)
+    sm = sub.add_parser("simulate", help="simulate a bare FMU (no scenario), record every output to CSV")
+    sm.add_argument("fmu", help=".fmu file or built-in name (LinearStage, LinearStage3, ...)")
+    sm.add_argument("--start-time", type=float, help="[s] default: the FMU's default experiment, else 0")
+    sm.add_argument("--stop-time", type=float, help="[s] default: the FMU's default experiment, else 1")
+    sm.add_argument("--step-size", type=float, help="[s] communication step (default: the FMU's, else "
+                                                     "(stop - start) / 500)")
+    sm.add_argument("--start-values", nargs="+", metavar="NAME=VALUE", default=[],
+                    help="start values, e.g. --start-values k=2 mode=true label='\"x\"'")
+    sm.add_argument("--output", help="CSV file (default <FMU>_out.csv); units/types go to "
+                                     "<name>.columns.json next to it")
+    sm.add_argument("--interface", choices=["CS", "ME"], type=str.upper,
+                    help="co-simulation or Model Exchange (default: CS when the FMU offers it)")
+    sm.add_argument("--solver", choices=["rk4", "cvode"], help="Model Exchange solver (default cvode)")
+    sm.add_argument("--quiet", action="store_true", help="no progress bar, only the CSV path")
+    sm.set_defaults(func=cmd_simulate)
     i = sub.add_parser("info", help="FMI version, kind, variables of an FMU (path or built-in name)")
     i.add_argument("fmu")
     i.set_defaults(func=cmd_info)
-    pl = sub.add_parser("plot", help="plot recorded signals of a result folder")
-    pl.add_argument("result_dir")
+    pl = sub.add_parser("plot", help="plot recorded signals of a result folder or CSV file")
+    pl.add_argument("result_dir", help="result folder (its data.csv) or a CSV file")
     pl.add_argument("--signals", nargs="+", help="signals to plot (default: all)")
-    pl.add_argument("--out", help="PNG file (default RESULT_DIR/signals.png)")
+    pl.add_argument("--out", help="image file, format from its suffix: .png, .pdf, .svg "
+                                  "(default RESULT_DIR/signals.png, or the CSV's name with .png)")
     pl.set_defaults(func=cmd_plot)
     from . import validate
     v = sub.add_parser("validate", help="compare a run with a reference CSV (tolerance tubes); "
                                         "exit 1 when a signal leaves its tube")
     validate.add_arguments(v)
     v.set_defaults(func=validate.run)
+    c = sub.add_parser("conformance", help="run the Modelica Reference-FMUs against fmpy and rewrite "
+                                           "the table in docs/conformance.md")
+    c.add_argument("--no-write", action="store_true", help="print the table only")
+    c.set_defaults(func=cmd_conformance)
     args = p.parse_args(argv)
-    return args.func(args)
+    try:
+        return args.func(args)
+    except BrokenPipeError:
+        # `drillcosim list | head`: the reader left; end quietly, as Unix tools do
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import version
+        return version("drillcosim")
+    except Exception:
+        return "unknown"
 
 
 if __name__ == "__main__":

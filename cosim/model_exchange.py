@@ -64,6 +64,7 @@ import fmpy
 from fmpy.model_description import read_model_description
 
 from .errors import CosimError, SimulationError
+from .fmi_types import typed_reader, typed_writer
 from .slave import (TERMINATE_REQUESTED, FMUSlave, ModelDescription, cached_model, load_model,
                     model_variables, status_name)
 
@@ -119,7 +120,30 @@ def fmu_kinds(path: str | os.PathLike) -> tuple[str, ...]:
         kinds.append("CS")
     if md.modelExchange is not None:
         kinds.append("ME")
+    if getattr(md, "scheduledExecution", None) is not None:
+        kinds.append("SE")
     return tuple(kinds)
+
+
+SE_UNSUPPORTED = ("FMI 3.0 Scheduled Execution (clocked model partitions activated by the importer) "
+                  "is not supported by drillcosim; it runs Co-Simulation and Model Exchange FMUs")
+
+
+class DescriptionOnly(ModelDescription):
+    """An FMU the master cannot run (Scheduled Execution only): its description, for
+    ``drillcosim info``, and the reason (``unsupported``)."""
+
+    kind = "SE"
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path).resolve()
+        md = read_model_description(str(self.path), validate=False)
+        self.model_description = md
+        self.fmi_version = md.fmiVersion
+        se = getattr(md, "scheduledExecution", None)
+        self.model_identifier = se.modelIdentifier if se is not None else md.modelName
+        self.variables = model_variables(md, skip_causality=("independent",))
+        self.unsupported = SE_UNSUPPORTED if se is not None else "no Co-Simulation or Model Exchange interface"
 
 
 # -- FMI 2.0 logging ------------------------------------------------------------------
@@ -269,8 +293,6 @@ class ModelExchangeSlave(FMUSlave):
         self._c_get_x = funcs[f"{p}GetContinuousStates"]
         self._c_get_dx = funcs["fmi3GetContinuousStateDerivatives" if m.is_fmi3 else "fmi2GetDerivatives"]
         self._c_get_z = funcs[f"{p}GetEventIndicators"]
-        self._c_get_real = funcs["fmi3GetFloat64" if m.is_fmi3 else "fmi2GetReal"]
-        self._c_set_real = funcs["fmi3SetFloat64" if m.is_fmi3 else "fmi2SetReal"]
         self._real_set_cache: dict[int, float] = {}
 
     def _check(self, status: int, what: str) -> None:
@@ -315,13 +337,15 @@ class ModelExchangeSlave(FMUSlave):
             if discrete_change:           # FMI: discrete inputs / tunable parameters in event mode
                 self.fmu.enterEventMode()
             self._write_value(v, value)
-            if v.kind == "real":
+            if v.kind == "real" and not v.dims:
                 self._real_set_cache[v.vr] = float(value)
             if discrete_change:
                 self._event_iteration()
                 self.fmu.enterContinuousTimeMode()
                 self._after_event()
-        except CosimError:
+        except ValueError as e:
+            raise CosimError(f"FMU '{self.name}': {e}") from None
+        except (CosimError, SimulationError):
             raise
         except _Terminate:
             raise self._fail(f"setting {name} = {value!r} (the FMU asked to terminate)", self.time) from None
@@ -338,29 +362,34 @@ class ModelExchangeSlave(FMUSlave):
         unchanged when it can be restored), 3 (Error) or ``TERMINATE_REQUESTED``.
         """
         fmi3 = self.model.is_fmi3
-        comp = self._comp
-        ovr = (c_uint * len(outputs))(*[self.variable(n).vr for n in outputs])
-        ivr_list = [self.variable(n).vr for n in inputs]
-        ivr = (c_uint * len(inputs))(*ivr_list)
-        out_buf = (c_double * len(outputs))()
-        in_buf = (c_double * len(inputs))()
-        no, ni = len(outputs), len(inputs)
-        raw_get, raw_set = self._c_get_real, self._c_set_real
-        if fmi3:
-            get = functools.partial(raw_get, comp, ovr, no, out_buf, no)
-        else:
-            get = functools.partial(raw_get, comp, ovr, no, out_buf)
+        get, out_buf = typed_reader(self.fmu, fmi3, [self.variable(n) for n in outputs])
+        in_vars = [self.variable(n) for n in inputs]
+        reals = [v for v in in_vars if v.kind == "real"]
+        others = [v for v in in_vars if v.kind != "real"]     # discrete: set in event mode
+        put_real, real_buf = typed_writer(self.fmu, fmi3, reals, self._range_error)
+        in_buf = real_buf if not others else [0.0] * sum(v.size for v in in_vars)
+        nr = sum(v.size for v in reals)
+        spans, a = [], nr
+        for v in others:
+            spans.append((v, a, a + v.size))
+            a += v.size
+        scalar_reals = [(k, v.vr) for k, v in enumerate(reals) if not v.dims] if nr == len(reals) else []
         last = [None]
         cache = self._real_set_cache
 
         def put():
             vals = tuple(in_buf)
             if vals != last[0]:
-                last[0] = vals
+                prev, last[0] = last[0], vals
                 self._inputs_changed = True
-                for vr, val in zip(ivr_list, vals):
-                    cache[vr] = val
-            return raw_set(comp, ivr, ni, in_buf, ni) if fmi3 else raw_set(comp, ivr, ni, in_buf)
+                for k, vr in scalar_reals:
+                    cache[vr] = vals[k]
+                for v, i, j in spans:
+                    if prev is None or prev[i:j] != vals[i:j]:
+                        self.set_value(v.name, list(vals[i:j]) if v.dims else vals[i])
+            if others:
+                real_buf[:] = vals[:nr]
+            return put_real()
 
         return get, out_buf, put, in_buf, self.do_step
 
@@ -426,6 +455,12 @@ class ModelExchangeSlave(FMUSlave):
                 self._handle_event()
         self.time = t_end
         self._set_time(t_end)
+        if m.nx and not np.isfinite(self._x[:m.nx]).all():
+            # an integrator that blew up must not report a completed run (issue 14)
+            bad = [i for i in range(m.nx) if not math.isfinite(self._x[i])]
+            raise SimulationError(f"continuous state(s) {bad} became non-finite ({self._x[bad[0]]}) by "
+                                  f"t = {t_end:.9g} s ({self.solver_name}); reduce the step or use cvode",
+                                  time=t_end, instance=self.name)
 
     def _crossed(self, z: np.ndarray) -> bool:
         """An armed event indicator changed its domain (z > 0 versus z <= 0)."""
@@ -533,9 +568,10 @@ class ModelExchangeSlave(FMUSlave):
             state_event = False
             if nz:
                 self._read_z()
+                lo = self._watch_departures(ta, x, tb, xb) if not self._armed[:nz].all() else ta
                 if self._crossed(self._z):
                     state_event = True
-                    tb, xb = self._locate_rk4(ta, x, tb, xb)
+                    tb, xb = self._locate_rk4(ta, x, tb, xb, lo)
             t, x = tb, xb
             self.time = t
             self._x[:nx] = x
@@ -546,12 +582,39 @@ class ModelExchangeSlave(FMUSlave):
                 return state_event, step_event
         return False, False
 
-    def _locate_rk4(self, ta, xa, tb, xb):
-        """Bisection for the first domain change in (ta, tb]; returns the point just after it."""
+    def _watch_departures(self, ta, xa, tb, xb) -> float:
+        """Disarmed indicators (left at zero by an event) that are away from zero at
+        ``tb``: find the side each left zero to, just after ``ta``. If that differs from
+        the side at ``tb``, the indicator crossed zero inside the sub-step (a bouncing
+        ball rising and falling back within one RK4 step): arm it with its departure side
+        so that :meth:`_crossed` sees the crossing. Returns the time at which the
+        departure sides were read (the left end for the root search)."""
+        nz = self.model.nz
+        z_end = self._z[:nz].copy()
+        pending = ~self._armed[:nz] & (np.abs(z_end) > self.event_z_tol)
+        if not pending.any():
+            return ta
+        for j in range(40, -1, -1):              # walk out from ta until they left zero
+            tm = ta + (tb - ta) * 2.0 ** -j
+            xm = self._rk4(ta, xa, tm - ta) if self.model.nx else xa
+            zm = self._eval_z_at(tm, xm)
+            if (np.abs(zm[pending]) > self.event_z_tol).all():
+                break
+        else:
+            tm, zm = tb, z_end
+        flipped = pending & ((zm > 0) != (z_end > 0))
+        self._z_prev[:nz][flipped] = zm[flipped]
+        self._armed[:nz] |= flipped
+        self._eval_z_at(tb, xb)                  # leave the FMU (and self._z) at the step end
+        return tm if flipped.any() else ta
+
+    def _locate_rk4(self, ta, xa, tb, xb, lo=None):
+        """Bisection for the first domain change in (lo, tb] (``lo`` default ``ta``, the
+        RK4 step always starts from ``ta``); returns the point just after it."""
         nz = self.model.nz
         zpos_a = self._z_prev[:nz] > 0
         armed = self._armed[:nz]
-        lo, hi, x_hi = ta, tb, xb
+        lo, hi, x_hi = (ta if lo is None else lo), tb, xb
         while hi - lo > max(self.event_tol, self._eps(hi)):
             mid = 0.5 * (lo + hi)
             xm = self._rk4(ta, xa, mid - ta) if self.model.nx else xa
@@ -685,6 +748,8 @@ def create_slave(name: str, path: str | os.PathLike, parameters: dict | None = N
     if interface is None:
         interface = "ME" if ("ME" in kinds and ("CS" not in kinds or solver_options)) else "CS"
     interface = interface.upper()
+    if interface == "CS" and "CS" not in kinds and "ME" not in kinds and "SE" in kinds:
+        raise CosimError(f"FMU '{name}' ({Path(path).name}): {SE_UNSUPPORTED}")
     if interface not in kinds:
         raise CosimError(f"FMU '{name}' ({Path(path).name}) has no {interface} interface "
                          f"(it offers {', '.join(kinds) or 'none'})")
@@ -699,6 +764,9 @@ def create_slave(name: str, path: str | os.PathLike, parameters: dict | None = N
 def load_any_model(path: str | os.PathLike):
     """Model description of any FMU: ``FMUModel`` when it offers co-simulation, else
     :class:`MEModel` (for ``drillcosim info`` and scenario validation)."""
-    if "CS" in fmu_kinds(path):
+    kinds = fmu_kinds(path)
+    if "CS" in kinds:
         return load_model(path)
-    return load_me_model(path)
+    if "ME" in kinds:
+        return load_me_model(path)
+    return cached_model(DescriptionOnly, path)

@@ -3,42 +3,83 @@
 Rows reach ``data.csv`` in chunks during the run (written and flushed), so a run that
 stops on an error keeps every row recorded before it. ``data.mat`` is written at the
 end. :class:`Result` gives the recorded signals as numpy arrays.
+
+The CSV opens as it comes in other tools (``fmpy.util.read_csv``, ``numpy.genfromtxt(
+names=True)``, pandas): its header is ``time`` and the plain signal names. Units and
+FMI types go to a sidecar, ``data.columns.json`` (``<name>.columns.json`` for
+another CSV name) (``{"time": {"unit": "s", "type":
+"Float64"}, "stage.z_enc": {"unit": "m", "type": "Float64"}, ...}``), and to data.mat
+(``units``); :meth:`Result.from_csv` reads both back. Values: reals as the shortest
+exact repr, integers as integers, Booleans as 1/0, strings as CSV fields (quoted when
+needed), Binary as hex. Only a String or Binary column stops ``fmpy.util.read_csv``,
+which reads numbers only.
 """
 from __future__ import annotations
 
 import csv
+import io
+import json
 import re
 from pathlib import Path
 
 import numpy as np
 
 
-def column_label(signal: str, unit: str | None) -> str:
-    return f"{signal} [{unit}]" if unit else signal
+
+def columns_file(csv_path: Path) -> Path:
+    """The units/types sidecar of a CSV: ``data.csv`` -> ``data.columns.json``."""
+    return Path(csv_path).with_suffix(".columns.json")
+
+_LABEL = re.compile(r"^(.*?)(?: \[(.*)\])?$")      # pre-issue-14 headers: "stage.z_enc [m]"
+_NUMERIC = ("real", "integer", "boolean")
 
 
-_LABEL = re.compile(r"^(.*?)(?: \[(.*)\])?$")
+def _kind(fmi_type: str | None) -> str:
+    from .fmi_types import kind_of
+    return kind_of(fmi_type or "Real")
+
+
+def _column_array(values: list, fmi_type: str | None) -> np.ndarray:
+    kind = _kind(fmi_type)
+    if kind == "real":
+        return np.asarray(values, dtype=float)
+    if kind == "integer":
+        return np.asarray(values, dtype=np.uint64 if fmi_type == "UInt64" else np.int64)
+    if kind == "boolean":
+        return np.asarray(values, dtype=bool)
+    if kind == "binary":
+        return np.asarray([bytes.fromhex(v) if isinstance(v, str) else v for v in values], dtype=object)
+    return np.asarray(values, dtype=object)
 
 
 class Result:
-    """Recorded signals: ``result.time`` [s], ``result["inst.var"]``, ``.units``,
-    ``.summary`` (what summary.json holds) and ``.out_dir``."""
+    """Recorded signals: ``result.time`` [s], ``result["inst.var"]`` (a numpy array of
+    the signal's type: float, int64/uint64, bool or object for strings), ``.units``,
+    ``.types``, ``.summary`` (what summary.json holds) and ``.out_dir``."""
 
-    def __init__(self, time: np.ndarray, signals: list[str], data: np.ndarray,
-                 units: dict[str, str | None], out_dir: Path | None = None, summary: dict | None = None):
+    def __init__(self, time: np.ndarray, signals: list[str], columns: list[np.ndarray],
+                 units: dict[str, str | None], out_dir: Path | None = None, summary: dict | None = None,
+                 types: dict[str, str] | None = None):
         self.time = time
         self.signals = list(signals)
-        self.data = data                      # shape (rows, len(signals))
+        self.columns = list(columns)
         self.units = units
+        self.types = types or {s: "Float64" for s in self.signals}
         self.out_dir = out_dir
         self.summary = summary if summary is not None else {}
         self._index = {s: i for i, s in enumerate(self.signals)}
+
+    @property
+    def data(self) -> np.ndarray:
+        """The numeric signals as one float array (rows, signals); strings are NaN."""
+        cols = [c.astype(float) if c.dtype != object else np.full(len(c), np.nan) for c in self.columns]
+        return np.column_stack(cols) if cols else np.zeros((len(self.time), 0))
 
     def __getitem__(self, signal: str) -> np.ndarray:
         if signal == "time":
             return self.time
         try:
-            return self.data[:, self._index[signal]]
+            return self.columns[self._index[signal]]
         except KeyError:
             raise KeyError(f"'{signal}' was not recorded (recorded: {', '.join(self.signals)})") from None
 
@@ -60,31 +101,65 @@ class Result:
 
     @classmethod
     def from_csv(cls, path: str | Path) -> "Result":
-        """Read back a ``data.csv`` written by the recorder (``drillcosim plot``)."""
+        """Read back a ``data.csv`` written by the recorder (a file or its run folder);
+        units and types from ``data.columns.json`` next to it when present."""
         path = Path(path)
         if path.is_dir():
             path = path / "data.csv"
+        meta = {}
+        if columns_file(path).exists():
+            meta = json.loads(columns_file(path).read_text())
         with open(path, newline="") as f:
-            header = next(csv.reader(f))
+            rows = list(csv.reader(f))
+        if not rows:
+            raise ValueError(f"{path}: empty file, expected a header line")
         names, units = [], {}
-        for label in header:
-            name, unit = _LABEL.match(label).groups()
+        for label in rows[0]:
+            name, unit = _LABEL.match(label.strip().strip('"')).groups()
             names.append(name)
-            units[name] = unit
-        raw = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+            units[name] = meta.get(name, {}).get("unit", unit)
+        types = {n: meta.get(n, {}).get("type", "Float64") for n in names}
+        body = rows[1:]
+        cols = []
+        for k, n in enumerate(names):
+            raw = [r[k] for r in body]
+            kind = _kind(types[n])
+            if kind in _NUMERIC:
+                raw = [float(x) if kind == "real" else int(x) if kind == "integer" else x in ("1", "True")
+                       for x in raw]
+            cols.append(_column_array(raw, types[n]))
         summary = {}
         sfile = path.parent / "summary.json"
         if sfile.exists():
-            import json
             summary = json.loads(sfile.read_text())
-        return cls(raw[:, 0], names[1:], raw[:, 1:], {n: units[n] for n in names[1:]},
-                   path.parent, summary)
+        return cls(cols[0].astype(float), names[1:], cols[1:], {n: units[n] for n in names[1:]},
+                   path.parent, summary, {n: types[n] for n in names[1:]})
+
+
+def _formatter(fmi_type: str | None):
+    """value -> CSV field for one column."""
+    kind = _kind(fmi_type)
+    if kind == "real":
+        return repr           # the shortest string that reads back bit for bit
+    if kind == "integer":
+        return str
+    if kind == "boolean":
+        return lambda b: "1" if b else "0"
+    if kind == "binary":
+        return lambda b: bytes(b).hex()
+
+    def text(s):
+        buf = io.StringIO()
+        csv.writer(buf, lineterminator="").writerow([s])
+        return buf.getvalue()
+    return text
 
 
 class Recorder:
     """Keep ``signals`` (names, or ``["*"]`` for every output) every ``decimation`` steps."""
 
-    def __init__(self, signals=("*",), decimation: int = 1, out_dir: str | Path | None = None):
+    def __init__(self, signals=("*",), decimation: int = 1, out_dir: str | Path | None = None,
+                 csv_name: str = "data.csv"):
         if isinstance(signals, str):
             signals = [signals]
         if int(decimation) != decimation or decimation < 1:
@@ -92,40 +167,56 @@ class Recorder:
         self.requested = list(signals)
         self.decimation = int(decimation)
         self.out_dir = Path(out_dir) if out_dir is not None else None
+        self.csv_name = csv_name
         self.columns: list[str] = []
         self.units: dict[str, str | None] = {}
-        self._chunks: list[np.ndarray] = []
+        self.types: dict[str, str] = {}
+        self._rows: list = []
         self._file = None
+        self._format = None
 
     def resolve(self, system, extra=()) -> list[str]:
         """The recorded signal names: ``"*"`` expanded, ``extra`` (plotted signals) added."""
         cols: list[str] = []
         for s in [*self.requested, *extra]:
-            for name in (system.all_outputs() if s == "*" else [s]):
+            for name in (system.all_outputs() if s == "*" else _elements(system, s)):
                 if name not in cols:
                     cols.append(name)
         return cols
 
-    def start(self, columns: list[str], units: list[str | None]) -> None:
+    def start(self, columns: list[str], units: list[str | None], types: list[str] | None = None) -> None:
         self.columns = list(columns)
         self.units = dict(zip(columns, units))
-        self._chunks = []
+        self.types = dict(zip(columns, types or ["Float64"] * len(columns)))
+        self._rows = []
+        typed = any(_kind(t) != "real" for t in self.types.values())
+        self._format = [repr] + [_formatter(self.types[c]) for c in columns] if typed else None
         if self.out_dir is not None:
             self.out_dir.mkdir(parents=True, exist_ok=True)
-            self._file = open(self.out_dir / "data.csv", "w", newline="")
-            labels = ["time [s]"] + [column_label(c, u) for c, u in zip(columns, units)]
-            self._file.write(",".join(labels) + "\n")
+            meta = {"time": {"unit": "s", "type": "Float64"}}
+            meta.update({c: {"unit": self.units[c], "type": self.types[c]} for c in columns})
+            csv_path = self.out_dir / self.csv_name
+            columns_file(csv_path).write_text(json.dumps(meta, indent=1) + "\n")
+            self._file = open(csv_path, "w", newline="")
+            self._file.write(",".join(["time", *map(_header_field, columns)]) + "\n")
             self._file.flush()
 
     def write(self, rows: list) -> None:
         """Append rows ``(t, v1, v2, ...)`` and flush them to the CSV."""
         if not rows:
             return
-        chunk = np.array(rows, dtype=float).reshape(len(rows), len(self.columns) + 1)
-        self._chunks.append(chunk)
+        fmt = self._format
+        if fmt is None:       # all reals: compact float chunks (long 10 kHz runs)
+            chunk = np.array(rows, dtype=float).reshape(len(rows), len(self.columns) + 1)
+            self._rows.append(chunk)
+            if self._file is not None:
+                # repr() of a Python float is the shortest string that reads back bit for bit
+                self._file.write("".join(",".join(map(repr, r)) + "\n" for r in chunk.tolist()))
+                self._file.flush()
+            return
+        self._rows.extend(rows)
         if self._file is not None:
-            # repr() of a Python float is the shortest string that reads back bit for bit
-            self._file.write("".join(",".join(map(repr, r)) + "\n" for r in chunk.tolist()))
+            self._file.write("".join(",".join([f(x) for f, x in zip(fmt, r)]) + "\n" for r in rows))
             self._file.flush()
 
     def finish(self, write_mat: bool = True) -> Result:
@@ -133,12 +224,28 @@ class Recorder:
         if self._file is not None:
             self._file.close()
             self._file = None
-        data = (np.concatenate(self._chunks) if self._chunks
-                else np.zeros((0, len(self.columns) + 1)))
-        result = Result(data[:, 0].copy(), self.columns, data[:, 1:], self.units, self.out_dir)
+        n = len(self.columns) + 1
+        if not self._format:
+            data = np.concatenate(self._rows) if self._rows else np.zeros((0, n))
+            cols = [data[:, k].copy() for k in range(n)]
+        else:
+            cols = [_column_array([r[k] for r in self._rows], "Float64" if k == 0 else self.types[self.columns[k - 1]])
+                    for k in range(n)]
+        result = Result(cols[0], self.columns, cols[1:], self.units, self.out_dir, types=self.types)
         if write_mat and self.out_dir is not None:
             write_mat_file(result, self.out_dir / "data.mat")
         return result
+
+
+def _header_field(name: str) -> str:
+    return f'"{name}"' if any(c in name for c in ',"') else name
+
+
+def _elements(system, signal: str) -> list[str]:
+    try:
+        return system.elements(signal)
+    except Exception:     # unknown names are reported with their key by the algorithm
+        return [signal]
 
 
 def write_mat_file(result: Result, path: Path) -> None:
@@ -153,7 +260,12 @@ def write_mat_file(result: Result, path: Path) -> None:
     units: dict = {}
     for sig in result.signals:
         inst, var = sig.split(".", 1)
-        content.setdefault(ident(inst), {})[ident(var)] = result[sig]
+        col = result[sig]
+        if col.dtype == object:      # strings -> a cell array; Binary as hex
+            col = np.array([v.hex() if isinstance(v, bytes) else str(v) for v in col], dtype=object)
+        elif col.dtype == np.uint64:
+            col = col.astype(np.float64) if col.size and col.max() >= 2**63 else col.astype(np.int64)
+        content.setdefault(ident(inst), {})[ident(var)] = col
         units.setdefault(ident(inst), {})[ident(var)] = result.units.get(sig) or ""
     content["units"] = units
     savemat(str(path), content, long_field_names=True, do_compression=True)

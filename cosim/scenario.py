@@ -23,7 +23,10 @@ import importlib
 import inspect
 import os
 import re
-import tomllib
+try:
+    import tomllib
+except ModuleNotFoundError:       # Python 3.10
+    import tomli as tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 

@@ -20,6 +20,7 @@ import atexit
 import collections
 import functools
 import importlib
+import math
 import os
 import shutil
 from ctypes import byref
@@ -30,16 +31,15 @@ import fmpy
 from fmpy.model_description import read_model_description
 
 from .errors import CosimError, SimulationError
+from .fmi_types import (coerce_all, element_names, io_order, kind_of, parse_start, typed_reader,
+                         typed_writer)
 
-BUILTIN_FMUS = ("LinearStage", "BallScrewDrive")
+BUILTIN_FMUS = ("LinearStage", "BallScrewDrive", "LinearStage3", "BallScrewDrive3")   # FMI 2.0, 3.0
 LOG_KEEP = 20          # log messages kept per instance
-
-_FMI3_INT_TYPES = {"Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64"}
-
 
 @dataclass(frozen=True)
 class Variable:
-    """One model variable as the master sees it."""
+    """One model variable as the master sees it (FMI 3.0 arrays: ``dims`` non-empty)."""
 
     name: str
     vr: int
@@ -50,21 +50,28 @@ class Variable:
     unit: str | None     # declared unit (variable's or its declaredType's), None if absent
     start: str | None
     description: str
+    dims: tuple = ()     # FMI 3.0 array dimensions (structural parameters at their start)
+
+    @property
+    def size(self) -> int:
+        return math.prod(self.dims) if self.dims else 1
 
     @property
     def is_real(self) -> bool:
-        # the signal bus carries float64 only (signal contract: Real-valued everything)
-        return self.type in ("Real", "Float64")
+        return self.kind == "real"
 
     @property
     def kind(self) -> str:
-        if self.type in ("Real", "Float64", "Float32"):
-            return "real"
-        if self.type in ("Integer", "Enumeration") or self.type in _FMI3_INT_TYPES:
-            return "integer"
-        if self.type == "Boolean":
-            return "boolean"
-        return self.type.lower()
+        """real | integer | boolean | string | binary | clock (see cosim.fmi_types)."""
+        return kind_of(self.type)
+
+    @property
+    def elements(self) -> list[str]:
+        """Element names ``y[1]``, ... of an array; ``[name]`` for a scalar."""
+        return element_names(self.name, self.dims)
+
+    def start_values(self) -> list:
+        return parse_start(self.type, self.start, self.size)
 
     @property
     def scoring_only(self) -> bool:
@@ -86,13 +93,32 @@ def resolve_fmu_path(spec: str, base_dir: str | os.PathLike | None = None) -> Pa
         p = Path(base_dir) / p
     if not p.exists():
         raise CosimError(f"FMU file '{p}' does not exist (built-in names: {', '.join(BUILTIN_FMUS)})")
+    if p.is_dir():
+        raise CosimError(f"'{p}' is a folder; expected a .fmu file or a built-in name "
+                         f"({', '.join(BUILTIN_FMUS)})")
     return p.resolve()
+
+
+def _dimensions(v, by_vr: dict) -> tuple:
+    """Array dimensions: fixed ``start`` or the start value of the structural parameter."""
+    dims = []
+    for d in getattr(v, "dimensions", None) or []:
+        if d.start is not None:
+            dims.append(int(d.start))
+        else:
+            ref = by_vr.get(d.valueReference)
+            if ref is None or ref.start is None:
+                raise CosimError(f"variable '{v.name}': dimension refers to value reference "
+                                 f"{d.valueReference}, which has no start value")
+            dims.append(int(ref.start))
+    return tuple(dims)
 
 
 def model_variables(md, skip_causality: tuple = ()) -> dict[str, Variable]:
     """The variables of a parsed model description, by name (unit: the variable's or its
     declared type's)."""
     out: dict[str, Variable] = {}
+    by_vr = {v.valueReference: v for v in md.modelVariables}
     for v in md.modelVariables:
         if v.causality in skip_causality:
             continue
@@ -100,7 +126,7 @@ def model_variables(md, skip_causality: tuple = ()) -> dict[str, Variable]:
         out[v.name] = Variable(
             name=v.name, vr=v.valueReference, type=v.type, causality=v.causality,
             variability=v.variability, initial=v.initial, unit=unit or None,
-            start=v.start, description=v.description or "")
+            start=v.start, description=v.description or "", dims=_dimensions(v, by_vr))
     return out
 
 
@@ -127,8 +153,9 @@ class FMUModel(ModelDescription):
         self.model_description = md
         self.fmi_version = md.fmiVersion
         if md.coSimulation is None:
-            raise CosimError(f"{self.path.name}: no co-simulation interface (model exchange only); "
-                             "the master steps FMUs with doStep")
+            other = ("Model Exchange only: use interface = \"ME\"" if md.modelExchange is not None else
+                     "Scheduled Execution only, which drillcosim does not support")
+            raise CosimError(f"{self.path.name}: no Co-Simulation interface ({other})")
         self.model_identifier = md.coSimulation.modelIdentifier
         self.guid = md.guid
         self.variables = model_variables(md)
@@ -181,7 +208,8 @@ def status_name(status: int) -> str:
     return _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
 
 
-TERMINATE_REQUESTED = 100   # pseudo status: FMI 3.0 doStep asked to terminate the simulation
+TERMINATE_REQUESTED = 100   # pseudo status: the FMU asked to terminate the simulation (FMI 2 or 3)
+FMI2_LAST_SUCCESSFUL_TIME, FMI2_TERMINATED = 2, 3   # fmi2StatusKind
 
 
 class FMUSlave:
@@ -199,6 +227,7 @@ class FMUSlave:
         self.log: collections.deque = collections.deque(maxlen=LOG_KEEP)
         self.fmu = None
         self._initialized = False
+        self.terminated_at: float | None = None   # [s] time the FMU asked to end the run
 
     # -- description ------------------------------------------------------------------
     @property
@@ -239,6 +268,7 @@ class FMUSlave:
     def _create_instance(self, start_time: float) -> None:
         """Load the library and instantiate (:meth:`_fmu_class`), with this slave's logger."""
         m = self.model
+        self.terminated_at = None
         kw = dict(guid=m.guid, unzipDirectory=_extract(m.path), modelIdentifier=m.model_identifier,
                   instanceName=self.name)
         try:
@@ -304,66 +334,55 @@ class FMUSlave:
             self.set_value(name, value)
 
     def _write_value(self, v: Variable, value) -> None:
-        """One set call of the variable's type (CosimError for a type that cannot be set)."""
-        f, t = self.fmu, v.type
-        if v.kind == "real":
-            (f.setFloat64 if self.model.is_fmi3 else f.setReal)([v.vr], [float(value)])
-        elif v.kind == "integer":
-            setter = getattr(f, f"set{t}" if t in _FMI3_INT_TYPES else
-                             ("setInt64" if self.model.is_fmi3 else "setInteger"))
-            setter([v.vr], [int(value)])
-        elif v.kind == "boolean":
-            f.setBoolean([v.vr], [bool(value)])
-        elif v.kind == "string":
-            f.setString([v.vr], [str(value)])
-        else:
-            raise CosimError(f"cannot set variable '{v.name}' of type {t}")
+        """One typed set call (arrays: a nested list, or one value for every element);
+        ValueError says what the variable expects."""
+        values = coerce_all(v, value, self.model.is_fmi3)
+        write, buf = typed_writer(self.fmu, self.model.is_fmi3, [v], self._range_error)
+        buf[:] = values
+        status = write()
+        if status > 1:
+            raise self._fail(f"setting {v.name} = {value!r} returned {status_name(status)}", None)
+
+    def _range_error(self, v, message: str):
+        raise SimulationError(f"writing {getattr(v, 'name', v)}: {message}", instance=self.name)
 
     def set_value(self, name: str, value) -> None:
         v = self.variable(name)
         try:
             self._write_value(v, value)
-        except CosimError:
+        except ValueError as e:
+            raise CosimError(f"FMU '{self.name}': {e}") from None
+        except (CosimError, SimulationError):
             raise
         except Exception as e:
             raise self._fail(f"setting {name} = {value!r}", None, e) from e
 
-    def get_value(self, name: str) -> float:
-        """One value (not for the step loop)."""
+    def get_value(self, name: str):
+        """One value (an array: a flat list, row-major); not for the step loop."""
         v = self.variable(name)
-        f = self.fmu
-        if v.kind == "real":
-            return (f.getFloat64 if self.model.is_fmi3 else f.getReal)([v.vr])[0]
-        if v.kind == "integer":
-            if self.model.is_fmi3:
-                getter = getattr(f, f"get{v.type}" if v.type in _FMI3_INT_TYPES else "getInt64")
-            else:
-                getter = f.getInteger
-            return getter([v.vr])[0]
-        if v.kind == "boolean":
-            return f.getBoolean([v.vr])[0]
-        raise CosimError(f"cannot read variable '{name}' of type {v.type}")
+        read, buf = typed_reader(self.fmu, self.model.is_fmi3, [v])
+        status = read()
+        if status > 1:
+            raise self._fail(f"reading {name} returned {status_name(status)}", None)
+        return list(buf) if v.dims else buf[0]
 
     # -- per-step primitives -------------------------------------------------------------
     def step_io(self, outputs: list[str], inputs: list[str]):
         """Bound calls for the master loop: ``(get, out_buf, set, in_buf, do_step)``.
 
-        ``get()`` reads all ``outputs`` into ``out_buf`` with one getReal/getFloat64 and
-        returns the FMI status; ``set()`` writes ``in_buf`` to ``inputs`` with one
-        setReal/setFloat64; ``do_step(t, h)`` returns the status (or TERMINATE_REQUESTED).
-        Value-reference arrays are built here, once.
+        ``outputs``/``inputs`` are variable names in :meth:`io_order`; the buffers hold
+        their values element by element (arrays row-major). ``get()`` reads all
+        ``outputs`` into ``out_buf`` (one getReal/getFloat64 when all are Float64, else
+        one call per type) and returns the FMI status; ``set()`` writes ``in_buf``;
+        ``do_step(t, h)`` returns the status (or TERMINATE_REQUESTED). Built here, once.
         """
         fmi3 = self.model.is_fmi3
         funcs = self.fmu._functions
         comp = self.fmu.component
-        from ctypes import c_double, c_uint, c_bool
-        ovr = (c_uint * len(outputs))(*[self.variable(n).vr for n in outputs])
-        ivr = (c_uint * len(inputs))(*[self.variable(n).vr for n in inputs])
-        out_buf = (c_double * len(outputs))()
-        in_buf = (c_double * len(inputs))()
+        get, out_buf = typed_reader(self.fmu, fmi3, [self.variable(n) for n in outputs])
+        put, in_buf = typed_writer(self.fmu, fmi3, [self.variable(n) for n in inputs], self._range_error)
+        from ctypes import c_bool, c_double, c_int
         if fmi3:
-            get = functools.partial(funcs["fmi3GetFloat64"], comp, ovr, len(outputs), out_buf, len(outputs))
-            put = functools.partial(funcs["fmi3SetFloat64"], comp, ivr, len(inputs), in_buf, len(inputs))
             raw_step = funcs["fmi3DoStep"]
             flags = [c_bool(), c_bool(), c_bool()]
             last = c_double()
@@ -373,16 +392,31 @@ class FMUSlave:
             def do_step(t, h):
                 status = raw_step(comp, t, h, True, ev, term, early, last_ref)
                 if terminate.value and status < 2:
+                    self.terminated_at = last.value if flags[2].value else t + h
                     return TERMINATE_REQUESTED
                 return status
         else:
-            get = functools.partial(funcs["fmi2GetReal"], comp, ovr, len(outputs), out_buf)
-            put = functools.partial(funcs["fmi2SetReal"], comp, ivr, len(inputs), in_buf)
             raw_step = funcs["fmi2DoStep"]
+            get_bool_status = funcs["fmi2GetBooleanStatus"]
+            get_real_status = funcs["fmi2GetRealStatus"]
+            terminated, last = c_int(), c_double()
+            term_ref, last_ref = byref(terminated), byref(last)
 
             def do_step(t, h):
-                return raw_step(comp, t, h, 1)
+                status = raw_step(comp, t, h, 1)
+                # FMI 2.0 (4.2.3): an FMU that wants to end the simulation answers Discard
+                # and reports fmi2Terminated = true through fmi2GetBooleanStatus
+                if status == 2 and get_bool_status(comp, FMI2_TERMINATED, term_ref) == 0 \
+                        and terminated.value:
+                    ok = get_real_status(comp, FMI2_LAST_SUCCESSFUL_TIME, last_ref) == 0
+                    self.terminated_at = last.value if ok else t
+                    return TERMINATE_REQUESTED
+                return status
         return get, out_buf, put, in_buf, do_step
+
+    @staticmethod
+    def io_order(variables: list[Variable]) -> list[Variable]:
+        return io_order(variables)
 
     def __repr__(self) -> str:
         return f"FMUSlave({self.name!r}, {self.model.path.name}, FMI {self.model.fmi_version})"

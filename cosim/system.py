@@ -7,6 +7,7 @@ The block order (who runs first within a step) is derived from the connection gr
 """
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass
 
@@ -14,6 +15,7 @@ from .block import Block
 from .connections import Connection, split_signal, unit_conversion
 from .errors import AlgebraicLoopError, ScenarioError
 from .plant import ROLES, PlantBinding
+from .fmi_types import coerce_all, connection_problem, unsupported_reason
 from .slave import FMUModel, FMUSlave
 from .units import UnitError
 
@@ -33,6 +35,9 @@ class Signal:
     unit: str | None
     description: str = ""
     scoring_only: bool = False
+    type: str = "Real"       # FMI type of an FMU variable; block ports carry reals
+    size: int = 1            # elements: > 1 for a whole FMI 3.0 array ("inst.y")
+    elements: tuple = ()     # element signals of a whole array, row-major
     raw: str = ""        # a plant role: the FMU variable ("drive.x_enc") that plays it ...
     scale: float = 1.0   # ... and value = scale * raw value + offset, in the role's SI unit
     offset: float = 0.0
@@ -121,6 +126,13 @@ class System:
         """
         a = self._resolve(src, "from", want="output")
         b = self._resolve(dst, "to", want="input")
+        if a.size > 1 or b.size > 1:       # a whole array: element by element, same shape
+            if a.size != b.size:
+                raise ScenarioError(f"{a.signal} has {a.size} elements but {b.signal} has {b.size}; "
+                                    "connect arrays of the same size or single elements "
+                                    "(e.g. 'inst.y[2]')", key="to")
+            conns = [self.connect(x, y, scale, offset) for x, y in zip(a.elements, b.elements)]
+            return conns[0]
         if a.scoring_only and b.kind == "block":      # honest physics first, whatever the units
             block = self.blocks[b.instance]
             if not getattr(type(block), "scorer", False):
@@ -128,7 +140,8 @@ class System:
                     f"{a.signal} is scoring only ('{a.description}'); block '{b.instance}' "
                     f"({type(block).__name__}) may not read it: only blocks with class attribute "
                     "scorer = True may (the observers must not see the true plant)", key="from")
-        if scale is None and offset is None:
+        both_real = _is_real(a.type) and _is_real(b.type)
+        if scale is None and offset is None and both_real:
             mds = [self.slaves[x.instance].model.model_description for x in (a, b) if x.kind == "fmu"]
             try:
                 scale, offset = unit_conversion(a.signal, a.unit, b.signal, b.unit, mds) or (None, None)
@@ -143,6 +156,9 @@ class System:
         if b.wire in self._driven:
             raise ScenarioError(f"{b.signal} is already connected from {self._driven[b.wire].src}; "
                                 "an input takes one connection", key="to")
+        problem = connection_problem(a.type, b.type, scale is not None or offset is not None)
+        if problem:
+            raise ScenarioError(f"{a.signal} -> {b.signal}: {problem}", key="to")
         conn = Connection(a.wire, b.wire, scale, offset)
         self.connections.append(conn)
         self._driven[b.wire] = conn
@@ -159,7 +175,7 @@ class System:
             if role is not None:
                 return role
             model = self.slaves[inst].model
-            v = model.variables.get(name)
+            v, element = _variable(model, name)
             if v is None:
                 have = model.names("output" if want == "output" else "input")
                 raise ScenarioError(f"FMU '{inst}' ({model.path.name}) has no variable '{name}' "
@@ -170,11 +186,8 @@ class System:
             if want == "input" and v.causality != "input":
                 raise ScenarioError(f"'{signal}' is not an input of FMU '{inst}' "
                                     f"(causality {v.causality}); connect to an input", key=key)
-            if want in ("input", "output") and not v.is_real:
-                raise ScenarioError(f"'{signal}' is of type {v.type}; connections carry Real/Float64 "
-                                    "values only", key=key)
-            return Signal(signal, "fmu", inst, name, v.causality, v.unit, v.description,
-                          self._scoring_only(inst, v))
+            return dataclasses.replace(_fmu_signal(signal, inst, v, element, key),
+                                       scoring_only=self._scoring_only(inst, v))
         if inst in self.blocks:
             block = self.blocks[inst]
             ports = {"output": block.outputs, "input": block.inputs}[want]
@@ -223,7 +236,7 @@ class System:
     def source(self, signal: str) -> Signal:
         """An output that can be read (connection source, recorded signal, condition)."""
         inst = signal.split(".", 1)[0]
-        if inst in self.slaves:   # any Real FMU variable can be read with getReal
+        if inst in self.slaves:   # any FMU variable can be read (outputs, parameters, locals)
             try:
                 _, name = split_signal(signal)
             except ValueError as e:
@@ -231,11 +244,20 @@ class System:
             role = self._role(inst, name, None, "output")
             if role is not None:
                 return role
-            v = self.slaves[inst].model.variables.get(name)
-            if v is not None and v.is_real:
-                return Signal(signal, "fmu", inst, name, v.causality, v.unit, v.description,
-                              self._scoring_only(inst, v))
+            v, element = _variable(self.slaves[inst].model, name)
+            if v is not None:
+                return dataclasses.replace(_fmu_signal(signal, inst, v, element, None),
+                                           scoring_only=self._scoring_only(inst, v))
         return self._resolve(signal, None, want="output")
+
+    def elements(self, signal: str) -> list[str]:
+        """A whole FMI 3.0 array ``inst.y`` as its element signals; any other: itself."""
+        inst = signal.split(".", 1)[0]
+        if inst in self.slaves:
+            sig = self.source(signal)
+            if sig.elements:
+                return list(sig.elements)
+        return [signal]
 
     def input(self, signal: str) -> Signal:
         return self._resolve(signal, None, want="input")
@@ -254,15 +276,17 @@ class System:
         return self._driven.get(alias[0] if alias else input_signal)   # keyed by the FMU variable
 
     def all_outputs(self) -> list[str]:
-        """Every FMU output (Real) and every block output: what ``record = ["*"]`` means."""
+        """Every FMU output (any type; arrays as their elements; not Clocks) and every
+        block output: what ``record = ["*"]`` means."""
         out = []
         for name, s in self.slaves.items():
             binding = self.bindings.get(name)
             roles = binding.bound if binding is not None else {}
             out += [f"{name}.{r}" for r, b in roles.items() if ROLES[r].direction == "output"]
             played = {b.variable for b in roles.values()}
-            out += [f"{name}.{v.name}" for v in s.model.variables.values()
-                    if v.causality == "output" and v.is_real and v.name not in played]
+            out += [f"{name}.{e}" for v in s.model.variables.values()
+                    if v.causality == "output" and not unsupported_reason(v.type) and v.name not in played
+                    for e in v.elements]
         for name, b in self.blocks.items():
             out += [f"{name}.{p.name}" for p in b.outputs]
         return out
@@ -331,13 +355,45 @@ def parameter_problem(model: FMUModel, name: str, value) -> str | None:
                                            or v.initial in ("exact", "approx")):
         return (f"'{name}' (causality {v.causality}, variability {v.variability}) has no start value "
                 "that can be set; expected a parameter or an input")
-    if v.kind == "real" and not (isinstance(value, (int, float)) and not isinstance(value, bool)):
-        return f"'{name}' is {v.type}: expected a number, got {type(value).__name__} {value!r}"
-    if v.kind == "integer" and not (isinstance(value, int) and not isinstance(value, bool)
-                                    or isinstance(value, float) and value.is_integer()):
-        return f"'{name}' is {v.type}: expected an integer, got {type(value).__name__} {value!r}"
-    if v.kind == "boolean" and not isinstance(value, bool):
-        return f"'{name}' is Boolean: expected true or false, got {type(value).__name__} {value!r}"
-    if v.kind == "string" and not isinstance(value, str):
-        return f"'{name}' is String: expected a string, got {type(value).__name__} {value!r}"
+    why = unsupported_reason(v.type)
+    if why:
+        return f"'{name}': {why}"
+    try:
+        coerce_all(v, value, model.is_fmi3)
+    except ValueError as e:
+        return str(e)
     return None
+
+
+def _is_real(fmi_type: str) -> bool:
+    return fmi_type in ("Real", "Float64", "Float32")
+
+
+def _variable(model, name: str):
+    """``(variable, element index or None)`` for ``y`` or an array element ``y[2]`` /
+    ``A[1,2]`` (1-based), ``(None, None)`` when there is none."""
+    v = model.variables.get(name)
+    if v is not None or not name.endswith("]") or "[" not in name:
+        return v, None
+    base, _, idx = name[:-1].rpartition("[")
+    v = model.variables.get(base)
+    if v is None or not v.dims:
+        return None, None
+    try:
+        index = tuple(int(i) for i in idx.split(","))
+    except ValueError:
+        return None, None
+    if len(index) != len(v.dims) or not all(1 <= i <= d for i, d in zip(index, v.dims)):
+        raise ScenarioError(f"'{name}': index out of range for '{base}' of dimensions {list(v.dims)} "
+                            "(1-based)")
+    return v, index
+
+
+def _fmu_signal(signal: str, inst: str, v, element, key) -> Signal:
+    why = unsupported_reason(v.type)
+    if why:
+        raise ScenarioError(f"'{signal}': {why}", key=key)
+    whole = bool(v.dims) and element is None
+    return Signal(signal, "fmu", inst, v.name, v.causality, v.unit, v.description, v.scoring_only,
+                  v.type, v.size if whole else 1,
+                  tuple(f"{inst}.{e}" for e in v.elements) if whole else ())

@@ -162,7 +162,8 @@ def test_full_run_writes_csv_mat_summary_png(scenario_file, tmp_path):
                      overrides={"events[1].when": "mass.x > 0.004", "events[1].action": "stop"})
     assert r.summary["status"] == "stopped" and r.time[-1] < 0.1
     header = (out / "data.csv").read_text().splitlines()[0]
-    assert header.startswith("time [s],mass.x [m],force.y [N],probe.y [m]") and "mass.v [m/s]" in header
+    assert header.startswith("time,mass.x,force.y,probe.y") and "mass.v" in header   # units: sidecar
+    assert json.loads((out / "data.columns.json").read_text())["mass.v"]["unit"] == "m/s"
     back = Result.from_csv(out)
     assert np.array_equal(back["mass.x"], r["mass.x"]) and back.unit("force.y") == "N"
     mat = scipy.io.loadmat(out / "data.mat", simplify_cells=True)
