@@ -168,12 +168,15 @@ class PlantBinding:
         if "unit" in spec and v.unit and spec["unit"] != v.unit:
             raise self.error(f"{key}.unit", f"the FMU declares '{v.name}' in [{v.unit}], the binding says "
                              f"[{spec['unit']}]; leave the unit out or make them agree")
+        k, c = float(spec.get("scale", 1.0)), float(spec.get("offset", 0.0))
+        if "scale" in spec or "offset" in spec:      # stated: it is the whole conversion (as on a connection)
+            return Bound(role, v.name, si_unit, k, c, scoring_only)
         try:
             s, o, _ = connection_conversion(fmu_unit, si_unit, [md], where=f"role '{role}' ({v.name})")
         except UnitError as e:
-            raise self.error(key, f"{e} (role '{role}' is in [{si_unit}])") from None
-        k, c = float(spec.get("scale", 1.0)), float(spec.get("offset", 0.0))
-        return Bound(role, v.name, si_unit, k * s, k * o + c, scoring_only)
+            raise self.error(key, f"{e} (role '{role}' is in [{si_unit}]; state scale and offset to "
+                                  "convert yourself)") from None
+        return Bound(role, v.name, si_unit, s, o, scoring_only)
 
     # -- what the master asks ---------------------------------------------------------
     def role_of_variable(self, variable: str) -> Bound | None:

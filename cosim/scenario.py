@@ -537,7 +537,7 @@ def _merge(base: dict, ext: dict, origins: Origins, file: str, prefix: str = "")
         if prefix == "fmus" and isinstance(old, dict) and isinstance(v, dict) and any(
                 r in v and v[r] != old.get(r) for r in REBIND_KEYS):
             for gone in ("parameters", *REBIND_KEYS):
-                if gone in old and gone not in v:
+                if gone in old and (gone == "parameters" or gone not in v):
                     del old[gone]
                     origins.drop(f"{path}.{gone}")
         if isinstance(old, dict) and isinstance(v, dict):
