@@ -542,49 +542,27 @@ def test_zs_contact_lightly_damped(plants):
 
 # ------------------------------------------------------------------ plant binding files
 
-CONTRACT_SI = {"i_ref": "A", "spindle_speed": "rad/s", "orbital_speed": "rad/s", "i_meas": "A",
-               "table_position": "m", "motor_angle": "rad", "F_dyn": "N", "F_thrust_true": "N",
-               "F_ripple_true": "N", "tool_position_true": "m", "velocity_true": "m/s",
-               "motor_speed_true": "rad/s", "friction_true": ("N", "N.m"), "layer": "1", "material": "1"}
-
-
 @pytest.mark.parametrize("binding,name", [("foreign_ballscrew", "ForeignBallScrew"),
                                           ("foreign_zstage", "ForeignZStage")])
 def test_binding_files_name_real_variables_in_convertible_units(binding, name):
-    """scenarios/plants/<binding>.toml (loaded by the master's binding loader) binds every role
-    the FMU has to a variable that exists, with a unit that converts to the contract's SI
-    unit through the FMU's own <UnitDefinitions> (or the table's unit and scale); parameter
-    roles name parameters."""
-    import tomllib
-
+    """scenarios/plants/<binding>.toml, through the master's binding loader, binds every role
+    the FMU has to a variable that exists with a unit that converts to the contract's SI
+    unit (or a stated scale); parameter roles name parameters. Spot checks of the factors."""
+    from cosim.plant import load_binding
     from cosim.slave import load_model
-    from cosim.units import BUILTIN_UNITS, UnitError, conversion, resolve_unit
     root = HERE.parent.parent
-    b = tomllib.loads((root / "scenarios" / "plants" / f"{binding}.toml").read_text())
-    assert b["plant"]["path"] == name
-    m = load_model(fmu_path(name))
-    md = m.model_description
-    for role, spec in b["roles"].items():
-        var = spec["variable"] if isinstance(spec, dict) else spec
-        assert var in m.variables, (role, var)
-        unit = spec.get("unit") if isinstance(spec, dict) else m.variables[var].unit
-        src = resolve_unit(unit, [md])
-        targets = CONTRACT_SI[role] if isinstance(CONTRACT_SI[role], tuple) else (CONTRACT_SI[role],)
-        scale = spec.get("scale", 1.0) if isinstance(spec, dict) else 1.0
-        if role == "orbital_speed":      # Hz (1/s) -> rad/s by the stated 2 pi per cycle
-            assert conversion(src, resolve_unit("Hz")) == (1.0, 0.0) and scale == pytest.approx(2 * np.pi)
-            continue
-        ok = []
-        for t in targets:
-            try:
-                ok.append(conversion(src, BUILTIN_UNITS[t]))
-            except UnitError:
-                pass
-        assert ok, (role, var, unit)
-    for role, var in {**b["parameter_roles"], **b["true_parameters"]}.items():
-        assert m.variables[var].causality == "parameter", (role, var)
-    expected_roles = {"i_ref", "spindle_speed", "i_meas", "table_position", "F_dyn", "F_thrust_true",
-                      "tool_position_true", "velocity_true", "friction_true", "layer", "material"}
-    if b["plant"]["kind"] == "ball_screw":
-        expected_roles |= {"orbital_speed", "motor_angle", "F_ripple_true", "motor_speed_true"}
-    assert set(b["roles"]) == expected_roles
+    b = load_binding(root / "scenarios" / "plants" / f"{binding}.toml")
+    assert b.path == name
+    b.bind(load_model(fmu_path(name)))
+    expected = {"i_ref", "spindle_speed", "i_meas", "table_position", "thrust_dyn", "thrust_true",
+                "tool_position_true", "velocity_true", "friction_true", "layer_index", "material_index"}
+    if b.kind == "ball_screw":
+        expected |= {"orbital_speed", "motor_angle", "ripple_true", "motor_speed_true"}
+        assert b.bound["motor_angle"].scale == pytest.approx(np.pi / 180)        # deg -> rad
+        assert b.bound["orbital_speed"].scale == pytest.approx(2 * np.pi)      # Hz -> rad/s, stated
+        assert b.bound["table_position"].scale == pytest.approx(1e-3)          # mm -> m
+    else:
+        assert b.bound["table_position"].scale == pytest.approx(1e-6)          # um -> m
+    assert set(b.bound) == expected
+    assert b.bound["i_ref"].scale == pytest.approx(1e-3)                        # mA -> A
+    assert b.bound_parameters and all(v.variable for v in b.bound_parameters.values())
