@@ -22,6 +22,7 @@ dictionary lookups per step -- so the master costs little next to the FMU calls.
 """
 from __future__ import annotations
 
+import math
 import sys
 import time as _time
 from dataclasses import dataclass, field
@@ -29,11 +30,13 @@ from operator import itemgetter
 
 from .errors import ScenarioError, SimulationError
 from .manipulators import OPERATORS, Event, fire_step, parse_condition, setter_for
+from .outputs import OutputError
 from .recorder import Recorder, Result
 from .slave import TERMINATE_REQUESTED, status_name
 from .step_rejection import StepRejection, member_for
+from .watch import CHUNK_FIRST, RunWatch, next_chunk
 
-CHUNK_STEPS = 4096          # steps between CSV flushes / progress updates
+CHUNK_STEPS = 4096          # steps between progress-bar updates at most (chunks: cosim.watch)
 PROGRESS_MIN_STEPS = 20000  # show a progress bar only on runs at least this long
 
 
@@ -44,7 +47,7 @@ class RunInfo:
     stop_time: float
     time_reached: float = 0.0
     steps: int = 0
-    status: str = "running"          # completed | stopped | failed
+    status: str = "running"          # completed | stopped | failed | interrupted | timeout
     stop_reason: str = ""
     wall_time_s: float = 0.0
     events_fired: list = field(default_factory=list)
@@ -109,11 +112,15 @@ def _fmu_reads(system, extra_signals) -> dict[str, list[str]]:
 
 def simulate(system, stop_time: float, recorder: Recorder | None = None,
              events: list[Event] = (), progress: bool = False, extra_record=(),
-             step_rejection_floor: float | None = None) -> RunInfo:
+             step_rejection_floor: float | None = None, watch: RunWatch | None = None,
+             allow_nonfinite: bool = False) -> RunInfo:
     """Run ``system`` from its start time to ``stop_time`` [s] (or an earlier stop event).
 
     Rows go to ``recorder`` as they are produced; the caller finishes the recorder
     (also after a :class:`SimulationError`, which keeps every row recorded so far).
+    ``watch`` (:class:`cosim.watch.RunWatch`): wall-clock / step limits, stop requests,
+    heartbeat. A NaN or inf on the bus or in a recorded row stops the run with a
+    :class:`SimulationError` naming the signal, unless ``allow_nonfinite``.
     """
     h, t0 = system.step_size, system.start_time
     n_last = round((stop_time - t0) / h)
@@ -122,6 +129,8 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                             f"the start time {t0!r} s", key="stop_time")
     info = RunInfo(stop_time=float(stop_time))
     order = system.block_order()
+    watch = watch if watch is not None else RunWatch()
+    n_run = min(n_last, watch.max_steps) if watch.max_steps else n_last   # last step this run takes
 
     # -- compile: signals -> bus slots ---------------------------------------------
     columns = recorder.resolve(system, extra_record) if recorder is not None else []
@@ -181,6 +190,10 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
     decimation = recorder.decimation if recorder is not None else 0
     if recorder is not None:
         recorder.start(columns, units)
+        recorder.allow_nonfinite = allow_nonfinite
+    bus_names = [None] * len(bus.values)
+    for sig, i in bus.slot.items():
+        bus_names[i] = sig
 
     # -- instantiate ---------------------------------------------------------------
     started, failed = [], None
@@ -214,6 +227,11 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
             rejection = StepRejection([member_for(slave, do_step) for do_step, slave in steppers],
                                       step_rejection_floor)
             steppers = [(rejection.step, _AnyOf(system.slaves))]
+        # the heartbeat: step number per step, index of the FMU inside doStep (a supervisor
+        # reads them when the process dies in C)
+        beat = watch.heartbeat.slots
+        watch.heartbeat.begin([s.name for _d, s in steppers], h, t0)
+        steppers = [(do_step, slave, float(k)) for k, (do_step, slave) in enumerate(steppers)]
         values = bus.values
 
         def apply(ev, t):
@@ -227,16 +245,21 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                 what(ev.value, values)
             return False
 
-        if progress and n_last >= PROGRESS_MIN_STEPS:
+        if progress and n_run >= PROGRESS_MIN_STEPS:
             from tqdm import tqdm
-            bar = tqdm(total=n_last, unit="step", unit_scale=True, file=sys.stderr,
+            bar = tqdm(total=n_run, unit="step", unit_scale=True, file=sys.stderr,
                        desc="co-simulation", mininterval=0.5, leave=False)
         next_timed = timed[0][0] if timed else -1
         stop = False
+        ended = None                     # (status, reason) from the watch
+        chunk = CHUNK_FIRST
+        watch.start()
+        wall_chunk = _time.perf_counter()
         while True:
-            n_end = min(n + CHUNK_STEPS, n_last + 1)
+            n_end = min(n + chunk, n_run + 1)
             while n < n_end:
                 t = t0 + n * h
+                beat[0] = n
                 # 1. plant outputs at t
                 phase = "read"
                 for get, obuf, a, b, slave in reads:
@@ -280,7 +303,7 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                         rows.append((t, *r))
                     else:
                         rows.append((t, *rec_get(values)))
-                if stop or n == n_last:
+                if stop or n == n_run:
                     break
                 # 6. plant inputs, 7. advance every FMU from t to t + h
                 phase = "write"
@@ -292,7 +315,8 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                     if status:
                         _check(status, "setReal", slave, t)
                 phase = "doStep"
-                for do_step, slave in steppers:
+                for do_step, slave, k in steppers:
+                    beat[1] = k
                     status = do_step(t, h)
                     if status:
                         if status == TERMINATE_REQUESTED:
@@ -300,19 +324,31 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                             info.stop_reason = f"FMU '{slave.name}' asked to terminate at t = {t + h:g} s"
                         else:
                             _check(status, "doStep", slave, t)
+                beat[1] = -1.0
                 n += 1
                 if stop:        # FMU asked to terminate: record nothing past the last step
                     break
             if recorder is not None:
-                recorder.write(rows)
-                rows = []
+                chunk_rows, rows = rows, []
+                recorder.write(chunk_rows)      # raises on a NaN/inf row (then the run stops)
+            if not allow_nonfinite:
+                _check_bus(values, bus_names, t)
             if bar is not None:
                 bar.update(n - bar.n)
-            if stop or n >= n_last:
+            now = _time.perf_counter()
+            chunk, wall_chunk = next_chunk(chunk, now - wall_chunk), now
+            if stop or n >= n_run:
+                break
+            ended = watch.check()
+            if ended is not None:
                 break
         info.steps = n
         info.time_reached = t0 + n * h
-        if stop:
+        if ended is None and n_run < n_last and n >= n_run:
+            ended = "timeout", f"max_steps {n_run} reached"
+        if ended is not None:
+            info.status, info.stop_reason = ended
+        elif stop:
             info.status = "stopped"
             if not info.stop_reason:
                 fired = [e["event"] for e in info.events_fired if e["event"].endswith("stop")]
@@ -324,6 +360,9 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
     except SimulationError as e:
         failed = e.instance
         _record_failure(info, e, n, t0, h)
+        raise
+    except OutputError as e:            # the disk, not the model: says which file and why
+        _record_failure(info, SimulationError(str(e), time=t0 + n * h), n, t0, h)
         raise
     except Exception as e:
         t = t0 + n * h
@@ -339,7 +378,10 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
             info.step_rejection = {"floor": step_rejection_floor, "rejected": st.rejected,
                                    "retried_steps": st.retried_steps, "smallest_step": st.smallest_step}
         if recorder is not None and rows:
-            recorder.write(rows)
+            try:
+                recorder.write(rows)
+            except SimulationError:     # a NaN in the last rows: the error being raised says more
+                pass
         if bar is not None:
             bar.close()
         for slave in started:
@@ -359,6 +401,20 @@ def _record_failure(info: RunInfo, e: SimulationError, n: int, t0: float, h: flo
     info.time_reached = e.time if e.time is not None else t0 + n * h
     info.error = str(e)
     info.stop_reason = "error"
+
+
+def _check_bus(values: list, names: list, t: float) -> None:
+    """A NaN or inf anywhere on the bus (every FMU output read, every block output) at the
+    end of a chunk stops the run; the sum is the cheap test, the scan runs only when it fails
+    (a sum can also overflow to inf from finite values: then nothing is found)."""
+    if math.isfinite(sum(values)):
+        return
+    for i, v in enumerate(values):
+        if not math.isfinite(v):
+            sig = names[i] or f"bus slot {i}"
+            raise SimulationError(f"non-finite value {v!r} in '{sig}' (found at the end-of-chunk check; "
+                                  "[scenario] allow_nonfinite = true lets it pass)",
+                                  time=t, instance=sig.split(".", 1)[0])
 
 
 def _check(status: int, what: str, slave, t: float) -> None:

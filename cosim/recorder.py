@@ -12,6 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .errors import SimulationError
+from .outputs import io_problem
+
 
 def column_label(signal: str, unit: str | None) -> str:
     return f"{signal} [{unit}]" if unit else signal
@@ -96,6 +99,7 @@ class Recorder:
         self.units: dict[str, str | None] = {}
         self._chunks: list[np.ndarray] = []
         self._file = None
+        self.allow_nonfinite = False      # else a NaN/inf row stops the run (SimulationError)
 
     def resolve(self, system, extra=()) -> list[str]:
         """The recorded signal names: ``"*"`` expanded, ``extra`` (plotted signals) added."""
@@ -112,26 +116,57 @@ class Recorder:
         self._chunks = []
         if self.out_dir is not None:
             self.out_dir.mkdir(parents=True, exist_ok=True)
-            self._file = open(self.out_dir / "data.csv", "w", newline="")
             labels = ["time [s]"] + [column_label(c, u) for c, u in zip(columns, units)]
-            self._file.write(",".join(labels) + "\n")
-            self._file.flush()
+            try:
+                self._file = open(self.out_dir / "data.csv", "w", newline="")
+            except OSError as e:
+                raise io_problem("create", self.out_dir / "data.csv", e) from None
+            self._append(",".join(labels) + "\n")
+
+    def _append(self, text: str) -> None:
+        """Write whole lines or nothing: on an I/O error (full disk) the file is cut back
+        to its last complete row and an :class:`OutputError` says what failed."""
+        f = self._file
+        end = f.tell()
+        try:
+            f.write(text)
+            f.flush()
+        except OSError as e:
+            try:
+                f.seek(end)
+                f.truncate()
+            except OSError:
+                pass
+            raise io_problem("write", self.out_dir / "data.csv", e) from None
 
     def write(self, rows: list) -> None:
         """Append rows ``(t, v1, v2, ...)`` and flush them to the CSV."""
         if not rows:
             return
         chunk = np.array(rows, dtype=float).reshape(len(rows), len(self.columns) + 1)
+        bad = None if self.allow_nonfinite or np.isfinite(chunk).all() else _first_nonfinite(chunk)
+        if bad is not None:
+            chunk = chunk[:bad[0] + 1]          # keep the rows up to the first bad one
         self._chunks.append(chunk)
         if self._file is not None:
             # repr() of a Python float is the shortest string that reads back bit for bit
-            self._file.write("".join(",".join(map(repr, r)) + "\n" for r in chunk.tolist()))
-            self._file.flush()
+            self._append("".join(",".join(map(repr, r)) + "\n" for r in chunk.tolist()))
+        if bad is not None:
+            row, col = bad
+            sig = self.columns[col - 1] if col else "time"
+            err = SimulationError(f"non-finite value {chunk[row, col]!r} in '{sig}' ([scenario] "
+                                  "allow_nonfinite = true lets it pass)",
+                                  time=float(chunk[row, 0]), instance=sig.split(".", 1)[0])
+            err.signal = sig
+            raise err
 
     def finish(self, write_mat: bool = True) -> Result:
         """Close the CSV, write ``data.mat`` and return the :class:`Result`."""
         if self._file is not None:
-            self._file.close()
+            try:
+                self._file.close()
+            except OSError:
+                pass            # its rows were flushed (or the error reported) by _append
             self._file = None
         data = (np.concatenate(self._chunks) if self._chunks
                 else np.zeros((0, len(self.columns) + 1)))
@@ -139,6 +174,12 @@ class Recorder:
         if write_mat and self.out_dir is not None:
             write_mat_file(result, self.out_dir / "data.mat")
         return result
+
+
+def _first_nonfinite(chunk: np.ndarray) -> tuple[int, int]:
+    """(row, column) of the first NaN/inf of ``chunk`` in time order."""
+    rows, cols = np.nonzero(~np.isfinite(chunk))
+    return int(rows[0]), int(cols[0])
 
 
 def write_mat_file(result: Result, path: Path) -> None:

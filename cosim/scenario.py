@@ -42,7 +42,8 @@ SECTIONS = {"scenario": TABLE, "fmus": TABLE, "blocks": TABLE, "connections": "a
             "record": TABLE, "events": "an array of tables", "plots": "an array of tables",
             "scores": "an array of tables"}
 SCENARIO_KEYS = {"name": STRING, "description": STRING, "extends": STRING, "step_size": POSITIVE,
-                 "stop_time": POSITIVE, "start_time": NUMBER, "step_rejection_floor": POSITIVE}
+                 "stop_time": POSITIVE, "start_time": NUMBER, "step_rejection_floor": POSITIVE,
+                 "allow_nonfinite": BOOL}
 ARRAYS = tuple(k for k, v in SECTIONS.items() if v.startswith("an array"))   # appended by extends
 NOT_INHERITED = ("name", "description", "extends")                          # of [scenario]
 INTERFACE, SOLVER = "'CS' or 'ME'", " or ".join(f"'{s}'" for s in SOLVERS)
@@ -258,6 +259,7 @@ class Scenario:
     start_time: float
     system: System
     step_rejection_floor: float | None = None     # s; None: a Discard stops the run
+    allow_nonfinite: bool = False                 # else a NaN/inf output stops the run
     record_signals: list = field(default_factory=lambda: ["*"])
     decimation: int = 1
     events: list = field(default_factory=list)
@@ -438,6 +440,7 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
     return Scenario(path=None, name=sc.get("name", name_default), description=sc.get("description", ""),
                     step_size=system.step_size, stop_time=float(sc["stop_time"]),
                     start_time=system.start_time, system=system, step_rejection_floor=floor,
+                    allow_nonfinite=sc.get("allow_nonfinite", False),
                     record_signals=signals,
                     decimation=rec.get("decimation", 1), events=events, plots=plots, scores=scores, raw=raw)
 
