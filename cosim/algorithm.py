@@ -412,7 +412,7 @@ def _check_bus(values: list, names: list, t: float) -> None:
     for i, v in enumerate(values):
         if not math.isfinite(v):
             sig = names[i] or f"bus slot {i}"
-            raise SimulationError(f"non-finite value {v!r} in '{sig}' (found at the end-of-chunk check; "
+            raise SimulationError(f"non-finite value in '{sig}' = {v!r} (found at the end-of-chunk check; "
                                   "[scenario] allow_nonfinite = true lets it pass)",
                                   time=t, instance=sig.split(".", 1)[0])
 

@@ -27,34 +27,59 @@ def scenario_dir() -> Path:
     return here if here.is_dir() else Path(__file__).resolve().parent.parent / "scenarios"
 
 
+def _scenario_path(name: str) -> Path:
+    """A scenario file, or its name in scenarios/ (with or without .toml)."""
+    path = Path(name)
+    for cand in (scenario_dir() / name, scenario_dir() / f"{name}.toml"):
+        if not path.exists() and cand.exists():
+            path = cand
+    return path
+
+
 def cmd_run(args) -> int:
     from .errors import CosimError
-    from .runner import run_scenario
-    path = Path(args.scenario)
-    if not path.exists() and (scenario_dir() / args.scenario).exists():
-        path = scenario_dir() / args.scenario
-    if not path.exists() and (scenario_dir() / f"{args.scenario}.toml").exists():
-        path = scenario_dir() / f"{args.scenario}.toml"
+    from .supervisor import exit_code, run_supervised
+    path = _scenario_path(args.scenario)
+    opts = dict(out_dir=args.out, overrides=_parse_set(args.set), progress=not args.quiet,
+                wall_timeout=args.timeout, max_steps=args.max_steps)
     try:
-        result = run_scenario(path, out_dir=args.out, overrides=_parse_set(args.set),
-                              progress=not args.quiet)
-    except CosimError as e:
+        if args.in_process:
+            s = _run_in_process(path, **opts)
+        else:
+            s = run_supervised(path, **opts)
+    except (CosimError, ValueError) as e:
         print(f"drillcosim: {e}", file=sys.stderr)
-        res = getattr(e, "result", None)
-        if res is not None and res.out_dir is not None:
-            print(f"partial results: {res.out_dir / 'data.csv'}", file=sys.stderr)
-            print(f"summary: {res.out_dir / 'summary.json'}", file=sys.stderr)
         return 1
-    s = result.summary
+    out = Path(s["out_dir"])
+    code = exit_code(s)
+    if code:
+        what = s.get("error") or s.get("stop_reason") or ""
+        at = f" at t = {s['time_reached']:g} s" if s.get("time_reached") is not None else ""
+        print(f"drillcosim: run {s.get('status')}{at}: {what}", file=sys.stderr)
+        print(f"{'partial results' if s.get('rows_recorded') else 'csv'}: {out / 'data.csv'}", file=sys.stderr)
+        print(f"summary: {out / 'summary.json'}", file=sys.stderr)
+        return code
     if not args.quiet:
         print(f"{s['scenario']}: {s['status']} at t = {s['time_reached']:g} s, {s['steps']} steps, "
               f"{s['wall_time_s']:.2f} s wall")
-    print(f"csv: {result.out_dir / 'data.csv'}")
-    print(f"mat: {result.out_dir / 'data.mat'}")
+    print(f"csv: {out / 'data.csv'}")
+    print(f"mat: {out / 'data.mat'}")
     for png in s.get("files", {}).get("png", []):
         print(f"png: {png}")
-    print(f"summary: {result.out_dir / 'summary.json'}")
+    print(f"summary: {out / 'summary.json'}")
     return 0
+
+
+def _run_in_process(path, **opts) -> dict:
+    """``--in-process``: no child (debuggers, profilers); a crash takes drillcosim with it."""
+    from .errors import SimulationError
+    from .runner import RunEnded, run_scenario
+    try:
+        return run_scenario(path, **opts).summary
+    except (SimulationError, RunEnded) as e:
+        if e.result is None:
+            raise
+        return e.result.summary
 
 
 def cmd_list(args) -> int:
@@ -125,6 +150,13 @@ def cmd_plot(args) -> int:
     return 0
 
 
+def _add_limits(p) -> None:
+    p.add_argument("--timeout", type=float, metavar="SECONDS",
+                   help="wall-clock limit of a run; then status 'timeout' (a run stuck in an FMU is killed)")
+    p.add_argument("--max-steps", type=int, metavar="N", help="stop a run after N communication steps "
+                   "(status 'timeout')")
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="drillcosim", description="Co-simulation of drilling feed drives: "
                                 "plant FMUs + Python observers/controllers, configured by scenario files.")
@@ -135,6 +167,9 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--quiet", action="store_true", help="no progress bar, only the paths")
     r.add_argument("--set", action="append", metavar="KEY=VALUE", default=[],
                    help="override a scenario key, e.g. --set fmus.stage.parameters.seed=3 (repeatable)")
+    _add_limits(r)
+    r.add_argument("--in-process", action="store_true",
+                   help="run in this process, not in a supervised child (a crashing FMU then kills drillcosim)")
     r.set_defaults(func=cmd_run)
     li = sub.add_parser("list", help="list the scenarios with their description")
     li.add_argument("--dir", help="folder of scenario files (default scenarios/)")

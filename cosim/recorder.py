@@ -152,12 +152,13 @@ class Recorder:
             # repr() of a Python float is the shortest string that reads back bit for bit
             self._append("".join(",".join(map(repr, r)) + "\n" for r in chunk.tolist()))
         if bad is not None:
-            row, col = bad
-            sig = self.columns[col - 1] if col else "time"
-            err = SimulationError(f"non-finite value {chunk[row, col]!r} in '{sig}' ([scenario] "
-                                  "allow_nonfinite = true lets it pass)",
-                                  time=float(chunk[row, 0]), instance=sig.split(".", 1)[0])
-            err.signal = sig
+            row, cols = bad
+            sigs = [self.columns[c - 1] if c else "time" for c in cols]
+            shown = ", ".join(f"'{g}' = {float(chunk[row, c])!r}" for g, c in zip(sigs[:5], cols))
+            err = SimulationError(f"non-finite value in {shown}{' ...' if len(sigs) > 5 else ''} "
+                                  "([scenario] allow_nonfinite = true lets it pass)",
+                                  time=float(chunk[row, 0]), instance=sigs[0].split(".", 1)[0])
+            err.signal = sigs[0]
             raise err
 
     def finish(self, write_mat: bool = True) -> Result:
@@ -176,10 +177,11 @@ class Recorder:
         return result
 
 
-def _first_nonfinite(chunk: np.ndarray) -> tuple[int, int]:
-    """(row, column) of the first NaN/inf of ``chunk`` in time order."""
-    rows, cols = np.nonzero(~np.isfinite(chunk))
-    return int(rows[0]), int(cols[0])
+def _first_nonfinite(chunk: np.ndarray) -> tuple[int, list[int]]:
+    """The first row of ``chunk`` (time order) with a NaN/inf, and its bad columns."""
+    bad = ~np.isfinite(chunk)
+    row = int(np.argmax(bad.any(axis=1)))
+    return row, [int(c) for c in np.nonzero(bad[row])[0]]
 
 
 def write_mat_file(result: Result, path: Path) -> None:

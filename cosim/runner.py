@@ -9,6 +9,7 @@ this process with it.
 """
 from __future__ import annotations
 
+import signal
 import sys
 from contextlib import nullcontext
 from pathlib import Path
@@ -104,6 +105,8 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
     summary.update(info.as_dict())
     summary["rows_recorded"] = len(result.time)
     result.summary = summary
+    if watch.signum is not None:
+        summary.update(signal=signal.Signals(watch.signum).name, signal_number=int(watch.signum))
     if info.status in ("interrupted", "timeout"):
         summary["files"] = {"csv": str(out / "data.csv"), "mat": str(out / "data.mat"), "png": []}
         _write_summary(out, summary)
