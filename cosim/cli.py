@@ -1,4 +1,4 @@
-"""``drillcosim`` command line: run, list, info, plot, validate."""
+"""``drillcosim`` command line: run, campaign, list, info, plot, validate."""
 from __future__ import annotations
 
 import argparse
@@ -80,6 +80,34 @@ def _run_in_process(path, **opts) -> dict:
         if e.result is None:
             raise
         return e.result.summary
+
+
+def cmd_campaign(args) -> int:
+    from .campaign import run_campaign
+    from .errors import CosimError
+    from .sweep import load_sweep
+    path = _scenario_path(args.scenario)
+    try:
+        runs = load_sweep(args.sweep)
+        base = _parse_set(args.set)
+        summaries = run_campaign(path, [{**base, **r} for r in runs], out_dir=args.out, workers=args.workers,
+                                 progress=not args.quiet, scheduler=args.scheduler,
+                                 wall_timeout=args.timeout, max_steps=args.max_steps)
+    except (CosimError, ValueError, OSError) as e:
+        print(f"drillcosim: {e}", file=sys.stderr)
+        return 1
+    counts: dict = {}
+    for s in summaries:
+        counts[s["status"]] = counts.get(s["status"], 0) + 1
+    out = Path(summaries[0]["out_dir"]).parent if summaries else Path(args.out or ".")
+    print(f"{len(summaries)} runs: " + ", ".join(f"{n} {k}" for k, n in sorted(counts.items())))
+    for s in summaries:
+        if s["status"] not in ("completed", "stopped"):
+            print(f"  run {s['run']:03d} {s['status']}: {s.get('error') or s.get('stop_reason', '')} "
+                  f"(overrides {s['overrides']})", file=sys.stderr)
+    print(f"csv: {out / 'campaign.csv'}")
+    print(f"json: {out / 'campaign.json'}")
+    return 0 if set(counts) <= {"completed", "stopped"} else 1
 
 
 def cmd_list(args) -> int:
@@ -171,6 +199,16 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--in-process", action="store_true",
                    help="run in this process, not in a supervised child (a crashing FMU then kills drillcosim)")
     r.set_defaults(func=cmd_run)
+    c = sub.add_parser("campaign", help="run a scenario over a sweep (grid, random draws, seeds) on Dask")
+    c.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
+    c.add_argument("--sweep", required=True, help="sweep .toml: [[runs]], [grid], [random], [seeds] (docs/faults.md)")
+    c.add_argument("--out", help="output folder (default results/<scenario name>_campaign)")
+    c.add_argument("--workers", type=int, help="worker processes of the local cluster (default: cores)")
+    c.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://10.0.0.5:8786")
+    c.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override for every run")
+    c.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_limits(c)
+    c.set_defaults(func=cmd_campaign)
     li = sub.add_parser("list", help="list the scenarios with their description")
     li.add_argument("--dir", help="folder of scenario files (default scenarios/)")
     li.set_defaults(func=cmd_list)

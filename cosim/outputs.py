@@ -105,7 +105,7 @@ def jsonable(v):
     return v
 
 
-def write_json_atomic(path: Path, content: dict) -> Path:
+def write_json_atomic(path: Path, content) -> Path:
     """Write-to-temporary, fsync, rename: a reader sees the old file or the whole new one."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
