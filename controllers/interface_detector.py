@@ -97,6 +97,9 @@ NAN = float("nan")
 EXIT_CRITERIA = ("paper", "thinning")
 
 
+N_MAX = 2000     # samples of the regression window (40 s at dt = 0.02 s)
+
+
 def regression_weights(n: int) -> np.ndarray:
     """Weights w (oldest first) such that ``w @ F[k-N:k]`` is the least-squares
     straight line through the last ``n`` equally spaced samples, evaluated one
@@ -192,6 +195,8 @@ class InterfaceDetector(Block):
         if len(thicknesses) != 2 or min(thicknesses) <= 0:
             raise ValueError(f"InterfaceDetector: thicknesses must be two positive layer thicknesses [m], got {thicknesses}")
         self.N = int(N)
+        if not self.N <= N_MAX:   # the weights of every window length grow as N^2 (N = 8000: 0.5 GB)
+            raise ValueError(f"InterfaceDetector: N must be <= {N_MAX} samples, got {N}")
         self.N_min = min(int(N_min), self.N)
         if self.N_min < 3:
             raise ValueError(f"InterfaceDetector: N_min must be >= 3, got {N_min}")

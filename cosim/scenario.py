@@ -21,6 +21,7 @@ from __future__ import annotations
 import copy
 import importlib
 import inspect
+import math
 import os
 import re
 import tomllib
@@ -37,6 +38,7 @@ from .system import System
 NUMBER, POSITIVE, NONNEG, INTEGER1 = "a number", "a number > 0", "a number >= 0", "an integer >= 1"
 STRING, BOOL, TABLE, STRINGS = "a string", "true or false", "a table", "a list of strings"
 ANY = "any value"
+MAX_STEPS = 10 ** 9     # communication steps of one run (28 h of simulated time at 10 kHz)
 
 SECTIONS = {"scenario": TABLE, "fmus": TABLE, "blocks": TABLE, "connections": "an array of tables",
             "record": TABLE, "events": "an array of tables", "plots": "an array of tables",
@@ -61,7 +63,8 @@ SCORE_KEYS = {"function": STRING, "settings": TABLE}
 
 
 def _is_number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
+    """A finite int or float (TOML also reads inf and nan)."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def _type_ok(expected: str, v) -> bool:
@@ -228,7 +231,7 @@ def apply_overrides(raw: dict, overrides: dict | None, file: str = "") -> dict:
                 cur[leaf] = value
             else:
                 raise TypeError(f"'{'.'.join(parts[:i])}' is {_show(cur)}, not a table")
-        except (ValueError, IndexError, TypeError) as e:
+        except (ValueError, IndexError, TypeError, AttributeError) as e:    # AttributeError: below a scalar
             raise ScenarioError(f"cannot apply override {key} = {value!r}: {e}", file, "overrides") from None
     return raw
 
@@ -241,6 +244,8 @@ def import_object(spec: str):
         mod, _, attr = spec.rpartition(".")
     if not mod or not attr:
         raise ImportError(f"expected 'module:Name', got {spec!r}")
+    if mod.startswith("."):
+        raise ImportError(f"expected an absolute module path (package.module:Name), got {spec!r}")
     obj = importlib.import_module(mod)
     for a in attr.split("."):
         obj = getattr(obj, a)
@@ -294,6 +299,11 @@ def _construct_block(cls, name: str, spec: dict, c: _Checker):
         raise c.error(f"{key}.settings", f"{cls.__name__}(**settings) refused the settings: {e}") from None
     except (ValueError, ArithmeticError) as e:
         raise c.error(f"{key}.settings", f"{cls.__name__}(**settings) failed: {e}") from None
+    except OSError as e:       # a calibration or table file named in the settings
+        raise c.error(f"{key}.settings", f"{cls.__name__}(**settings) cannot read a file: {e}") from None
+    except Exception as e:     # an assertion of the block's own checks, ...: still the settings' fault
+        raise c.error(f"{key}.settings", f"{cls.__name__}(**settings) failed: {type(e).__name__}: "
+                                         f"{e}") from None
 
 
 def _fmu_error_key(spec: dict, opts: dict, message: str) -> str:
@@ -325,6 +335,10 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
     if sc["stop_time"] <= system.start_time:
         raise c.error("scenario.stop_time", f"expected a time after start_time ({system.start_time} s), "
                                             f"got {sc['stop_time']!r}")
+    steps = (sc["stop_time"] - system.start_time) / system.step_size
+    if steps > MAX_STEPS:          # e.g. step_size = 1e-300: it would run for ever
+        raise c.error("scenario.step_size", f"{steps:.3g} steps from start_time to stop_time: more than "
+                                            f"{MAX_STEPS:.0e}; raise step_size or shorten stop_time")
 
     floor = sc.get("step_rejection_floor")
     if floor is not None and floor >= system.step_size:
@@ -353,7 +367,7 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
         key = f"blocks.{name}"
         try:
             cls = import_object(spec["class"])
-        except (ImportError, AttributeError) as e:
+        except Exception as e:     # ImportError, AttributeError, an error raised by the module itself
             raise c.error(f"{key}.class", f"cannot import {spec['class']!r} (expected 'module:Class' "
                                           f"importable from the project): {type(e).__name__}: {e}") from None
         block = _construct_block(cls, name, spec, c)
@@ -416,7 +430,7 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
         if "function" in spec:
             try:
                 fn = import_object(spec["function"])
-            except (ImportError, AttributeError) as e:
+            except Exception as e:
                 raise c.error(f"{key}.function", f"cannot import {spec['function']!r}: {e}") from None
             plots.append({"function": fn, "spec": spec["function"], "settings": spec.get("settings", {})})
         else:
@@ -433,7 +447,7 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
     for i, spec in enumerate(raw.get("scores", [])):
         try:
             fn = import_object(spec["function"])
-        except (ImportError, AttributeError) as e:
+        except Exception as e:
             raise c.error(f"scores[{i}].function", f"cannot import {spec['function']!r}: {e}") from None
         scores.append((spec["function"], fn, spec.get("settings", {})))
 
@@ -535,6 +549,9 @@ def read_toml(path: Path) -> dict:
             return tomllib.load(f)
     except tomllib.TOMLDecodeError as e:
         raise ScenarioError(f"not valid TOML: {e}", str(path)) from None
+    except UnicodeDecodeError as e:
+        raise ScenarioError(f"not UTF-8 text (TOML files are UTF-8): byte {e.start}: {e.reason}",
+                            str(path)) from None
     except OSError as e:
         raise ScenarioError(f"cannot read: {e}", str(path)) from None
 

@@ -38,6 +38,8 @@ def sample_ratio(sample_period: float, step_size: float) -> int:
     """k such that sample_period = k * step_size (0 -> every step, k = 1)."""
     if sample_period == 0:
         return 1
+    if not 0 < sample_period < float("inf"):
+        raise ValueError(f"expected a finite sample_period >= 0 s, got {sample_period!r}")
     k = round(sample_period / step_size)
     if k < 1 or abs(k * step_size - sample_period) > PERIOD_RTOL * sample_period:
         raise ValueError(f"sample_period {sample_period!r} s is not an integer multiple of the "
@@ -91,6 +93,10 @@ class System:
             dup = {n for n in names if names.count(n) > 1}
             if dup:
                 raise ScenarioError(f"{type(block).__name__} declares {kind} {sorted(dup)} twice")
+            bad = [(p.name, p.unit) for p in getattr(block, kind) if p.unit is not None and not isinstance(p.unit, str)]
+            if bad:
+                raise ScenarioError(f"{type(block).__name__} {kind}: unit of '{bad[0][0]}' is {bad[0][1]!r}, "
+                                    "expected a string", key="settings")
         try:
             sample_ratio(float(block.sample_period), self.step_size)
         except ValueError as e:
@@ -253,6 +259,10 @@ def _find_cycle(nodes: list[str], preds: dict[str, set[str]]) -> list[str]:
         path.append(p)
 
 
+_INT_RANGE = {f"{u}Int{b}": ((0, 2 ** b - 1) if u else (-2 ** (b - 1), 2 ** (b - 1) - 1))
+              for u in ("", "U") for b in (8, 16, 32, 64)}
+
+
 def parameter_problem(model: FMUModel, name: str, value) -> str | None:
     """Why ``name = value`` cannot be a start-value override of this FMU, or None."""
     v = model.variables.get(name)
@@ -265,9 +275,15 @@ def parameter_problem(model: FMUModel, name: str, value) -> str | None:
                 "that can be set; expected a parameter or an input")
     if v.kind == "real" and not (isinstance(value, (int, float)) and not isinstance(value, bool)):
         return f"'{name}' is {v.type}: expected a number, got {type(value).__name__} {value!r}"
+    if v.kind == "real" and value != value:
+        return f"'{name}' is {v.type}: expected a number, got nan"
     if v.kind == "integer" and not (isinstance(value, int) and not isinstance(value, bool)
                                     or isinstance(value, float) and value.is_integer()):
         return f"'{name}' is {v.type}: expected an integer, got {type(value).__name__} {value!r}"
+    if v.kind == "integer":
+        lo, hi = _INT_RANGE.get(v.type, _INT_RANGE["Int32"])    # FMI 2 Integer/Enumeration: int32
+        if not lo <= value <= hi:     # else it would wrap around silently in the C call
+            return f"'{name}' is {v.type}: expected an integer in [{lo}, {hi}], got {int(value)}"
     if v.kind == "boolean" and not isinstance(value, bool):
         return f"'{name}' is Boolean: expected true or false, got {type(value).__name__} {value!r}"
     if v.kind == "string" and not isinstance(value, str):
