@@ -188,12 +188,16 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                 raise ScenarioError(str(e), key="set") from None
     rec_get, rec_scaled = inputs_of(columns)
     decimation = recorder.decimation if recorder is not None else 0
-    if recorder is not None:
-        recorder.start(columns, units)
-        recorder.allow_nonfinite = allow_nonfinite
     bus_names = [None] * len(bus.values)
     for sig, i in bus.slot.items():
         bus_names[i] = sig
+    # block outputs that start as NaN use it as "not yet" (a detector's event times): NaN allowed
+    nan_ok = {f"{n}.{p.name}" for n, b in system.blocks.items() for p in b.outputs if p.start != p.start}
+    finite_slots = _getter([i for i, sig in enumerate(bus_names) if sig not in nan_ok])
+    if recorder is not None:
+        recorder.start(columns, units)
+        recorder.allow_nonfinite = allow_nonfinite
+        recorder.nan_ok = [j + 1 for j, c in enumerate(columns) if _source(system, c) in nan_ok]
 
     # -- instantiate ---------------------------------------------------------------
     started, failed = [], None
@@ -332,7 +336,7 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                 chunk_rows, rows = rows, []
                 recorder.write(chunk_rows)      # raises on a NaN/inf row (then the run stops)
             if not allow_nonfinite:
-                _check_bus(values, bus_names, t)
+                _check_bus(values, finite_slots, bus_names, nan_ok, t)
             if bar is not None:
                 bar.update(n - bar.n)
             now = _time.perf_counter()
@@ -403,14 +407,23 @@ def _record_failure(info: RunInfo, e: SimulationError, n: int, t0: float, h: flo
     info.stop_reason = "error"
 
 
-def _check_bus(values: list, names: list, t: float) -> None:
-    """A NaN or inf anywhere on the bus (every FMU output read, every block output) at the
-    end of a chunk stops the run; the sum is the cheap test, the scan runs only when it fails
-    (a sum can also overflow to inf from finite values: then nothing is found)."""
-    if math.isfinite(sum(values)):
+def _source(system, signal: str) -> str:
+    """The signal a (connected) input ultimately reads."""
+    conn = system.driven_by(signal)
+    while conn is not None:
+        signal = conn.src
+        conn = system.driven_by(signal)
+    return signal
+
+
+def _check_bus(values: list, checked, names: list, nan_ok: set, t: float) -> None:
+    """A NaN or inf on the bus (every FMU output read, every block output but the "not yet"
+    NaN ones) at the end of a chunk stops the run; the sum is the cheap test, the scan runs
+    only when it fails (a sum can also overflow to inf from finite values: then nothing is found)."""
+    if math.isfinite(sum(checked(values))):
         return
     for i, v in enumerate(values):
-        if not math.isfinite(v):
+        if not math.isfinite(v) and names[i] not in nan_ok:
             sig = names[i] or f"bus slot {i}"
             raise SimulationError(f"non-finite value in '{sig}' = {v!r} (found at the end-of-chunk check; "
                                   "[scenario] allow_nonfinite = true lets it pass)",

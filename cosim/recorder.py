@@ -100,6 +100,7 @@ class Recorder:
         self._chunks: list[np.ndarray] = []
         self._file = None
         self.allow_nonfinite = False      # else a NaN/inf row stops the run (SimulationError)
+        self.nan_ok: list[int] = []       # columns that may hold NaN ("not yet" outputs; set by the master)
 
     def resolve(self, system, extra=()) -> list[str]:
         """The recorded signal names: ``"*"`` expanded, ``extra`` (plotted signals) added."""
@@ -144,7 +145,7 @@ class Recorder:
         if not rows:
             return
         chunk = np.array(rows, dtype=float).reshape(len(rows), len(self.columns) + 1)
-        bad = None if self.allow_nonfinite or np.isfinite(chunk).all() else _first_nonfinite(chunk)
+        bad = None if self.allow_nonfinite or np.isfinite(chunk).all() else _first_nonfinite(chunk, self.nan_ok)
         if bad is not None:
             chunk = chunk[:bad[0] + 1]          # keep the rows up to the first bad one
         self._chunks.append(chunk)
@@ -177,9 +178,14 @@ class Recorder:
         return result
 
 
-def _first_nonfinite(chunk: np.ndarray) -> tuple[int, list[int]]:
-    """The first row of ``chunk`` (time order) with a NaN/inf, and its bad columns."""
+def _first_nonfinite(chunk: np.ndarray, nan_ok=()) -> tuple[int, list[int]] | None:
+    """The first row of ``chunk`` (time order) with a NaN/inf, and its bad columns; the
+    ``nan_ok`` columns may hold NaN (not inf)."""
     bad = ~np.isfinite(chunk)
+    if nan_ok:
+        bad[:, nan_ok] = np.isinf(chunk[:, nan_ok])
+    if not bad.any():
+        return None
     row = int(np.argmax(bad.any(axis=1)))
     return row, [int(c) for c in np.nonzero(bad[row])[0]]
 
