@@ -65,7 +65,10 @@ def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progre
     ``log_file``: the child's stdout and stderr (C-level output too) go there.
     """
     RunWatch(wall_timeout, max_steps)             # checks the limits before anything starts
-    sc = load(scenario, overrides)
+    # forked: load here, the child inherits it; else the child loads and this process reads
+    # only what a summary needs (a second full load would cost every run of a campaign)
+    sc = load(scenario, overrides) if _can_fork() or not isinstance(scenario, (str, Path)) \
+        else _summary_facts(Path(scenario), overrides)
     out = Path(out_dir) if out_dir is not None else default_out_dir(sc)
     with claim(out):
         tmp = tempfile.mkdtemp(prefix="drillcosim-")
@@ -79,20 +82,40 @@ def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progre
                 tb.unlink()
 
 
-def _context():
-    if threading.active_count() == 1 and "fork" in multiprocessing.get_all_start_methods():
+def _can_fork() -> bool:
+    return threading.active_count() == 1 and "fork" in multiprocessing.get_all_start_methods()
+
+
+def _summary_facts(path: Path, overrides):
+    """What summary.json needs of a scenario, from its TOML only (the child validates it)."""
+    from types import SimpleNamespace
+
+    from .scenario import load_raw
+    raw = load_raw(path, overrides)
+    s = raw.get("scenario", {})
+    blocks = [b.get("class", "") for b in raw.get("blocks", {}).values() if isinstance(b, dict)]
+    return SimpleNamespace(name=s.get("name", path.stem), path=path, description=s.get("description", ""),
+                           step_size=s.get("step_size"), stop_time=s.get("stop_time"),
+                           overrides=dict(overrides or {}), modules=[c.partition(":")[0] for c in blocks if ":" in c])
+
+
+def _context(sc):
+    if _can_fork():
         return multiprocessing.get_context("fork"), True
     ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload(["cosim.runner", "cosim.supervisor"])
+    # imported once in the fork server, so that each run's child does not import them again
+    ctx.set_forkserver_preload(["cosim.runner", "cosim.supervisor", *getattr(sc, "modules", [])])
     return ctx, False
 
 
 def _supervise(sc, out: Path, progress, wall_timeout, max_steps, grace, tmp, log_file) -> dict:
-    ctx, forked = _context()
+    ctx, forked = _context(sc)
     payload = {"scenario": sc if forked else None, "path": str(sc.path) if sc.path else None,
                "overrides": sc.overrides, "out": str(out), "progress": progress, "tmp": tmp,
                "wall_timeout": wall_timeout, "max_steps": max_steps,
                "log_file": str(log_file) if log_file else None}
+    if forked and not hasattr(sc, "system"):
+        payload["scenario"] = None                 # facts only (threads came up since): child loads
     if not forked and sc.path is None:
         raise CosimError("a scenario built in Python runs supervised only from a single-threaded "
                          "process; use cosim.run_scenario (in-process) instead")
