@@ -97,6 +97,9 @@ NAN = float("nan")
 EXIT_CRITERIA = ("paper", "thinning")
 
 
+N_MAX = 2000     # samples of the regression window (40 s at dt = 0.02 s)
+
+
 def regression_weights(n: int) -> np.ndarray:
     """Weights w (oldest first) such that ``w @ F[k-N:k]`` is the least-squares
     straight line through the last ``n`` equally spaced samples, evaluated one
@@ -126,8 +129,8 @@ class InterfaceDetector(Block):
         Port("x_exit", "m", "encoder position at the exit detection (selected criterion)", NAN),
         Port("fail", "1", "fail indicator (latched): an event not found inside its nominal window"),
         Port("fail_code", "1", "first failing event: 0 none, 1 entry, 2 interface, 3 exit"),
-        Port("F_pred", "N", "regression prediction F^ of the current sample"),
-        Port("F_err", "N", "prediction error F~ = F - F^"),
+        Port("F_pred", "N", "regression prediction F^ of the current sample (NaN until the window fills)", NAN),
+        Port("F_err", "N", "prediction error F~ = F - F^ (NaN until the window fills)", NAN),
         Port("armed", "1", "1 when the next event's test is armed (warm-up/re-arm done)"),
         Port("t_exit_paper", "s", "exit time by the paper criterion (F~ < thd3)", NAN),
         Port("x_exit_paper", "m", "exit position by the paper criterion", NAN),
@@ -192,6 +195,8 @@ class InterfaceDetector(Block):
         if len(thicknesses) != 2 or min(thicknesses) <= 0:
             raise ValueError(f"InterfaceDetector: thicknesses must be two positive layer thicknesses [m], got {thicknesses}")
         self.N = int(N)
+        if not self.N <= N_MAX:   # the weights of every window length grow as N^2 (N = 8000: 0.5 GB)
+            raise ValueError(f"InterfaceDetector: N must be <= {N_MAX} samples, got {N}")
         self.N_min = min(int(N_min), self.N)
         if self.N_min < 3:
             raise ValueError(f"InterfaceDetector: N_min must be >= 3, got {N_min}")

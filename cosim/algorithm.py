@@ -30,12 +30,14 @@ from operator import itemgetter
 
 from .errors import ScenarioError, SimulationError
 from .manipulators import OPERATORS, Event, fire_step, parse_condition, setter_for
+from .outputs import OutputError
 from .recorder import Recorder, Result
 from .slave import TERMINATE_REQUESTED, status_name
 from .step_rejection import StepRejection, member_for
+from .watch import CHUNK_FIRST, RunWatch, next_chunk
 
 GRID_RTOL = 1e-9            # stop_time within this fraction of a step from the grid is on it
-CHUNK_STEPS = 4096          # steps between CSV flushes / progress updates
+CHUNK_STEPS = 4096          # steps between progress-bar updates at most (chunks: cosim.watch)
 PROGRESS_MIN_STEPS = 20000  # show a progress bar only on runs at least this long
 
 
@@ -46,7 +48,7 @@ class RunInfo:
     stop_time: float
     time_reached: float = 0.0
     steps: int = 0
-    status: str = "running"          # completed | stopped | failed
+    status: str = "running"          # completed | stopped | failed | interrupted | timeout
     stop_reason: str = ""
     wall_time_s: float = 0.0
     events_fired: list = field(default_factory=list)
@@ -124,11 +126,15 @@ def _fmu_reads(system, extra_signals) -> dict[str, list[str]]:
 
 def simulate(system, stop_time: float, recorder: Recorder | None = None,
              events: list[Event] = (), progress: bool = False, extra_record=(),
-             step_rejection_floor: float | None = None) -> RunInfo:
+             step_rejection_floor: float | None = None, watch: RunWatch | None = None,
+             allow_nonfinite: bool = False) -> RunInfo:
     """Run ``system`` from its start time to ``stop_time`` [s] (or an earlier stop event).
 
     Rows go to ``recorder`` as they are produced; the caller finishes the recorder
     (also after a :class:`SimulationError`, which keeps every row recorded so far).
+    ``watch`` (:class:`cosim.watch.RunWatch`): wall-clock / step limits, stop requests,
+    heartbeat. A NaN or inf on the bus or in a recorded row stops the run with a
+    :class:`SimulationError` naming the signal, unless ``allow_nonfinite``.
     """
     h, t0 = system.step_size, system.start_time
     # stop_time off the step grid: a last, shorter step ends exactly at stop_time (as fmpy
@@ -141,6 +147,8 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                             key="stop_time")
     info = RunInfo(stop_time=float(stop_time))
     order = system.block_order()
+    watch = watch if watch is not None else RunWatch()
+    n_run = min(n_last, watch.max_steps) if watch.max_steps else n_last   # last step this run takes
 
     # -- compile: signals -> bus slots ---------------------------------------------
     columns = recorder.resolve(system, extra_record) if recorder is not None else []
@@ -202,8 +210,16 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                 raise ScenarioError(str(e), key="set") from None
     rec_get, rec_scaled = inputs_of(columns)
     decimation = recorder.decimation if recorder is not None else 0
+    bus_names = [None] * len(bus.values)
+    for sig, i in bus.slot.items():
+        bus_names[i] = sig
+    # block outputs that start as NaN use it as "not yet" (a detector's event times): NaN allowed
+    nan_ok = {f"{n}.{p.name}" for n, b in system.blocks.items() for p in b.outputs if p.start != p.start}
+    finite_slots = _getter([i for i, sig in enumerate(bus_names) if sig not in nan_ok])
     if recorder is not None:
         recorder.start(columns, units, types)
+        recorder.allow_nonfinite = allow_nonfinite
+        recorder.nan_ok = [j + 1 for j, c in enumerate(columns) if _source(system, c) in nan_ok]
 
     # -- instantiate ---------------------------------------------------------------
     started, failed = [], None
@@ -245,6 +261,11 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
             rejection = StepRejection([member_for(slave, do_step) for do_step, slave in steppers],
                                       step_rejection_floor)
             steppers = [(rejection.step, _AnyOf(system.slaves))]
+        # the heartbeat: step number per step, index of the FMU inside doStep (a supervisor
+        # reads them when the process dies in C)
+        beat = watch.heartbeat.slots
+        watch.heartbeat.begin([s.name for _d, s in steppers], h, t0)
+        steppers = [(do_step, slave, float(k)) for k, (do_step, slave) in enumerate(steppers)]
         values = bus.values
 
         def apply(ev, t):
@@ -258,16 +279,21 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                 what(ev.value, values)
             return False
 
-        if progress and n_last >= PROGRESS_MIN_STEPS:
+        if progress and n_run >= PROGRESS_MIN_STEPS:
             from tqdm import tqdm
-            bar = tqdm(total=n_last, unit="step", unit_scale=True, file=sys.stderr, disable=None,
+            bar = tqdm(total=n_run, unit="step", unit_scale=True, file=sys.stderr, disable=None,
                        desc="co-simulation", mininterval=0.5, leave=False)   # None: only on a TTY
         next_timed = timed[0][0] if timed else -1
         stop = False
+        ended = None                     # (status, reason) from the watch
+        chunk = CHUNK_FIRST
+        watch.start()
+        wall_chunk = _time.perf_counter()
         while True:
-            n_end = min(n + CHUNK_STEPS, n_last + 1)
+            n_end = min(n + chunk, n_run + 1)
             while n < n_end:
                 t = t0 + n * h if n < n_last else stop_time
+                beat[0] = n
                 # 1. plant outputs at t
                 phase = "read"
                 for get, obuf, a, b, slave in reads:
@@ -311,7 +337,7 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                         rows.append((t, *r))
                     else:
                         rows.append((t, *rec_get(values)))
-                if stop or n == n_last:
+                if stop or n == n_run:
                     break
                 # 6. plant inputs, 7. advance every FMU from t to t + h
                 phase = "write"
@@ -324,7 +350,8 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                         _check(status, "setReal", slave, t)
                 phase = "doStep"
                 hn = h if n != n_short else h_last
-                for do_step, slave in steppers:
+                for do_step, slave, k in steppers:
+                    beat[1] = k
                     status = do_step(t, hn)
                     if status:
                         if status == TERMINATE_REQUESTED:
@@ -333,21 +360,33 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                             info.stop_reason = f"FMU '{slave.name}' asked to terminate at t = {t_end:g} s"
                         else:
                             _check(status, "doStep", slave, t)
+                beat[1] = -1.0
                 n += 1
                 if stop:        # FMU asked to terminate: record nothing past the last step
                     break
             if recorder is not None:
-                recorder.write(rows)
-                rows = []
+                chunk_rows, rows = rows, []
+                recorder.write(chunk_rows)      # raises on a NaN/inf row (then the run stops)
+            if not allow_nonfinite:
+                _check_bus(values, finite_slots, bus_names, nan_ok, t)
             if bar is not None:
                 bar.update(n - bar.n)
-            if stop or n >= n_last:
+            now = _time.perf_counter()
+            chunk, wall_chunk = next_chunk(chunk, now - wall_chunk), now
+            if stop or n >= n_run:
+                break
+            ended = watch.check()
+            if ended is not None:
                 break
         info.steps = n
         info.time_reached = t0 + n * h if n < n_last else stop_time
         if stop and info.stop_reason.startswith("FMU"):
             info.time_reached = _terminated_at(system, info.time_reached)
-        if stop:
+        if ended is None and n_run < n_last and n >= n_run:
+            ended = "timeout", f"max_steps {n_run} reached"
+        if ended is not None:
+            info.status, info.stop_reason = ended
+        elif stop:
             info.status = "stopped"
             if not info.stop_reason:
                 fired = [e["event"] for e in info.events_fired if e["event"].endswith("stop")]
@@ -359,6 +398,9 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
     except SimulationError as e:
         failed = e.instance
         _record_failure(info, e, n, t0, h)
+        raise
+    except OutputError as e:            # the disk, not the model: says which file and why
+        _record_failure(info, SimulationError(str(e), time=t0 + n * h), n, t0, h)
         raise
     except Exception as e:
         t = t0 + n * h
@@ -374,7 +416,10 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
             info.step_rejection = {"floor": step_rejection_floor, "rejected": st.rejected,
                                    "retried_steps": st.retried_steps, "smallest_step": st.smallest_step}
         if recorder is not None and rows:
-            recorder.write(rows)
+            try:
+                recorder.write(rows)
+            except SimulationError:     # a NaN in the last rows: the error being raised says more
+                pass
         if bar is not None:
             bar.close()
         for slave in started:
@@ -400,6 +445,29 @@ def _record_failure(info: RunInfo, e: SimulationError, n: int, t0: float, h: flo
     info.time_reached = e.time if e.time is not None else t0 + n * h
     info.error = str(e)
     info.stop_reason = "error"
+
+
+def _source(system, signal: str) -> str:
+    """The signal a (connected) input ultimately reads."""
+    conn = system.driven_by(signal)
+    while conn is not None:
+        signal = conn.src
+        conn = system.driven_by(signal)
+    return signal
+
+
+def _check_bus(values: list, checked, names: list, nan_ok: set, t: float) -> None:
+    """A NaN or inf on the bus (every FMU output read, every block output but the "not yet"
+    NaN ones) at the end of a chunk stops the run; the sum is the cheap test, the scan runs
+    only when it fails (a sum can also overflow to inf from finite values: then nothing is found)."""
+    if math.isfinite(sum(checked(values))):
+        return
+    for i, v in enumerate(values):
+        if not math.isfinite(v) and names[i] not in nan_ok:
+            sig = names[i] or f"bus slot {i}"
+            raise SimulationError(f"non-finite value in '{sig}' = {v!r} (found at the end-of-chunk check; "
+                                  "[scenario] allow_nonfinite = true lets it pass)",
+                                  time=t, instance=sig.split(".", 1)[0])
 
 
 def _check(status: int, what: str, slave, t: float) -> None:

@@ -1,70 +1,173 @@
-"""Campaigns: one scenario run many times with different overrides, in parallel processes.
+"""Campaigns: one scenario run many times with different overrides, on ``dask.distributed``.
 
-Each run writes its own folder ``<out_dir>/run_NNN`` and returns its summary; what a
-run prints (score tables, warnings) goes to ``run_NNN/log.txt``, since the parallel
-workers' output would interleave on the terminal. A run that fails is recorded with its
-error; the others go on. ``campaign.json`` in
-``out_dir`` collects every summary.
+Each run is a Dask task that runs the scenario supervised (:func:`cosim.supervisor.run_supervised`)
+in its own folder ``<out_dir>/run_NNN`` and returns its summary; what the run prints goes to
+``run_NNN/log.txt``. A run that fails, times out or crashes is recorded with its status and
+overrides, and the others go on: a crashing FMU kills only the run's child process, never
+the Dask worker. Should a worker die anyway (out of memory, a worker that cannot start
+child processes and runs in-process), its task is reported ``crashed`` -- not retried, since
+the scheduler's ``allowed-failures`` is 0 for a local cluster (``retries`` can change that).
+
+By default a :class:`distributed.LocalCluster` on loopback with one single-threaded worker
+process per core; ``scheduler="tcp://host:8786"`` uses an existing cluster (docs/faults.md
+tells how to start one). Output: ``campaign.csv`` (one row per run: run, status,
+overrides, scores) and ``campaign.json`` (every summary).
 """
 from __future__ import annotations
 
-import contextlib
-import json
+import csv
+import logging
+import multiprocessing
 import os
 import sys
-from concurrent.futures import ProcessPoolExecutor, as_completed
+import time
 from pathlib import Path
 
+from .outputs import jsonable, write_json_atomic
 
-def _one_run(path: str, out_dir: str, overrides: dict, index: int) -> dict:
-    from .runner import run_scenario      # imported in the worker process
-    Path(out_dir).mkdir(parents=True, exist_ok=True)
+# summary keys that describe the run rather than score it (left out of campaign.csv's scores)
+_RUN_KEYS = {"scenario", "file", "description", "step_size", "overrides", "out_dir", "files", "run",
+             "events_fired", "step_rejection", "traceback", "stop_time", "rows_recorded", "signal_number",
+             "campaign_wall_time_s"}
+
+
+def _one_run(path: str, out_dir: str, overrides: dict, index: int, wall_timeout=None, max_steps=None) -> dict:
+    """A Dask task: one supervised run; never raises (its summary says what happened)."""
+    from .errors import CosimError, SimulationError
+    from .runner import RunEnded, run_scenario
+    from .supervisor import run_supervised
+    out = Path(out_dir)
     try:
-        with open(Path(out_dir) / "log.txt", "w") as log, contextlib.redirect_stdout(log):
-            result = run_scenario(path, out_dir=out_dir, overrides=overrides, progress=False)
-        summary = dict(result.summary)
-    except Exception as e:  # noqa: BLE001 - a campaign records every failure and goes on
+        out.mkdir(parents=True, exist_ok=True)
+        log = out / "log.txt"
+        log.write_text("")
+        if multiprocessing.current_process().daemon:
+            # a worker started with daemon = True may not have children: run here (a crash then
+            # takes the worker down, and the scheduler reports it: KilledWorker -> crashed)
+            import contextlib
+            with open(log, "a") as f, contextlib.redirect_stdout(f), contextlib.redirect_stderr(f):
+                try:
+                    summary = dict(run_scenario(path, out, overrides, progress=False, wall_timeout=wall_timeout,
+                                                max_steps=max_steps, handle_signals=False).summary)
+                except (SimulationError, RunEnded) as e:
+                    summary = dict(e.result.summary) if e.result is not None else {"status": "failed",
+                                                                                   "error": str(e)}
+        else:
+            summary = run_supervised(path, out, overrides, progress=False, wall_timeout=wall_timeout,
+                                     max_steps=max_steps, log_file=log)
+    except (CosimError, OSError) as e:
         summary = {"status": "failed", "error": f"{type(e).__name__}: {e}"}
-        sfile = Path(out_dir) / "summary.json"
-        if sfile.exists():
-            try:
-                summary = {**json.loads(sfile.read_text()), **summary}
-            except ValueError:
-                pass
-    summary["run"] = index
-    summary["overrides"] = overrides
-    summary["out_dir"] = out_dir
+    summary.update(run=index, overrides=overrides, out_dir=out_dir)
     return summary
 
 
+def _cluster_config() -> dict:
+    return {
+        "distributed.scheduler.allowed-failures": 0,    # a run that killed its worker is not retried
+        "distributed.scheduler.worker-saturation": 1.0,  # a worker holds only the run it is running
+        "distributed.worker.daemon": False,              # so that a task can start the run's child process
+    }
+
+
+def connect(scheduler: str | None = None, workers: int | None = None):
+    """A :class:`distributed.Client`: to ``scheduler`` if given, else to a new local cluster
+    on loopback (``workers`` processes, default the number of cores, one thread each)."""
+    import dask
+    from distributed import Client, LocalCluster
+    if scheduler:
+        return Client(scheduler)
+    with dask.config.set(_cluster_config()):
+        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
+                               processes=True, host="127.0.0.1", dashboard_address=None,
+                               silence_logs=logging.ERROR)
+        return Client(cluster)
+
+
 def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: int | None = None,
-                 progress: bool = True) -> list[dict]:
-    """Run ``scenario`` (a path) once per overrides dict; summaries in input order."""
+                 progress: bool = True, scheduler: str | None = None, wall_timeout: float | None = None,
+                 max_steps: int | None = None, retries: int = 0, client=None) -> list[dict]:
+    """Run ``scenario`` (a path) once per overrides dict; summaries in input order.
+
+    ``workers``: processes of the local cluster (default: cores); ``scheduler``: address of
+    an existing cluster instead; ``client``: an existing :class:`distributed.Client`.
+    ``wall_timeout`` [s] / ``max_steps``: limits per run; ``retries``: Dask retries of a
+    task whose worker died (0: reported ``crashed`` at once).
+    """
+    from distributed import as_completed
+    from distributed.scheduler import KilledWorker
+
     from .scenario import load_scenario
-    path = str(Path(scenario))
-    name = load_scenario(path).name if out_dir is None else None     # validates once, up front
+    path = str(Path(scenario).resolve())
+    name = load_scenario(path).name                          # validates once, up front
     out = Path(out_dir) if out_dir is not None else Path("results") / f"{name}_campaign"
     out.mkdir(parents=True, exist_ok=True)
-    jobs = [(path, str(out / f"run_{i:03d}"), dict(ovr or {}), i) for i, ovr in enumerate(overrides_list)]
-    workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
+    jobs = [(path, str((out / f"run_{i:03d}").resolve()), dict(ovr or {}), i)
+            for i, ovr in enumerate(overrides_list)]
+    own = client is None
+    if own:
+        client = connect(scheduler, max(1, min(workers or os.cpu_count() or 1, len(jobs) or 1)))
+    t0 = time.perf_counter()
+    summaries: list = [None] * len(jobs)
     bar = None
     if progress and jobs:
         from tqdm import tqdm
         bar = tqdm(total=len(jobs), unit="run", desc="campaign", file=sys.stderr)
-    summaries: list = [None] * len(jobs)
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(_one_run, *job): job[3] for job in jobs}
+    try:
+        futures = [client.submit(_one_run, *job, wall_timeout, max_steps, key=f"drillcosim-run-{i:03d}-{os.getpid()}",
+                                 pure=False, retries=retries) for i, job in enumerate(jobs)]
+        index = {f.key: i for i, f in enumerate(futures)}
         for fut in as_completed(futures):
-            i = futures[fut]
+            i = index[fut.key]
             try:
                 summaries[i] = fut.result()
-            except Exception as e:  # noqa: BLE001 - e.g. a worker process died
-                summaries[i] = {"run": i, "status": "failed", "error": f"{type(e).__name__}: {e}",
-                                "overrides": jobs[i][2], "out_dir": jobs[i][1]}
+            except KilledWorker as e:
+                summaries[i] = {"status": "crashed", "stop_reason": f"the Dask worker running it died ({e})"}
+            except Exception as e:  # noqa: BLE001 - a campaign records every failure and goes on
+                summaries[i] = {"status": "failed", "error": f"{type(e).__name__}: {e}"}
+            summaries[i].setdefault("run", i)
+            summaries[i].setdefault("overrides", jobs[i][2])
+            summaries[i].setdefault("out_dir", jobs[i][1])
             if bar is not None:
                 bar.update(1)
-    if bar is not None:
-        bar.close()
-    from .runner import _jsonable
-    (out / "campaign.json").write_text(json.dumps(_jsonable(summaries), indent=2) + "\n")
+                bar.set_postfix_str(_tally(summaries), refresh=False)
+    finally:
+        if bar is not None:
+            bar.close()
+        if own:
+            cluster = client.cluster
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    for s in summaries:
+        s["campaign_wall_time_s"] = time.perf_counter() - t0
+    write_json_atomic(out / "campaign.json", summaries)
+    write_campaign_csv(out / "campaign.csv", summaries)
     return summaries
+
+
+def _tally(summaries) -> str:
+    counts: dict = {}
+    for s in summaries:
+        if s is not None:
+            counts[s.get("status")] = counts.get(s.get("status"), 0) + 1
+    return ", ".join(f"{v} {k}" for k, v in sorted(counts.items(), key=lambda x: str(x[0])))
+
+
+def write_campaign_csv(path: Path, summaries: list[dict]) -> None:
+    """One row per run: run, status, the override keys, then every scalar score."""
+    over = list(dict.fromkeys(k for s in summaries for k in s.get("overrides", {})))
+    scores = list(dict.fromkeys(k for s in summaries for k, v in s.items()
+                                if k not in _RUN_KEYS and k not in ("run", "status")
+                                and isinstance(v, (int, float, str, bool, type(None)))))
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["run", "status", *over, *scores])
+        for s in summaries:
+            w.writerow([s.get("run"), s.get("status"), *(jsonable(s.get("overrides", {}).get(k)) for k in over),
+                        *(jsonable(s.get(k)) for k in scores)])
+
+
+def load_campaign(out_dir) -> list[dict]:
+    """The summaries of a finished campaign (its campaign.json)."""
+    import json
+    return json.loads((Path(out_dir) / "campaign.json").read_text())

@@ -1,4 +1,4 @@
-"""``drillcosim`` command line: run, simulate, list, info, plot, validate, conformance."""
+"""``drillcosim`` command line: run, campaign, simulate, list, info, plot, validate, conformance."""
 from __future__ import annotations
 
 import argparse
@@ -32,34 +32,87 @@ def scenario_dir() -> Path:
     return here if here.is_dir() else Path(__file__).resolve().parent.parent / "scenarios"
 
 
+def _scenario_path(name: str) -> Path:
+    """A scenario file, or its name in scenarios/ (with or without .toml)."""
+    path = Path(name)
+    for cand in (scenario_dir() / name, scenario_dir() / f"{name}.toml"):
+        if not path.exists() and cand.exists():
+            path = cand
+    return path
+
+
 def cmd_run(args) -> int:
     from .errors import CosimError
-    from .runner import run_scenario
-    path = Path(args.scenario)
-    if not path.exists() and (scenario_dir() / args.scenario).exists():
-        path = scenario_dir() / args.scenario
-    if not path.exists() and (scenario_dir() / f"{args.scenario}.toml").exists():
-        path = scenario_dir() / f"{args.scenario}.toml"
+    from .supervisor import exit_code, run_supervised
+    path = _scenario_path(args.scenario)
+    opts = dict(out_dir=args.out, overrides=_parse_set(args.set), progress=not args.quiet,
+                wall_timeout=args.timeout, max_steps=args.max_steps)
     try:
-        result = run_scenario(path, out_dir=args.out, overrides=_parse_set(args.set),
-                              progress=not args.quiet)
-    except CosimError as e:
+        if args.in_process:
+            s = _run_in_process(path, **opts)
+        else:
+            s = run_supervised(path, **opts)
+    except (CosimError, ValueError) as e:
         print(f"drillcosim: {e}", file=sys.stderr)
-        res = getattr(e, "result", None)
-        if res is not None and res.out_dir is not None:
-            print(f"partial results: {res.out_dir / 'data.csv'}", file=sys.stderr)
-            print(f"summary: {res.out_dir / 'summary.json'}", file=sys.stderr)
         return 1
-    s = result.summary
+    out = Path(s["out_dir"])
+    code = exit_code(s)
+    if code:
+        what = s.get("error") or s.get("stop_reason") or ""
+        at = f" at t = {s['time_reached']:g} s" if s.get("time_reached") is not None else ""
+        print(f"drillcosim: run {s.get('status')}{at}: {what}", file=sys.stderr)
+        print(f"{'partial results' if s.get('rows_recorded') else 'csv'}: {out / 'data.csv'}", file=sys.stderr)
+        print(f"summary: {out / 'summary.json'}", file=sys.stderr)
+        return code
     if not args.quiet:
         print(f"{s['scenario']}: {s['status']} at t = {s['time_reached']:g} s, {s['steps']} steps, "
               f"{s['wall_time_s']:.2f} s wall")
-    print(f"csv: {result.out_dir / 'data.csv'}")
-    print(f"mat: {result.out_dir / 'data.mat'}")
+    print(f"csv: {out / 'data.csv'}")
+    print(f"mat: {out / 'data.mat'}")
     for png in s.get("files", {}).get("png", []):
         print(f"png: {png}")
-    print(f"summary: {result.out_dir / 'summary.json'}")
+    print(f"summary: {out / 'summary.json'}")
     return 0
+
+
+def _run_in_process(path, **opts) -> dict:
+    """``--in-process``: no child (debuggers, profilers); a crash takes drillcosim with it."""
+    from .errors import SimulationError
+    from .runner import RunEnded, run_scenario
+    try:
+        return run_scenario(path, **opts).summary
+    except (SimulationError, RunEnded) as e:
+        if e.result is None:
+            raise
+        return e.result.summary
+
+
+def cmd_campaign(args) -> int:
+    from .campaign import run_campaign
+    from .errors import CosimError
+    from .sweep import load_sweep
+    path = _scenario_path(args.scenario)
+    try:
+        runs = load_sweep(args.sweep)
+        base = _parse_set(args.set)
+        summaries = run_campaign(path, [{**base, **r} for r in runs], out_dir=args.out, workers=args.workers,
+                                 progress=not args.quiet, scheduler=args.scheduler,
+                                 wall_timeout=args.timeout, max_steps=args.max_steps)
+    except (CosimError, ValueError, OSError) as e:
+        print(f"drillcosim: {e}", file=sys.stderr)
+        return 1
+    counts: dict = {}
+    for s in summaries:
+        counts[s["status"]] = counts.get(s["status"], 0) + 1
+    out = Path(summaries[0]["out_dir"]).parent if summaries else Path(args.out or ".")
+    print(f"{len(summaries)} runs: " + ", ".join(f"{n} {k}" for k, n in sorted(counts.items())))
+    for s in summaries:
+        if s["status"] not in ("completed", "stopped"):
+            print(f"  run {s['run']:03d} {s['status']}: {s.get('error') or s.get('stop_reason', '')} "
+                  f"(overrides {s['overrides']})", file=sys.stderr)
+    print(f"csv: {out / 'campaign.csv'}")
+    print(f"json: {out / 'campaign.json'}")
+    return 0 if set(counts) <= {"completed", "stopped"} else 1
 
 
 def cmd_list(args) -> int:
@@ -198,6 +251,13 @@ def cmd_conformance(args) -> int:
     return conformance_main(["--no-write"] if args.no_write else [])
 
 
+def _add_limits(p) -> None:
+    p.add_argument("--timeout", type=float, metavar="SECONDS",
+                   help="wall-clock limit of a run; then status 'timeout' (a run stuck in an FMU is killed)")
+    p.add_argument("--max-steps", type=int, metavar="N", help="stop a run after N communication steps "
+                   "(status 'timeout')")
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="drillcosim", description="Co-simulation of drilling feed drives: "
                                 "plant FMUs + Python observers/controllers, configured by scenario files.")
@@ -209,7 +269,20 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--quiet", action="store_true", help="no progress bar, only the paths")
     r.add_argument("--set", action="append", metavar="KEY=VALUE", default=[],
                    help="override a scenario key, e.g. --set fmus.stage.parameters.seed=3 (repeatable)")
+    _add_limits(r)
+    r.add_argument("--in-process", action="store_true",
+                   help="run in this process, not in a supervised child (a crashing FMU then kills drillcosim)")
     r.set_defaults(func=cmd_run)
+    c = sub.add_parser("campaign", help="run a scenario over a sweep (grid, random draws, seeds) on Dask")
+    c.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
+    c.add_argument("--sweep", required=True, help="sweep .toml: [[runs]], [grid], [random], [seeds] (docs/faults.md)")
+    c.add_argument("--out", help="output folder (default results/<scenario name>_campaign)")
+    c.add_argument("--workers", type=int, help="worker processes of the local cluster (default: cores)")
+    c.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://10.0.0.5:8786")
+    c.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override for every run")
+    c.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_limits(c)
+    c.set_defaults(func=cmd_campaign)
     li = sub.add_parser("list", help="list the scenarios with their description")
     li.add_argument("--dir", help="folder of scenario files (default scenarios/)")
     li.set_defaults(func=cmd_list)

@@ -105,6 +105,8 @@ def coerce(v, value, fmi3: bool):
     if kind == "real":
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ValueError(f"'{v.name}' is {v.type}: expected a number, got {type(value).__name__} {value!r}")
+        if value != value:
+            raise ValueError(f"'{v.name}' is {v.type}: expected a number, got nan")
         return float(value)
     if kind == "integer":
         if isinstance(value, float) and value.is_integer():
@@ -113,7 +115,7 @@ def coerce(v, value, fmi3: bool):
             raise ValueError(f"'{v.name}' is {v.type}: expected an integer, got {type(value).__name__} {value!r}")
         lo, hi = int_range(v.type, fmi3)
         if not lo <= value <= hi:
-            raise ValueError(f"'{v.name}' is {v.type}: {value} is outside [{lo}, {hi}]")
+            raise ValueError(f"'{v.name}' is {v.type}: expected an integer in [{lo}, {hi}], got {value}")
         return value
     if kind == "boolean":
         if not isinstance(value, bool):

@@ -24,6 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .errors import SimulationError
+from .outputs import io_problem
+
 
 
 def columns_file(csv_path: Path) -> Path:
@@ -174,6 +177,8 @@ class Recorder:
         self._rows: list = []
         self._file = None
         self._format = None
+        self.allow_nonfinite = False      # else a NaN/inf row stops the run (SimulationError)
+        self.nan_ok: list[int] = []       # columns that may hold NaN ("not yet" outputs; set by the master)
 
     def resolve(self, system, extra=()) -> list[str]:
         """The recorded signal names: ``"*"`` expanded, ``extra`` (plotted signals) added."""
@@ -196,33 +201,65 @@ class Recorder:
             meta = {"time": {"unit": "s", "type": "Float64"}}
             meta.update({c: {"unit": self.units[c], "type": self.types[c]} for c in columns})
             csv_path = self.out_dir / self.csv_name
-            columns_file(csv_path).write_text(json.dumps(meta, indent=1) + "\n")
-            self._file = open(csv_path, "w", newline="")
-            self._file.write(",".join(["time", *map(_header_field, columns)]) + "\n")
-            self._file.flush()
+            try:
+                columns_file(csv_path).write_text(json.dumps(meta, indent=1) + "\n")
+                self._file = open(csv_path, "w", newline="")
+            except OSError as e:
+                raise io_problem("create", csv_path, e) from None
+            self._append(",".join(["time", *map(_header_field, columns)]) + "\n")
+
+    def _append(self, text: str) -> None:
+        """Write whole lines or nothing: on an I/O error (full disk) the file is cut back
+        to its last complete row and an :class:`OutputError` says what failed."""
+        f = self._file
+        end = f.tell()
+        try:
+            f.write(text)
+            f.flush()
+        except OSError as e:
+            try:
+                f.seek(end)
+                f.truncate()
+            except OSError:
+                pass
+            raise io_problem("write", self.out_dir / self.csv_name, e) from None
 
     def write(self, rows: list) -> None:
         """Append rows ``(t, v1, v2, ...)`` and flush them to the CSV."""
         if not rows:
             return
         fmt = self._format
-        if fmt is None:       # all reals: compact float chunks (long 10 kHz runs)
-            chunk = np.array(rows, dtype=float).reshape(len(rows), len(self.columns) + 1)
-            self._rows.append(chunk)
+        if fmt is not None:   # typed columns (integers, booleans, strings): rows as they are
+            self._rows.extend(rows)
             if self._file is not None:
-                # repr() of a Python float is the shortest string that reads back bit for bit
-                self._file.write("".join(",".join(map(repr, r)) + "\n" for r in chunk.tolist()))
-                self._file.flush()
+                self._append("".join(",".join([f(x) for f, x in zip(fmt, r)]) + "\n" for r in rows))
             return
-        self._rows.extend(rows)
+        # all reals: compact float chunks (long 10 kHz runs), checked for non-finite values
+        chunk = np.array(rows, dtype=float).reshape(len(rows), len(self.columns) + 1)
+        bad = None if self.allow_nonfinite or np.isfinite(chunk).all() else _first_nonfinite(chunk, self.nan_ok)
+        if bad is not None:
+            chunk = chunk[:bad[0] + 1]          # keep the rows up to the first bad one
+        self._rows.append(chunk)
         if self._file is not None:
-            self._file.write("".join(",".join([f(x) for f, x in zip(fmt, r)]) + "\n" for r in rows))
-            self._file.flush()
+            # repr() of a Python float is the shortest string that reads back bit for bit
+            self._append("".join(",".join(map(repr, r)) + "\n" for r in chunk.tolist()))
+        if bad is not None:
+            row, cols = bad
+            sigs = [self.columns[c - 1] if c else "time" for c in cols]
+            shown = ", ".join(f"'{g}' = {float(chunk[row, c])!r}" for g, c in zip(sigs[:5], cols))
+            err = SimulationError(f"non-finite value in {shown}{' ...' if len(sigs) > 5 else ''} "
+                                  "([scenario] allow_nonfinite = true lets it pass)",
+                                  time=float(chunk[row, 0]), instance=sigs[0].split(".", 1)[0])
+            err.signal = sigs[0]
+            raise err
 
     def finish(self, write_mat: bool = True) -> Result:
         """Close the CSV, write ``data.mat`` and return the :class:`Result`."""
         if self._file is not None:
-            self._file.close()
+            try:
+                self._file.close()
+            except OSError:
+                pass            # its rows were flushed (or the error reported) by _append
             self._file = None
         n = len(self.columns) + 1
         if not self._format:
@@ -246,6 +283,18 @@ def _elements(system, signal: str) -> list[str]:
         return system.elements(signal)
     except Exception:     # unknown names are reported with their key by the algorithm
         return [signal]
+
+
+def _first_nonfinite(chunk: np.ndarray, nan_ok=()) -> tuple[int, list[int]] | None:
+    """The first row of ``chunk`` (time order) with a NaN/inf, and its bad columns; the
+    ``nan_ok`` columns may hold NaN (not inf)."""
+    bad = ~np.isfinite(chunk)
+    if nan_ok:
+        bad[:, nan_ok] = np.isinf(chunk[:, nan_ok])
+    if not bad.any():
+        return None
+    row = int(np.argmax(bad.any(axis=1)))
+    return row, [int(c) for c in np.nonzero(bad[row])[0]]
 
 
 def write_mat_file(result: Result, path: Path) -> None:

@@ -1,80 +1,135 @@
-"""Run a scenario end to end: simulate, record, score, plot, write summary.json."""
+"""Run a scenario end to end in this process: simulate, record, score, plot, write summary.json.
+
+The output folder is claimed first (:func:`cosim.outputs.claim`: a lock refuses a second
+run into it, the earlier run's results are removed), and summary.json is written
+atomically whatever happens. Statuses (docs/faults.md): ``completed``, ``stopped``,
+``failed``, ``interrupted``, ``timeout`` -- and ``crashed``, which only a supervisor
+(:mod:`cosim.supervisor`, what ``drillcosim run`` uses) can write, since a crash takes
+this process with it.
+"""
 from __future__ import annotations
 
-import json
-import math
+import signal
+import sys
+from contextlib import nullcontext
 from pathlib import Path
 
 from .algorithm import simulate
 from .errors import CosimError, SimulationError
+from .outputs import OutputError, claim, jsonable, write_json_atomic
 from .plots import plot_groups
 from .recorder import Recorder, Result
 from .scenario import Scenario, load_scenario
+from .watch import RunWatch
 
-def _jsonable(v):
-    """numpy scalars/arrays and non-finite floats -> plain JSON."""
-    if hasattr(v, "tolist"):
-        v = v.tolist()
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    if isinstance(v, dict):
-        return {str(k): _jsonable(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_jsonable(x) for x in v]
-    return v
+_jsonable = jsonable          # kept for callers of the earlier name
 
 
-def _write_summary(out_dir: Path, summary: dict) -> Path:
-    path = out_dir / "summary.json"
-    path.write_text(json.dumps(_jsonable(summary), indent=2) + "\n")
-    return path
+class RunEnded(CosimError):
+    """The run ended early without an error of the model: ``status`` is ``interrupted``
+    (``signum`` the signal) or ``timeout``; every row, data.mat and summary.json are written
+    and ``result`` holds them."""
+
+    def __init__(self, message: str, status: str, result: Result | None = None, signum: int | None = None):
+        super().__init__(message)
+        self.status = status
+        self.result = result
+        self.signum = signum
 
 
-def run_scenario(scenario, out_dir=None, overrides: dict | None = None, progress: bool = True) -> Result:
+def load(scenario, overrides: dict | None = None) -> Scenario:
+    """A :class:`Scenario` from a path or a loaded scenario (with extra ``overrides``)."""
+    if isinstance(scenario, Scenario):
+        if not overrides:
+            return scenario
+        if scenario.path is None:
+            raise CosimError("overrides need a scenario loaded from a file")
+        return load_scenario(scenario.path, {**scenario.overrides, **overrides})
+    return load_scenario(scenario, overrides)
+
+
+def default_out_dir(sc: Scenario) -> Path:
+    return Path("results") / sc.name
+
+
+def run_scenario(scenario, out_dir=None, overrides: dict | None = None, progress: bool = True,
+                 wall_timeout: float | None = None, max_steps: int | None = None,
+                 handle_signals: bool = True) -> Result:
     """Load (if a path), validate, run and write results; returns the :class:`Result`.
 
     Output folder (default ``results/<scenario name>``): data.csv, data.mat,
-    summary.json, PNG plots. On an FMU or block error the run stops, the rows recorded
-    so far stay in data.csv, summary.json records the failure and the
-    :class:`SimulationError` is raised with ``error.result`` set.
+    summary.json, PNG plots. On an FMU or block error (or a NaN/inf) the run stops, the
+    rows recorded so far stay in data.csv, summary.json records the failure and the
+    :class:`SimulationError` is raised with ``error.result`` set. ``wall_timeout`` [s] and
+    ``max_steps`` limit the run; on SIGINT/SIGTERM (``handle_signals``, main thread) the
+    run stops at the end of its chunk. Both write everything and raise :class:`RunEnded`.
+    A crash of an FMU kills this process: use :func:`cosim.supervisor.run_supervised`.
     """
-    if isinstance(scenario, Scenario):
-        sc = scenario
-        if overrides:
-            if sc.path is None:
-                raise CosimError("overrides need a scenario loaded from a file")
-            sc = load_scenario(sc.path, {**sc.overrides, **overrides})
-    else:
-        sc = load_scenario(scenario, overrides)
-    out = Path(out_dir) if out_dir is not None else Path("results") / sc.name
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "summary.json").unlink(missing_ok=True)    # never leave a previous run's summary
+    sc = load(scenario, overrides)
+    out = Path(out_dir) if out_dir is not None else default_out_dir(sc)
+    with claim(out):
+        return run_in_folder(sc, out, progress, RunWatch(wall_timeout, max_steps), handle_signals)
+
+
+def _base_summary(sc: Scenario, out: Path) -> dict:
+    return {"scenario": sc.name, "file": str(sc.path) if sc.path else None,
+            "description": sc.description, "step_size": sc.step_size,
+            "overrides": sc.overrides, "out_dir": str(out)}
+
+
+def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
+                  handle_signals: bool = True) -> Result:
+    """:func:`run_scenario` on a claimed (locked, cleared) folder ``out``."""
     recorder = Recorder(sc.record_signals, sc.decimation, out)
-    summary = {"scenario": sc.name, "file": str(sc.path) if sc.path else None,
-               "description": sc.description, "step_size": sc.step_size,
-               "overrides": sc.overrides}
+    summary = _base_summary(sc, out)
+    signals = watch.signals_handled() if handle_signals else nullcontext()
     try:
-        info = simulate(sc.system, sc.stop_time, recorder, sc.events, progress,
-                        extra_record=sc.plotted_signals(), step_rejection_floor=sc.step_rejection_floor)
-    except SimulationError as e:
-        result = recorder.finish()
-        summary.update(status="failed", stop_time=sc.stop_time, time_reached=e.time,
-                       error=str(e), failed_instance=e.instance, fmu_message=e.fmu_message,
-                       rows_recorded=len(result.time), out_dir=str(out))
+        with signals:
+            info = simulate(sc.system, sc.stop_time, recorder, sc.events, progress,
+                            extra_record=sc.plotted_signals(), step_rejection_floor=sc.step_rejection_floor,
+                            watch=watch, allow_nonfinite=sc.allow_nonfinite)
+    except (SimulationError, OutputError) as e:
+        watch.heartbeat.finishing()
+        result = _finish_quietly(recorder, summary)
+        summary.update(status="failed", stop_time=sc.stop_time, time_reached=getattr(e, "time", None),
+                       error=str(e), failed_instance=getattr(e, "instance", None),
+                       fmu_message=getattr(e, "fmu_message", None), rows_recorded=len(result.time))
+        if getattr(e, "signal", None):
+            summary["nonfinite_signal"] = e.signal
         result.summary = summary
         _write_summary(out, summary)
         e.result = result
         raise
+    watch.heartbeat.finishing()
     result = recorder.finish()
     summary.update(info.as_dict())
     summary["rows_recorded"] = len(result.time)
-    summary["out_dir"] = str(out)
     summary["plants"] = {name: {"binding": b.file, "kind": b.kind, "roles": {r: x.variable for r, x in b.bound.items()}}
                          for name, b in sc.system.bindings.items()}
     summary["scores"] = {}
     result.summary = summary
     result.system = sc.system        # scorers reach the plant's binding (roles, true parameters) here
+    if watch.signum is not None:
+        summary.update(signal=signal.Signals(watch.signum).name, signal_number=int(watch.signum))
+    if info.status in ("interrupted", "timeout"):
+        summary["files"] = {"csv": str(out / "data.csv"), "mat": str(out / "data.mat"), "png": []}
+        _write_summary(out, summary)
+        raise RunEnded(f"run {info.status} at t = {info.time_reached:g} s ({info.stop_reason}); "
+                       f"results so far in {out}", info.status, result, watch.signum)
 
+    problems = _score_and_plot(sc, result, out, summary)
+    summary["files"] = {"csv": str(out / "data.csv"), "mat": str(out / "data.mat"),
+                        "png": sorted(str(f) for f in out.glob("*.png"))}   # earlier PNGs were removed
+    if problems:
+        summary["errors"] = problems
+    _write_summary(out, summary)
+    if problems:
+        raise CosimError("the run finished but scoring/plotting failed (see summary.json): "
+                         + "; ".join(problems))
+    return result
+
+
+def _score_and_plot(sc: Scenario, result: Result, out: Path, summary: dict) -> list[str]:
     problems = []
     for spec, fn, settings, name in sc.scores:
         try:
@@ -93,15 +148,24 @@ def run_scenario(scenario, out_dir=None, overrides: dict | None = None, progress
                 plot_groups(result, p["groups"], out / p["file"], p["title"])
         except Exception as e:
             problems.append(f"plot {p.get('spec') or p.get('file')}: {type(e).__name__}: {e}")
-    summary["files"] = {"csv": str(out / "data.csv"), "mat": str(out / "data.mat"),
-                        "png": sorted(str(f) for f in out.glob("*.png"))}
-    if problems:
-        summary["errors"] = problems
-    _write_summary(out, summary)
-    if problems:
-        raise CosimError("the run finished but scoring/plotting failed (see summary.json): "
-                         + "; ".join(problems))
-    return result
+    return problems
 
 
-__all__ = ["run_scenario"]
+def _finish_quietly(recorder: Recorder, summary: dict) -> Result:
+    """Close the CSV and write data.mat; a second I/O error (the disk is still full) is
+    noted in the summary rather than hiding the first."""
+    try:
+        return recorder.finish()
+    except OSError as e:
+        summary["mat_error"] = f"data.mat not written: {e}"
+        return recorder.finish(write_mat=False)
+
+
+def _write_summary(out: Path, summary: dict) -> None:
+    try:
+        write_json_atomic(out / "summary.json", summary)
+    except OutputError as e:       # nothing more can be saved; say so instead of a traceback
+        print(f"drillcosim: {e}", file=sys.stderr)
+
+
+__all__ = ["run_scenario", "run_in_folder", "RunEnded"]

@@ -21,6 +21,7 @@ from __future__ import annotations
 import copy
 import importlib
 import inspect
+import math
 import os
 import re
 try:
@@ -42,12 +43,14 @@ from .system import System
 NUMBER, POSITIVE, NONNEG, INTEGER1 = "a number", "a number > 0", "a number >= 0", "an integer >= 1"
 STRING, BOOL, TABLE, STRINGS = "a string", "true or false", "a table", "a list of strings"
 ANY = "any value"
+MAX_STEPS = 10 ** 9     # communication steps of one run (28 h of simulated time at 10 kHz)
 
 SECTIONS = {"scenario": TABLE, "fmus": TABLE, "blocks": TABLE, "connections": "an array of tables",
             "record": TABLE, "events": "an array of tables", "plots": "an array of tables",
             "scores": "an array of tables"}
 SCENARIO_KEYS = {"name": STRING, "description": STRING, "extends": STRING, "step_size": POSITIVE,
-                 "stop_time": POSITIVE, "start_time": NUMBER, "step_rejection_floor": POSITIVE}
+                 "stop_time": POSITIVE, "start_time": NUMBER, "step_rejection_floor": POSITIVE,
+                 "allow_nonfinite": BOOL}
 ARRAYS = tuple(k for k, v in SECTIONS.items() if v.startswith("an array"))   # appended by extends
 NOT_INHERITED = ("name", "description", "extends")                          # of [scenario]
 INTERFACE, SOLVER = "'CS' or 'ME'", " or ".join(f"'{s}'" for s in SOLVERS)
@@ -67,7 +70,8 @@ SCORE_KEYS = {"function": STRING, "settings": TABLE, "name": STRING}
 
 
 def _is_number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
+    """A finite int or float (TOML also reads inf and nan)."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def _type_ok(expected: str, v) -> bool:
@@ -241,7 +245,7 @@ def apply_overrides(raw: dict, overrides: dict | None, file: str = "") -> dict:
                 cur[leaf] = value
             else:
                 raise TypeError(f"'{'.'.join(parts[:i])}' is {_show(cur)}, not a table")
-        except (ValueError, IndexError, TypeError) as e:
+        except (ValueError, IndexError, TypeError, AttributeError) as e:    # AttributeError: below a scalar
             raise ScenarioError(f"cannot apply override {key} = {value!r}: {e}", file, "overrides") from None
     return raw
 
@@ -254,6 +258,8 @@ def import_object(spec: str):
         mod, _, attr = spec.rpartition(".")
     if not mod or not attr:
         raise ImportError(f"expected 'module:Name', got {spec!r}")
+    if mod.startswith("."):
+        raise ImportError(f"expected an absolute module path (package.module:Name), got {spec!r}")
     obj = importlib.import_module(mod)
     for a in attr.split("."):
         obj = getattr(obj, a)
@@ -272,6 +278,7 @@ class Scenario:
     start_time: float
     system: System
     step_rejection_floor: float | None = None     # s; None: a Discard stops the run
+    allow_nonfinite: bool = False                 # else a NaN/inf output stops the run
     record_signals: list = field(default_factory=lambda: ["*"])
     decimation: int = 1
     events: list = field(default_factory=list)
@@ -308,6 +315,11 @@ def _construct_block(cls, name: str, spec: dict, c: _Checker):
         raise c.error(f"{key}.settings", f"{cls.__name__}(**settings) refused the settings: {e}") from None
     except (ValueError, ArithmeticError) as e:
         raise c.error(f"{key}.settings", f"{cls.__name__}(**settings) failed: {e}") from None
+    except OSError as e:       # a calibration or table file named in the settings
+        raise c.error(f"{key}.settings", f"{cls.__name__}(**settings) cannot read a file: {e}") from None
+    except Exception as e:     # an assertion of the block's own checks, ...: still the settings' fault
+        raise c.error(f"{key}.settings", f"{cls.__name__}(**settings) failed: {type(e).__name__}: "
+                                         f"{e}") from None
 
 
 def _fmu_error_key(spec: dict, opts: dict, message: str) -> str:
@@ -378,6 +390,10 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
     if sc["stop_time"] <= system.start_time:
         raise c.error("scenario.stop_time", f"expected a time after start_time ({system.start_time} s), "
                                             f"got {sc['stop_time']!r}")
+    steps = (sc["stop_time"] - system.start_time) / system.step_size
+    if steps > MAX_STEPS:          # e.g. step_size = 1e-300: it would run for ever
+        raise c.error("scenario.step_size", f"{steps:.3g} steps from start_time to stop_time: more than "
+                                            f"{MAX_STEPS:.0e}; raise step_size or shorten stop_time")
 
     floor = sc.get("step_rejection_floor")
     if floor is not None and floor >= system.step_size:
@@ -426,7 +442,7 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
         key = f"blocks.{name}"
         try:
             cls = import_object(spec["class"])
-        except (ImportError, AttributeError) as e:
+        except Exception as e:     # ImportError, AttributeError, an error raised by the module itself
             raise c.error(f"{key}.class", f"cannot import {spec['class']!r} (expected 'module:Class' "
                                           f"importable from the project): {type(e).__name__}: {e}") from None
         block = _construct_block(cls, name, spec, c)
@@ -489,7 +505,7 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
         if "function" in spec:
             try:
                 fn = import_object(spec["function"])
-            except (ImportError, AttributeError) as e:
+            except Exception as e:
                 raise c.error(f"{key}.function", f"cannot import {spec['function']!r}: {e}") from None
             needed += _function_needs(fn, spec, key, 2, c, check_signal)
             plots.append({"function": fn, "spec": spec["function"], "settings": spec.get("settings", {})})
@@ -507,7 +523,7 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
     for i, spec in enumerate(raw.get("scores", [])):
         try:
             fn = import_object(spec["function"])
-        except (ImportError, AttributeError) as e:
+        except Exception as e:
             raise c.error(f"scores[{i}].function", f"cannot import {spec['function']!r}: {e}") from None
         needed += _function_needs(fn, spec, f"scores[{i}]", 1, c, check_signal)
         name = spec.get("name") or getattr(fn, "__name__", spec["function"])
@@ -519,6 +535,7 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
     return Scenario(path=None, name=sc.get("name", name_default), description=sc.get("description", ""),
                     step_size=system.step_size, stop_time=float(sc["stop_time"]),
                     start_time=system.start_time, system=system, step_rejection_floor=floor,
+                    allow_nonfinite=sc.get("allow_nonfinite", False),
                     record_signals=signals,
                     decimation=rec.get("decimation", 1), events=events, plots=plots, scores=scores, raw=raw,
                     needed_signals=needed)
@@ -646,6 +663,9 @@ def read_toml(path: Path) -> dict:
             return tomllib.load(f)
     except tomllib.TOMLDecodeError as e:
         raise ScenarioError(f"not valid TOML: {e}", str(path)) from None
+    except UnicodeDecodeError as e:
+        raise ScenarioError(f"not UTF-8 text (TOML files are UTF-8): byte {e.start}: {e.reason}",
+                            str(path)) from None
     except OSError as e:
         raise ScenarioError(f"cannot read: {e}", str(path)) from None
 

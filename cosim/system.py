@@ -52,6 +52,8 @@ def sample_ratio(sample_period: float, step_size: float) -> int:
     """k such that sample_period = k * step_size (0 -> every step, k = 1)."""
     if sample_period == 0:
         return 1
+    if not 0 < sample_period < float("inf"):
+        raise ValueError(f"expected a finite sample_period >= 0 s, got {sample_period!r}")
     k = round(sample_period / step_size)
     if k < 1 or abs(k * step_size - sample_period) > PERIOD_RTOL * sample_period:
         raise ValueError(f"sample_period {sample_period!r} s is not an integer multiple of the "
@@ -110,6 +112,10 @@ class System:
             dup = {n for n in names if names.count(n) > 1}
             if dup:
                 raise ScenarioError(f"{type(block).__name__} declares {kind} {sorted(dup)} twice")
+            bad = [(p.name, p.unit) for p in getattr(block, kind) if p.unit is not None and not isinstance(p.unit, str)]
+            if bad:
+                raise ScenarioError(f"{type(block).__name__} {kind}: unit of '{bad[0][0]}' is {bad[0][1]!r}, "
+                                    "expected a string", key="settings")
         try:
             sample_ratio(float(block.sample_period), self.step_size)
         except ValueError as e:
@@ -343,6 +349,7 @@ def _find_cycle(nodes: list[str], preds: dict[str, set[str]]) -> list[str]:
             return list(reversed(cyc))      # walked against the data flow
         seen[p] = len(path)
         path.append(p)
+
 
 
 def parameter_problem(model: FMUModel, name: str, value) -> str | None:

@@ -81,6 +81,10 @@ static void reset_values(Inst *s) {
 
 static int model_step(Inst *s, double t, double h) {
     if (s->r[VR_FAIL] >= 0 && t >= s->r[VR_FAIL] - 1e-12) {
+#ifdef FAULT
+        FAULT;  /* build_mass_fmu(fault=...): crash, hang or NaN instead of returning Error */
+    } else if (0) {
+#endif
         char msg[256];
         snprintf(msg, sizeof msg, "%%s: simulated plant failure at t = %%g s (fail_time = %%g s)",
                  s->name, t, s->r[VR_FAIL]);
@@ -274,8 +278,15 @@ def _stubs(prefix: str, cls, implemented: str) -> str:
     return "\n".join(f"int {n}(void) {{ return 3; }}" for n in names) + "\n"
 
 
-def build_mass_fmu(out_dir: str | os.PathLike, fmi_version: int = 2) -> Path:
-    """Build ``Mass2.fmu`` (FMI 2.0 CS) or ``Mass3.fmu`` (FMI 3.0 CS) into ``out_dir``."""
+# what doStep does at t >= fail_time instead of returning Error (build_mass_fmu(fault=...))
+FAULTS = {"segfault": "*(volatile int *)0 = 1", "abort": "abort()", "exit": "exit(3)",
+          "hang": "for (;;) {}", "nan": "s->r[VR_V] = 0.0 / 0.0"}
+
+
+def build_mass_fmu(out_dir: str | os.PathLike, fmi_version: int = 2, fault: str | None = None) -> Path:
+    """Build ``Mass2.fmu`` (FMI 2.0 CS) or ``Mass3.fmu`` (FMI 3.0 CS) into ``out_dir``;
+    ``fault`` (a key of :data:`FAULTS`): doStep at t >= fail_time crashes, hangs or makes
+    the velocity NaN (and goes on) instead of returning Error."""
     out_dir = Path(out_dir)
     identifier = f"Mass{fmi_version}"
     work = out_dir / f"{identifier}_build"
@@ -293,7 +304,8 @@ def build_mass_fmu(out_dir: str | os.PathLike, fmi_version: int = 2) -> Path:
     lib_dir = work / "binaries" / platform_dir
     lib_dir.mkdir(parents=True, exist_ok=True)
     lib = lib_dir / f"{identifier}{fmpy.sharedLibraryExtension}"
-    subprocess.run(["gcc", "-shared", "-fPIC", "-O1", "-w", f"-I{HEADERS}", "-o", str(lib),
+    defines = [f"-DFAULT={FAULTS[fault]}"] if fault else []
+    subprocess.run(["gcc", "-shared", "-fPIC", "-O1", "-w", *defines, f"-I{HEADERS}", "-o", str(lib),
                     str(work / "model.c"), str(work / "stubs.c")], check=True, capture_output=True, text=True)
     guid = "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, identifier)) + "}"
     fmu = out_dir / f"{identifier}.fmu"

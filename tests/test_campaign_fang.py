@@ -1,4 +1,4 @@
-"""Fang Tables 3 and 5 campaign (controllers/campaign_fang.py): calibration, the 4-hole
+"""Fang Tables 3 and 5 campaign (analysis/campaign_fang.py): calibration, the 4-hole
 CI variant (Table 5 bounds), and the full 24 holes (long)."""
 from __future__ import annotations
 

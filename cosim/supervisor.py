@@ -1,0 +1,277 @@
+"""Crash isolation: a run in a child process, watched by its parent.
+
+An FMU is C code loaded into the process that steps it: a segfault, ``abort()`` or
+``exit()`` inside ``doStep`` ends that process, and an endless loop in C cannot be
+interrupted from Python. :func:`run_supervised` (what ``drillcosim run`` and every
+campaign run use) therefore runs the scenario in a child process and stays responsive
+itself:
+
+* the child writes data.csv (rows flushed at least every 0.5 s of wall time), data.mat
+  and summary.json as an in-process run does (:func:`cosim.runner.run_in_folder`);
+* when the child dies without its summary, the parent writes summary.json with status
+  ``crashed``: the signal or exit code, the last time reached and the FMU inside ``doStep``
+  (from the :class:`cosim.watch.Heartbeat` the child's loop updates per step), the
+  Python traceback that ``faulthandler`` wrote, and data.mat from the rows on disk;
+* SIGINT / SIGTERM reach the child, which stops at the end of its chunk; a child stuck in
+  C is killed after ``grace`` seconds and the parent writes the ``interrupted`` summary;
+  likewise for the wall-clock timeout (status ``timeout``);
+* the FMUs are unpacked into a temporary folder the parent removes, so nothing leaks.
+
+The child is forked when this process has a single thread (the CLI: the loaded scenario
+is inherited, nothing is loaded twice); in a threaded process (a Dask worker) it comes from
+a ``forkserver`` (forking a threaded process is unsafe) and loads the scenario itself.
+"""
+from __future__ import annotations
+
+import faulthandler
+import multiprocessing
+import os
+import shutil
+import signal
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+from .errors import CosimError, SimulationError
+from .outputs import HEARTBEAT_NAME, TRACEBACK_NAME, OutputError, claim, write_json_atomic
+from .runner import RunEnded, _base_summary, default_out_dir, load, run_in_folder
+from .watch import Heartbeat, RunWatch, exit_code_for
+
+EXIT_FAILED, EXIT_TIMEOUT, EXIT_CRASHED = 1, 3, 4
+GRACE_S = 5.0        # s a child gets to stop by itself (finish its chunk, write data.mat)
+POLL_S = 0.05        # s between looks at the child
+
+
+def exit_code(summary: dict) -> int:
+    """The CLI's exit code of a run's summary (docs/faults.md)."""
+    status = summary.get("status")
+    if status in ("completed", "stopped"):
+        return 0
+    if status == "interrupted":
+        return exit_code_for(summary.get("signal_number") or signal.SIGINT)
+    return {"timeout": EXIT_TIMEOUT, "crashed": EXIT_CRASHED}.get(status, EXIT_FAILED)
+
+
+def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progress: bool = True,
+                   wall_timeout: float | None = None, max_steps: int | None = None,
+                   grace: float = GRACE_S, log_file=None) -> dict:
+    """Run ``scenario`` in a child process; return its summary (also in summary.json).
+
+    Raises only for what happens before the run (:class:`cosim.errors.ScenarioError`,
+    :class:`cosim.outputs.OutputError`); every outcome of the run itself -- ``completed``,
+    ``stopped``, ``failed``, ``interrupted``, ``timeout``, ``crashed`` -- is a summary.
+    ``log_file``: the child's stdout and stderr (C-level output too) go there.
+    """
+    RunWatch(wall_timeout, max_steps)             # checks the limits before anything starts
+    # forked: load here, the child inherits it; else the child loads and this process reads
+    # only what a summary needs (a second full load would cost every run of a campaign)
+    sc = load(scenario, overrides) if _can_fork() or not isinstance(scenario, (str, Path)) \
+        else _summary_facts(Path(scenario), overrides)
+    out = Path(out_dir) if out_dir is not None else default_out_dir(sc)
+    with claim(out):
+        tmp = tempfile.mkdtemp(prefix="drillcosim-")
+        try:
+            return _supervise(sc, out, progress, wall_timeout, max_steps, grace, tmp, log_file)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+            (out / HEARTBEAT_NAME).unlink(missing_ok=True)
+            tb = out / TRACEBACK_NAME
+            if tb.exists() and tb.stat().st_size == 0:
+                tb.unlink()
+
+
+def _can_fork() -> bool:
+    return threading.active_count() == 1 and "fork" in multiprocessing.get_all_start_methods()
+
+
+def _summary_facts(path: Path, overrides):
+    """What summary.json needs of a scenario, from its TOML only (the child validates it)."""
+    from types import SimpleNamespace
+
+    from .scenario import load_raw
+    raw = load_raw(path, overrides)
+    s = raw.get("scenario", {})
+    blocks = [b.get("class", "") for b in raw.get("blocks", {}).values() if isinstance(b, dict)]
+    return SimpleNamespace(name=s.get("name", path.stem), path=path, description=s.get("description", ""),
+                           step_size=s.get("step_size"), stop_time=s.get("stop_time"),
+                           overrides=dict(overrides or {}), modules=[c.partition(":")[0] for c in blocks if ":" in c])
+
+
+def _context(sc):
+    if _can_fork():
+        return multiprocessing.get_context("fork"), True
+    ctx = multiprocessing.get_context("forkserver")
+    # imported once in the fork server, so that each run's child does not import them again
+    ctx.set_forkserver_preload(["cosim.runner", "cosim.supervisor", *getattr(sc, "modules", [])])
+    return ctx, False
+
+
+def _supervise(sc, out: Path, progress, wall_timeout, max_steps, grace, tmp, log_file) -> dict:
+    ctx, forked = _context(sc)
+    payload = {"scenario": sc if forked else None, "path": str(sc.path) if sc.path else None,
+               "overrides": sc.overrides, "out": str(out), "progress": progress, "tmp": tmp,
+               "wall_timeout": wall_timeout, "max_steps": max_steps,
+               "log_file": str(log_file) if log_file else None}
+    if forked and not hasattr(sc, "system"):
+        payload["scenario"] = None                 # facts only (threads came up since): child loads
+    if not forked and sc.path is None:
+        raise CosimError("a scenario built in Python runs supervised only from a single-threaded "
+                         "process; use cosim.run_scenario (in-process) instead")
+    proc = ctx.Process(target=_child, args=(payload,), name=f"drillcosim-{sc.name}")
+    received: list[int] = []
+
+    def forward(signum, _frame):
+        received.append(signum)
+        if proc.pid is not None:
+            try:
+                os.kill(proc.pid, signal.SIGKILL if len(received) > 1 else signum)
+            except ProcessLookupError:
+                pass
+
+    main = threading.current_thread() is threading.main_thread()
+    old = {}
+    proc.start()
+    t_start = time.monotonic()
+    killed_for = None            # ("timeout" | "interrupted", reason) when the parent had to kill
+    try:
+        if main:
+            old = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
+        t_signal = None
+        while proc.is_alive():
+            proc.join(POLL_S)
+            if not proc.is_alive():
+                break
+            now = time.monotonic()
+            beat = Heartbeat.read(out / HEARTBEAT_NAME) or {}
+            if beat.get("finishing") and len(received) < 2:
+                continue                      # writing data.mat: never killed for being slow
+            if received and t_signal is None:
+                t_signal = now
+            if received and (len(received) > 1 or now - t_signal > grace):
+                killed_for = ("interrupted", f"signal {signal.Signals(received[0]).name}; the run did "
+                              f"not stop within {grace:g} s and was killed")
+            elif wall_timeout is not None and now - t_start > wall_timeout + grace:
+                killed_for = ("timeout", f"wall-clock timeout of {wall_timeout:g} s; the run did not "
+                              f"stop within {grace:g} s (stuck in an FMU?) and was killed")
+            if killed_for:
+                proc.kill()
+                proc.join()
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+    return _outcome(sc, out, proc.exitcode, killed_for, received)
+
+
+def _outcome(sc, out: Path, exitcode: int, killed_for, received: list[int]) -> dict:
+    """The child's summary, or the one the parent writes for a child that died or was killed."""
+    import json
+    sfile = out / "summary.json"
+    if killed_for is None and sfile.exists():
+        try:
+            return json.loads(sfile.read_text())
+        except ValueError:
+            pass
+    summary = _base_summary(sc, out)
+    beat = Heartbeat.read(out / HEARTBEAT_NAME) or {}
+    rows, t_last = _repair_csv(out / "data.csv")
+    summary.update(stop_time=sc.stop_time, time_reached=beat.get("time"), rows_recorded=rows,
+                   last_row_time=t_last)
+    if killed_for is not None:
+        status, reason = killed_for
+        summary.update(status=status, stop_reason=reason, killed=True)
+        if status == "interrupted":
+            summary["signal_number"] = int(received[0])
+    else:
+        how = (f"signal {signal.Signals(-exitcode).name}" if exitcode < 0
+               else f"exit code {exitcode}")
+        summary.update(status="crashed", stop_reason=f"the simulation process died ({how})",
+                       exit_code=exitcode)
+        if exitcode < 0:
+            summary["signal"] = signal.Signals(-exitcode).name
+    if beat.get("instance"):
+        summary["crashed_instance" if killed_for is None else "stuck_instance"] = beat["instance"]
+        summary["phase"] = "doStep"
+    tb = out / TRACEBACK_NAME
+    if tb.exists() and tb.stat().st_size:
+        summary["traceback"] = tb.read_text(errors="replace")[:4000]   # innermost frames first
+    summary["files"] = {"csv": str(out / "data.csv"), "mat": _mat_from_csv(out, summary), "png": []}
+    write_json_atomic(sfile, summary)
+    return summary
+
+
+def _repair_csv(path: Path) -> tuple[int, float | None]:
+    """Cut a row torn by the crash; (complete data rows, time of the last one [s])."""
+    try:
+        with open(path, "rb+") as f:
+            data = f.read()
+            end = data.rfind(b"\n") + 1
+            if end < len(data):
+                f.truncate(end)
+    except OSError:
+        return 0, None
+    lines = data[:end].splitlines()
+    if len(lines) < 2:
+        return 0, None
+    try:
+        return len(lines) - 1, float(lines[-1].split(b",", 1)[0])
+    except ValueError:
+        return len(lines) - 1, None
+
+
+def _mat_from_csv(out: Path, summary: dict) -> str | None:
+    from .recorder import Result, write_mat_file
+    if not summary.get("rows_recorded"):
+        return None
+    try:
+        write_mat_file(Result.from_csv(out / "data.csv"), out / "data.mat")
+    except (OSError, ValueError) as e:
+        summary["mat_error"] = f"data.mat not written: {e}"
+        return None
+    return str(out / "data.mat")
+
+
+def _child(p: dict) -> None:
+    """The child: run in the claimed folder, exit with the status's code (never returns)."""
+    code = EXIT_FAILED
+    out = Path(p["out"])
+    try:
+        tempfile.tempdir = p["tmp"]               # fmpy unpacks the FMUs here; the parent removes it
+        if p["log_file"]:
+            fd = os.open(p["log_file"], os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+            sys.stdout.flush(), sys.stderr.flush()
+            os.dup2(fd, 1), os.dup2(fd, 2)        # C-level output of the FMUs too
+        trace = open(out / TRACEBACK_NAME, "w")
+        faulthandler.enable(file=trace)           # a segfault leaves the Python stack here
+        sc = p["scenario"] or load(p["path"], p["overrides"])
+        watch = RunWatch(p["wall_timeout"], p["max_steps"], Heartbeat(out / HEARTBEAT_NAME))
+        try:
+            run_in_folder(sc, out, p["progress"], watch, handle_signals=True)
+            code = 0
+        except RunEnded as e:
+            code = exit_code_for(e.signum) if e.status == "interrupted" else EXIT_TIMEOUT
+        except (SimulationError, OutputError):
+            code = EXIT_FAILED                     # summary.json says what
+        except CosimError as e:                    # scoring / plotting failed after the run
+            print(f"drillcosim: {e}", file=sys.stderr)
+            code = EXIT_FAILED
+    except BaseException as e:  # noqa: BLE001 - whatever happens, the parent gets a summary
+        import traceback
+        traceback.print_exc()
+        try:
+            write_json_atomic(out / "summary.json", {
+                "status": "interrupted" if isinstance(e, KeyboardInterrupt) else "failed",
+                "error": f"{type(e).__name__}: {e}", "out_dir": str(out)})
+        except OutputError:
+            pass
+        code = exit_code_for(signal.SIGINT) if isinstance(e, KeyboardInterrupt) else EXIT_FAILED
+    finally:
+        try:
+            sys.stdout.flush()
+            sys.stderr.flush()
+        finally:
+            os._exit(code)
+
+
+__all__ = ["run_supervised", "exit_code", "EXIT_CRASHED", "EXIT_TIMEOUT", "EXIT_FAILED"]

@@ -1,0 +1,68 @@
+"""Campaigns on dask.distributed (issue 13): a crashing run is reported and the others go
+on; sweep files."""
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from cosim import cli
+from cosim.campaign import run_campaign
+from cosim.errors import ScenarioError
+from cosim.sweep import expand, load_sweep
+from test_faults_run import fault_fmu, scenario  # noqa: F401 - the fixture and the scenario writer
+
+
+def test_campaign_one_crash_five_completed_on_two_local_workers(tmp_path, fault_fmu):
+    path = scenario(tmp_path, fault_fmu("segfault"), fail=-1, stop=0.2)
+    runs = [{"fmus.mass.parameters.m": 1.0 + i} for i in range(6)]
+    runs[3]["fmus.mass.parameters.fail_time"] = 0.05             # this one segfaults at 0.05 s
+    summaries = run_campaign(path, runs, out_dir=tmp_path / "camp", workers=2, progress=False)
+    assert [s["run"] for s in summaries] == list(range(6))
+    statuses = [s["status"] for s in summaries]
+    assert statuses == ["completed"] * 3 + ["crashed"] + ["completed"] * 2
+    crashed = summaries[3]
+    assert crashed["overrides"] == runs[3] and crashed["signal"] == "SIGSEGV"
+    assert crashed["time_reached"] == pytest.approx(0.05) and crashed["crashed_instance"] == "mass"
+    with open(tmp_path / "camp" / "campaign.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["status"] for r in rows] == statuses
+    assert rows[3]["fmus.mass.parameters.fail_time"] == "0.05" and rows[0]["fmus.mass.parameters.m"] == "1.0"
+    assert len(json.loads((tmp_path / "camp" / "campaign.json").read_text())) == 6
+
+
+def test_campaign_cli_with_a_sweep_file(tmp_path, mass_fmu, capsys):
+    path = scenario(tmp_path, mass_fmu, fail=-1, stop=0.05)
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text('[grid]\n"fmus.mass.parameters.m" = [1.0, 2.0]\n'
+                     '[seeds]\nkey = "fmus.mass.parameters.x0"\nvalues = [0.0, 0.5]\n')
+    code = cli.main(["campaign", str(path), "--sweep", str(sweep), "--out", str(tmp_path / "c"),
+                     "--workers", "2", "--quiet"])
+    assert code == 0
+    assert "4 runs: 4 completed" in capsys.readouterr().out
+    rows = list(csv.DictReader(open(tmp_path / "c" / "campaign.csv")))
+    assert [(r["fmus.mass.parameters.m"], r["fmus.mass.parameters.x0"]) for r in rows] == [
+        ("1.0", "0.0"), ("1.0", "0.5"), ("2.0", "0.0"), ("2.0", "0.5")]
+
+
+def test_sweep_expansion():
+    runs = expand({"runs": [{"a": 1}, {"a": 2}], "grid": {"b": {"c": [1, 2]}},
+                   "random": {"draws": 3, "seed": 7, "keys": {"u": {"uniform": [0.0, 1.0]},
+                                                              "k": {"integers": [1, 3]}}},
+                   "seeds": {"key": "s", "first": 10, "count": 2}})
+    assert len(runs) == 2 * 2 * 3 * 2
+    assert {r["b.c"] for r in runs} == {1, 2} and {r["s"] for r in runs} == {10, 11}
+    assert all(0.0 <= r["u"] <= 1.0 and r["k"] in (1, 2, 3) for r in runs)
+    again = expand({"random": {"draws": 3, "seed": 7, "keys": {"u": {"uniform": [0.0, 1.0]}}}})
+    assert [r["u"] for r in again] == [r["u"] for r in expand({"random": {"draws": 3, "seed": 7, "keys": {
+        "u": {"uniform": [0.0, 1.0]}}}})]
+
+
+@pytest.mark.parametrize("raw, key", [({"grid": {"a": 3}}, "grid.a"), ({"seeds": {"values": [1]}}, "seeds.key"),
+                                      ({"random": {"keys": {"a": {"beta": [1, 2]}}}}, "random.keys.a.beta"),
+                                      ({"grid": {"a": list(range(1000)), "b": list(range(1000))}}, None)])
+def test_sweep_errors_name_the_key(raw, key):
+    with pytest.raises(ScenarioError) as e:
+        expand(raw, "s.toml")
+    assert e.value.file == "s.toml" and e.value.key == key
