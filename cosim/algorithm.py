@@ -215,7 +215,9 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
         bus_names[i] = sig
     # block outputs that start as NaN use it as "not yet" (a detector's event times): NaN allowed
     nan_ok = {f"{n}.{p.name}" for n, b in system.blocks.items() for p in b.outputs if p.start != p.start}
-    finite_slots = _getter([i for i, sig in enumerate(bus_names) if sig not in nan_ok])
+    # numeric slots only: a String / Binary FMU variable cannot be NaN (nor summed)
+    finite_slots = _getter([i for i, sig in enumerate(bus_names)
+                            if sig not in nan_ok and not isinstance(bus.values[i], (str, bytes))])
     if recorder is not None:
         recorder.start(columns, units, types)
         recorder.allow_nonfinite = allow_nonfinite
@@ -463,7 +465,7 @@ def _check_bus(values: list, checked, names: list, nan_ok: set, t: float) -> Non
     if math.isfinite(sum(checked(values))):
         return
     for i, v in enumerate(values):
-        if not math.isfinite(v) and names[i] not in nan_ok:
+        if isinstance(v, (int, float)) and not math.isfinite(v) and names[i] not in nan_ok:
             sig = names[i] or f"bus slot {i}"
             raise SimulationError(f"non-finite value in '{sig}' = {v!r} (found at the end-of-chunk check; "
                                   "[scenario] allow_nonfinite = true lets it pass)",
