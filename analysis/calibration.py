@@ -113,9 +113,13 @@ def fit_thrust_constant(levels: list[dict], Kt_n_reference: float) -> dict:
 
 
 def _scenario_raw(result) -> dict:
-    """The run's scenario (with its overrides), for provenance; {} for a Python-API run."""
+    """The run's scenario (with its overrides, file settings made absolute), for
+    provenance; {} for a Python-API run."""
     from cosim.scenario import load_raw
 
+    sc = getattr(result, "scenario", None)
+    if sc is not None:
+        return sc.raw
     summ = getattr(result, "summary", None) or {}
     if not summ.get("file"):
         return {}

@@ -116,14 +116,10 @@ class FrictionModel:
 
 
 def resolve_path(path):
-    """A settings path: as given if it exists, else relative to the repository root."""
-    if not path:
-        return path
-    p = Path(path)
-    if p.exists() or p.is_absolute():
-        return p
-    alt = Path(__file__).resolve().parent.parent / p
-    return alt if alt.exists() else p
+    """A settings path as given: a scenario file's loader has made it absolute already
+    (relative to the scenario file); by hand it is relative to the working directory
+    (cosim/paths.py, the one rule)."""
+    return Path(path) if path else path
 
 
 def make_friction(friction_file=None, coulomb=None, viscous=None, stribeck=None, v_stribeck=None,

@@ -26,19 +26,7 @@ def _parse_set(items: list[str]) -> dict:
     return out
 
 
-def scenario_dir() -> Path:
-    """``scenarios/`` of the working directory, else the one next to the installed package."""
-    here = Path("scenarios")
-    return here if here.is_dir() else Path(__file__).resolve().parent.parent / "scenarios"
-
-
-def _scenario_path(name: str) -> Path:
-    """A scenario file, or its name in scenarios/ (with or without .toml)."""
-    path = Path(name)
-    for cand in (scenario_dir() / name, scenario_dir() / f"{name}.toml"):
-        if not path.exists() and cand.exists():
-            path = cand
-    return path
+from .paths import scenario_dir, scenario_path as _scenario_path   # noqa: E402 (one path rule)
 
 
 def cmd_run(args) -> int:

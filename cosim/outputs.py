@@ -20,7 +20,7 @@ LOCK_NAME = ".drillcosim.lock"
 HEARTBEAT_NAME = ".heartbeat"
 TRACEBACK_NAME = "crash_traceback.txt"
 # what a run writes; removed before a run so that no earlier result is taken for this run's
-PRODUCED = ("data.csv", "data.mat", "summary.json", TRACEBACK_NAME, HEARTBEAT_NAME)
+PRODUCED = ("data.csv", "data.columns.json", "data.mat", "summary.json", "scores.txt", TRACEBACK_NAME, HEARTBEAT_NAME)
 PRODUCED_GLOBS = ("*.png", ".summary.json.*.tmp")
 
 

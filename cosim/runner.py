@@ -9,6 +9,8 @@ this process with it.
 """
 from __future__ import annotations
 
+import contextlib
+import io
 import signal
 import sys
 from contextlib import nullcontext
@@ -109,6 +111,7 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
     summary["scores"] = {}
     result.summary = summary
     result.system = sc.system        # scorers reach the plant's binding (roles, true parameters) here
+    result.scenario = sc
     if watch.signum is not None:
         summary.update(signal=signal.Signals(watch.signum).name, signal_number=int(watch.signum))
     if info.status in ("interrupted", "timeout"):
@@ -117,7 +120,7 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
         raise RunEnded(f"run {info.status} at t = {info.time_reached:g} s ({info.stop_reason}); "
                        f"results so far in {out}", info.status, result, watch.signum)
 
-    problems = _score_and_plot(sc, result, out, summary)
+    problems = _score_and_plot(sc, result, out, summary, echo=progress)
     summary["files"] = {"csv": str(out / "data.csv"), "mat": str(out / "data.mat"),
                         "png": sorted(str(f) for f in out.glob("*.png"))}   # earlier PNGs were removed
     if problems:
@@ -129,7 +132,21 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
     return result
 
 
-def _score_and_plot(sc: Scenario, result: Result, out: Path, summary: dict) -> list[str]:
+def _score_and_plot(sc: Scenario, result: Result, out: Path, summary: dict, echo: bool = True) -> list[str]:
+    """Run the score and plot functions. What they print (score tables) goes to
+    ``scores.txt`` in the run's folder, and to the terminal unless the run is quiet."""
+    problems = []
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        problems = _call_scores_and_plots(sc, result, out, summary)
+    if printed.getvalue():
+        (out / "scores.txt").write_text(printed.getvalue())
+        if echo:
+            sys.stdout.write(printed.getvalue())
+    return problems
+
+
+def _call_scores_and_plots(sc: Scenario, result: Result, out: Path, summary: dict) -> list[str]:
     problems = []
     for spec, fn, settings, name in sc.scores:
         try:

@@ -34,6 +34,7 @@ from pathlib import Path
 from .errors import AlgebraicLoopError, CosimError, ScenarioError
 from .manipulators import Event, parse_condition, setter_for
 from .model_exchange import SOLVERS, create_slave, load_any_model
+from .paths import PATH_SETTING, resolve, scenario_path
 from .plant import load_binding
 from .scores import bind_settings, needed_signals
 from .slave import resolve_fmu_path
@@ -124,6 +125,7 @@ class Origins(dict):
     def __init__(self, main: str = "<scenario>"):
         super().__init__()
         self.main = main
+        self.overridden: set[str] = set()     # keys set by --set / overrides= (paths: working directory)
 
     def locate(self, key: str) -> tuple[str, str]:
         """``(file, key path in that file)`` of a merged key path."""
@@ -332,7 +334,10 @@ def _fmu_error_key(spec: dict, opts: dict, message: str) -> str:
 
 
 def _dir_of(origins: Origins | None, key: str, file: str, base_dir: Path | None) -> Path | None:
-    """The folder a relative path at ``key`` resolves against: that of the file that wrote it."""
+    """The folder a relative path at ``key`` resolves against (:mod:`cosim.paths`): that of
+    the file that wrote it; the working directory for an override."""
+    if origins is not None and key in origins.overridden:
+        return Path.cwd()
     if origins is not None and origins.file_of(key) != file:   # written in a base file
         return Path(origins.file_of(key)).parent.resolve()
     return base_dir
@@ -340,10 +345,7 @@ def _dir_of(origins: Origins | None, key: str, file: str, base_dir: Path | None)
 
 def _binding(spec: dict, key: str, c: "_Checker", origins, file: str, base_dir):
     """The plant binding file named by ``[fmus.<name>] plant`` (relative to the file that wrote it)."""
-    where = _dir_of(origins, f"{key}.plant", file, base_dir)
-    path = Path(spec["plant"]).expanduser()
-    if not path.is_absolute() and where is not None:
-        path = where / path
+    path = resolve(spec["plant"], _dir_of(origins, f"{key}.plant", file, base_dir))
     try:
         return load_binding(path)
     except ScenarioError as e:
@@ -445,6 +447,9 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
         except Exception as e:     # ImportError, AttributeError, an error raised by the module itself
             raise c.error(f"{key}.class", f"cannot import {spec['class']!r} (expected 'module:Class' "
                                           f"importable from the project): {type(e).__name__}: {e}") from None
+        for k, v in (spec.get("settings") or {}).items():   # file settings: one path rule
+            if PATH_SETTING.search(k) and isinstance(v, str) and v:
+                spec["settings"][k] = str(resolve(v, _dir_of(origins, f"{key}.settings.{k}", file, base_dir)))
         block = _construct_block(cls, name, spec, c)
         try:
             system.add_block(name, block)
@@ -636,6 +641,24 @@ def _override_path(key: str) -> str:
     return out
 
 
+def _check_override_targets(raw: dict, overrides: dict | None, file: str) -> None:
+    """An override below ``fmus.<x>`` / ``blocks.<x>`` needs that instance, unless the
+    overrides create it whole (with its ``path``/``plant`` or ``class``): a typo in the
+    instance name is named as such, not as a missing key of a new table."""
+    keys = [_override_path(k) for k in overrides or {}]
+    for section, needs in (("fmus", ("path", "plant")), ("blocks", ("class",))):
+        have = raw.get(section) if isinstance(raw.get(section), dict) else {}
+        for k in keys:
+            parts = k.split(".")
+            if parts[0] != section or len(parts) < 3 or parts[1] in have:
+                continue
+            if any(f"{section}.{parts[1]}.{n}" in keys for n in needs):
+                continue                     # a new instance, given whole
+            kind = "FMU" if section == "fmus" else "block"
+            raise ScenarioError(f"no {kind} named '{parts[1]}' for the override {k} ({kind}s here: "
+                                f"{', '.join(have) or 'none'})", file, "overrides")
+
+
 def load_raw(path, overrides: dict | None = None, origins: Origins | None = None) -> dict:
     """The parsed scenario file with its ``extends`` chain merged and ``overrides`` applied
     (not validated). Pass an empty :class:`Origins` to learn which file wrote each key
@@ -645,15 +668,18 @@ def load_raw(path, overrides: dict | None = None, origins: Origins | None = None
     if any(_override_path(k) == "scenario.extends" for k in (overrides or {})):
         raise ScenarioError("extends cannot be overridden (write a scenario file that extends the "
                             "other one)", str(path), "overrides")
+    _check_override_targets(raw, overrides, str(path))
     raw = apply_overrides(raw, overrides, str(path))
     for key in overrides or {}:                 # an overridden key was written by the caller
         k = _override_path(key)
         found.drop(k)
         found[k] = (str(path), k)
+        found.overridden.add(k)
     if origins is not None:
         origins.clear()
         origins.update(found)
         origins.main = found.main
+        origins.overridden = found.overridden
     return raw
 
 
@@ -671,8 +697,9 @@ def read_toml(path: Path) -> dict:
 
 
 def load_scenario(path, overrides: dict | None = None) -> Scenario:
-    """Load and fully validate a scenario file; ``overrides`` are dotted keys set first."""
-    path = Path(path)
+    """Load and fully validate a scenario file (a path, or a name in ``scenarios/``);
+    ``overrides`` are dotted keys set first."""
+    path = scenario_path(path)
     origins = Origins()
     raw = load_raw(path, overrides, origins)
     scenario = build(raw, str(path), path.parent.resolve(), path.stem, origins)

@@ -340,6 +340,14 @@ class Probe(Block):
         return (u[0],)
 
 
+class FileProbe(Probe):
+    """A Probe with a file setting (``table_file``): where the loader says it is."""
+
+    def __init__(self, sample_period=0.0, unit="m", table_file=""):
+        super().__init__(sample_period, unit)
+        self.table_file = table_file
+
+
 class Gain(Block):
     """y = k * u (direct feed-through)."""
 
@@ -381,8 +389,10 @@ class Raiser(Block):
 
 
 def final_position_score(result, scale=1000.0):
-    """A [[scores]] function: keys carry units."""
-    return {"final_position_mm": float(result["mass.x"][-1] * scale)}
+    """A [[scores]] function: keys carry units; it prints its table, as the paper scores do."""
+    x = float(result["mass.x"][-1] * scale)
+    print(f"final position table: {x:.3f} mm")
+    return {"final_position_mm": x}
 
 
 def plot_function(result, out_dir, name="custom.png"):

@@ -32,13 +32,15 @@ def test_info(which, version, request, capsys):
     assert "output" in line and " m " in line and "Scoring only: true position" in line
 
 
-def test_run_and_plot(scenario_file, tmp_path, capsys):
+def test_run_and_plot(scenario_file, tmp_path, capfd):
     out = tmp_path / "cli_out"
     assert main(["run", str(scenario_file), "--out", str(out), "--quiet",
                  "--set", "scenario.stop_time=0.05", "--set", "fmus.mass.parameters.m=2.0"]) == 0
-    printed = capsys.readouterr().out
+    printed = capfd.readouterr().out
     for what in ("csv:", "png:", "summary:"):
         assert what in printed
+    assert "final position table" not in printed                       # --quiet: only the paths ...
+    assert "final position table" in (out / "scores.txt").read_text()  # ... the tables are kept
     summary = json.loads((out / "summary.json").read_text())
     assert summary["time_reached"] == pytest.approx(0.05)
     assert summary["overrides"] == {"scenario.stop_time": 0.05, "fmus.mass.parameters.m": 2.0}

@@ -3,6 +3,7 @@ a full run writes CSV, .mat, summary.json (with scores) and PNGs."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -390,14 +391,34 @@ def test_extends_errors_name_the_file_that_wrote_the_key(base_tree):
 
 
 def test_extends_fmu_path_relative_to_the_base(base_tree):
-    """A relative FMU path written in a base resolves against the base, one written (or
-    overridden) in the extending file against the extending file."""
+    """A relative FMU path written in a base resolves against the base, one written in the
+    extending file against the extending file, an override against the working directory
+    (cosim/paths.py: the one rule)."""
     ext = base_tree / "runs" / "heavy.toml"
     ext.write_text(EXTENDS)
     assert load_scenario(ext).system.slaves["mass"].model.path.parent == base_tree / "fmus"
     expect_error(ext, {"fmus.mass.path": "mass.fmu"}, "fmus.mass.path", "does not exist",
-                 str(base_tree / "runs" / "mass.fmu"))
+                 str(Path.cwd() / "mass.fmu"))
     import shutil
     shutil.copy(base_tree / "fmus" / "mass.fmu", base_tree / "runs" / "mass.fmu")
     ext.write_text(EXTENDS + '\n[fmus.mass]\npath = "mass.fmu"\n')
     assert load_scenario(ext).system.slaves["mass"].model.path.parent == base_tree / "runs"
+
+
+def test_one_rule_for_relative_paths(base_tree, monkeypatch):
+    """A block's file setting written in a base resolves against the base, one written in
+    the extending file against that file, an override against the working directory; a
+    scenario name is looked up in scenarios/ (docs/scenario_format.md, "Paths")."""
+    base = base_tree / "bases" / "base.toml"
+    base.write_text(base.read_text() + '\n[blocks.table]\nclass = "cosim_helpers:FileProbe"\n'
+                    '[blocks.table.settings]\ntable_file = "table.csv"\n')
+    ext = base_tree / "runs" / "heavy.toml"
+    ext.write_text(EXTENDS)
+    monkeypatch.chdir(base_tree)       # somewhere else than either file
+    assert load_scenario(ext).system.blocks["table"].table_file == str(base_tree / "bases" / "table.csv")
+    ext.write_text(EXTENDS + '\n[blocks.table.settings]\ntable_file = "mine.csv"\n')
+    assert load_scenario(ext).system.blocks["table"].table_file == str(base_tree / "runs" / "mine.csv")
+    sc = load_scenario(ext, {"blocks.table.settings.table_file": "cli.csv"})
+    assert sc.system.blocks["table"].table_file == str(base_tree / "cli.csv")
+    monkeypatch.chdir(Path(__file__).resolve().parents[1])
+    assert load_scenario("open_loop_linear_stage").path == Path("scenarios/open_loop_linear_stage.toml")
