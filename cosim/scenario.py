@@ -642,11 +642,11 @@ def _override_path(key: str) -> str:
 
 
 def _check_override_targets(raw: dict, overrides: dict | None, file: str) -> None:
-    """An override below ``fmus.<x>`` / ``blocks.<x>`` needs that instance, unless the
-    overrides create it whole (with its ``path``/``plant`` or ``class``): a typo in the
-    instance name is named as such, not as a missing key of a new table."""
+    """An override below ``fmus.<x>`` needs that FMU, unless the overrides create it whole
+    (with its ``path`` or ``plant``): a typo in the instance name is named as such, not as
+    a missing key of a new table."""
     keys = [_override_path(k) for k in overrides or {}]
-    for section, needs in (("fmus", ("path", "plant")), ("blocks", ("class",))):
+    for section, needs in (("fmus", ("path", "plant")),):
         have = raw.get(section) if isinstance(raw.get(section), dict) else {}
         for k in keys:
             parts = k.split(".")
