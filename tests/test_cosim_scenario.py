@@ -422,3 +422,8 @@ def test_one_rule_for_relative_paths(base_tree, monkeypatch):
     assert sc.system.blocks["table"].table_file == str(base_tree / "cli.csv")
     monkeypatch.chdir(Path(__file__).resolve().parents[1])
     assert load_scenario("open_loop_linear_stage").path == Path("scenarios/open_loop_linear_stage.toml")
+
+
+def test_override_of_a_missing_fmu_names_the_instances(scenario_file):
+    expect_error(scenario_file, {"fmus.drive.parameters.seed": 3}, "overrides",
+                 "no FMU named 'drive'", "FMUs here: mass")
