@@ -134,3 +134,28 @@ def test_extends_replaces_and_removes_connections(tmp_path):
 def test_score_settings_are_bound_before_the_run():
     with pytest.raises(ScenarioError, match=r"scores\[0\]\.settings.*fmu"):
         load_scenario(SCEN / "fang_orbital_cfrp_ti.toml", {"scores[0].settings.fmu": "drive"})
+
+
+def test_friction_identified_through_roles_does_not_depend_on_the_fmus_units(tmp_path):
+    """The foreign ball screw (mA, mm, deg at its interface) and its SI twin (A, m, rad: the
+    same C model and noise, fmus/foreign/build.py:build_si_twin) give the same friction fit
+    in SI, within 1 % (issue 10; before roles the degree encoder made the viscous term 57x
+    too small)."""
+    from cosim import run_scenario
+    from fmus.foreign.build import build_si_twin
+
+    si_fmu = build_si_twin("ForeignBallScrew", tmp_path)
+    si_binding = _binding_copy(tmp_path, FOREIGN_BS, lambda t: t.replace('path = "ForeignBallScrew"',
+                                                                         f'path = "{si_fmu}"'))
+    fits = []
+    for name, binding in (("machine_units", FOREIGN_BS), ("si", si_binding)):
+        r = run_scenario(SCEN / "foreign" / "air_cut_friction_identification.toml", out_dir=tmp_path / name,
+                         overrides={"fmus.drive.plant": str(binding)},
+                         progress=False)
+        fits.append(r.summary["scores"]["air_cut_friction"])
+    assert r.system.bindings["drive"].bound["motor_angle"].scale == 1.0          # the twin is SI
+    mm, si = fits
+    assert mm["friction_n_segments"] == si["friction_n_segments"] == 8
+    for key in ("friction_coulomb", "friction_viscous", "friction_offset"):
+        assert mm[key] == pytest.approx(si[key], rel=0.01, abs=1e-9), key
+    assert mm["friction_ripple_main"]["amplitude"] == pytest.approx(si["friction_ripple_main"]["amplitude"], rel=0.01)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -56,13 +57,41 @@ def _up_to_date(name: str) -> bool:
     return fmu.exists() and all(p.stat().st_mtime <= fmu.stat().st_mtime for p in _inputs(name))
 
 
-def build(name: str, force: bool = False, verbose: bool = True) -> Path:
+# interface variables of the SI twin: (name, machine unit, SI unit)
+SI_INTERFACE = {"ForeignBallScrew": [("iq_ref", "mA", "A"), ("iq_meas", "mA", "A"), ("scale_pos", "mm", "m"),
+                                     ("motor_angle", "deg", "rad"), ("tip_pos", "mm", "m"),
+                                     ("table_vel", "mm/s", "m/s")]}
+
+
+SI_BASE = {"A": 'A="1"', "m": 'm="1"', "rad": 'rad="1"', "m/s": 'm="1" s="-1"'}
+
+
+def si_model_description(name: str) -> str:
+    """The SI twin's modelDescription.xml: the interface variables' units swapped."""
+    text = (HERE / name / "modelDescription.xml").read_text()
+    for var, old, new in SI_INTERFACE[name]:
+        text, n = re.subn(rf'(<Float64 name="{var}"[^>]*?unit=")({re.escape(old)})(")', rf"\g<1>{new}\3", text)
+        if n != 1:
+            raise RuntimeError(f"{name}: cannot find variable {var} in [{old}] in modelDescription.xml")
+    declared = set(re.findall(r'<Unit name="([^"]+)"', text))
+    new_units = "".join(f'    <Unit name="{u}"><BaseUnit {SI_BASE[u]}/></Unit>\n'
+                        for u in dict.fromkeys(new for _v, _o, new in SI_INTERFACE[name]) if u not in declared)
+    return text.replace("</UnitDefinitions>", new_units + "  </UnitDefinitions>", 1)
+
+
+def build_si_twin(name: str, out_dir) -> Path:
+    """The SI-interface twin of ``name`` (same physics, noise and seed; A, m, rad at the
+    interface) as ``out_dir/<name>SI.fmu``: for tests that the analysis is unit-blind."""
+    return build(name, force=True, verbose=False, si_twin_dir=Path(out_dir))
+
+
+def build(name: str, force: bool = False, verbose: bool = True, si_twin_dir: Path | None = None) -> Path:
     """Build one foreign FMU if stale (or ``force``); returns the .fmu path."""
     _check(name)
     import fmpy
     from fmus.build import BUILD_DIR, _fmi_include, _Lock
     with _Lock(BUILD_DIR / ".lock"):
-        fmu = _fmu_file(name)
+        fmu = _fmu_file(name) if si_twin_dir is None else si_twin_dir / f"{name}SI.fmu"
         if not force and _up_to_date(name):
             if verbose:
                 print(f"{name}: up to date ({fmu})")
@@ -72,6 +101,7 @@ def build(name: str, force: bool = False, verbose: bool = True) -> Path:
             lib = Path(tmp) / f"{name}{ext}"
             cmd = [os.environ.get("CC", "gcc"), "-O2", "-shared", "-fPIC", "-std=gnu11", "-Wall", "-Wextra",
                    "-Wno-unused-parameter", f"-I{_fmi_include()}", f"-I{HERE}", "-o", str(lib)]
+            cmd += ["-DFOREIGN_SI_INTERFACE"] if si_twin_dir is not None else []
             cmd += [str(s) for s in _sources(name)] + ["-lm"]
             res = subprocess.run(cmd, capture_output=True, text=True)
             if res.returncode != 0:
@@ -80,7 +110,10 @@ def build(name: str, force: bool = False, verbose: bool = True) -> Path:
                 print(res.stderr, file=sys.stderr)
             tmp_fmu = Path(tmp) / f"{name}.fmu"
             with zipfile.ZipFile(tmp_fmu, "w", zipfile.ZIP_DEFLATED) as zf:
-                zf.write(HERE / name / "modelDescription.xml", "modelDescription.xml")
+                if si_twin_dir is None:
+                    zf.write(HERE / name / "modelDescription.xml", "modelDescription.xml")
+                else:
+                    zf.writestr("modelDescription.xml", si_model_description(name))
                 zf.write(lib, f"binaries/{fmpy.platform_tuple}/{name}{ext}")
                 for f in _sources(name) + [HERE / h for h in SHARED_HEADERS]:
                     zf.write(f, f"sources/{f.name}")

@@ -7,6 +7,20 @@
 #include "cut.h"
 #include "fglue.h"
 
+/* Interface units: machine units (mA, mm, deg) by default. -DFOREIGN_SI_INTERFACE builds the
+   SI twin (A, m, rad at the interface, the same physics and noise), with which a test shows
+   that the identification through plant roles does not depend on the FMU's units
+   (fmus/foreign/build.py: build_si_twin). */
+#ifdef FOREIGN_SI_INTERFACE
+#define TO_MA 1.0
+#define TO_MM 1.0
+#define TO_DEG 1.0
+#else
+#define TO_MA 1e3
+#define TO_MM 1e3
+#define TO_DEG (180.0 / M_PI)
+#endif
+
 enum {
     /* inputs */
     VR_IQ_REF = 1, VR_SPINDLE_N = 2, VR_ORBIT_F = 3,
@@ -143,14 +157,14 @@ static void outputs(FgData *d) {
     double F = s->Fc + s->Fr;
     /* two Gaussians per communication point, always: same seed + steps -> same outputs */
     double n_i = fg_gauss(d), n_f = fg_gauss(d);
-    v[VR_IQ_MEAS] = (s->i + s->inoise * n_i) * 1e3;
-    v[VR_SCALE_POS] = floor(s->x / s->qx) * s->qx * 1e3;
-    v[VR_MOTOR_ANGLE] = floor(s->th / s->qa) * s->qa * (180.0 / M_PI);
+    v[VR_IQ_MEAS] = (s->i + s->inoise * n_i) * TO_MA;
+    v[VR_SCALE_POS] = floor(s->x / s->qx) * s->qx * TO_MM;
+    v[VR_MOTOR_ANGLE] = floor(s->th / s->qa) * s->qa * TO_DEG;
     v[VR_LOAD_CELL] = F + s->lc_noise * n_f;
     v[VR_THRUST] = F;
     v[VR_RIPPLE] = s->Fr;
-    v[VR_TIP_POS] = s->x * 1e3;
-    v[VR_TABLE_VEL] = s->v * 1e3;
+    v[VR_TIP_POS] = s->x * TO_MM;
+    v[VR_TABLE_VEL] = s->v * TO_MM;
     v[VR_MOTOR_VEL] = s->w * (60.0 / (2.0 * M_PI));
     v[VR_FRICTION] = s->tf;
     cut_layer_at(&s->st, s->x, &v[VR_LAYER], &v[VR_MATERIAL]);
@@ -176,7 +190,7 @@ void fg_model_step(FgData *d, double H) {
         s->H_last = H;
     }
     const double h = s->h;
-    double i_cmd = d->v[VR_IQ_REF] * 1e-3;
+    double i_cmd = d->v[VR_IQ_REF] / TO_MA;
     if (i_cmd > s->imax) i_cmd = s->imax;
     if (i_cmd < -s->imax) i_cmd = -s->imax;
     const double n = fabs(d->v[VR_SPINDLE_N]) / 60.0;
