@@ -136,6 +136,7 @@ class RobustAcceleration:
         self.i = 0.0          # last (saturated) current reference [A]
         self.i_unsat = 0.0
         self.dt = self.dt0
+        self._dt_poles = None        # dt the filter poles exp(-g dt) below were computed for
 
     def measure(self, t: float, z: float) -> float:
         """Update v_hat and F_dis_hat with the encoder position ``z`` at ``t``; returns v_hat."""
@@ -144,11 +145,12 @@ class RobustAcceleration:
             return self.v
         dt = t - self.t_prev if t > self.t_prev else self.dt0
         self.dt = dt
-        av = math.exp(-self.g_vel * dt)
+        if dt != self._dt_poles:     # the sample spacing rarely changes: two exp() per change, not per sample
+            self._dt_poles, self._av, self._ad = dt, math.exp(-self.g_vel * dt), math.exp(-self.g_dob * dt)
+        av, ad = self._av, self._ad
         v_new = av * self.v + (1.0 - av) * (z - self.z_prev) / dt
         self.a = (v_new - self.v) / dt
         self.v = v_new
-        ad = math.exp(-self.g_dob * dt)
         raw = self.Kt * self.i + self.F_bias - self.M * self.a
         self.F_dis = ad * self.F_dis + (1.0 - ad) * raw
         self.z_prev, self.t_prev = z, t
@@ -237,7 +239,7 @@ class PositionController(Block):
         v_hat = core.measure(t, z)
         a_cmd = pd_feedforward(self.Kp, self.Kv, z_ref, z, v_ff, v_hat, a_ff)
         i = core.current(a_cmd)
-        return (i, v_hat, core.F_dis, a_cmd, 1.0 if core.saturated else 0.0)
+        return (i, v_hat, core.F_dis, a_cmd, 1.0 if abs(core.i_unsat) > core.i_max else 0.0)
 
 
 class BallScrewPositionController(PositionController):

@@ -10,6 +10,12 @@ Every communication step n (t = t0 + n*h)::
     write the inputs of every FMU          (one setReal per FMU)
     doStep(t, h) on every FMU              (optionally with step rejection, below)
 
+:func:`simulate` does it in three parts, so that the loop itself stays as plain as
+FMPy's: **compile** (:func:`_compile`: signals -> bus slots, readers, the block schedule,
+events; no FMU touched), **instantiate** (:class:`_Loop`: FMUs set up, their bound ctypes
+calls, heartbeat) and **the loop** (:meth:`_Loop.run`, a chunk of steps at a time; between
+chunks the rows go to disk, the bus is checked for NaN and the watch for limits).
+
 With ``step_rejection_floor`` [s] (scenario key ``[scenario] step_rejection_floor``), a
 step that an FMU answers with Discard is rolled back for every FMU that can save its
 state and retried with halved steps down to the floor (:mod:`cosim.step_rejection`);
@@ -18,7 +24,9 @@ without it a Discard stops the run, and the loop is exactly the plain one.
 All values travel on one flat Python list, the *bus*: each FMU output that anyone
 reads, each block output and each unconnected block input owns one slot. The loop
 uses only precomputed index lists, bound ctypes calls and local variables -- no
-dictionary lookups per step -- so the master costs little next to the FMU calls.
+dictionary lookups per step -- and a schedule table that lists the blocks due at each
+step, so a block that runs every 10th step costs nothing in the nine others
+(docs/performance.md).
 """
 from __future__ import annotations
 
@@ -124,43 +132,108 @@ def _fmu_reads(system, extra_signals) -> dict[str, list[str]]:
     return reads
 
 
-def simulate(system, stop_time: float, recorder: Recorder | None = None,
-             events: list[Event] = (), progress: bool = False, extra_record=(),
-             step_rejection_floor: float | None = None, watch: RunWatch | None = None,
-             allow_nonfinite: bool = False) -> RunInfo:
-    """Run ``system`` from its start time to ``stop_time`` [s] (or an earlier stop event).
+MAX_SCHEDULE = 1 << 16      # steps in one period of the block schedule table at most
 
-    Rows go to ``recorder`` as they are produced; the caller finishes the recorder
-    (also after a :class:`SimulationError`, which keeps every row recorded so far).
-    ``watch`` (:class:`cosim.watch.RunWatch`): wall-clock / step limits, stop requests,
-    heartbeat. A NaN or inf on the bus or in a recorded row stops the run with a
-    :class:`SimulationError` naming the signal, unless ``allow_nonfinite``.
-    """
-    h, t0 = system.step_size, system.start_time
-    # stop_time off the step grid: a last, shorter step ends exactly at stop_time (as fmpy
-    # and OMSimulator do); blocks keep sampling on the grid (docs/conformance.md)
-    n_last = max(1, math.ceil((stop_time - t0) / h - GRID_RTOL))
-    h_last = stop_time - (t0 + (n_last - 1) * h)
-    n_short = n_last - 1 if abs(h_last - h) > GRID_RTOL * h else -1
-    if not stop_time - t0 > GRID_RTOL * h:
-        raise ScenarioError(f"stop_time {stop_time!r} s must be after the start time {t0!r} s",
-                            key="stop_time")
-    info = RunInfo(stop_time=float(stop_time))
-    order = system.block_order()
-    watch = watch if watch is not None else RunWatch()
-    n_run = min(n_last, watch.max_steps) if watch.max_steps else n_last   # last step this run takes
 
-    # -- compile: signals -> bus slots ---------------------------------------------
+def _reader(refs: list[tuple[int, float, float]]):
+    """``bus -> tuple`` of ``scale * bus[slot] + offset`` for each ``(slot, scale, offset)``.
+
+    Unscaled: an :func:`operator.itemgetter` (C). Scaled: a lambda generated once, so a
+    scaled connection costs one multiply-add inside a single call rather than a copy and
+    a Python loop per step (the constants are its globals, never re-parsed from text)."""
+    if all((s, o) == (1.0, 0.0) for _i, s, o in refs):
+        return _getter([i for i, _s, _o in refs])
+    consts, terms = {}, []
+    for j, (i, s, o) in enumerate(refs):
+        if (s, o) == (1.0, 0.0):
+            terms.append(f"v[{i}]")
+        else:
+            consts[f"s{j}"], consts[f"o{j}"] = s, o
+            terms.append(f"s{j} * v[{i}] + o{j}")
+    return eval(f"lambda v: ({', '.join(terms)},)", consts)   # noqa: S307 - text built here from ints
+
+
+class _DueAt:
+    """The blocks due at step n when the rates have no short common period (rare)."""
+
+    def __init__(self, blocks):
+        self.blocks = [(b[0], b[1:]) for b in blocks]
+
+    def __getitem__(self, n):
+        return [run for rate, run in self.blocks if n % rate == 0]
+
+
+def _schedule(blocks: list[tuple], n_steps: int):
+    """``(table, period)``: ``table[n % period]`` lists the blocks due at step n
+    (``n % rate == 0``) in dependency order, so the loop tests no rate per block.
+
+    ``blocks`` are ``(rate, *runtime)``; the period is the rates' least common multiple
+    (identical entries share one tuple). Beyond :data:`MAX_SCHEDULE` a lookup object
+    tests the rates per step instead."""
+    period = math.lcm(*(b[0] for b in blocks)) if blocks else 1
+    if period > MAX_SCHEDULE:
+        return _DueAt(blocks), n_steps + 1       # n % (n_steps + 1) == n for every step taken
+    runs = [b[1:] for b in blocks]
+    shared: dict[tuple, tuple] = {}
+    table = []
+    for n in range(period):
+        due = tuple(j for j, b in enumerate(blocks) if n % b[0] == 0)
+        table.append(shared.setdefault(due, tuple(runs[j] for j in due)))
+    return table, period
+
+
+@dataclass
+class _Grid:
+    """The communication points of a run: t = t0 + n*h for n < n_last, then stop_time."""
+
+    t0: float
+    h: float
+    stop_time: float
+    n_last: int      # index of the last communication point (stop_time)
+    h_last: float    # [s] the last step, shorter when stop_time is off the grid
+    n_short: int     # step index taking h_last, -1 when every step is h
+
+    @classmethod
+    def of(cls, system, stop_time: float) -> "_Grid":
+        # stop_time off the step grid: a last, shorter step ends exactly at stop_time (as
+        # fmpy and OMSimulator do); blocks keep sampling on the grid (docs/conformance.md)
+        h, t0 = system.step_size, system.start_time
+        if not stop_time - t0 > GRID_RTOL * h:
+            raise ScenarioError(f"stop_time {stop_time!r} s must be after the start time {t0!r} s",
+                                key="stop_time")
+        n_last = max(1, math.ceil((stop_time - t0) / h - GRID_RTOL))
+        h_last = stop_time - (t0 + (n_last - 1) * h)
+        n_short = n_last - 1 if abs(h_last - h) > GRID_RTOL * h else -1
+        return cls(t0, h, float(stop_time), n_last, h_last, n_short)
+
+    def time(self, n: int) -> float:
+        return self.t0 + n * self.h if n < self.n_last else self.stop_time
+
+
+@dataclass
+class _Plan:
+    """A system compiled onto the bus: slots, readers, schedule, events (no FMU touched)."""
+
+    bus: _Bus
+    columns: list
+    read_plan: list        # (slave, variable names, first slot, end slot)
+    write_plan: list       # (slave, input variable names, reader of their values)
+    blocks: list           # (rate, step, reader, first slot, end slot, n outputs, name)
+    conditions: list       # (slot, scale, offset, operator, number, event)
+    timed: list            # (step index, declaration index, event), in firing order
+    setters: dict
+    record: object         # reader of the recorded columns
+    decimation: int
+    bus_names: list
+    nan_ok: set
+    finite_slots: object
+
+
+def _compile(system, recorder, events, extra_record) -> _Plan:
+    """Signals -> bus slots, every reader and the block schedule, before any FMU is loaded."""
+    t0, h = system.start_time, system.step_size
     columns = recorder.resolve(system, extra_record) if recorder is not None else []
     conditions = [parse_condition(e.when) for e in events if e.when is not None]
-    units, types = [], []
-    for c in columns:   # every recorded name must exist (FMU variable, block output or input)
-        try:
-            sig = system.readable(c)
-        except ScenarioError as e:
-            raise ScenarioError(e.detail, key="record.signals") from None
-        units.append(sig.unit)
-        types.append(sig.type)
     bus = _Bus(system)
     fmu_vars = _fmu_reads(system, [c for c in columns if c.split(".", 1)[0] in system.slaves]
                           + [c[0] for c in conditions if c[0].split(".", 1)[0] in system.slaves])
@@ -173,32 +246,40 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
             for e, start in zip(v.elements, v.start_values()):
                 bus.add(f"{name}.{e}", start)
         read_plan.append((slave, names, a, len(bus.values)))
-    block_plan = []
+    order = system.block_order()
+    block_slots = []
     for name in order:
-        block = system.blocks[name]
         a = len(bus.values)
-        for p in block.outputs:
+        for p in system.blocks[name].outputs:
             bus.add(f"{name}.{p.name}", float(p.start))
-        block_plan.append((name, block, a, len(bus.values)))
+        block_slots.append((name, a, len(bus.values)))
     for name in order:                  # unconnected block inputs hold their start value
         for p in system.blocks[name].inputs:
             sig = f"{name}.{p.name}"
             if system.driven_by(sig) is None:
                 bus.add(sig, float(p.start))
-
-    def inputs_of(signals, wire=False):
-        refs = [bus.ref(s, wire) for s in signals]
-        scaled = tuple((j, s, o) for j, (_i, s, o) in enumerate(refs) if (s, o) != (1.0, 0.0))
-        return _getter([r[0] for r in refs]), scaled
-
-    blocks_rt = []
-    for name, block, a, b in block_plan:
-        getu, scaled = inputs_of([f"{name}.{p.name}" for p in block.inputs])
-        blocks_rt.append((system.rate(name), block.step, getu, scaled, a, b, b - a, name))
-    cond_rt = []
-    for ev, (sig, op, number) in zip([e for e in events if e.when is not None], conditions):
-        i, s, o = bus.ref(sig)
-        cond_rt.append((i, s, o, OPERATORS[op], number, ev))
+    write_plan = []
+    for slave, *_ in read_plan:
+        in_vars = slave.io_order([v for v in slave.variables.values() if v.causality == "input"
+                                  and any(system.driven_by(f"{slave.name}.{e}") for e in v.elements)])
+        in_signals = []
+        for v in in_vars:              # an array input is written whole: undriven elements hold start
+            for e, start in zip(v.elements, v.start_values()):
+                sig = f"{slave.name}.{e}"
+                if not system.driven_by(sig):
+                    bus.add(sig, start)
+                in_signals.append(sig)
+        if in_vars:
+            write_plan.append((slave, [v.name for v in in_vars],
+                               _reader([bus.ref(s, wire=True) for s in in_signals])))
+    blocks = []
+    for name, a, b in block_slots:
+        block = system.blocks[name]
+        read_u = _reader([bus.ref(f"{name}.{p.name}") for p in block.inputs])
+        blocks.append((system.rate(name), block.step, read_u, a, b, b - a, name))
+    cond_events = [e for e in events if e.when is not None]
+    conds = [(*bus.ref(sig), OPERATORS[op], number, ev)
+             for ev, (sig, op, number) in zip(cond_events, conditions)]
     timed = sorted(((fire_step(e.time, t0, h), k, e) for k, e in enumerate(events) if e.time is not None),
                    key=lambda x: (x[0], x[1]))
     setters = {}
@@ -208,8 +289,7 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                 setters[id(ev)] = setter_for(system, ev.target)
             except ValueError as e:
                 raise ScenarioError(str(e), key="set") from None
-    rec_get, rec_scaled = inputs_of(columns)
-    decimation = recorder.decimation if recorder is not None else 0
+    record = _reader([bus.ref(c) for c in columns])
     bus_names = [None] * len(bus.values)
     for sig, i in bus.slot.items():
         bus_names[i] = sig
@@ -218,81 +298,108 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
     # numeric slots only: a String / Binary FMU variable cannot be NaN (nor summed)
     finite_slots = _getter([i for i, sig in enumerate(bus_names)
                             if sig not in nan_ok and not isinstance(bus.values[i], (str, bytes))])
-    if recorder is not None:
-        recorder.start(columns, units, types)
-        recorder.allow_nonfinite = allow_nonfinite
-        recorder.nan_ok = [j + 1 for j, c in enumerate(columns) if _source(system, c) in nan_ok]
+    return _Plan(bus, columns, read_plan, write_plan, blocks, conds, timed, setters, record,
+                 recorder.decimation if recorder is not None else 0, bus_names, nan_ok, finite_slots)
 
-    # -- instantiate ---------------------------------------------------------------
-    started, failed = [], None
-    rejection = None
-    rows: list = []
-    bar = None
-    wall0 = _time.perf_counter()
-    n = 0
-    # Named before the try so that an error during set-up is reported, not masked.
-    phase = "setup"
-    block_name = ""
-    try:
-        for slave in system.slaves.values():
-            started.append(slave)
-            slave.instantiate(t0, stop_time)
-        for block in system.blocks.values():
-            block.reset(t0)
-        reads, writes, steppers = [], [], []
-        for slave, names, a, b in read_plan:
-            in_vars = slave.io_order([vv for vv in slave.variables.values() if vv.causality == "input"
-                                      and any(system.driven_by(f"{slave.name}.{e}") for e in vv.elements)])
-            in_names = [vv.name for vv in in_vars]
-            in_signals = []
-            for vv in in_vars:         # an array input is written whole: undriven elements hold start
-                for e, start in zip(vv.elements, vv.start_values()):
-                    sig = f"{slave.name}.{e}"
-                    if not system.driven_by(sig):
-                        bus.add(sig, start)
-                    in_signals.append(sig)
+
+def _start_recorder(system, recorder, plan: _Plan, allow_nonfinite: bool) -> None:
+    units, types = [], []
+    for c in plan.columns:   # every recorded name must exist (FMU variable, block output or input)
+        try:
+            sig = system.readable(c)
+        except ScenarioError as e:
+            raise ScenarioError(e.detail, key="record.signals") from None
+        units.append(sig.unit)
+        types.append(sig.type)
+    recorder.start(plan.columns, units, types)
+    recorder.allow_nonfinite = allow_nonfinite
+    recorder.nan_ok = [j + 1 for j, c in enumerate(plan.columns) if _source(system, c) in plan.nan_ok]
+
+
+class _Loop:
+    """An instantiated run: the bound FMU calls, the bus and the event state.
+
+    :meth:`run` is the fixed-step loop itself; it keeps everything in local variables
+    and leaves ``n``, ``phase`` and ``block_name`` here when it raises, so the caller can
+    say where the run failed.
+    """
+
+    def __init__(self, system, plan: _Plan, grid: _Grid, n_run: int, info: RunInfo, watch: RunWatch,
+                 step_rejection_floor: float | None):
+        self.system, self.grid, self.n_run, self.info = system, grid, n_run, info
+        self.values = plan.bus.values
+        self.slot = plan.bus.slot
+        self.reads, self.writes, steppers = [], [], []
+        written = {id(slave): (names, read_in) for slave, names, read_in in plan.write_plan}
+        for slave, names, a, b in plan.read_plan:
+            in_names, read_in = written.get(id(slave), ([], None))
             get, obuf, put, ibuf, do_step = slave.step_io(names, in_names)
             if names:
-                reads.append((get, obuf, a, b, slave))
+                self.reads.append((get, obuf, a, b, slave))
             if in_names:
-                gi, sc = inputs_of(in_signals, wire=True)
-                writes.append((put, ibuf, gi, sc, slave))
+                self.writes.append((put, ibuf, read_in, slave))
             steppers.append((do_step, slave))
+        self.rejection = None
         if step_rejection_floor:
             # one stepper that steps every FMU with rollback and retry: the loop is unchanged
-            rejection = StepRejection([member_for(slave, do_step) for do_step, slave in steppers],
-                                      step_rejection_floor)
-            steppers = [(rejection.step, _AnyOf(system.slaves))]
+            self.rejection = StepRejection([member_for(slave, do_step) for do_step, slave in steppers],
+                                           step_rejection_floor)
+            steppers = [(self.rejection.step, _AnyOf(system.slaves))]
         # the heartbeat: step number per step, index of the FMU inside doStep (a supervisor
         # reads them when the process dies in C)
-        beat = watch.heartbeat.slots
-        watch.heartbeat.begin([s.name for _d, s in steppers], h, t0)
-        steppers = [(do_step, slave, float(k)) for k, (do_step, slave) in enumerate(steppers)]
-        values = bus.values
+        self.beat = watch.heartbeat.slots
+        watch.heartbeat.begin([s.name for _d, s in steppers], grid.h, grid.t0)
+        self.steppers = [(do_step, slave, float(k)) for k, (do_step, slave) in enumerate(steppers)]
+        self.schedule, self.period = _schedule(plan.blocks, n_run)
+        self.conditions = plan.conditions
+        self.timed = list(plan.timed)
+        self.next_timed = self.timed[0][0] if self.timed else -1
+        self.setters = plan.setters
+        self.record, self.decimation = plan.record, plan.decimation
+        self.rows: list = []
+        self.n, self.t, self.phase, self.block_name = 0, grid.t0, "setup", ""
 
-        def apply(ev, t):
-            info.events_fired.append({"time": t, "event": ev.describe()})
-            if ev.action == "stop":
-                return True
-            kind, what = setters[id(ev)]
-            if kind == "block_input":
-                values[bus.slot[what]] = float(ev.value)
-            else:
-                what(ev.value, values)
-            return False
+    def take_rows(self) -> list:
+        rows, self.rows = self.rows, []
+        return rows
 
-        if progress and n_run >= PROGRESS_MIN_STEPS:
-            from tqdm import tqdm
-            bar = tqdm(total=n_run, unit="step", unit_scale=True, file=sys.stderr, disable=None,
-                       desc="co-simulation", mininterval=0.5, leave=False)   # None: only on a TTY
-        next_timed = timed[0][0] if timed else -1
+    def _apply(self, ev, t: float) -> bool:
+        """Fire ``ev`` at ``t``; True when it stops the run."""
+        self.info.events_fired.append({"time": t, "event": ev.describe()})
+        if ev.action == "stop":
+            return True
+        kind, what = self.setters[id(ev)]
+        if kind == "block_input":
+            self.values[self.slot[what]] = float(ev.value)
+        else:
+            what(ev.value, self.values)
+        return False
+
+    def _fire_timed(self, n: int, t: float) -> bool:
         stop = False
-        ended = None                     # (status, reason) from the watch
-        chunk = CHUNK_FIRST
-        watch.start()
-        wall_chunk = _time.perf_counter()
-        while True:
-            n_end = min(n + chunk, n_run + 1)
+        while self.timed and self.timed[0][0] == n:
+            stop = self._apply(self.timed.pop(0)[2], t) or stop
+        self.next_timed = self.timed[0][0] if self.timed else -1
+        return stop
+
+    def _terminated(self, slave, t_end: float) -> None:
+        t_end = _terminated_at(self.system, t_end)
+        self.info.stop_reason = f"FMU '{slave.name}' asked to terminate at t = {t_end:g} s"
+
+    def run(self, n: int, n_end: int) -> tuple[int, bool]:
+        """Steps ``n`` .. ``n_end - 1`` (fewer on a stop); returns ``(n, stopped)``.
+
+        Per step: FMU outputs -> time events -> due blocks -> condition events -> record
+        -> FMU inputs -> doStep. The last communication point (``n_run``) is read,
+        computed and recorded but not stepped from."""
+        values, reads, writes, steppers = self.values, self.reads, self.writes, self.steppers
+        schedule, period, conditions = self.schedule, self.period, self.conditions
+        record, decimation, rows, beat = self.record, self.decimation, self.rows, self.beat
+        g, n_run = self.grid, self.n_run
+        t0, h, n_last, stop_time, n_short, h_last = g.t0, g.h, g.n_last, g.stop_time, g.n_short, g.h_last
+        stop, t = False, self.t
+        phase, block_name = "read", ""
+        try:
             while n < n_end:
                 t = t0 + n * h if n < n_last else stop_time
                 beat[0] = n
@@ -304,49 +411,33 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                         _check(status, "getReal", slave, t)
                     values[a:b] = obuf
                 # 2. time events due at t
-                if n == next_timed:
-                    while timed and timed[0][0] == n:
-                        stop = apply(timed.pop(0)[2], t) or stop
-                    next_timed = timed[0][0] if timed else -1
-                # 3. blocks in dependency order, each at its own rate (sample-and-hold)
+                if n == self.next_timed:
+                    stop = self._fire_timed(n, t)
+                # 3. the blocks due at t, in dependency order (the others hold their outputs)
                 phase = "block"
-                for k, step, getu, scaled, a, b, nb, block_name in blocks_rt:
-                    if n % k == 0:
-                        u = getu(values)
-                        if scaled:
-                            u = list(u)
-                            for j, s, o in scaled:
-                                u[j] = s * u[j] + o
-                        y = step(t, u)
-                        if len(y) != nb:
-                            raise _bad_output(block_name, y, nb, t)
-                        values[a:b] = y
+                for step, read_u, a, b, nb, block_name in schedule[n % period]:
+                    y = step(t, read_u(values))
+                    if len(y) != nb:
+                        raise _bad_output(block_name, y, nb, t)
+                    values[a:b] = y
                 # 4. condition events
                 phase = "event"
-                if cond_rt:
-                    for c in cond_rt:
+                if conditions:
+                    for c in conditions:
                         i, s, o, op, number, ev = c
                         if op(s * values[i] + o, number):
                             # fires once; rebinding leaves the list being iterated intact
-                            cond_rt = [x for x in cond_rt if x is not c]
-                            stop = apply(ev, t) or stop
+                            conditions = self.conditions = [x for x in conditions if x is not c]
+                            stop = self._apply(ev, t) or stop
                 # 5. record
                 if decimation and (n % decimation == 0 or stop):
-                    if rec_scaled:
-                        r = list(rec_get(values))
-                        for j, s, o in rec_scaled:
-                            r[j] = s * r[j] + o
-                        rows.append((t, *r))
-                    else:
-                        rows.append((t, *rec_get(values)))
+                    rows.append((t, *record(values)))
                 if stop or n == n_run:
                     break
                 # 6. plant inputs, 7. advance every FMU from t to t + h
                 phase = "write"
-                for put, ibuf, gi, sc, slave in writes:
-                    ibuf[:] = gi(values)
-                    for j, s, o in sc:
-                        ibuf[j] = s * ibuf[j] + o
+                for put, ibuf, read_in, slave in writes:
+                    ibuf[:] = read_in(values)
                     status = put()
                     if status:
                         _check(status, "setReal", slave, t)
@@ -358,19 +449,63 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                     if status:
                         if status == TERMINATE_REQUESTED:
                             stop = True
-                            t_end = _terminated_at(system, t + hn)
-                            info.stop_reason = f"FMU '{slave.name}' asked to terminate at t = {t_end:g} s"
+                            self._terminated(slave, t + hn)
                         else:
                             _check(status, "doStep", slave, t)
                 beat[1] = -1.0
                 n += 1
                 if stop:        # FMU asked to terminate: record nothing past the last step
                     break
+        except BaseException:
+            self.n, self.phase, self.block_name = n, phase, block_name
+            raise
+        self.n, self.t = n, t
+        return n, stop
+
+
+def simulate(system, stop_time: float, recorder: Recorder | None = None,
+             events: list[Event] = (), progress: bool = False, extra_record=(),
+             step_rejection_floor: float | None = None, watch: RunWatch | None = None,
+             allow_nonfinite: bool = False) -> RunInfo:
+    """Run ``system`` from its start time to ``stop_time`` [s] (or an earlier stop event).
+
+    Rows go to ``recorder`` as they are produced; the caller finishes the recorder
+    (also after a :class:`SimulationError`, which keeps every row recorded so far).
+    ``watch`` (:class:`cosim.watch.RunWatch`): wall-clock / step limits, stop requests,
+    heartbeat. A NaN or inf on the bus or in a recorded row stops the run with a
+    :class:`SimulationError` naming the signal, unless ``allow_nonfinite``.
+    """
+    grid = _Grid.of(system, stop_time)
+    info = RunInfo(stop_time=float(stop_time))
+    watch = watch if watch is not None else RunWatch()
+    n_run = min(grid.n_last, watch.max_steps) if watch.max_steps else grid.n_last   # last step this run takes
+    plan = _compile(system, recorder, events, extra_record)
+    if recorder is not None:
+        _start_recorder(system, recorder, plan, allow_nonfinite)
+
+    started, failed, loop, bar = [], None, None, None
+    wall0 = _time.perf_counter()
+    try:
+        for slave in system.slaves.values():
+            started.append(slave)
+            slave.instantiate(grid.t0, stop_time)
+        for block in system.blocks.values():
+            block.reset(grid.t0)
+        loop = _Loop(system, plan, grid, n_run, info, watch, step_rejection_floor)
+        if progress and n_run >= PROGRESS_MIN_STEPS:
+            from tqdm import tqdm
+            bar = tqdm(total=n_run, unit="step", unit_scale=True, file=sys.stderr, disable=None,
+                       desc="co-simulation", mininterval=0.5, leave=False)   # None: only on a TTY
+        n, stop, ended = 0, False, None          # ended: (status, reason) from the watch
+        chunk = CHUNK_FIRST
+        watch.start()
+        wall_chunk = _time.perf_counter()
+        while True:
+            n, stop = loop.run(n, min(n + chunk, n_run + 1))
             if recorder is not None:
-                chunk_rows, rows = rows, []
-                recorder.write(chunk_rows)      # raises on a NaN/inf row (then the run stops)
+                recorder.write(loop.take_rows())      # raises on a NaN/inf row (then the run stops)
             if not allow_nonfinite:
-                _check_bus(values, finite_slots, bus_names, nan_ok, t)
+                _check_bus(loop.values, plan.finite_slots, plan.bus_names, plan.nan_ok, loop.t)
             if bar is not None:
                 bar.update(n - bar.n)
             now = _time.perf_counter()
@@ -380,52 +515,63 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
             ended = watch.check()
             if ended is not None:
                 break
-        info.steps = n
-        info.time_reached = t0 + n * h if n < n_last else stop_time
-        if stop and info.stop_reason.startswith("FMU"):
-            info.time_reached = _terminated_at(system, info.time_reached)
-        if ended is None and n_run < n_last and n >= n_run:
-            ended = "timeout", f"max_steps {n_run} reached"
-        if ended is not None:
-            info.status, info.stop_reason = ended
-        elif stop:
-            info.status = "stopped"
-            if not info.stop_reason:
-                fired = [e["event"] for e in info.events_fired if e["event"].endswith("stop")]
-                info.stop_reason = f"stop event ({fired[-1]})" if fired else "stop"
-        else:
-            info.status = "completed"
-            info.stop_reason = f"stop_time {stop_time:g} s reached"
+        _finish_info(info, system, grid, n, n_run, stop, ended)
         return info
     except SimulationError as e:
         failed = e.instance
-        _record_failure(info, e, n, t0, h)
+        _record_failure(info, e, _steps(loop), grid.t0, grid.h)
         raise
     except OutputError as e:            # the disk, not the model: says which file and why
-        _record_failure(info, SimulationError(str(e), time=t0 + n * h), n, t0, h)
+        n = _steps(loop)
+        _record_failure(info, SimulationError(str(e), time=grid.t0 + n * grid.h), n, grid.t0, grid.h)
         raise
     except Exception as e:
-        t = t0 + n * h
-        where = block_name if phase == "block" else None
+        n = _steps(loop)
+        phase = loop.phase if loop is not None else "setup"
+        where = loop.block_name if phase == "block" else None
         err = SimulationError(f"{'block step' if where else phase} raised {type(e).__name__}: {e}",
-                              time=t, instance=where)
-        _record_failure(info, err, n, t0, h)
+                              time=grid.t0 + n * grid.h, instance=where)
+        _record_failure(info, err, n, grid.t0, grid.h)
         raise err from e
     finally:
         info.wall_time_s = _time.perf_counter() - wall0
-        if rejection is not None:
-            st = rejection.stats
+        if loop is not None and loop.rejection is not None:
+            st = loop.rejection.stats
             info.step_rejection = {"floor": step_rejection_floor, "rejected": st.rejected,
                                    "retried_steps": st.retried_steps, "smallest_step": st.smallest_step}
-        if recorder is not None and rows:
+        if recorder is not None and loop is not None and loop.rows:
             try:
-                recorder.write(rows)
+                recorder.write(loop.take_rows())
             except SimulationError:     # a NaN in the last rows: the error being raised says more
                 pass
         if bar is not None:
             bar.close()
         for slave in started:
             slave.free(failed=(slave.name == failed))
+
+
+def _steps(loop) -> int:
+    return loop.n if loop is not None else 0
+
+
+def _finish_info(info: RunInfo, system, grid: _Grid, n: int, n_run: int, stop: bool, ended) -> None:
+    """Status, reason and time reached of a run that ended without an error."""
+    info.steps = n
+    info.time_reached = grid.time(n)
+    if stop and info.stop_reason.startswith("FMU"):
+        info.time_reached = _terminated_at(system, info.time_reached)
+    if ended is None and n_run < grid.n_last and n >= n_run:
+        ended = "timeout", f"max_steps {n_run} reached"
+    if ended is not None:
+        info.status, info.stop_reason = ended
+    elif stop:
+        info.status = "stopped"
+        if not info.stop_reason:
+            fired = [e["event"] for e in info.events_fired if e["event"].endswith("stop")]
+            info.stop_reason = f"stop event ({fired[-1]})" if fired else "stop"
+    else:
+        info.status = "completed"
+        info.stop_reason = f"stop_time {grid.stop_time:g} s reached"
 
 
 def _terminated_at(system, default: float) -> float:

@@ -398,6 +398,9 @@ def main(argv=None) -> int:
     from .foreign import build as foreign
     for n in args.names or list(VARIANTS) + list(foreign.FOREIGN):
         (foreign.build if n in foreign.FOREIGN else build)(n, force=args.force)
+    if not args.names:          # the blocks' compiled per-sample kernels (controllers/kernels)
+        from controllers.kernels import build_all as build_kernels
+        build_kernels(force=args.force)
     return 0
 
 

@@ -1,0 +1,158 @@
+"""Every shipped closed-loop scenario against the raw ctypes loop on its own plant (issue #15).
+
+For each ``scenarios/*.toml`` in which a block drives an FMU input from an FMU output (a
+closed loop), in one process:
+
+* **run**: the scenario as ``drillcosim run`` runs it in-process (load, simulate with the
+  recorder writing ``data.csv`` in a temporary folder, ``data.mat`` at the end; scores and
+  plots excluded). ``us_per_step`` is the wall time of :func:`cosim.algorithm.simulate`
+  per communication step, ``x_real_time`` the simulated time over that wall time;
+  ``startup_s`` is load + compile + FMU instantiation, ``write_s`` the final write.
+* **raw**: the floor on the same plant FMU, with the scenario's step size -- fmpy's loaded
+  C functions called through ctypes on preallocated arrays: one ``getReal`` of every
+  output the scenario reads, one ``setReal`` of every input it drives (held values),
+  ``doStep``. ``ratio_to_raw`` = run / raw.
+
+The raw loop is timed ``RAW_REPEAT`` times (minimum counts, the machine may be shared);
+each scenario runs once, in full (a run's cost is not uniform: contact, events). Writes
+``results/benchmarks/scenarios.json``. ``python -m benchmarks scenarios [NAME ...]`` (names
+without ``.toml``) or ``python benchmarks/bench_scenarios.py [NAME ...]``.
+"""
+from __future__ import annotations
+
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from ctypes import c_double, c_uint
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+RAW_STEPS = 50_000
+RAW_REPEAT = 3
+TARGET_US = 10.0        # issue #15: <= 10 us per step, >= 10x real time at h = 1e-4 s
+
+
+def closed_loop(system) -> bool:
+    """A block output reaches an FMU input and an FMU output reaches a block input."""
+    to_fmu = any(c.src.split(".", 1)[0] in system.blocks and c.dst.split(".", 1)[0] in system.slaves
+                 for c in system.connections)
+    from_fmu = any(c.src.split(".", 1)[0] in system.slaves and c.dst.split(".", 1)[0] in system.blocks
+                   for c in system.connections)
+    return to_fmu and from_fmu
+
+
+def shipped(names=()) -> list[Path]:
+    paths = sorted((ROOT / "scenarios").glob("*.toml"))
+    return [p for p in paths if not names or p.stem in names]
+
+
+def _io(sc, slave_name: str) -> tuple[list, list]:
+    """(output variables the scenario reads, input variables it drives) of one FMU, as the
+    master chooses them."""
+    from cosim.algorithm import _fmu_reads
+    slave = sc.system.slaves[slave_name]
+    recorded = [s for s in [*sc.record_signals, *sc.plotted_signals()]
+                if s.split(".", 1)[0] == slave_name]
+    outs = _fmu_reads(sc.system, recorded)[slave_name]
+    ins = [v.name for v in slave.variables.values() if v.causality == "input"
+           and sc.system.driven_by(f"{slave_name}.{v.name}") is not None]
+    return [slave.variable(v) for v in outs], [slave.variable(v) for v in ins]
+
+
+def raw_loop(model_path, outs, ins, h: float, n: int) -> float:
+    """Seconds for ``n`` steps of get/set/doStep through ctypes (fmpy's loaded functions)."""
+    import fmpy
+    from fmpy.fmi2 import FMU2Slave
+    md = fmpy.read_model_description(str(model_path))
+    if md.fmiVersion != "2.0":
+        raise RuntimeError(f"raw loop: FMI 2.0 plants only, {model_path} is FMI {md.fmiVersion}")
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(model_path)),
+                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="raw")
+    fmu.instantiate()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    f, c = fmu._functions, fmu.component
+    get, put, step = f["fmi2GetReal"], f["fmi2SetReal"], f["fmi2DoStep"]
+    ovr, ivr = (c_uint * len(outs))(*[v.vr for v in outs]), (c_uint * len(ins))(*[v.vr for v in ins])
+    ob = (c_double * len(outs))()
+    ib = (c_double * len(ins))(*[float(v.start_values()[0]) for v in ins])
+    no, ni = len(outs), len(ins)
+    t0 = time.perf_counter()
+    for k in range(n):
+        get(c, ovr, no, ob)
+        put(c, ivr, ni, ib)
+        step(c, k * h, h, 1)
+    dt = time.perf_counter() - t0
+    fmu.terminate()
+    fmu.freeInstance()
+    return dt
+
+
+def run_one(path: Path) -> dict | None:
+    from cosim.algorithm import simulate
+    from cosim.recorder import Recorder
+    from cosim.runner import load
+
+    t0 = time.perf_counter()
+    sc = load(path)
+    if not closed_loop(sc.system):
+        return None
+    t_load = time.perf_counter() - t0
+    with tempfile.TemporaryDirectory() as out:
+        rec = Recorder(sc.record_signals, sc.decimation, out)
+        t1 = time.perf_counter()
+        info = simulate(sc.system, sc.stop_time, rec, sc.events, False, extra_record=sc.plotted_signals(),
+                        step_rejection_floor=sc.step_rejection_floor, allow_nonfinite=sc.allow_nonfinite)
+        t2 = time.perf_counter()
+        rec.finish()
+        t_write = time.perf_counter() - t2
+    us = info.wall_time_s / info.steps * 1e6
+    (plant, slave), = list(sc.system.slaves.items())[:1]
+    outs, ins = _io(sc, plant)
+    h = sc.step_size
+    raw = min(raw_loop(slave.model.path, outs, ins, h, RAW_STEPS) for _ in range(RAW_REPEAT)) / RAW_STEPS * 1e6
+    sim_time = info.time_reached - sc.system.start_time
+    blocks = ", ".join(f"{n}/{sc.system.rate(n)}" for n in sc.system.block_order())
+    return {"scenario": path.stem, "steps": info.steps, "us_per_step": round(us, 2),
+            "x_real_time": round(sim_time / info.wall_time_s, 1),
+            "raw_us_per_step": round(raw, 2), "ratio_to_raw": round(us / raw, 2),
+            "startup_s": round(t_load + (t2 - t1 - info.wall_time_s), 2), "write_s": round(t_write, 2),
+            "meets_10us": us <= TARGET_US, "blocks_rate": blocks}
+
+
+def machine() -> dict:
+    cpu = platform.processor() or ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+    return {"cpu": cpu, "cores": os.cpu_count(), "python": sys.version.split()[0],
+            "platform": platform.platform(), "load_1min_at_start": load}
+
+
+def main(names=None) -> list[dict]:
+    names = sys.argv[2:] if names is None and len(sys.argv) > 2 and sys.argv[1] == "scenarios" else names
+    mach = machine()
+    rows = [r for r in (run_one(p) for p in shipped(names or ())) if r is not None]
+    out = ROOT / "results" / "benchmarks"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "scenarios.json").write_text(json.dumps({"machine": mach, "raw_steps": RAW_STEPS,
+                                                    "rows": rows}, indent=2) + "\n")
+    print(f"machine: {mach}", flush=True)
+    return rows
+
+
+if __name__ == "__main__":
+    from benchmarks.__main__ import _table
+    print(_table(main(sys.argv[1:])))

@@ -1,0 +1,133 @@
+/* One sample of controllers.fang_observer.AdaptiveThrustObserver, in C (issue #15).
+ *
+ * The same arithmetic as the Python step (AdaptiveThrustObserver._step_python), in the
+ * same order, so that both give the same doubles (compiled with -ffp-contract=off:
+ * no fused multiply-adds). The Python side owns the struct (ctypes), sets the constants
+ * once, and calls fang_observer_step() once per sample; equations and choices are
+ * documented in controllers/fang_observer.py.
+ */
+#include <math.h>
+
+#define FANG_MAX_RIPPLE 8
+#define TWO_PI 6.283185307179586
+#define PI 3.141592653589793
+
+typedef struct {
+    /* constants: discretised observer (row-major Phi), forgetting, friction */
+    double Phi[9], Bu[3], By[3], Bg[3];
+    double fdecay, fgain, avel, kf, Ts, K_Tn, y_theta, sx;
+    double coulomb, viscous, stribeck, v_stribeck, v_eps, offset;
+    double ripple[3 * FANG_MAX_RIPPLE];   /* rows [k, a_sin, a_cos] */
+    double f_orb_setting;                 /* Hz, < 0: from the input */
+    int n_ripple, use_theta, meas_theta;
+    int k_theta, k_orbital;               /* index of theta / orbital speed in u, -1: absent */
+    /* state */
+    int first;
+    double t0, phase, x[3], Y[6], th[2], Si[3], th_prev, w_enc;
+} FangObserver;
+
+static double friction(const FangObserver *o, double v)
+{
+    double s = v > o->v_eps ? 1.0 : (v < -o->v_eps ? -1.0 : v / o->v_eps);
+    double f = o->coulomb * s + o->viscous * v;
+    if (o->stribeck != 0.0) {
+        double r = v / o->v_stribeck;
+        f += o->stribeck * s * exp(-(r * r));
+    }
+    return f;
+}
+
+static double position_ripple(const FangObserver *o, double p)
+{
+    double f = 0.0;
+    for (int j = 0; j < o->n_ripple; j++) {
+        const double *r = o->ripple + 3 * j;
+        f += r[1] * sin(r[0] * p) + r[2] * cos(r[0] * p);
+    }
+    return f;
+}
+
+/* u: the block's inputs in port order (i_m, x[, theta][, orbital_speed]);
+ * out: F_dc_hat, F_ripple_hat, tau_d_hat, F_cut_hat, ripple_amplitude_hat,
+ * ripple_phase_hat, w_hat */
+void fang_observer_step(FangObserver *o, double t, const double *u, double *out)
+{
+    double i_m = u[0], x_meas = u[1];
+    double theta = o->k_theta >= 0 ? u[o->k_theta] : 0.0;
+    double orbital_rpm = o->k_orbital >= 0 ? u[o->k_orbital] : 0.0;
+    double y = o->meas_theta ? o->y_theta * theta : o->sx * x_meas;
+    double Ts = o->Ts;
+    int from_input = o->f_orb_setting < 0.0;
+    double f_orb = from_input ? orbital_rpm / 60.0 : o->f_orb_setting;
+    if (o->first) {
+        o->first = 0;
+        o->x[0] = y; o->x[1] = 0.0; o->x[2] = o->K_Tn * i_m;
+        o->th_prev = theta;
+        o->phase = from_input ? TWO_PI * f_orb * (t - o->t0) : 0.0;
+    }
+    double phi;
+    if (from_input) {
+        phi = o->phase;
+        o->phase = phi + TWO_PI * f_orb * Ts;
+    } else {
+        phi = TWO_PI * f_orb * t;
+    }
+    double phim = phi + PI * f_orb * Ts;
+    double sm = sin(phim), cm = cos(phim);
+
+    double x0 = o->x[0], x1 = o->x[1], x2 = o->x[2];
+    double th0 = o->th[0], th1 = o->th[1];
+    double s00 = o->Si[0], s01 = o->Si[1], s11 = o->Si[2];
+    double det = s00 * s11 - s01 * s01;
+    double g00 = s11 / det, g01 = -s01 / det, g11 = s00 / det;
+    double e = y - x0;
+    const double *Y = o->Y;
+    double cy0 = Y[0], cy1 = Y[1];
+    double d0 = Ts * (g00 * cy0 + g01 * cy1) * e;
+    double d1 = Ts * (g01 * cy0 + g11 * cy1) * e;
+
+    const double *P = o->Phi, *G = o->Bg, *U = o->Bu, *B = o->By;
+    double n0 = P[0] * Y[0] + P[1] * Y[2] + P[2] * Y[4] + G[0] * sm;
+    double n1 = P[0] * Y[1] + P[1] * Y[3] + P[2] * Y[5] + G[0] * cm;
+    double n2 = P[3] * Y[0] + P[4] * Y[2] + P[5] * Y[4] + G[1] * sm;
+    double n3 = P[3] * Y[1] + P[4] * Y[3] + P[5] * Y[5] + G[1] * cm;
+    double n4 = P[6] * Y[0] + P[7] * Y[2] + P[8] * Y[4] + G[2] * sm;
+    double n5 = P[6] * Y[1] + P[7] * Y[3] + P[8] * Y[5] + G[2] * cm;
+    double tr = th0 * sm + th1 * cm;
+    double xn0 = P[0] * x0 + P[1] * x1 + P[2] * x2 + U[0] * i_m + B[0] * y + G[0] * tr + n0 * d0 + n1 * d1;
+    double xn1 = P[3] * x0 + P[4] * x1 + P[5] * x2 + U[1] * i_m + B[1] * y + G[1] * tr + n2 * d0 + n3 * d1;
+    double xn2 = P[6] * x0 + P[7] * x1 + P[8] * x2 + U[2] * i_m + B[2] * y + G[2] * tr + n4 * d0 + n5 * d1;
+    o->x[0] = xn0; o->x[1] = xn1; o->x[2] = xn2;
+    o->Y[0] = n0; o->Y[1] = n1; o->Y[2] = n2; o->Y[3] = n3; o->Y[4] = n4; o->Y[5] = n5;
+    th0 += d0;
+    th1 += d1;
+    o->th[0] = th0; o->th[1] = th1;
+    double a = o->fdecay, b = o->fgain;
+    o->Si[0] = a * s00 + b * n0 * n0;
+    o->Si[1] = a * s01 + b * n0 * n1;
+    o->Si[2] = a * s11 + b * n1 * n1;
+
+    double kf = o->kf, w_f;
+    if (o->use_theta) {
+        double av = o->avel;
+        o->w_enc = av * o->w_enc + (1.0 - av) * (theta - o->th_prev) / Ts;
+        o->th_prev = theta;
+        w_f = o->w_enc;
+    } else {
+        w_f = xn1;
+    }
+    double s = sin(phi), c = cos(phi);
+    double tau_r = th0 * s + th1 * c;
+    double tau_f = friction(o, w_f) + o->offset;
+    if (o->use_theta)
+        tau_f += position_ripple(o, theta);
+    double F_dc = kf * (xn2 - tau_f);
+    double F_r = kf * tau_r;
+    out[0] = F_dc;
+    out[1] = F_r;
+    out[2] = xn2 + tau_r;
+    out[3] = F_dc + F_r;
+    out[4] = kf * hypot(th0, th1);
+    out[5] = atan2(th1, th0);
+    out[6] = xn1;
+}
