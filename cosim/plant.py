@@ -121,6 +121,7 @@ class PlantBinding:
     bound: dict = field(default_factory=dict)            # role -> Bound (after bind)
     bound_parameters: dict = field(default_factory=dict)
     bound_true: dict = field(default_factory=dict)
+    unbound_parameters: dict = field(default_factory=dict)   # contract parameters this plant lacks
 
     @property
     def base_dir(self) -> Path:
@@ -187,12 +188,17 @@ class PlantBinding:
 
     def parameter_values(self, contract_values: dict, key: str = "plant_parameters") -> dict:
         """Contract parameters and start values of input roles (SI) as FMU start values;
-        errors name ``key``."""
+        errors name ``key``. A contract parameter the plant does not have (a one-layer test
+        rig has no ``layer2_thickness``, an FMU without noise no ``seed``) is left out and
+        kept in :attr:`unbound_parameters`, which the run's summary reports."""
         out = {}
         for name, value in contract_values.items():
             b = self.bound_parameters.get(name)
             if b is None and name in self.bound and ROLES[name].direction == "input":
                 b = self.bound[name]
+            if b is None and name in CONTRACT_PARAMETERS:
+                self.unbound_parameters[name] = value    # this plant has no such parameter
+                continue
             if b is None:
                 have = ", ".join([*self.bound_parameters, *(r for r in self.bound if ROLES[r].direction == "input")])
                 raise ScenarioError(f"plant binding {self.file} binds no contract parameter or input role "

@@ -106,7 +106,9 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
     result = recorder.finish()
     summary.update(info.as_dict())
     summary["rows_recorded"] = len(result.time)
-    summary["plants"] = {name: {"binding": b.file, "kind": b.kind, "roles": {r: x.variable for r, x in b.bound.items()}}
+    summary["plants"] = {name: {"binding": b.file, "kind": b.kind, "roles": {r: x.variable for r, x in b.bound.items()},
+                                **({"contract_parameters_not_bound": b.unbound_parameters}
+                                   if b.unbound_parameters else {})}
                          for name, b in sc.system.bindings.items()}
     summary["scores"] = {}
     result.summary = summary

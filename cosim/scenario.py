@@ -65,9 +65,9 @@ CONNECTION_KEYS = {"from": STRING, "to": STRING, "scale": NUMBER, "offset": NUMB
 RECORD_KEYS = {"signals": STRINGS, "decimation": INTEGER1}
 EVENT_KEYS = {"time": NUMBER, "when": STRING, "set": STRING, "value": "a number or true/false",
               "action": "'set' or 'stop'"}
-PLOT_KEYS = {"file": STRING, "title": STRING, "y": "a list of signal names, or a list of such lists",
+PLOT_KEYS = {"file": STRING, "title": STRING, "remove": BOOL, "y": "a list of signal names, or a list of such lists",
              "function": STRING, "settings": TABLE}
-SCORE_KEYS = {"function": STRING, "settings": TABLE, "name": STRING}
+SCORE_KEYS = {"function": STRING, "settings": TABLE, "name": STRING, "remove": BOOL}
 
 
 def _is_number(v) -> bool:
@@ -208,11 +208,19 @@ def check_shape(raw: dict, file: str, origins: Origins | None = None) -> None:
         c.table(spec, f"events[{i}]", EVENT_KEYS)
     for i, spec in enumerate(raw.get("plots", [])):
         c.table(spec, f"plots[{i}]", PLOT_KEYS)
+        _no_dangling_remove(c, spec, f"plots[{i}]", "plot", "its function or file")
         if ("y" in spec) == ("function" in spec):
             raise c.error(f"plots[{i}]", "expected exactly one of 'y' (signals to plot against time) "
                                          "or 'function' (module:function)")
     for i, spec in enumerate(raw.get("scores", [])):
         c.table(spec, f"scores[{i}]", SCORE_KEYS, ("function",))
+        _no_dangling_remove(c, spec, f"scores[{i}]", "score", "its name, else its function")
+
+
+def _no_dangling_remove(c, spec: dict, key: str, what: str, by: str) -> None:
+    if spec.get("remove"):
+        raise c.error(f"{key}.remove", f"removes no {what}: no base scenario has one with this key "
+                                       f"(remove applies to a base's {what}, by {by})")
 
 
 # --- overrides -------------------------------------------------------------------------
@@ -565,8 +573,8 @@ def _merge(base: dict, ext: dict, origins: Origins, file: str, prefix: str = "")
         if isinstance(old, dict) and isinstance(v, dict):
             origins[path] = (file, path)          # the table is (also) written here
             _merge(old, v, origins, file, path)
-        elif not prefix and k == "connections" and isinstance(old, list) and isinstance(v, list):
-            _merge_connections(base, v, origins, file)
+        elif not prefix and k in KEYED_ARRAYS and isinstance(old, list) and isinstance(v, list):
+            _merge_keyed(base, k, v, origins, file)
         elif not prefix and k in ARRAYS and isinstance(old, list) and isinstance(v, list):
             n = len(old)
             for i in range(len(v)):
@@ -579,25 +587,41 @@ def _merge(base: dict, ext: dict, origins: Origins, file: str, prefix: str = "")
             origins.record(v, path, file)
 
 
-def _merge_connections(base: dict, ext: list, origins: Origins, file: str) -> None:
-    """The extending file's connections over the base's, keyed by ``to`` (an input takes
-    one connection): replace the base's, delete it (``remove = true``), or append."""
-    items = [(c, origins.locate(f"connections[{i}]")) for i, c in enumerate(base["connections"])]
+def _score_key(item: dict):
+    return item.get("name") or item.get("function")
+
+
+def _plot_key(item: dict):
+    return item.get("function") or item.get("file")
+
+
+# arrays whose items an extending file may address: by which key, and whether an item with
+# the same key replaces the base's (connections: an input takes one connection) or is
+# appended (scores, plots: the same function may run twice); ``remove = true`` deletes
+KEYED_ARRAYS = {"connections": (lambda c: c.get("to"), True), "scores": (_score_key, False),
+                "plots": (_plot_key, False)}
+
+
+def _merge_keyed(base: dict, name: str, ext: list, origins: Origins, file: str) -> None:
+    """The extending file's items of array ``name`` over the base's (:data:`KEYED_ARRAYS`)."""
+    key_of, replaces = KEYED_ARRAYS[name]
+    items = [(c, origins.locate(f"{name}[{i}]")) for i, c in enumerate(base[name])]
     for j, c in enumerate(ext):
-        mine = (file, f"connections[{j}]")
-        hit = next((n for n, (b, _) in enumerate(items) if isinstance(c, dict) and isinstance(b, dict)
-                    and "to" in c and b.get("to") == c["to"]), None)
-        if hit is None:
-            items.append((c, mine))          # a `remove` with nothing to remove fails the shape check
-        elif c.get("remove") is True:
-            del items[hit]
+        mine = (file, f"{name}[{j}]")
+        key = key_of(c) if isinstance(c, dict) else None
+        hits = [n for n, (b, _) in enumerate(items) if key is not None and isinstance(b, dict) and key_of(b) == key]
+        if isinstance(c, dict) and c.get("remove") is True and hits:
+            for n in reversed(hits):
+                del items[n]
+        elif hits and replaces:
+            items[hits[0]] = (c, mine)
         else:
-            items[hit] = (c, mine)
-    origins.drop("connections")
-    origins["connections"] = (file, "connections")
-    base["connections"] = [c for c, _ in items]
+            items.append((c, mine))          # a `remove` with nothing to remove fails the shape check
+    origins.drop(name)
+    origins[name] = (file, name)
+    base[name] = [c for c, _ in items]
     for i, (_, where) in enumerate(items):
-        origins[f"connections[{i}]"] = where
+        origins[f"{name}[{i}]"] = where
 
 
 def _load_chain(path: Path, chain: list[Path], shown: list[str]) -> tuple[dict, Origins]:

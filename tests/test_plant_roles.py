@@ -159,3 +159,16 @@ def test_friction_identified_through_roles_does_not_depend_on_the_fmus_units(tmp
     for key in ("friction_coulomb", "friction_viscous", "friction_offset"):
         assert mm[key] == pytest.approx(si[key], rel=0.01, abs=1e-9), key
     assert mm["friction_ripple_main"]["amplitude"] == pytest.approx(si["friction_ripple_main"]["amplitude"], rel=0.01)
+
+
+def test_extends_removes_scores_and_plots(tmp_path):
+    f = tmp_path / "ext.toml"
+    f.write_text(f'[scenario]\nextends = "{SCEN / "keio_fig7_aluminium_force_control.toml"}"\n'
+                 '[[scores]]\nfunction = "analysis.force_scoring:force_scores"\nname = "force_control"\nremove = true\n'
+                 '[[plots]]\nfunction = "analysis.force_scoring:force_figure"\nremove = true\n')
+    sc = load_scenario(f)
+    assert sc.scores == [] and sc.plots == []
+    f.write_text(f'[scenario]\nextends = "{SCEN / "keio_fig7_aluminium_force_control.toml"}"\n'
+                 '[[scores]]\nfunction = "analysis.force_scoring:nothing"\nremove = true\n')
+    with pytest.raises(ScenarioError, match=r"scores\[0\]\.remove: removes no score"):
+        load_scenario(f)

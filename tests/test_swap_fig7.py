@@ -20,6 +20,8 @@ measured, see docs/bring_your_own_fmu.md):
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -78,11 +80,17 @@ def _compare(c, r, thrust_name, t_end=None):
     return float(np.max(np.abs(d)))
 
 
-def test_fig7_casadi_model_exchange_cvode(c_run, casadi_fmu, tmp_path):
-    ov = swap.swap_overrides("casadi", casadi_fmu, solver={"interface": "ME", "solver": "cvode", "rel_tol": 1e-6})
-    r = run_scenario(swap.FIG7, out_dir=tmp_path, overrides=ov, progress=False)
+def test_fig7_casadi_model_exchange_cvode_through_its_binding(c_run, casadi_fmu, tmp_path):
+    """The role way (docs/bring_your_own_fmu.md): a binding file for the casadi stage and a
+    scenario that extends Fig. 7 and re-binds the plant; only the FMU's path is given here,
+    where the test built it."""
+    scenario = Path(__file__).resolve().parent / "third_party" / "keio_fig7_casadi.toml"
+    r = run_scenario(scenario, out_dir=tmp_path, overrides={"fmus.stage.path": str(casadi_fmu)}, progress=False)
     assert r.summary["status"] == "completed"
-    _compare(c_run, r, "stage.thrust_force")
+    assert r.summary["plants"]["stage"]["contract_parameters_not_bound"] == {
+        "n_layers": 1, "layer1_material": 3, "seed": 7}          # this FMU has no such parameters
+    assert (tmp_path / "thrust.png").exists()
+    _compare(c_run, r, "stage.thrust_true")
 
 
 def test_fig7_casadi_model_exchange_rk4_short(c_run, casadi_fmu, tmp_path):
