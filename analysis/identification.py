@@ -86,6 +86,7 @@ class _Rows:
         # cross-validation folds: alternate *pairs* of segments (an air cut runs each speed
         # there and back), so each fold holds both directions and its own speeds
         self.fold = np.concatenate([np.full(len(s), (j // 2) % 2) for j, s in enumerate(segs)])
+        self.seg_id = np.concatenate([np.full(len(s), j) for j, s in enumerate(segs)])
         self.p = p[idx]
         self.y = e[idx]
         self.n_segments = len(segs)
@@ -102,7 +103,8 @@ class _Rows:
         velocity columns are constant per segment, so little is lost), the final fit on all."""
         sub = object.__new__(_Rows)
         sub.__dict__.update(self.__dict__)
-        sub.v, sub.p, sub.y, sub.fold = self.v[::step], self.p[::step], self.y[::step], self.fold[::step]
+        sub.v, sub.p, sub.y = self.v[::step], self.p[::step], self.y[::step]
+        sub.fold, sub.seg_id = self.fold[::step], self.seg_id[::step]
         return sub
 
     def base(self, fit_offset=True):
@@ -188,7 +190,7 @@ def _columns(rows: _Rows, fit_offset, vs, exponent, ks):
 
 def _fit(rows: _Rows, fit_offset, vs, exponent, ks, units) -> FrictionModel:
     cols, names = _columns(rows, fit_offset, vs, exponent, ks)
-    coef, rss, _, Phi = _lstsq(cols, rows.y)
+    coef, rss, resid, Phi = _lstsq(cols, rows.y)
     c = dict(zip(names, (float(a) for a in coef)))
     n_par = len(names) + (2 if vs else 0)              # + vs and exponent, fitted or scanned
     fm = FrictionModel(coulomb=c["coulomb"], viscous=c["viscous"], offset=c.get("offset", 0.0),
@@ -201,7 +203,9 @@ def _fit(rows: _Rows, fit_offset, vs, exponent, ks, units) -> FrictionModel:
                "cv_rms": cv_rms(cols, rows.y, rows.fold) if len(set(rows.fold)) == 2 else math.nan,
                "noise_rms": rows.noise_rms, "residual_ratio": rms / rows.noise_rms if rows.noise_rms > 0 else math.inf,
                "condition_number": condition_number(Phi), "bic": bic(rss, n, n_par), "n_parameters": n_par,
-               "segment_velocity": rows.seg_v, "segment_mean_effort": rows.seg_e}
+               "segment_velocity": rows.seg_v, "segment_mean_effort": rows.seg_e,
+               "segment_residual_rms": [float(np.sqrt(np.mean(resid[rows.seg_id == j] ** 2)))
+                                        for j in range(rows.n_segments)]}
     return fm
 
 
@@ -364,3 +368,63 @@ def select_friction_model(time, position, effort, v_ref, *, fit_offset: bool = T
             f"(too few speeds, or a travel too short for the ripple); add speeds or travel")
     best.info["warnings"] = warnings
     return best
+
+
+# --------------------------------------------------------------------------- inertia
+def friction_effort(fm: FrictionModel, v, p) -> np.ndarray:
+    """``fm.force(v) + fm.position_ripple(p) + fm.offset`` on arrays (offline use)."""
+    v = np.asarray(v, float)
+    s = np.clip(v / fm.v_eps, -1.0, 1.0)
+    f = fm.coulomb * s + fm.viscous * v + fm.offset
+    if fm.stribeck:
+        f = f + fm.stribeck * s * np.exp(-(np.abs(v) / fm.v_stribeck) ** fm.stribeck_exponent)
+    for k, a_s, a_c in fm.ripple:
+        f = f + a_s * np.sin(k * np.asarray(p)) + a_c * np.cos(k * np.asarray(p))
+    return f
+
+
+def identify_inertia(time, position, effort, fm: FrictionModel, a_ref, *, window: float = 0.01,
+                     min_rel_accel: float = 0.3) -> dict:
+    """Moving mass [kg] (or inertia [kg m2]) from the ramps of an air cut: on the samples
+    where the commanded acceleration is at least ``min_rel_accel`` of its maximum,
+    ``effort - friction(v) - ripple(p) - offset = J a`` by least squares. Position and
+    effort are smoothed by the same centred moving average (``window`` s, applied twice),
+    so that the filter cancels from the ratio; ``v`` and ``a`` are central differences of
+    the smoothed position. Returns ``value``, its standard error ``std`` and ``ok``
+    (relative standard error below 5 %, enough samples)."""
+    from analysis.signal_tools import centred_mean
+    t = np.asarray(time, float)
+    dt = float(np.median(np.diff(t)))
+    n = max(1, int(round(window / dt)))
+    sm = lambda x, m: centred_mean(centred_mean(np.asarray(x, float), m), m)  # noqa: E731
+    pos = np.asarray(position, float)
+    # friction and ripple are taken off the raw effort, at a lightly smoothed velocity (1 ms):
+    # friction is nonlinear, smoothing first would blur it across the ramps
+    v_raw = np.gradient(sm(pos, max(1, int(round(1e-3 / dt)))), dt)
+    y = np.asarray(effort, float) - friction_effort(fm, v_raw, pos)
+    y = sm(y, n)
+    p = sm(pos, n)
+    v = np.gradient(p, dt)
+    a = np.gradient(v, dt)
+    ar = np.asarray(a_ref, float)
+    amax = float(np.max(np.abs(ar))) if len(ar) else 0.0
+    speeds = np.abs(fm.info.get("segment_velocity", [0.0]))
+    sel = (np.abs(ar) >= min_rel_accel * amax) & (np.abs(v_raw) > 0.5 * float(np.min(speeds)))
+    sel[: 2 * n] = False
+    sel[-2 * n:] = False
+    out = {"n_samples": int(sel.sum()), "warnings": []}
+    if amax == 0 or sel.sum() < 20:
+        out.update(ok=False, value=math.nan, std=math.nan)
+        out["warnings"].append("inertia: the air cut has too few acceleration samples; the data-sheet value is used")
+        return out
+    y = y[sel]
+    x = a[sel]
+    J = float(x @ y / (x @ x))
+    r = y - J * x
+    std = float(np.sqrt((r @ r) / max(len(x) - 1, 1) / (x @ x)))
+    ok = J > 0 and std < 0.05 * J
+    out.update(value=J, std=std, ok=bool(ok), residual_rms=float(np.sqrt(np.mean(r ** 2))))
+    if not ok:
+        out["warnings"].append(f"inertia: fit {J:.4g} +- {std:.2g} is not reliable (relative error > 5 % or <= 0); "
+                               f"the data-sheet value is used")
+    return out

@@ -40,6 +40,31 @@ def load_calibration(path) -> ThrustCalibration:
                              {k: v for k, v in d.items() if k not in ("Kt_n_cal", "Kt_n_reference")})
 
 
+COMMISSIONING_FORMAT = "drillcosim.commissioning/1"
+
+
+def load_commissioning(path, kind: str) -> dict:
+    """Read a ``commissioning.json`` (``drillcosim commission``) for a drive of ``kind``
+    (``linear_stage`` / ``ball_screw``): its ``nominal`` set (one per drive, shared by the
+    observer and the controller) and ``friction`` (a :class:`FrictionModel`, efforts in the
+    calibrated force constant's newtons)."""
+    p = resolve_path(path)
+    try:
+        d = json.loads(Path(p).read_text())
+    except FileNotFoundError:
+        raise FileNotFoundError(f"commissioning file {p} not found: run `drillcosim commission <scenario or plant>`") from None
+    if d.get("format") != COMMISSIONING_FORMAT:
+        raise ValueError(f"{p}: not a commissioning file (format {d.get('format')!r}, expected {COMMISSIONING_FORMAT!r})")
+    nom = d.get("nominal", {})
+    if nom.get("kind") != kind:
+        raise ValueError(f"{p}: commissions a {nom.get('kind')!r} drive, this block needs a {kind!r}")
+    mass_key = "mass" if kind == "linear_stage" else "inertia"
+    for key in (mass_key, "force_constant"):
+        if not float(nom.get(key, 0.0)) > 0:
+            raise ValueError(f"{p}: nominal.{key} must be > 0, got {nom.get(key)!r}")
+    return {"nominal": nom, "friction": FrictionModel.from_dict(d["friction"]), "warnings": d.get("warnings", [])}
+
+
 def rescale_friction(fm: FrictionModel, scale: float) -> FrictionModel:
     """The friction model with all its efforts (Coulomb, viscous, Stribeck, offset, ripple)
     times ``scale`` -- for efforts identified through a force constant now calibrated."""

@@ -69,6 +69,16 @@ class FrictionModel:
 
     __call__ = force
 
+    def slope(self, v: float) -> float:
+        """d force / d v at ``v`` (away from 0): viscous plus the Stribeck curve's slope --
+        negative below the Stribeck velocity, the friction's destabilising part."""
+        v = abs(v)
+        d = self.viscous
+        if self.stribeck and v > 0:
+            x = (v / self.v_stribeck) ** self.stribeck_exponent
+            d -= self.stribeck * math.exp(-x) * self.stribeck_exponent * x / v
+        return d
+
     def position_ripple(self, p: float) -> float:
         """Position-periodic effort (cogging) at drive position ``p``."""
         f = 0.0
