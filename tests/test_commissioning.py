@@ -200,3 +200,27 @@ def test_commissioned_fig7_on_foreign_zstage_passes(commissioned_zstage, tmp_pat
     assert s["worst_mean_error_pct"] <= 1.0
     assert s["worst_true_raw_peak_error_N"] <= 5.0
     assert s["oscillation_amplitude_N"] <= 1.0 and s["passed"]
+
+
+@pytest.mark.long
+@pytest.mark.parametrize("k_um, d", [(20.0, 300.0), (20.0, 1000.0)])
+def test_margin_boundary_matches_simulation(commissioned_zstage, tmp_path, k_um, d):
+    """The critical Kf the margin tool predicts from the commissioning file and the contact
+    (k, d) separates simulated runs within 20 %: 0.8x has no limit cycle, 1.2x has one."""
+    from cosim.runner import run_scenario
+    out, doc = commissioned_zstage
+    fm = FrictionModel.from_dict(doc["friction"])
+    nom = doc["nominal"]
+    loop = ForceLoop(M=nom["mass"], Kt=nom["force_constant"], k_contact=k_um * 1e6, d_contact=d,
+                     friction_slope=fm.slope(1e-3), Kc_v=50.0 / 1e-3)
+    K_crit = critical(loop, "Kf", 0.05, 5.0)
+    assert K_crit is not None
+    sc = tmp_path / "fig7.toml"
+    sc.write_text(f'[scenario]\nextends = "{ROOT}/scenarios/foreign/keio_fig7_aluminium_force_control.toml"\n'
+                  f'[fmus.stage.parameters]\nk_contact = {k_um}\nd_contact = {d}\n'
+                  f'[blocks.observer.settings]\ncommissioning_file = "{out}/commissioning.json"\n'
+                  f'[blocks.controller.settings]\ncommissioning_file = "{out}/commissioning.json"\n')
+    for factor, cycle in ((0.8, False), (1.2, True)):
+        res = run_scenario(sc, out_dir=tmp_path / f"run{factor}", progress=False, handle_signals=False,
+                           overrides={"blocks.controller.settings.Kf": factor * K_crit})
+        assert res.summary["scores"]["force_control"]["limit_cycle"] is cycle, (factor, K_crit)
