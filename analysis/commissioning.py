@@ -325,11 +325,14 @@ def report_figure(result, fm, target, out: Path) -> Path:
     info = fm.info
     fig, ax = plt.subplots(1, 2, figsize=(11, 4))
     v = np.array(info["segment_velocity"])
-    e = np.array(info["segment_mean_effort"])
-    vv = np.linspace(v.min(), v.max(), 600)
-    ax[0].plot(v, e, "o", label="segment means (air cut)")
-    ax[0].plot(vv, [fm.force(x) + fm.offset for x in vv], "-", label="selected model")
-    ax[0].set_xscale("symlog", linthresh=float(np.min(np.abs(v))))
+    e = np.array(info.get("segment_mean_effort_without_ripple", info["segment_mean_effort"]))
+    vmin = float(np.min(np.abs(v)))
+    ax[0].plot(v, e, "o", label="segment means, fitted ripple removed (air cut)")
+    for sgn in (1, -1):
+        vv = sgn * np.geomspace(vmin / 2, float(np.max(np.abs(v))), 300)
+        ax[0].plot(vv, [fm.force(x) + fm.offset for x in vv], "-", color="tab:orange",
+                   label="selected model" if sgn > 0 else None)
+    ax[0].set_xscale("symlog", linthresh=vmin / 2)
     ax[0].set_xlabel(f"velocity [{fm.velocity_unit}]")
     ax[0].set_ylabel(f"effort [{fm.effort_unit}]")
     ax[0].legend(fontsize=8)

@@ -197,3 +197,48 @@ def tune(L: ForceLoop, gain_margin_db: float = 6.0, Kf_range=(0.05, 2.0), g_thru
                 return {"Kf": float(K), "g_thrust": float(g), "gain_margin_db": gm(l2), "found": True}
     return {"found": False, "Kf": None, "g_thrust": None,
             "message": f"no Kf in {Kf_range} and g_thrust in {g_thrust_range} leaves {gain_margin_db} dB"}
+
+
+def force_loop_margin(result, commissioning_file: str, contact_stiffness: float, contact_damping: float,
+                      feed: float, controller: str = "controller", observer: str = "observer",
+                      process_exponent: float = 1.0, min_gain_margin_db: float = 6.0,
+                      print_table: bool = True) -> dict:
+    """``[[scores]]`` function: the margin of the run's force loop at its working point.
+
+    The plant's nominal set and friction come from ``commissioning_file``; ``Kf``,
+    ``g_dob``, ``g_vel`` and the command from the controller's settings, ``g_thrust`` from
+    the observer's (the run's scenario); the contact ``contact_stiffness`` [N/m],
+    ``contact_damping`` [N s/m] and the working feed ``feed`` [m/s] are stated (the process
+    slope is ``F_cmd / (process_exponent feed)``). Below ``min_gain_margin_db`` (or
+    unstable) the score carries a ``warning`` -- in summary.json with the run."""
+    from analysis.calibration import _scenario_raw
+    from controllers.calibration import load_commissioning
+
+    raw = _scenario_raw(result)
+    blocks = raw.get("blocks", {})
+    cs = blocks.get(controller, {}).get("settings") or {}
+    os_ = blocks.get(observer, {}).get("settings") or {}
+    com = load_commissioning(commissioning_file, "linear_stage")
+    nom, fm = com["nominal"], com["friction"]
+    F_cmd = float(cs.get("F_cmd", 50.0))
+    loop = ForceLoop(M=nom["mass"], Kt=nom["force_constant"], k_contact=float(contact_stiffness),
+                     d_contact=float(contact_damping), friction_slope=fm.slope(feed),
+                     Kc_v=F_cmd / (process_exponent * feed), Kf=float(cs.get("Kf", 0.45)),
+                     g_thrust=float(os_.get("g_thrust", 1200.0)), g_dob=float(cs.get("g_dob", 1200.0)),
+                     g_vel=float(cs.get("g_vel", 2000.0)))
+    m = margins(loop, n_freq=1500)
+    m.pop("poles")
+    if not m["stable"] or m["gain_margin_db"] < min_gain_margin_db:
+        t = tune(loop, gain_margin_db=min_gain_margin_db)
+        m["warning"] = (f"force loop: {'unstable' if not m['stable'] else 'gain margin %.1f dB' % m['gain_margin_db']}"
+                        f" (< {min_gain_margin_db} dB) with Kf {loop.Kf}, g_thrust {loop.g_thrust} rad/s at "
+                        f"k {contact_stiffness:g} N/m, d {contact_damping:g} N s/m; "
+                        + (f"Kf {t['Kf']:.3g} with g_thrust {t['g_thrust']:.4g} rad/s leaves it" if t["found"]
+                           else t["message"]))
+        m["suggested"] = t
+    if print_table:
+        print(f"force loop: {'stable' if m['stable'] else 'UNSTABLE'}, gain margin {m['gain_margin_db']:.2f} dB at "
+              f"{m['gain_margin_frequency_Hz'] or float('nan'):.0f} Hz, phase margin {m['phase_margin_deg']:.1f} deg")
+        if "warning" in m:
+            print(f"  WARNING: {m['warning']}")
+    return m

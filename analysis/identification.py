@@ -188,6 +188,14 @@ def _columns(rows: _Rows, fit_offset, vs, exponent, ks):
     return cols, names
 
 
+def _ripple_part(coef, names, cols) -> np.ndarray:
+    part = np.zeros(len(cols[0]))
+    for a, name, col in zip(coef, names, cols):
+        if name.startswith(("sin", "cos")):
+            part = part + a * col
+    return part
+
+
 def _fit(rows: _Rows, fit_offset, vs, exponent, ks, units) -> FrictionModel:
     cols, names = _columns(rows, fit_offset, vs, exponent, ks)
     coef, rss, resid, Phi = _lstsq(cols, rows.y)
@@ -199,11 +207,15 @@ def _fit(rows: _Rows, fit_offset, vs, exponent, ks, units) -> FrictionModel:
                        **units)
     n = len(rows.y)
     rms = math.sqrt(rss / n)
+    no_ripple = rows.y - _ripple_part(coef, names, cols)
     fm.info = {"n_segments": rows.n_segments, "n_samples": int(n), "rms_residual": rms,
                "cv_rms": cv_rms(cols, rows.y, rows.fold) if len(set(rows.fold)) == 2 else math.nan,
                "noise_rms": rows.noise_rms, "residual_ratio": rms / rows.noise_rms if rows.noise_rms > 0 else math.inf,
                "condition_number": condition_number(Phi), "bic": bic(rss, n, n_par), "n_parameters": n_par,
                "segment_velocity": rows.seg_v, "segment_mean_effort": rows.seg_e,
+               # segment means with the fitted position ripple taken off (what the velocity law explains)
+               "segment_mean_effort_without_ripple": [float(np.mean(no_ripple[rows.seg_id == j]))
+                                                      for j in range(rows.n_segments)],
                "segment_residual_rms": [float(np.sqrt(np.mean(resid[rows.seg_id == j] ** 2)))
                                         for j in range(rows.n_segments)]}
     return fm
@@ -215,10 +227,18 @@ def fit_stribeck(rows: _Rows, fit_offset=True, ks=(), exponents=(1.0, 1.5, 2.0),
     the fastest segment speed for each exponent, then a bounded refinement of log vs."""
     speeds = np.abs(rows.seg_v)
     lo, hi = math.log(speeds.min() / 3.0), math.log(speeds.max())
-    base, _ = _columns(rows, fit_offset, None, 2.0, ks)
+    B = np.column_stack(_columns(rows, fit_offset, None, 2.0, ks)[0])
+    y = rows.y
+    # normal equations with the fixed columns' Gram matrix computed once: each candidate
+    # costs one new column's products, not a new factorisation of the whole regression
+    BtB, Bty, yty = B.T @ B, B.T @ y, float(y @ y)
 
     def rss(logvs, ex):
-        return _lstsq(base + [stribeck_column(rows.v, math.exp(logvs), ex)], rows.y)[1]
+        c = stribeck_column(rows.v, math.exp(logvs), ex)
+        G = np.block([[BtB, (B.T @ c)[:, None]], [(c @ B)[None, :], np.array([[c @ c]])]])
+        r = np.concatenate([Bty, [c @ y]])
+        coef = np.linalg.lstsq(G, r, rcond=None)[0]
+        return yty - float(coef @ r)
 
     best = None
     for ex in exponents:
@@ -337,10 +357,9 @@ def select_friction_model(time, position, effort, v_ref, *, fit_offset: bool = T
         k = float(ks[j])
         if continuous:
             k = _snap_or_peak(rows.p[sel], r[sel], chosen, k, 4 * (ks[1] - ks[0]))
-        if use_stribeck:
-            vs_c, ex_c = fit_stribeck(scan, fit_offset, chosen + [k], stribeck_exponents)
-        else:
-            vs_c, ex_c = None, 2.0
+        # Stribeck and position harmonics are nearly orthogonal (constant per segment vs
+        # periodic within it): keep vs and the exponent while adding harmonics, refit at the end
+        vs_c, ex_c = (best.v_stribeck, best.stribeck_exponent) if use_stribeck else (None, 2.0)
         cand = _fit(rows, fit_offset, vs_c, ex_c, chosen + [k], units)
         kept = better(cand, best)
         log.append({"model": f"+harmonic k={k:.6g} 1/{position_unit}", "cv_rms": cand.info["cv_rms"],
@@ -351,12 +370,10 @@ def select_friction_model(time, position, effort, v_ref, *, fit_offset: bool = T
         chosen.append(k)
         best = cand
     if continuous and chosen:
-        vs0 = best.v_stribeck if use_stribeck else None
-        chosen = _refine_families(scan, fit_offset, vs0, best.stribeck_exponent, chosen, 4 * (ks[1] - ks[0]))
-        if use_stribeck:
-            vs0, ex0 = fit_stribeck(scan, fit_offset, chosen, stribeck_exponents)
-        else:
-            ex0 = 2.0
+        chosen = _refine_families(scan, fit_offset, best.v_stribeck if use_stribeck else None,
+                                  best.stribeck_exponent, chosen, 4 * (ks[1] - ks[0]))
+    if chosen:
+        vs0, ex0 = fit_stribeck(scan, fit_offset, chosen, stribeck_exponents) if use_stribeck else (None, 2.0)
         best = _fit(rows, fit_offset, vs0, ex0, chosen, units)
     best.info["selection"] = log
     best.info["criterion"] = CRITERION

@@ -224,3 +224,24 @@ def test_margin_boundary_matches_simulation(commissioned_zstage, tmp_path, k_um,
         res = run_scenario(sc, out_dir=tmp_path / f"run{factor}", progress=False, handle_signals=False,
                            overrides={"blocks.controller.settings.Kf": factor * K_crit})
         assert res.summary["scores"]["force_control"]["limit_cycle"] is cycle, (factor, K_crit)
+
+
+def test_scenario_gains_without_margin_warn_in_the_summary(tmp_path):
+    """force_loop_margin (a [[scores]] function) reads Kf / g_thrust from the run's scenario
+    and warns, with a tuned suggestion, when the gain margin is below the stated 6 dB."""
+    from analysis.force_margin import force_loop_margin
+    com = {"format": "drillcosim.commissioning/1",
+           "nominal": {"kind": "linear_stage", "mass": 4.3, "force_constant": 24.6, "gravity_comp": 4.2},
+           "friction": FrictionModel(coulomb=6.0, viscous=45.0, stribeck=3.5, v_stribeck=3e-3,
+                                     stribeck_exponent=1.5).to_dict()}
+    (tmp_path / "c.json").write_text(json.dumps(com))
+    for Kf, warned in ((0.6, True), (0.3, False)):
+        sc = tmp_path / f"s{Kf}.toml"
+        sc.write_text(f"[scenario]\nstop_time = 1.0\n[blocks.controller.settings]\nKf = {Kf}\n"
+                      f"[blocks.observer.settings]\ng_thrust = 1200.0\n")
+        res = _result([0.0, 1.0], {"x": [0.0, 0.0]})
+        res.summary = {"file": str(sc)}
+        m = force_loop_margin(res, str(tmp_path / "c.json"), 2e7, 300.0, 1e-3, print_table=False)
+        assert ("warning" in m) is warned, m.get("warning")
+        if warned:
+            assert m["suggested"]["found"] and m["suggested"]["Kf"] < Kf
