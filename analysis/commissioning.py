@@ -33,7 +33,7 @@ import numpy as np
 
 from analysis.identification import IdentificationError, identify_inertia, select_friction_model
 from analysis.plotting import pyplot, save_figure
-from controllers.nominal_models import FangNominal, KeioNominal
+from controllers.calibration import DATASHEET_DEFAULT, DATASHEET_SETTINGS
 from cosim.outputs import write_json_atomic
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -41,13 +41,6 @@ TEMPLATES = ROOT / "scenarios" / "commissioning"
 FORMAT = "drillcosim.commissioning/1"
 REQUIRED_ROLES = {"ball_screw": ("i_ref", "i_meas", "motor_angle"),
                   "linear_stage": ("i_ref", "table_position")}
-# settings names of the data sheet in the shipped blocks (observer first, then controller)
-DATASHEET_KEYS = {"linear_stage": {"mass": ("M_n", "mass_nominal"), "force_constant": ("Kt_n", "force_constant_nominal")},
-                  "ball_screw": {"inertia": ("J_en",), "force_constant": ("K_Tn",), "pitch": ("K_pitch",),
-                                 "eta": ("eta",)}}
-DATASHEET_DEFAULT = {"linear_stage": {"mass": KeioNominal.M_n, "force_constant": KeioNominal.Kt_n},
-                     "ball_screw": {"inertia": FangNominal.J_en, "force_constant": FangNominal.K_Tn,
-                                    "pitch": FangNominal.K_pitch, "eta": FangNominal.eta}}
 MAX_RESIDUAL_RATIO = 3.0          # residual RMS / in-segment noise above this: warning
 MAX_AIR_THRUST = 3.0              # N: mean dynamometer reading in an air-cut segment above this: contact
 
@@ -79,7 +72,7 @@ def read_target(path) -> dict:
         plant_params = dict(spec.get("plant_parameters", {}))
         datasheet = {}
         binding = load_binding(binding_path)
-        for key, names in DATASHEET_KEYS[binding.kind].items():
+        for key, names in DATASHEET_SETTINGS[binding.kind].items():
             for blk in raw.get("blocks", {}).values():
                 st = blk.get("settings", {}) if isinstance(blk, dict) else {}
                 hit = next((st[n] for n in names if isinstance(st.get(n), (int, float))), None)
@@ -145,12 +138,11 @@ def air_cut(target: dict, out: Path):
     tables["fmus.drive.plant_parameters"] = params
     rec = ["drive.i_meas", "drive.table_position", "reference.v_ref", "reference.a_ref", "controller.i_ref"]
     if kind == "ball_screw":
-        tables["blocks.controller.settings"] = {"J_en": ds["inertia"], "K_Tn": ds["force_constant"],
-                                                "K_pitch": ds["pitch"], "eta": ds["eta"]}
+        tables["blocks.controller.settings"] = {DATASHEET_SETTINGS[kind][q][-1]: ds[q] for q in ds}
         tables["[[connections]]"] = [{"from": "drive.motor_angle", "to": "controller.z", "scale": ds["pitch"]}]
         rec.append("drive.motor_angle")
     else:
-        tables["blocks.controller.settings"] = {"mass_nominal": ds["mass"], "force_constant_nominal": ds["force_constant"]}
+        tables["blocks.controller.settings"] = {DATASHEET_SETTINGS[kind][q][-1]: ds[q] for q in ds}
         rec = [r for r in rec if r != "drive.i_meas" or "i_meas" in target["binding"].roles]
     if "thrust_dyn" in target["binding"].roles:
         rec.append("drive.thrust_dyn")
@@ -214,14 +206,16 @@ def thrust_calibration(target: dict, friction_file: Path, mass: float, out: Path
     ds = target["datasheet"]
     params = {k: v for k, v in target["plant_parameters"].items() if k == "seed"}
     params.update(spindle_speed=314.159265)
+    names = DATASHEET_SETTINGS["linear_stage"]
+    vals = {"mass": mass, "force_constant": ds["force_constant"]}
+    observer_ds = {names[q][0]: v for q, v in vals.items()}
+    controller_ds = {names[q][-1]: v for q, v in vals.items()}
     tables = {"scenario": {"extends": str(ROOT / "scenarios" / "keio_thrust_constant_calibration.toml"),
                            "description": "commissioning reference cut (thrust constant)"},
               "fmus.stage": {"plant": str(target["binding_path"])},
               "fmus.stage.plant_parameters": params,
-              "blocks.observer.settings": {"M_n": mass, "Kt_n": ds["force_constant"], "friction_file": str(friction_file),
-                                           "calibration_file": ""},
-              "blocks.controller.settings": {"mass_nominal": mass, "force_constant_nominal": ds["force_constant"],
-                                             "calibration_file": "", "F_bias": 0.0}}
+              "blocks.observer.settings": {**observer_ds, "friction_file": str(friction_file), "calibration_file": ""},
+              "blocks.controller.settings": {**controller_ds, "calibration_file": "", "F_bias": 0.0}}
     sc = write_scenario(out / "experiments" / "thrust_calibration.toml", tables)
     _run(sc, out / "thrust_calibration")
     return json.loads((out / "thrust_calibration" / "thrust_calibration.json").read_text())
@@ -244,18 +238,18 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
     mass_key = "mass" if kind == "linear_stage" else "inertia"
     mass = inertia["value"] if inertia.get("ok") else ds[mass_key]
     cal = thrust_calibration(target, raw_friction, mass, out)
-    Kt = ds["force_constant"]
+    kt = ds["force_constant"]
     if cal is not None:
         from controllers.calibration import rescale_friction
         scale = cal["Kt_n_cal"] / ds["force_constant"]
         fm = rescale_friction(fm, scale)
-        Kt = cal["Kt_n_cal"]
+        kt = cal["Kt_n_cal"]
         # the fitted inertia was seen through the data-sheet constant too
         mass *= scale
     else:
         warnings.append("thrust constant: not calibrated (no reference cut for this plant: a linear stage with a "
                         "dynamometer role is needed); the data-sheet value is used")
-    nominal = {"kind": kind, mass_key: mass, "force_constant": Kt, "force_constant_datasheet": ds["force_constant"],
+    nominal = {"kind": kind, mass_key: mass, "force_constant": kt, "force_constant_datasheet": ds["force_constant"],
                f"{mass_key}_datasheet": ds[mass_key]}
     if kind == "ball_screw":
         nominal.update(pitch=ds["pitch"], eta=ds["eta"])
@@ -266,7 +260,8 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
            "contact": None, "force_loop": None, "warnings": warnings}
     if kind == "linear_stage" and contact_stiffness:
         from analysis.force_margin import ForceLoop, margins
-        loop = ForceLoop(M=mass, Kt=Kt, k_contact=contact_stiffness, d_contact=contact_damping or 0.0,
+        loop = ForceLoop(mass=mass, force_constant=kt, contact_stiffness=contact_stiffness,
+                         contact_damping=contact_damping or 0.0,
                          friction_slope=fm.slope(1e-3))
         m = margins(loop)
         doc["contact"] = {"stiffness": contact_stiffness, "damping": contact_damping, "source": "given"}

@@ -3,7 +3,7 @@
 The loop, sample by sample as the blocks run it (period ``Ts``), linearised at the working
 point (steady cut at feed ``v0`` and thrust ``F0``):
 
-* stage (continuous, exact ZOH over one sample): ``M z'' = Kt i_a - F_c - b_f v``,
+* stage (continuous, exact ZOH over one sample): ``m z'' = K i_a - F_c - b_f v``,
   current lag ``tau_cur i_a' = i_ref - i_a``; ``b_f`` the slope of the true friction at the
   feed (negative inside a Stribeck curve);
 * contact and process: ``F_c = k e + d (v - c')`` with the penetration ``e = z - c`` and the
@@ -40,12 +40,12 @@ from controllers.nominal_models import zoh
 
 @dataclasses.dataclass
 class ForceLoop:
-    M: float                    # kg, true (identified) moving mass
-    Kt: float                   # N/A, true (calibrated) force constant
-    k_contact: float            # N/m
-    d_contact: float            # N s/m
-    M_n: float | None = None    # kg, controller's nominal mass (default M)
-    Kt_n: float | None = None   # N/A (default Kt)
+    mass: float                 # kg, true (identified) moving mass
+    force_constant: float       # N/A, true (calibrated) force constant
+    contact_stiffness: float    # N/m
+    contact_damping: float      # N s/m
+    mass_nominal: float | None = None            # kg, the blocks' nominal mass (default: mass)
+    force_constant_nominal: float | None = None  # N/A (default: force_constant)
     friction_slope: float = 0.0           # N s/m, true friction slope at the feed
     friction_slope_model: float | None = None  # N s/m, the observer's (default = true)
     Kc_v: float = 5.0e4         # N s/m, process thrust per feed at the working point
@@ -57,27 +57,29 @@ class ForceLoop:
     Ts: float = 1e-4
 
     def __post_init__(self):
-        self.M_n = self.M if self.M_n is None else self.M_n
-        self.Kt_n = self.Kt if self.Kt_n is None else self.Kt_n
+        if self.mass_nominal is None:
+            self.mass_nominal = self.mass
+        if self.force_constant_nominal is None:
+            self.force_constant_nominal = self.force_constant
         if self.friction_slope_model is None:
             self.friction_slope_model = self.friction_slope
 
 
 def _plant(L: ForceLoop):
     """Continuous stage + contact: x = [z, v, c, i_a]; input i_ref (tau_cur 0: i_a = i_ref)."""
-    alpha = L.k_contact / L.Kc_v
-    k, d = L.k_contact, L.d_contact
+    alpha = L.contact_stiffness / L.Kc_v
+    k, d = L.contact_stiffness, L.contact_damping
     # F_c = k (z - c) + d (v - alpha (z - c))
     Fz, Fv, Fc = k - d * alpha, d, -(k - d * alpha)
     if L.tau_cur > 0:
         A = [[0, 1, 0, 0],
-             [-Fz / L.M, -(Fv + L.friction_slope) / L.M, -Fc / L.M, L.Kt / L.M],
+             [-Fz / L.mass, -(Fv + L.friction_slope) / L.mass, -Fc / L.mass, L.force_constant / L.mass],
              [alpha, 0, -alpha, 0],
              [0, 0, 0, -1 / L.tau_cur]]
         B = [[0], [0], [0], [1 / L.tau_cur]]
     else:
-        A = [[0, 1, 0], [-Fz / L.M, -(Fv + L.friction_slope) / L.M, -Fc / L.M], [alpha, 0, -alpha]]
-        B = [[0], [L.Kt / L.M], [0]]
+        A = [[0, 1, 0], [-Fz / L.mass, -(Fv + L.friction_slope) / L.mass, -Fc / L.mass], [alpha, 0, -alpha]]
+        B = [[0], [L.force_constant / L.mass], [0]]
     return zoh(np.array(A, float), np.array(B, float), L.Ts)
 
 
@@ -95,15 +97,15 @@ def one_step(L: ForceLoop, broken: bool = False) -> tuple[ca.Function, int]:
     # observer (runs first; i_ref input still holds the previous sample's value)
     a = math.exp(-L.g_thrust * Ts)
     v_o = (z - zo_prev) / Ts
-    d = L.Kt_n * i_prev - L.M_n * (v_o - vo_prev) / Ts - L.friction_slope_model * v_o
+    d = L.force_constant_nominal * i_prev - L.mass_nominal * (v_o - vo_prev) / Ts - L.friction_slope_model * v_o
     F_hat_n = a * F_hat + (1 - a) * d
     # controller: robust acceleration core
     av, ad = math.exp(-L.g_vel * Ts), math.exp(-L.g_dob * Ts)
     v_new = av * v_hat + (1 - av) * (z - zc_prev) / Ts
     acc = (v_new - v_hat) / Ts
-    F_dis_n = ad * F_dis + (1 - ad) * (L.Kt_n * i_prev - L.M_n * acc)
-    a_cmd = L.Kf * (0 - F_hat_n) / L.M_n          # deviation from the working point: F_cmd fixed
-    i = (L.M_n * a_cmd + F_dis_n) / L.Kt_n
+    F_dis_n = ad * F_dis + (1 - ad) * (L.force_constant_nominal * i_prev - L.mass_nominal * acc)
+    a_cmd = L.Kf * (0 - F_hat_n) / L.mass_nominal          # deviation from the working point: F_cmd fixed
+    i = (L.mass_nominal * a_cmd + F_dis_n) / L.force_constant_nominal
     i_plant = u if broken else i
     xp_n = ca.mtimes(ca.DM(Ad), xp) + ca.mtimes(ca.DM(Bd), i_plant)
     Xn = ca.vertcat(xp_n, z, v_o, F_hat_n, z, v_new, F_dis_n, i)
@@ -221,8 +223,8 @@ def force_loop_margin(result, commissioning_file: str, contact_stiffness: float,
     com = load_commissioning(commissioning_file, "linear_stage")
     nom, fm = com["nominal"], com["friction"]
     F_cmd = float(cs.get("F_cmd", 50.0))
-    loop = ForceLoop(M=nom["mass"], Kt=nom["force_constant"], k_contact=float(contact_stiffness),
-                     d_contact=float(contact_damping), friction_slope=fm.slope(feed),
+    loop = ForceLoop(mass=nom["mass"], force_constant=nom["force_constant"],
+                     contact_stiffness=float(contact_stiffness), contact_damping=float(contact_damping), friction_slope=fm.slope(feed),
                      Kc_v=F_cmd / (process_exponent * feed), Kf=float(cs.get("Kf", 0.45)),
                      g_thrust=float(os_.get("g_thrust", 1200.0)), g_dob=float(cs.get("g_dob", 1200.0)),
                      g_vel=float(cs.get("g_vel", 2000.0)))

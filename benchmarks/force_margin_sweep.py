@@ -40,7 +40,8 @@ def main(com: str, steps: int = 4) -> None:
     print(f"{'k N/um':>7} {'d N s/m':>8} {'Kf predicted':>13} {'Kf simulated':>16} {'difference':>10}")
     with tempfile.TemporaryDirectory() as t:
         for k, d in POINTS:
-            loop = ForceLoop(M=nom["mass"], Kt=nom["force_constant"], k_contact=k * 1e6, d_contact=d,
+            loop = ForceLoop(mass=nom["mass"], force_constant=nom["force_constant"], contact_stiffness=k * 1e6,
+                             contact_damping=d,
                              friction_slope=fm.slope(1e-3), Kc_v=50.0 / 1e-3)
             kp = critical(loop, "Kf", 0.05, 5.0)
             lo, hi = 0.5 * kp, 2.0 * kp

@@ -10,7 +10,7 @@ import json
 from pathlib import Path
 
 from controllers.friction import FrictionModel, resolve_path
-from controllers.nominal_models import KeioNominal
+from controllers.nominal_models import FangNominal, KeioNominal
 
 
 @dataclasses.dataclass
@@ -41,6 +41,14 @@ def load_calibration(path) -> ThrustCalibration:
 
 
 COMMISSIONING_FORMAT = "drillcosim.commissioning/1"
+# the data sheet of a drive as the blocks' settings name it (observer's name first, the
+# position/force controller's last), and the project's nominal values when a scenario has none
+DATASHEET_SETTINGS = {"linear_stage": {"mass": ("M_n", "mass_nominal"), "force_constant": ("Kt_n", "force_constant_nominal")},
+                      "ball_screw": {"inertia": ("J_en",), "force_constant": ("K_Tn",), "pitch": ("K_pitch",),
+                                     "eta": ("eta",)}}
+DATASHEET_DEFAULT = {"linear_stage": {"mass": KeioNominal.M_n, "force_constant": KeioNominal.Kt_n},
+                     "ball_screw": {"inertia": FangNominal.J_en, "force_constant": FangNominal.K_Tn,
+                                    "pitch": FangNominal.K_pitch, "eta": FangNominal.eta}}
 
 
 def load_commissioning(path, kind: str) -> dict:

@@ -141,20 +141,20 @@ def test_limit_cycle_fails_the_score_though_its_average_passes():
 
 
 # --------------------------------------------------------------------------- margin tool
-FOREIGN_Z = dict(M=4.3, Kt=24.6, k_contact=2e7, Kc_v=62500.0, tau_cur=1.2e-4)
+FOREIGN_Z = dict(mass=4.3, force_constant=24.6, contact_stiffness=2e7, Kc_v=62500.0, tau_cur=1.2e-4)
 
 
 def test_margin_tool_sees_what_removes_the_limit_cycle():
     """Issue 11: the foreign z stage limit-cycles at ~440 Hz with Kf 0.45 and the shipped
     (uncommissioned) observer; with Kf 0.2, or 3000 N s/m contact damping, it does not."""
     fs = 45.0 - 830.0                       # friction slope inside the Stribeck curve at 1 mm/s
-    base = ForceLoop(d_contact=300.0, friction_slope=fs, Kf=0.45, **FOREIGN_Z)
+    base = ForceLoop(contact_damping=300.0, friction_slope=fs, Kf=0.45, **FOREIGN_Z)
     m = margins(base, n_freq=1500)
     assert m["stable"] and m["gain_margin_db"] < 6.0
     assert 300 < m["gain_margin_frequency_Hz"] < 500
     import dataclasses
     assert margins(dataclasses.replace(base, Kf=0.2), 1500)["gain_margin_db"] > m["gain_margin_db"] + 6
-    assert margins(dataclasses.replace(base, d_contact=3000.0), 1500)["gain_margin_db"] > m["gain_margin_db"] + 3
+    assert margins(dataclasses.replace(base, contact_damping=3000.0), 1500)["gain_margin_db"] > m["gain_margin_db"] + 3
     assert not margins(dataclasses.replace(base, Kf=1.0), 1500)["stable"]
     t = tune(base, gain_margin_db=6.0)
     assert t["found"] and t["Kf"] < 0.45
@@ -211,7 +211,8 @@ def test_margin_boundary_matches_simulation(commissioned_zstage, tmp_path, k_um,
     out, doc = commissioned_zstage
     fm = FrictionModel.from_dict(doc["friction"])
     nom = doc["nominal"]
-    loop = ForceLoop(M=nom["mass"], Kt=nom["force_constant"], k_contact=k_um * 1e6, d_contact=d,
+    loop = ForceLoop(mass=nom["mass"], force_constant=nom["force_constant"], contact_stiffness=k_um * 1e6,
+                     contact_damping=d,
                      friction_slope=fm.slope(1e-3), Kc_v=50.0 / 1e-3)
     K_crit = critical(loop, "Kf", 0.05, 5.0)
     assert K_crit is not None
