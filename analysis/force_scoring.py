@@ -49,8 +49,30 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.nonzero(d == 1)[0], np.nonzero(d == -1)[0]))
 
 
+def oscillation(t, err, f_min: float = 5.0) -> dict:
+    """The steady error seen raw: RMS [N], raw peak |error| [N], and the dominant
+    oscillation -- the largest line of the Hann-windowed spectrum of the error (mean and
+    trend removed) above ``f_min`` [Hz]: frequency [Hz] and amplitude [N] (a sinusoid of
+    amplitude A reads A). A limit cycle is a line, the measurement noise is not."""
+    t = np.asarray(t, float)
+    e = np.asarray(err, float)
+    out = {"rms_error_N": float(np.sqrt(np.mean(e ** 2))), "raw_peak_error_N": float(np.max(np.abs(e)))}
+    if len(e) < 16:
+        return {**out, "oscillation_frequency_Hz": None, "oscillation_amplitude_N": None}
+    dt = float(np.median(np.diff(t)))
+    x = e - np.polyval(np.polyfit(t - t[0], e, 1), t - t[0])
+    w = np.hanning(len(x))
+    X = np.abs(np.fft.rfft(x * w)) * 2.0 / w.sum()
+    f = np.fft.rfftfreq(len(x), dt)
+    band = f >= f_min
+    if not band.any():
+        return {**out, "oscillation_frequency_Hz": None, "oscillation_amplitude_N": None}
+    j = int(np.argmax(np.where(band, X, -1.0)))
+    return {**out, "oscillation_frequency_Hz": float(f[j]), "oscillation_amplitude_N": float(X[j])}
+
+
 def layer_scores(t, F, F_cmd, layer, active, z_tool=None, *, band=5.0, settle_window=0.2,
-                 z_steady_end=None, filter_time=0.005, F_raw=None) -> dict:
+                 z_steady_end=None, filter_time=0.005, F_raw=None, F_true=None) -> dict:
     """Per-layer scores from plain arrays (see module docstring).
 
     ``t`` [s], ``F`` measured thrust [N] (raw dynamometer; filtered here), ``F_cmd``
@@ -109,6 +131,9 @@ def layer_scores(t, F, F_cmd, layer, active, z_tool=None, *, band=5.0, settle_wi
                 "peak_error_N": float(np.abs(err[steady]).max()),
                 "peak_error_raw_N": float(np.abs(err_raw[steady]).max()),
             })
+            if F_true is not None:       # the true thrust, unfiltered: what a limit cycle does to the tool
+                osc = oscillation(t[steady], np.asarray(F_true, float)[steady] - F_cmd[steady])
+                entry.update({f"true_{k}": v for k, v in osc.items()})
         else:
             entry.update({"steady_from_s": None, "mean_thrust_N": None, "mean_error_N": None,
                           "mean_error_pct": None, "peak_error_N": None, "peak_error_raw_N": None})
@@ -141,14 +166,23 @@ def constant_feed_jumps(t, F, layer, *, settle_window=0.2, moving=None,
     return {"layers": means, "jumps": jumps}
 
 
-@needs("{stage}.thrust_dyn", "{stage}.layer_index", "{stage}.tool_position_true?", "{controller}.mode",
+@needs("{stage}.thrust_dyn", "{stage}.layer_index", "{stage}.tool_position_true?", "{stage}.thrust_true?",
+       "{controller}.mode",
        "{controller}.F_cmd_out", "{controller}.i_ref_max", "{controller}.saturated_any",
        "{observer}.F_thrust_hat?", "{compare_stage}.thrust_dyn?", "{compare_stage}.layer_index?",
        "{compare_stage}.tool_position_true?", "{compare_controller}.v_hat?")
 def force_scores(result, stage="stage", controller="controller", observer="observer",
                  band=5.0, settle_window=0.2, filter_time=0.005, z_steady_end=None,
-                 compare_stage=None, compare_controller=None) -> dict:
-    """``[[scores]]`` function: per-layer thrust-control scores (module docstring)."""
+                 compare_stage=None, compare_controller=None, max_mean_error_pct=1.0,
+                 max_raw_peak_error_N=5.0, max_oscillation_N=1.0) -> dict:
+    """``[[scores]]`` function: per-layer thrust-control scores (module docstring).
+
+    With the plant's true thrust recorded (``thrust_true``, scoring only) the steady part is
+    also judged raw (:func:`oscillation`): ``worst_true_raw_peak_error_N``,
+    ``worst_true_rms_error_N``, the dominant oscillation and ``limit_cycle`` (an
+    oscillation above ``max_oscillation_N``). ``passed`` needs the mean error within
+    ``max_mean_error_pct``, the raw peak within ``max_raw_peak_error_N`` and no limit
+    cycle: a 5 ms average that hides a +-7 N, 440 Hz oscillation never passes."""
     t = result.time
     mode = result[f"{controller}.mode"]
     F_cmd = result[f"{controller}.F_cmd_out"]
@@ -156,7 +190,8 @@ def force_scores(result, stage="stage", controller="controller", observer="obser
     z_tool = result[f"{stage}.tool_position_true"] if f"{stage}.tool_position_true" in result else None
     sc = layer_scores(t, result[f"{stage}.thrust_dyn"], F_cmd, result[f"{stage}.layer_index"], active, z_tool,
                       band=band, settle_window=settle_window, z_steady_end=z_steady_end,
-                      filter_time=filter_time)
+                      filter_time=filter_time,
+                      F_true=result[f"{stage}.thrust_true"] if f"{stage}.thrust_true" in result else None)
     if f"{observer}.F_thrust_hat" in result:
         est = layer_scores(t, result[f"{observer}.F_thrust_hat"], F_cmd, result[f"{stage}.layer_index"],
                            active, z_tool, band=band, settle_window=settle_window,
@@ -182,6 +217,20 @@ def force_scores(result, stage="stage", controller="controller", observer="obser
                         "mean_error": "F_meas (raw) minus command, steady part of each layer",
                         "peak_error": f"max |F_meas low-passed ({filter_time * 1e3:g} ms) - command|, steady part"},
     }
+    if steady and "true_raw_peak_error_N" in steady[0]:
+        worst_osc = max(steady, key=lambda x: x["true_oscillation_amplitude_N"] or 0.0)
+        out.update(worst_true_raw_peak_error_N=max(x["true_raw_peak_error_N"] for x in steady),
+                   worst_true_rms_error_N=max(x["true_rms_error_N"] for x in steady),
+                   oscillation_amplitude_N=worst_osc["true_oscillation_amplitude_N"],
+                   oscillation_frequency_Hz=worst_osc["true_oscillation_frequency_Hz"])
+        out["limit_cycle"] = bool((out["oscillation_amplitude_N"] or 0.0) > max_oscillation_N)
+        out["passed"] = bool(out["worst_mean_error_pct"] <= max_mean_error_pct
+                             and out["worst_true_raw_peak_error_N"] <= max_raw_peak_error_N
+                             and not out["limit_cycle"])
+        out["definitions"]["passed"] = (f"mean error <= {max_mean_error_pct} %, raw peak error of the true thrust <= "
+                                        f"{max_raw_peak_error_N} N, dominant oscillation <= {max_oscillation_N} N")
+    elif steady:
+        out["passed"] = None       # no true thrust recorded: a limit cycle cannot be excluded
     if f"{observer}.F_thrust_hat" in result:
         from analysis.calibration import calibration_in_use   # (it imports this module)
         out["thrust_constant"] = calibration_in_use(result, observer)

@@ -10,7 +10,7 @@ import json
 from pathlib import Path
 
 from controllers.friction import FrictionModel, resolve_path
-from controllers.nominal_models import KeioNominal
+from controllers.nominal_models import FangNominal, KeioNominal
 
 
 @dataclasses.dataclass
@@ -38,6 +38,39 @@ def load_calibration(path) -> ThrustCalibration:
         raise ValueError(f"{p}: needs Kt_n_cal > 0 in N/A, got {d.get('Kt_n_cal')!r} {d.get('unit')!r}")
     return ThrustCalibration(float(d["Kt_n_cal"]), float(d.get("Kt_n_reference", KeioNominal.Kt_n)),
                              {k: v for k, v in d.items() if k not in ("Kt_n_cal", "Kt_n_reference")})
+
+
+COMMISSIONING_FORMAT = "drillcosim.commissioning/1"
+# the data sheet of a drive as the blocks' settings name it (observer's name first, the
+# position/force controller's last), and the project's nominal values when a scenario has none
+DATASHEET_SETTINGS = {"linear_stage": {"mass": ("M_n", "mass_nominal"), "force_constant": ("Kt_n", "force_constant_nominal")},
+                      "ball_screw": {"inertia": ("J_en",), "force_constant": ("K_Tn",), "pitch": ("K_pitch",),
+                                     "eta": ("eta",)}}
+DATASHEET_DEFAULT = {"linear_stage": {"mass": KeioNominal.M_n, "force_constant": KeioNominal.Kt_n},
+                     "ball_screw": {"inertia": FangNominal.J_en, "force_constant": FangNominal.K_Tn,
+                                    "pitch": FangNominal.K_pitch, "eta": FangNominal.eta}}
+
+
+def load_commissioning(path, kind: str) -> dict:
+    """Read a ``commissioning.json`` (``drillcosim commission``) for a drive of ``kind``
+    (``linear_stage`` / ``ball_screw``): its ``nominal`` set (one per drive, shared by the
+    observer and the controller) and ``friction`` (a :class:`FrictionModel`, efforts in the
+    calibrated force constant's newtons)."""
+    p = resolve_path(path)
+    try:
+        d = json.loads(Path(p).read_text())
+    except FileNotFoundError:
+        raise FileNotFoundError(f"commissioning file {p} not found: run `drillcosim commission <scenario or plant>`") from None
+    if d.get("format") != COMMISSIONING_FORMAT:
+        raise ValueError(f"{p}: not a commissioning file (format {d.get('format')!r}, expected {COMMISSIONING_FORMAT!r})")
+    nom = d.get("nominal", {})
+    if nom.get("kind") != kind:
+        raise ValueError(f"{p}: commissions a {nom.get('kind')!r} drive, this block needs a {kind!r}")
+    mass_key = "mass" if kind == "linear_stage" else "inertia"
+    for key in (mass_key, "force_constant"):
+        if not float(nom.get(key, 0.0)) > 0:
+            raise ValueError(f"{p}: nominal.{key} must be > 0, got {nom.get(key)!r}")
+    return {"nominal": nom, "friction": FrictionModel.from_dict(d["friction"]), "warnings": d.get("warnings", [])}
 
 
 def rescale_friction(fm: FrictionModel, scale: float) -> FrictionModel:

@@ -88,6 +88,11 @@ estimate exact, so the observer must get the same file); it makes the loop gain 
 conversion acceleration -> current true. ``F_bias`` stays as given: the DOB absorbs any
 error of a static force.
 
+``commissioning_file`` (commissioning.json of ``drillcosim commission``): its nominal mass,
+force constant and gravity compensation replace ``mass_nominal``,
+``force_constant_nominal`` and ``F_bias`` -- the set the cutting-force observer reads from
+the same file, so the two never disagree.
+
 With ``force_control = false`` the block never leaves ``mode`` 0 -- the same stack at
 the trajectory's constant feed, for the side-by-side comparison.
 """
@@ -97,7 +102,7 @@ import math
 from typing import Sequence
 
 from cosim.block import Block, Port
-from controllers.calibration import load_calibration
+from controllers.calibration import load_calibration, load_commissioning
 from controllers.position_control import (CORE_PORTS, ENCODER_PORT, TRAJECTORY_PORTS, RobustAcceleration,
                                           pd_feedforward)
 from controllers.trajectory import profile_step
@@ -167,9 +172,13 @@ class ThrustForceController(Block):
                  t_exit_confirm: float = 5e-3, z_limit: float = math.inf,
                  z_retract: float = 0.0, v_retract: float = 0.005, a_retract: float = 0.05,
                  v_max: float = math.inf, tau_switch: float = 0.01, dt: float = 1e-4,
-                 sample_period: float = 0.0, calibration_file: str | None = None):
+                 sample_period: float = 0.0, calibration_file: str | None = None,
+                 commissioning_file: str | None = None):
         super().__init__(sample_period)
-        if calibration_file:
+        if commissioning_file:
+            nom = load_commissioning(commissioning_file, "linear_stage")["nominal"]
+            mass_nominal, force_constant_nominal, F_bias = nom["mass"], nom["force_constant"], nom["gravity_comp"]
+        elif calibration_file:
             force_constant_nominal = load_calibration(calibration_file).Kt_n_cal
         for name, val in (("Kp", Kp), ("Kv", Kv), ("Kf", Kf), ("v_retract", v_retract),
                           ("a_retract", a_retract), ("v_max", v_max), ("tau_switch", tau_switch)):

@@ -8,7 +8,9 @@ Units are whatever the drive's coordinate is, stated in the model:
 * Fang ball-screw drive: motor-side torque [N m], motor speed [rad/s], ``viscous``
   [N m s/rad] -- the coordinate of eq. 3-6 (``tau_cf + D w_m``).
 
-``force(v) = coulomb * sgn(v) + viscous * v + stribeck * exp(-(v / v_stribeck)^2) * sgn(v)``
+``force(v) = coulomb * sgn(v) + viscous * v + stribeck * exp(-(|v| / v_stribeck)^delta) * sgn(v)``
+(``delta`` = ``stribeck_exponent``, 2 by default: Gaussian Stribeck curve; the commissioning
+fit chooses it, e.g. 1.5 for an exponential-like curve)
 with ``sgn`` smoothed linearly inside ``|v| < v_eps`` (no chattering of the compensation at
 standstill, where Coulomb friction is undetermined anyway). ``offset`` is a velocity-
 independent effort found by the fit (on the vertical Keio stage: minus the net gravity
@@ -40,6 +42,7 @@ class FrictionModel:
     viscous: float = 0.0          # effort unit per velocity unit
     stribeck: float = 0.0         # extra breakaway effort at v -> 0
     v_stribeck: float = 1e-3      # velocity unit
+    stribeck_exponent: float = 2.0  # 1: shape exponent delta of the Stribeck curve
     v_eps: float = 1e-6           # velocity unit: linear sign region
     offset: float = 0.0           # effort unit, velocity independent (not in force(v))
     effort_unit: str = "N"
@@ -61,10 +64,20 @@ class FrictionModel:
             s = v / self.v_eps
         f = self.coulomb * s + self.viscous * v
         if self.stribeck:
-            f += self.stribeck * s * math.exp(-(v / self.v_stribeck) ** 2)
+            f += self.stribeck * s * math.exp(-(abs(v) / self.v_stribeck) ** self.stribeck_exponent)
         return f
 
     __call__ = force
+
+    def slope(self, v: float) -> float:
+        """d force / d v at ``v`` (away from 0): viscous plus the Stribeck curve's slope --
+        negative below the Stribeck velocity, the friction's destabilising part."""
+        v = abs(v)
+        d = self.viscous
+        if self.stribeck and v > 0:
+            x = (v / self.v_stribeck) ** self.stribeck_exponent
+            d -= self.stribeck * math.exp(-x) * self.stribeck_exponent * x / v
+        return d
 
     def position_ripple(self, p: float) -> float:
         """Position-periodic effort (cogging) at drive position ``p``."""
@@ -99,19 +112,22 @@ class FrictionModel:
 
     @classmethod
     def from_dict(cls, d: dict) -> "FrictionModel":
-        keys = {"coulomb", "viscous", "stribeck", "v_stribeck", "v_eps", "offset",
+        keys = {"coulomb", "viscous", "stribeck", "v_stribeck", "stribeck_exponent", "v_eps", "offset",
                 "effort_unit", "velocity_unit", "ripple", "position_unit", "info"}
         return cls(**{k: v for k, v in d.items() if k in keys})
 
     @classmethod
     def load(cls, path) -> "FrictionModel":
+        """A friction.json, or the friction of a commissioning.json (``drillcosim commission``)."""
         path = Path(path)
         try:
             d = json.loads(path.read_text())
         except FileNotFoundError:
             raise FileNotFoundError(
-                f"friction file {path} not found: run the air_cut_friction_identification "
-                f"scenario first (it writes friction.json) or give the coefficients as settings") from None
+                f"friction file {path} not found: run `drillcosim commission` (commissioning.json) or the "
+                f"air_cut_friction_identification scenario (friction.json), or give the coefficients as settings") from None
+        if "friction" in d and "nominal" in d:          # a commissioning file
+            d = d["friction"]
         return cls.from_dict(d)
 
 

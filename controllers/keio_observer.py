@@ -44,7 +44,10 @@ replaces the friction settings *and* F_grav_comp, by its identified offset),
 :mod:`controllers.calibration`: when given its ``Kt_n_cal`` replaces ``Kt_n``, and the
 friction, cogging and gravity efforts -- identified through the uncalibrated constant, the
 friction file's ``force_constant_nominal`` or else the ``Kt_n`` setting -- are scaled by
-``Kt_n_cal`` over that constant), ``i_ref_timing``, ``sample_period`` [s] (> 0).
+``Kt_n_cal`` over that constant), ``commissioning_file`` (commissioning.json of ``drillcosim commission``: when given, its
+nominal mass, force constant, gravity compensation and friction model replace ``M_n``,
+``Kt_n``, ``F_grav_comp``, the friction settings and both files above -- the same set the
+force controller reads), ``i_ref_timing``, ``sample_period`` [s] (> 0).
 
 Timing of ``i_ref``: the motion seen between the previous and this encoder sample was
 produced by the current reference applied over that interval. This block declares no
@@ -59,7 +62,7 @@ sample (100 us) of misalignment, the order of the plant's own current-loop lag.
 from __future__ import annotations
 
 from cosim.block import Port
-from controllers.calibration import load_calibration, rescale_friction
+from controllers.calibration import load_calibration, load_commissioning, rescale_friction
 from controllers.friction import make_friction, resolve_path
 from controllers.nominal_models import DiscretisedBlock, KeioNominal, keio_model, zoh
 
@@ -78,17 +81,27 @@ class CuttingForceObserver(DiscretisedBlock):
                  F_stribeck: float | None = None, v_stribeck: float | None = None,
                  F_ripple=None, v_eps: float = 1e-5, v_stick: float = 5e-5,
                  friction_file: str | None = None, calibration_file: str | None = None,
-                 i_ref_timing: str = "held", sample_period: float = KeioNominal.sample_period):
+                 i_ref_timing: str = "held", sample_period: float = KeioNominal.sample_period,
+                 commissioning_file: str | None = None):
         super().__init__(sample_period)
+        if commissioning_file:
+            com = load_commissioning(commissioning_file, "linear_stage")
+            M_n, Kt_n = com["nominal"]["mass"], com["nominal"]["force_constant"]
         self.nominal = KeioNominal(M_n=float(M_n), Kt_n=float(Kt_n), g_thrust=float(g_thrust))
         if g_thrust <= 0:
             raise ValueError(f"CuttingForceObserver: g_thrust must be > 0 rad/s, got {g_thrust}")
         if i_ref_timing not in ("held", "previous_call"):
             raise ValueError(f"CuttingForceObserver: i_ref_timing must be 'held' or 'previous_call', got {i_ref_timing!r}")
         self.i_ref_timing = i_ref_timing
-        self.friction = make_friction(resolve_path(friction_file), F_coulomb, b_viscous, F_stribeck, v_stribeck,
-                                      v_eps, effort_unit="N", velocity_unit="m/s", ripple=F_ripple,
-                                      position_unit="m")
+        if commissioning_file:
+            self.friction = com["friction"]
+            self.friction.v_eps = float(v_eps)
+            friction_file = calibration_file = None
+            F_grav_comp = com["nominal"]["gravity_comp"]
+        else:
+            self.friction = make_friction(resolve_path(friction_file), F_coulomb, b_viscous, F_stribeck, v_stribeck,
+                                          v_eps, effort_unit="N", velocity_unit="m/s", ripple=F_ripple,
+                                          position_unit="m")
         self._ripple = self.friction.has_ripple
         # gravity: a friction file brings its identified offset (motor effort at constant
         # speed = friction - F_grav_comp, so F_grav_comp = -offset); without a file the setting

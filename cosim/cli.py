@@ -239,6 +239,21 @@ def cmd_conformance(args) -> int:
     return conformance_main(["--no-write"] if args.no_write else [])
 
 
+def cmd_commission(args) -> int:
+    # the commissioning is offline analysis (analysis/commissioning.py); the CLI only calls it
+    from analysis.commissioning import CommissioningError, commission
+    from .errors import CosimError
+    target = _scenario_path(args.target)
+    out = args.out or str(Path("results") / f"commission_{Path(target).stem}")
+    try:
+        doc = commission(target, out, contact_stiffness=args.contact_stiffness, contact_damping=args.contact_damping)
+    except (CommissioningError, CosimError) as e:
+        print(f"drillcosim commission: {e}", file=sys.stderr)
+        return 2
+    print(f"commissioning file: {out}/commissioning.json\nreport: {out}/commissioning.png\nsummary: {out}/summary.json")
+    return 1 if doc["warnings"] and args.strict else 0
+
+
 def _add_limits(p) -> None:
     p.add_argument("--timeout", type=float, metavar="SECONDS",
                    help="wall-clock limit of a run; then status 'timeout' (a run stuck in an FMU is killed)")
@@ -303,6 +318,16 @@ def main(argv: list[str] | None = None) -> int:
                                         "exit 1 when a signal leaves its tube")
     validate.add_arguments(v)
     v.set_defaults(func=validate.run)
+    cm = sub.add_parser("commission", help="commission a plant: air cut, friction model selection, inertia, "
+                                           "thrust-constant reference cut -> commissioning.json + report")
+    cm.add_argument("target", help="a plant binding (scenarios/plants/x.toml) or a scenario that binds one "
+                                   "(its observer/controller settings are the data sheet)")
+    cm.add_argument("--out", help="output folder (default results/commission_<name>)")
+    cm.add_argument("--contact-stiffness", type=float, metavar="N/m", help="tool/workpiece contact stiffness "
+                    "for the force-loop margin (linear stage)")
+    cm.add_argument("--contact-damping", type=float, metavar="N*s/m", help="contact damping for the margin")
+    cm.add_argument("--strict", action="store_true", help="exit 1 when the report has warnings")
+    cm.set_defaults(func=cmd_commission)
     c = sub.add_parser("conformance", help="run the Modelica Reference-FMUs against fmpy and rewrite "
                                            "the table in docs/conformance.md")
     c.add_argument("--no-write", action="store_true", help="print the table only")

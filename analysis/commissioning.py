@@ -1,0 +1,342 @@
+"""``drillcosim commission``: the commissioning a feed drive gets before it cuts.
+
+Given a plant binding (or a scenario that binds one, whose observer/controller settings
+then give the data sheet), it runs on the plant, through its roles only:
+
+1. an air cut (``scenarios/commissioning/air_cut_<kind>.toml``): constant-velocity segments
+   of both signs at 9-10 log-spaced feeds; :func:`analysis.identification.select_friction_model`
+   chooses and fits friction, Stribeck, gravity offset and position ripple; the ramps
+   give the inertia (:func:`analysis.identification.identify_inertia`);
+2. for a linear stage with a dynamometer role, the thrust-constant reference cut
+   (``scenarios/keio_thrust_constant_calibration.toml`` re-bound, the observer on the
+   air-cut friction): ``Kt_n_cal``, and every effort identified through the data-sheet
+   constant rescaled to it;
+3. the force-loop check (:mod:`analysis.force_margin`) at the working point when a contact
+   stiffness/damping is known (given, or the data sheet's).
+
+It writes ``commissioning.json`` (one set of nominal parameters per drive, the friction
+model, ripple, calibration, warnings), ``commissioning.png`` and ``summary.json``. Observers
+and controllers read the file through ``commissioning_file`` (Keio) or ``friction_file``
+(any block using :func:`controllers.friction.make_friction`). Refusals
+(:class:`CommissioningError`, nothing written as commissioning.json): a missing role, an
+air cut that touches the workpiece, an ill-conditioned fit. Warnings (in the file, the
+report and summary.json): residual far above the noise, a force loop without margin.
+Nothing here reads a true plant parameter.
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from analysis.identification import IdentificationError, identify_inertia, select_friction_model
+from analysis.plotting import pyplot, save_figure
+from controllers.calibration import DATASHEET_DEFAULT, DATASHEET_SETTINGS
+from cosim.outputs import write_json_atomic
+
+ROOT = Path(__file__).resolve().parent.parent
+TEMPLATES = ROOT / "scenarios" / "commissioning"
+FORMAT = "drillcosim.commissioning/1"
+REQUIRED_ROLES = {"ball_screw": ("i_ref", "i_meas", "motor_angle"),
+                  "linear_stage": ("i_ref", "table_position")}
+MAX_RESIDUAL_RATIO = 3.0          # residual RMS / in-segment noise above this: warning
+MAX_AIR_THRUST = 3.0              # N: mean dynamometer reading in an air-cut segment above this: contact
+
+
+class CommissioningError(ValueError):
+    """The plant cannot be commissioned as asked (the message says why and what to change)."""
+
+
+# --------------------------------------------------------------------------- the target
+def read_target(path) -> dict:
+    """The plant binding and the data sheet from a binding file or a scenario."""
+    from cosim.plant import load_binding
+    from cosim.scenario import Origins, load_raw, read_toml
+
+    path = Path(path).resolve()
+    raw = read_toml(path)
+    if "plant" in raw and "roles" in raw:
+        binding_path, datasheet, fmu_name, plant_params = path, {}, "drive", {}
+    else:
+        origins = Origins(str(path))
+        raw = load_raw(path, origins=origins)
+        fmus = [(n, s) for n, s in raw.get("fmus", {}).items() if isinstance(s, dict) and "plant" in s]
+        if not fmus:
+            raise CommissioningError(f"{path}: no [fmus.<name>] with a plant binding (plant = \"plants/x.toml\"): "
+                                     f"commissioning needs the plant's roles")
+        fmu_name, spec = fmus[0]
+        where = Path(origins.file_of(f"fmus.{fmu_name}.plant")).parent
+        binding_path = (where / spec["plant"]).resolve()
+        plant_params = dict(spec.get("plant_parameters", {}))
+        datasheet = {}
+        binding = load_binding(binding_path)
+        for key, names in DATASHEET_SETTINGS[binding.kind].items():
+            for blk in raw.get("blocks", {}).values():
+                st = blk.get("settings", {}) if isinstance(blk, dict) else {}
+                hit = next((st[n] for n in names if isinstance(st.get(n), (int, float))), None)
+                if hit is not None:
+                    datasheet[key] = float(hit)
+                    break
+    binding = load_binding(binding_path)
+    missing = [r for r in REQUIRED_ROLES[binding.kind] if r not in binding.roles]
+    if missing:
+        raise CommissioningError(f"{binding_path}: the plant lacks the role(s) {', '.join(missing)} that commissioning "
+                                 f"a {binding.kind} needs (required: {', '.join(REQUIRED_ROLES[binding.kind])}); "
+                                 f"add them under [roles]")
+    notes = []
+    for key, val in DATASHEET_DEFAULT[binding.kind].items():
+        if key not in datasheet:
+            datasheet[key] = val
+            notes.append(f"data sheet: {key} not given, the project's nominal {val:g} is used")
+    return {"binding": binding, "binding_path": binding_path, "kind": binding.kind, "datasheet": datasheet,
+            "fmu": fmu_name, "plant_parameters": plant_params, "notes": notes}
+
+
+# --------------------------------------------------------------------------- scenario files
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(float(v)) if isinstance(v, float) else str(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    return json.dumps(str(v))
+
+
+def write_scenario(path: Path, tables: dict) -> Path:
+    """A small TOML file from ``{"section.sub": {key: value}}`` (flat tables only)."""
+    lines = []
+    for sec, kv in tables.items():
+        if sec.startswith("[["):
+            for item in kv:
+                lines.append(sec)
+                lines += [f"{k} = {_toml_value(v)}" for k, v in item.items()]
+            continue
+        lines.append(f"[{sec}]")
+        lines += [f"{k} = {_toml_value(v)}" for k, v in kv.items()]
+        lines.append("")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _run(scenario: Path, out: Path):
+    from cosim.runner import run_scenario
+    return run_scenario(scenario, out_dir=out, progress=False, handle_signals=False)
+
+
+# --------------------------------------------------------------------------- experiment 1
+def air_cut(target: dict, out: Path):
+    kind, ds = target["kind"], target["datasheet"]
+    tables = {"scenario": {"extends": str(TEMPLATES / f"air_cut_{kind}.toml"),
+                           "description": f"commissioning air cut of {target['binding_path'].name}"},
+              "fmus.drive": {"plant": str(target["binding_path"])}}
+    params = {k: v for k, v in target["plant_parameters"].items() if k == "seed"}
+    params["surface"] = 0.2 if kind == "ball_screw" else 0.5
+    tables["fmus.drive.plant_parameters"] = params
+    rec = ["drive.i_meas", "drive.table_position", "reference.v_ref", "reference.a_ref", "controller.i_ref"]
+    if kind == "ball_screw":
+        tables["blocks.controller.settings"] = {DATASHEET_SETTINGS[kind][q][-1]: ds[q] for q in ds}
+        tables["[[connections]]"] = [{"from": "drive.motor_angle", "to": "controller.z", "scale": ds["pitch"]}]
+        rec.append("drive.motor_angle")
+    else:
+        tables["blocks.controller.settings"] = {DATASHEET_SETTINGS[kind][q][-1]: ds[q] for q in ds}
+        rec = [r for r in rec if r != "drive.i_meas" or "i_meas" in target["binding"].roles]
+    if "thrust_dyn" in target["binding"].roles:
+        rec.append("drive.thrust_dyn")
+    tables["record"] = {"signals": rec, "decimation": 1}
+    sc = write_scenario(out / "experiments" / "air_cut.toml", tables)
+    return _run(sc, out / "air_cut")
+
+
+def fit_air_cut(result, target: dict) -> tuple:
+    """Friction model (in data-sheet effort units) and inertia from the air-cut record."""
+    kind, ds = target["kind"], target["datasheet"]
+    t = result.time
+    if kind == "ball_screw":
+        pos = result["drive.motor_angle"]
+        effort = ds["force_constant"] * result["drive.i_meas"]
+        units = dict(effort_unit="N m", velocity_unit="rad/s", position_unit="rad")
+        settle, min_dur, v_eps = 0.3, 0.5, 1e-3
+    else:
+        pos = result["drive.table_position"]
+        effort = ds["force_constant"] * result["controller.i_ref"]     # the effort the Keio observer uses
+        units = dict(effort_unit="N", velocity_unit="m/s", position_unit="m")
+        settle, min_dur, v_eps = 0.15, 0.25, 1e-5
+    warnings = []
+    if "drive.thrust_dyn" in result:
+        from analysis.identification import constant_velocity_segments
+        for s in constant_velocity_segments(t, result["reference.v_ref"], settle=settle, min_duration=min_dur):
+            F = float(np.mean(result["drive.thrust_dyn"][s]))
+            if abs(F) > MAX_AIR_THRUST:
+                raise CommissioningError(
+                    f"air cut touches the workpiece: the dynamometer reads {F:.1f} N (> {MAX_AIR_THRUST} N) between "
+                    f"t = {t[s[0]]:.2f} and {t[s[-1]]:.2f} s; move the stack away (plant parameter 'surface') "
+                    f"and commission again")
+    try:
+        fm = select_friction_model(t, pos, effort, result["reference.v_ref"], settle=settle, min_duration=min_dur,
+                                   v_eps=v_eps, **units)
+    except IdentificationError as e:
+        raise CommissioningError(str(e)) from None
+    # per-segment check: a contact (or a hard stop) shows as a segment the model cannot explain
+    seg_res = fm.info.get("segment_residual_rms", [])
+    if seg_res:
+        med = float(np.median(seg_res))
+        bad = [j for j, r in enumerate(seg_res) if r > 5 * med and r > 3 * fm.info["noise_rms"]]
+        if bad:
+            raise CommissioningError(
+                f"air cut: segment(s) {', '.join(str(j + 1) for j in bad)} leave a residual of "
+                f"{max(seg_res[j] for j in bad):.3g} {fm.effort_unit} against a median {med:.3g}: the drive touched "
+                f"something (the workpiece, an end stop) while cutting air; clear the travel and commission again")
+    if fm.info["residual_ratio"] > MAX_RESIDUAL_RATIO:
+        warnings.append(f"friction fit: residual RMS {fm.info['rms_residual']:.3g} {fm.effort_unit} is "
+                        f"{fm.info['residual_ratio']:.1f}x the noise within the segments (> {MAX_RESIDUAL_RATIO}): "
+                        f"the model misses part of the drive's effort")
+    inertia = identify_inertia(t, pos, effort, fm, result["reference.a_ref"])
+    return fm, inertia, warnings
+
+
+# --------------------------------------------------------------------------- experiment 2
+def thrust_calibration(target: dict, friction_file: Path, mass: float, out: Path):
+    """The reference cut with the dynamometer (linear stage): Kt_n_cal, or None."""
+    if target["kind"] != "linear_stage" or "thrust_dyn" not in target["binding"].roles:
+        return None
+    ds = target["datasheet"]
+    params = {k: v for k, v in target["plant_parameters"].items() if k == "seed"}
+    params.update(spindle_speed=314.159265)
+    names = DATASHEET_SETTINGS["linear_stage"]
+    vals = {"mass": mass, "force_constant": ds["force_constant"]}
+    observer_ds = {names[q][0]: v for q, v in vals.items()}
+    controller_ds = {names[q][-1]: v for q, v in vals.items()}
+    tables = {"scenario": {"extends": str(ROOT / "scenarios" / "keio_thrust_constant_calibration.toml"),
+                           "description": "commissioning reference cut (thrust constant)"},
+              "fmus.stage": {"plant": str(target["binding_path"])},
+              "fmus.stage.plant_parameters": params,
+              "blocks.observer.settings": {**observer_ds, "friction_file": str(friction_file), "calibration_file": ""},
+              "blocks.controller.settings": {**controller_ds, "calibration_file": "", "F_bias": 0.0}}
+    sc = write_scenario(out / "experiments" / "thrust_calibration.toml", tables)
+    _run(sc, out / "thrust_calibration")
+    return json.loads((out / "thrust_calibration" / "thrust_calibration.json").read_text())
+
+
+# --------------------------------------------------------------------------- the whole
+def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
+               contact_damping: float | None = None, print_table: bool = True) -> dict:
+    """Run the commissioning experiments and write ``commissioning.json`` (see module doc)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    target = read_target(target_path)
+    kind, ds = target["kind"], target["datasheet"]
+    warnings = list(target["notes"])
+    res = air_cut(target, out)
+    fm, inertia, w = fit_air_cut(res, target)
+    warnings += w + inertia.pop("warnings", [])
+    fm.info.update(kind=kind, force_constant_nominal=ds["force_constant"])
+    raw_friction = fm.save(out / "friction_air_cut.json")
+    mass_key = "mass" if kind == "linear_stage" else "inertia"
+    mass = inertia["value"] if inertia.get("ok") else ds[mass_key]
+    cal = thrust_calibration(target, raw_friction, mass, out)
+    kt = ds["force_constant"]
+    if cal is not None:
+        from controllers.calibration import rescale_friction
+        scale = cal["Kt_n_cal"] / ds["force_constant"]
+        fm = rescale_friction(fm, scale)
+        kt = cal["Kt_n_cal"]
+        # the fitted inertia was seen through the data-sheet constant too
+        mass *= scale
+    else:
+        warnings.append("thrust constant: not calibrated (no reference cut for this plant: a linear stage with a "
+                        "dynamometer role is needed); the data-sheet value is used")
+    nominal = {"kind": kind, mass_key: mass, "force_constant": kt, "force_constant_datasheet": ds["force_constant"],
+               f"{mass_key}_datasheet": ds[mass_key]}
+    if kind == "ball_screw":
+        nominal.update(pitch=ds["pitch"], eta=ds["eta"])
+    else:
+        nominal["gravity_comp"] = -fm.offset          # net gravity along +z, as the observer wants it
+    doc = {"format": FORMAT, "plant": str(target["binding_path"]), "target": str(Path(target_path).resolve()),
+           "nominal": nominal, "friction": fm.to_dict(), "calibration": cal, "inertia_fit": inertia,
+           "contact": None, "force_loop": None, "warnings": warnings}
+    if kind == "linear_stage" and contact_stiffness:
+        from analysis.force_margin import ForceLoop, margins
+        loop = ForceLoop(mass=mass, force_constant=kt, contact_stiffness=contact_stiffness,
+                         contact_damping=contact_damping or 0.0,
+                         friction_slope=fm.slope(1e-3))
+        m = margins(loop)
+        doc["contact"] = {"stiffness": contact_stiffness, "damping": contact_damping, "source": "given"}
+        doc["force_loop"] = m
+        if not m["stable"] or m["gain_margin_db"] < 6.0:
+            warnings.append(f"force loop: gain margin {m['gain_margin_db']:.1f} dB (< 6 dB) with Kf {loop.Kf} and "
+                            f"g_thrust {loop.g_thrust} rad/s at the given contact: use analysis.force_margin.tune")
+    write_json_atomic(out / "commissioning.json", doc)
+    report_figure(res, fm, target, out)
+    summary = {"commissioning_file": str(out / "commissioning.json"), "kind": kind, "nominal": nominal,
+               "friction_model": fm.info.get("selection"), "warnings": warnings}
+    write_json_atomic(out / "summary.json", summary)
+    if print_table:
+        print(report_table(doc))
+    return doc
+
+
+# --------------------------------------------------------------------------- report
+def report_table(doc: dict) -> str:
+    fr, nom = doc["friction"], doc["nominal"]
+    eu, vu = fr["effort_unit"], fr["velocity_unit"]
+    mk = "mass" if "mass" in nom else "inertia"
+    mu = "kg" if mk == "mass" else "kg m2"
+    info = fr.get("info", {})
+    rows = [("quantity", "value", "data sheet", "unit"),
+            (mk, f"{nom[mk]:.5g}", f"{nom[mk + '_datasheet']:.5g}", mu),
+            ("force constant", f"{nom['force_constant']:.5g}", f"{nom['force_constant_datasheet']:.5g}",
+             "N/A" if mk == "mass" else "N m/A"),
+            ("coulomb", f"{fr['coulomb']:.5g}", "", eu), ("viscous", f"{fr['viscous']:.5g}", "", f"{eu} s/{vu.split('/')[0]}"),
+            ("stribeck excess", f"{fr['stribeck']:.5g}", "", eu), ("stribeck velocity", f"{fr['v_stribeck']:.5g}", "", vu),
+            ("stribeck exponent", f"{fr['stribeck_exponent']:.3g}", "", "1"), ("offset", f"{fr['offset']:.5g}", "", eu)]
+    for k, a, b in fr["ripple"]:
+        per = f"{k:.4g}/rev" if fr["position_unit"] == "rad" else f"pitch {2 * math.pi / k * 1e3:.4g} mm"
+        rows.append((f"ripple {per}", f"{math.hypot(a, b):.4g}", "", eu))
+    rows += [("residual rms", f"{info.get('rms_residual', float('nan')):.4g}", "", eu),
+             ("noise rms (in segments)", f"{info.get('noise_rms', float('nan')):.4g}", "", eu),
+             ("condition number", f"{info.get('condition_number', float('nan')):.3g}", "", "1")]
+    if doc.get("calibration"):
+        c = doc["calibration"]
+        rows.append(("calibration residual", f"{c.get('residual_rms_N', float('nan')):.3g}", "", "N"))
+    if doc.get("force_loop"):
+        m = doc["force_loop"]
+        rows += [("force loop gain margin", f"{m['gain_margin_db']:.3g}", "", "dB"),
+                 ("force loop phase margin", f"{m['phase_margin_deg']:.3g}", "", "deg")]
+    w = [max(len(r[i]) for r in rows) for i in range(4)]
+    lines = [f"commissioning of {Path(doc['plant']).name}"]
+    lines += ["  " + "  ".join(r[i].ljust(w[i]) for i in range(4)) for r in rows]
+    lines += [f"  model selection: {s['model']} cv_rms {s['cv_rms']:.4g}" + ("" if s.get("kept", True) else " (rejected)")
+              for s in info.get("selection", [])]
+    lines += [f"  WARNING: {x}" for x in doc["warnings"]]
+    return "\n".join(lines)
+
+
+def report_figure(result, fm, target, out: Path) -> Path:
+    plt = pyplot()
+    info = fm.info
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
+    v = np.array(info["segment_velocity"])
+    e = np.array(info.get("segment_mean_effort_without_ripple", info["segment_mean_effort"]))
+    vmin = float(np.min(np.abs(v)))
+    ax[0].plot(v, e, "o", label="segment means, fitted ripple removed (air cut)")
+    for sgn in (1, -1):
+        vv = sgn * np.geomspace(vmin / 2, float(np.max(np.abs(v))), 300)
+        ax[0].plot(vv, [fm.force(x) + fm.offset for x in vv], "-", color="tab:orange",
+                   label="selected model" if sgn > 0 else None)
+    ax[0].set_xscale("symlog", linthresh=vmin / 2)
+    ax[0].set_xlabel(f"velocity [{fm.velocity_unit}]")
+    ax[0].set_ylabel(f"effort [{fm.effort_unit}]")
+    ax[0].legend(fontsize=8)
+    ax[0].set_title("friction: model chosen by cross-validation")
+    names = [s["model"] for s in info["selection"]]
+    ax[1].barh(range(len(names)), [s["cv_rms"] for s in info["selection"]],
+               color=["tab:green" if s.get("kept", True) else "tab:gray" for s in info["selection"]])
+    ax[1].set_yticks(range(len(names)), names, fontsize=7)
+    ax[1].set_xscale("log")
+    ax[1].set_xlabel(f"cross-validated RMS [{fm.effort_unit}]")
+    ax[1].set_title("candidates (green kept)")
+    return save_figure(fig, out, "commissioning.png", f"commissioning: {target['binding_path'].name}")

@@ -1,0 +1,246 @@
+"""Stability margin of the sensorless thrust-force loop (Keio stage), derived with casadi.
+
+The loop, sample by sample as the blocks run it (period ``Ts``), linearised at the working
+point (steady cut at feed ``v0`` and thrust ``F0``):
+
+* stage (continuous, exact ZOH over one sample): ``m z'' = K i_a - F_c - b_f v``,
+  current lag ``tau_cur i_a' = i_ref - i_a``; ``b_f`` the slope of the true friction at the
+  feed (negative inside a Stribeck curve);
+* contact and process: ``F_c = k e + d (v - c')`` with the penetration ``e = z - c`` and the
+  cut front ``c' = alpha e``, ``alpha = k / Kc_v`` where ``Kc_v = dF/dv`` is the process's
+  thrust-per-feed slope at the working point (``F0 / (exponent v0)`` for a power law
+  ``F ~ v^exponent``): the steady state is then ``F = Kc_v v`` as the process demands;
+* cutting-force observer (controllers/keio_observer.py, "held" timing): encoder velocity
+  ``v_k = (z_k - z_{k-1})/Ts``, ``F_hat_k = a F_hat_{k-1} + (1-a)(Kt_n i_{k-1} - M_n (v_k -
+  v_{k-1})/Ts - b_o v_k)``, ``a = exp(-g_thrust Ts)``, ``b_o`` the slope of the observer's
+  friction model;
+* P force control + robust acceleration control (controllers/force_control.py,
+  position_control.RobustAcceleration): ``a_cmd = Kf (F_cmd - F_hat)/M_n``, velocity
+  ``v_hat`` low-passed by ``g_vel``, DOB ``F_dis`` low-passed by ``g_dob``,
+  ``i = (M_n a_cmd + F_dis)/Kt_n``.
+
+casadi writes the one-sample map of the whole state and its Jacobian gives the closed
+loop ``A`` (poles: eigenvalues; stable iff all inside the unit circle). Breaking the loop at
+the current reference gives the loop transfer ``L(e^{jwTs})``; the gain margin is
+``1/|L|`` where its phase crosses -180 deg, the phase margin ``180 + arg L`` where
+``|L| = 1``. :func:`tune` picks the largest ``Kf`` (and, if needed, the smallest
+``g_thrust``) that leaves a stated gain margin. docs/commissioning.md has the derivation
+and the sweep that checks it against simulation.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import casadi as ca
+import numpy as np
+
+from controllers.nominal_models import zoh
+
+
+@dataclasses.dataclass
+class ForceLoop:
+    mass: float                 # kg, true (identified) moving mass
+    force_constant: float       # N/A, true (calibrated) force constant
+    contact_stiffness: float    # N/m
+    contact_damping: float      # N s/m
+    mass_nominal: float | None = None            # kg, the blocks' nominal mass (default: mass)
+    force_constant_nominal: float | None = None  # N/A (default: force_constant)
+    friction_slope: float = 0.0           # N s/m, true friction slope at the feed
+    friction_slope_model: float | None = None  # N s/m, the observer's (default = true)
+    Kc_v: float = 5.0e4         # N s/m, process thrust per feed at the working point
+    tau_cur: float = 0.0        # s, current-loop lag (0: ideal)
+    Kf: float = 0.45
+    g_thrust: float = 1200.0
+    g_dob: float = 1200.0
+    g_vel: float = 2000.0
+    Ts: float = 1e-4
+
+    def __post_init__(self):
+        if self.mass_nominal is None:
+            self.mass_nominal = self.mass
+        if self.force_constant_nominal is None:
+            self.force_constant_nominal = self.force_constant
+        if self.friction_slope_model is None:
+            self.friction_slope_model = self.friction_slope
+
+
+def _plant(L: ForceLoop):
+    """Continuous stage + contact: x = [z, v, c, i_a]; input i_ref (tau_cur 0: i_a = i_ref)."""
+    alpha = L.contact_stiffness / L.Kc_v
+    k, d = L.contact_stiffness, L.contact_damping
+    # F_c = k (z - c) + d (v - alpha (z - c))
+    Fz, Fv, Fc = k - d * alpha, d, -(k - d * alpha)
+    if L.tau_cur > 0:
+        A = [[0, 1, 0, 0],
+             [-Fz / L.mass, -(Fv + L.friction_slope) / L.mass, -Fc / L.mass, L.force_constant / L.mass],
+             [alpha, 0, -alpha, 0],
+             [0, 0, 0, -1 / L.tau_cur]]
+        B = [[0], [0], [0], [1 / L.tau_cur]]
+    else:
+        A = [[0, 1, 0], [-Fz / L.mass, -(Fv + L.friction_slope) / L.mass, -Fc / L.mass], [alpha, 0, -alpha]]
+        B = [[0], [L.force_constant / L.mass], [0]]
+    return zoh(np.array(A, float), np.array(B, float), L.Ts)
+
+
+def one_step(L: ForceLoop, broken: bool = False) -> tuple[ca.Function, int]:
+    """casadi map (X_k, u) -> (X_{k+1}, i_k): plant, observer and controller over one sample.
+    ``broken``: the plant takes ``u`` instead of the controller's current (loop opened at i_ref)."""
+    Ad, Bd = _plant(L)
+    npl = Ad.shape[0]
+    X = ca.SX.sym("X", npl + 7)
+    u = ca.SX.sym("u")
+    xp = X[:npl]
+    zo_prev, vo_prev, F_hat, zc_prev, v_hat, F_dis, i_prev = (X[npl + j] for j in range(7))
+    Ts = L.Ts
+    z = xp[0]
+    # observer (runs first; i_ref input still holds the previous sample's value)
+    a = math.exp(-L.g_thrust * Ts)
+    v_o = (z - zo_prev) / Ts
+    d = L.force_constant_nominal * i_prev - L.mass_nominal * (v_o - vo_prev) / Ts - L.friction_slope_model * v_o
+    F_hat_n = a * F_hat + (1 - a) * d
+    # controller: robust acceleration core
+    av, ad = math.exp(-L.g_vel * Ts), math.exp(-L.g_dob * Ts)
+    v_new = av * v_hat + (1 - av) * (z - zc_prev) / Ts
+    acc = (v_new - v_hat) / Ts
+    F_dis_n = ad * F_dis + (1 - ad) * (L.force_constant_nominal * i_prev - L.mass_nominal * acc)
+    a_cmd = L.Kf * (0 - F_hat_n) / L.mass_nominal          # deviation from the working point: F_cmd fixed
+    i = (L.mass_nominal * a_cmd + F_dis_n) / L.force_constant_nominal
+    i_plant = u if broken else i
+    xp_n = ca.mtimes(ca.DM(Ad), xp) + ca.mtimes(ca.DM(Bd), i_plant)
+    Xn = ca.vertcat(xp_n, z, v_o, F_hat_n, z, v_new, F_dis_n, i)
+    return ca.Function("force_loop_step", [X, u], [Xn, i]), npl + 7
+
+
+def linear_loop(L: ForceLoop, broken: bool):
+    f, n = one_step(L, broken)
+    X, u = ca.SX.sym("X", n), ca.SX.sym("u")
+    Xn, y = f(X, u)
+    J = ca.Function("J", [X, u], [ca.jacobian(Xn, X), ca.jacobian(Xn, u), ca.jacobian(y, X), ca.jacobian(y, u)])
+    return [np.array(m, float) for m in J(np.zeros(n), 0.0)]
+
+
+def poles(L: ForceLoop) -> np.ndarray:
+    """Closed-loop poles without the translation mode: shifting the stage, the cut front and
+    every stored position together changes nothing (z = 1, neither observable nor a motion
+    of the loop), so that one eigenvalue at 1 is dropped."""
+    A, *_ = linear_loop(L, broken=False)
+    lam = np.linalg.eigvals(A)
+    j = int(np.argmin(np.abs(lam - 1.0)))
+    if abs(lam[j] - 1.0) < 1e-6:
+        lam = np.delete(lam, j)
+    return lam
+
+
+def margins(L: ForceLoop, n_freq: int = 4000) -> dict:
+    """Closed-loop poles, gain and phase margins of the loop broken at the current reference."""
+    A, B, C, D = linear_loop(L, broken=True)
+    lam = poles(L)
+    rho = float(np.max(np.abs(lam)))
+    w = np.logspace(math.log10(2 * math.pi * 1.0), math.log10(math.pi / L.Ts * 0.999), n_freq)
+    zs = np.exp(1j * w * L.Ts)
+    n = A.shape[0]
+    Lw = np.array([-(C @ np.linalg.solve(zz * np.eye(n) - A, B) + D)[0, 0] for zz in zs])
+    ph = np.unwrap(np.angle(Lw))
+    mag = np.abs(Lw)
+    gm, f_gm = math.inf, None
+    for j in range(1, len(w)):   # phase crossings of -180 deg (mod 360)
+        k0, k1 = np.floor((ph[j - 1] + np.pi) / (2 * np.pi)), np.floor((ph[j] + np.pi) / (2 * np.pi))
+        if k0 != k1:
+            g = 1.0 / mag[j]
+            if g < gm:
+                gm, f_gm = g, w[j] / (2 * math.pi)
+    pm, f_pm = math.inf, None
+    for j in range(1, len(w)):
+        if (mag[j - 1] - 1) * (mag[j] - 1) <= 0:
+            p = math.degrees((ph[j] + np.pi) % (2 * np.pi))
+            p = min(p, 360 - p)
+            if p < pm:
+                pm, f_pm = p, w[j] / (2 * math.pi)
+    slowest = lam[np.argmax(np.abs(lam))]
+    return {"stable": bool(rho < 1.0), "spectral_radius": rho,
+            "gain_margin_db": 20 * math.log10(gm) if math.isfinite(gm) else math.inf,
+            "gain_margin_frequency_Hz": f_gm, "phase_margin_deg": pm, "phase_margin_frequency_Hz": f_pm,
+            "dominant_pole_frequency_Hz": abs(float(np.angle(slowest))) / (2 * math.pi * L.Ts),
+            "poles": [[float(p.real), float(p.imag)] for p in lam],
+            "loop": {k: v for k, v in dataclasses.asdict(L).items()}}
+
+
+def critical(L: ForceLoop, field: str, lo: float, hi: float, rtol: float = 1e-3) -> float | None:
+    """The value of ``field`` in [lo, hi] where the closed loop turns unstable (bisection on
+    the spectral radius); None if it does not change stability across the interval."""
+    def stable(x):
+        return float(np.max(np.abs(poles(dataclasses.replace(L, **{field: x}))))) < 1.0
+    s_lo, s_hi = stable(lo), stable(hi)
+    if s_lo == s_hi:
+        return None
+    while hi - lo > rtol * max(abs(hi), abs(lo)):
+        mid = 0.5 * (lo + hi)
+        if stable(mid) == s_lo:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def tune(L: ForceLoop, gain_margin_db: float = 6.0, Kf_range=(0.05, 2.0), g_thrust_range=(200.0, 3000.0)) -> dict:
+    """The largest ``Kf`` in ``Kf_range`` whose gain margin is at least ``gain_margin_db``
+    at the loop's ``g_thrust``; if none, the ``g_thrust`` (scanned down) that allows it."""
+    def gm(l):
+        m = margins(l, n_freq=1500)
+        return m["gain_margin_db"] if m["stable"] else -math.inf
+
+    for g in [L.g_thrust] + list(np.geomspace(g_thrust_range[1], g_thrust_range[0], 8)):
+        lg = dataclasses.replace(L, g_thrust=float(g))
+        Ks = np.geomspace(Kf_range[1], Kf_range[0], 24)
+        for K in Ks:
+            l2 = dataclasses.replace(lg, Kf=float(K))
+            if gm(l2) >= gain_margin_db:
+                return {"Kf": float(K), "g_thrust": float(g), "gain_margin_db": gm(l2), "found": True}
+    return {"found": False, "Kf": None, "g_thrust": None,
+            "message": f"no Kf in {Kf_range} and g_thrust in {g_thrust_range} leaves {gain_margin_db} dB"}
+
+
+def force_loop_margin(result, commissioning_file: str, contact_stiffness: float, contact_damping: float,
+                      feed: float, controller: str = "controller", observer: str = "observer",
+                      process_exponent: float = 1.0, min_gain_margin_db: float = 6.0,
+                      print_table: bool = True) -> dict:
+    """``[[scores]]`` function: the margin of the run's force loop at its working point.
+
+    The plant's nominal set and friction come from ``commissioning_file``; ``Kf``,
+    ``g_dob``, ``g_vel`` and the command from the controller's settings, ``g_thrust`` from
+    the observer's (the run's scenario); the contact ``contact_stiffness`` [N/m],
+    ``contact_damping`` [N s/m] and the working feed ``feed`` [m/s] are stated (the process
+    slope is ``F_cmd / (process_exponent feed)``). Below ``min_gain_margin_db`` (or
+    unstable) the score carries a ``warning`` -- in summary.json with the run."""
+    from analysis.calibration import _scenario_raw
+    from controllers.calibration import load_commissioning
+
+    raw = _scenario_raw(result)
+    blocks = raw.get("blocks", {})
+    cs = blocks.get(controller, {}).get("settings") or {}
+    os_ = blocks.get(observer, {}).get("settings") or {}
+    com = load_commissioning(commissioning_file, "linear_stage")
+    nom, fm = com["nominal"], com["friction"]
+    F_cmd = float(cs.get("F_cmd", 50.0))
+    loop = ForceLoop(mass=nom["mass"], force_constant=nom["force_constant"],
+                     contact_stiffness=float(contact_stiffness), contact_damping=float(contact_damping), friction_slope=fm.slope(feed),
+                     Kc_v=F_cmd / (process_exponent * feed), Kf=float(cs.get("Kf", 0.45)),
+                     g_thrust=float(os_.get("g_thrust", 1200.0)), g_dob=float(cs.get("g_dob", 1200.0)),
+                     g_vel=float(cs.get("g_vel", 2000.0)))
+    m = margins(loop, n_freq=1500)
+    m.pop("poles")
+    if not m["stable"] or m["gain_margin_db"] < min_gain_margin_db:
+        t = tune(loop, gain_margin_db=min_gain_margin_db)
+        m["warning"] = (f"force loop: {'unstable' if not m['stable'] else 'gain margin %.1f dB' % m['gain_margin_db']}"
+                        f" (< {min_gain_margin_db} dB) with Kf {loop.Kf}, g_thrust {loop.g_thrust} rad/s at "
+                        f"k {contact_stiffness:g} N/m, d {contact_damping:g} N s/m; "
+                        + (f"Kf {t['Kf']:.3g} with g_thrust {t['g_thrust']:.4g} rad/s leaves it" if t["found"]
+                           else t["message"]))
+        m["suggested"] = t
+    if print_table:
+        print(f"force loop: {'stable' if m['stable'] else 'UNSTABLE'}, gain margin {m['gain_margin_db']:.2f} dB at "
+              f"{m['gain_margin_frequency_Hz'] or float('nan'):.0f} Hz, phase margin {m['phase_margin_deg']:.1f} deg")
+        if "warning" in m:
+            print(f"  WARNING: {m['warning']}")
+    return m
