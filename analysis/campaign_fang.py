@@ -365,7 +365,9 @@ def plot_fig9(path: Path, rows) -> None:
 
 # ------------------------------------------------------------------ CLI
 def _print(summary) -> None:
-    print(f"holes {summary['holes']}  wall {summary['wall_time_s']:.1f} s on {summary['workers']} workers")
+    wall = (f"  wall {summary['wall_time_s']:.1f} s on {summary['workers']} workers"
+            if "wall_time_s" in summary else "")      # a report of a sweep's folder has no timing
+    print(f"holes {summary['holes']}{wall}")
     print(f"{'hole':>4} {'gap mm':>6} {'thin mm':>7} {'entry':>8} {'interf.':>8} {'exit pap':>9} {'exit thin':>9}"
           "  (depth error mm)")
     for r in summary["rows"]:
