@@ -225,7 +225,7 @@ def thrust_calibration(target: dict, friction_file: Path, mass: float, out: Path
 def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
                contact_damping: float | None = None, print_table: bool = True) -> dict:
     """Run the commissioning experiments and write ``commissioning.json`` (see module doc)."""
-    out = Path(out_dir)
+    out = Path(out_dir).resolve()      # the experiment files it writes name paths under it
     out.mkdir(parents=True, exist_ok=True)
     target = read_target(target_path)
     kind, ds = target["kind"], target["datasheet"]
