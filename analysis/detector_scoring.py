@@ -271,28 +271,27 @@ def score_adaptation(result, detector="detector", adapt="adapt", trajectory="tra
 
 # ---------------------------------------------------------------- n-layer holes (hole plan)
 def stack_transitions(time, layer, n_layers):
-    """True times of entry, interface 1..n-1 (the tool tip leaves layer k: into a gap or
-    into layer k+1) and exit (back in air after layer n), from the scoring-only layer
-    index; interpolated half-way between the two samples around each change. NaN for
-    an event the tool never reached."""
+    """True (start, end) times of each event from the scoring-only layer index: entry
+    (the tip reaches layer 1: start = end), interface k = 1..n-1 (start: the tip leaves
+    layer k; end: it reaches layer k+1 -- the same instant without a gap, the gap apart
+    otherwise) and exit (the tip leaves layer n). Times half-way between the two samples
+    around each change; NaN for what the tool never reached."""
     time = np.asarray(time, float)
     layer = np.rint(np.asarray(layer, float)).astype(int)
 
-    def first(mask):
-        idx = np.flatnonzero(mask)
-        return None if idx.size == 0 else int(idx[0])
+    def first(mask, start=0):
+        idx = np.flatnonzero(mask[start:])
+        return None if idx.size == 0 else int(idx[0]) + start
 
     def mid(i):
         return math.nan if i is None else (float(time[i]) if i == 0 else 0.5 * float(time[i - 1] + time[i]))
 
-    out = [mid(first(layer >= 1))]
-    for k in range(1, n_layers + 1):
-        i_in = first(layer == k)
-        if i_in is None:
-            out.append(math.nan)
-            continue
-        j = first(layer[i_in:] != k)
-        out.append(mid(None if j is None else i_in + j))
+    i_in = [first(layer == k) for k in range(1, n_layers + 1)]
+    leave = [None if i is None else first(layer != k, i) for k, i in zip(range(1, n_layers + 1), i_in)]
+    entry = mid(first(layer >= 1))
+    out = [(entry, entry)]
+    out += [(mid(leave[k]), mid(i_in[k + 1])) for k in range(n_layers - 1)]
+    out.append((mid(leave[-1]), mid(leave[-1])))
     return out
 
 
@@ -338,10 +337,13 @@ def score_stack(result, plant="drive", detector="detector", adapt="adapt", mater
     names, what = _event_labels(list(materials))
     out = {}
     events, missed, false = {}, [], []
-    for name, label, tt, td in zip(names, what, truth, t_det):
-        x_true, x_det = interp_at(t, x_tool, tt), interp_at(t, x_tool, td)
-        dz = x_det - x_true
-        events[name] = {"between": label, "t_true_s": tt, "t_det_s": td, "x_true_mm": 1e3 * x_true}
+    for name, label, (ta, tb), td in zip(names, what, truth, t_det):
+        # inside a gap (between the two faces) counts as exact: the tool is between materials
+        xa, xb, x_det = interp_at(t, x_tool, ta), interp_at(t, x_tool, tb), interp_at(t, x_tool, td)
+        tt = ta if math.isfinite(ta) else tb
+        dz = x_det - xa if not x_det > xa else max(x_det - xb, 0.0) if math.isfinite(xb) else x_det - xa
+        events[name] = {"between": label, "t_true_s": [ta, tb], "t_det_s": td,
+                        "x_true_mm": [1e3 * xa, 1e3 * xb], "x_det_mm": 1e3 * x_det}
         out[f"{name}_dz_mm"] = 1e3 * dz
         if math.isfinite(td) and not (math.isfinite(dz) and abs(dz) <= match_tolerance):
             false.append(name)
@@ -349,7 +351,7 @@ def score_stack(result, plant="drive", detector="detector", adapt="adapt", mater
                 missed.append(name)
         elif math.isfinite(tt) and not math.isfinite(td):
             missed.append(name)
-    if flag_before_entry(t, g(f"{detector}.flag"), truth[0]) and "entry" not in false:
+    if flag_before_entry(t, g(f"{detector}.flag"), truth[0][0]) and "entry" not in false:
         false.append("entry")
     out["missed_events"] = len(missed)
     out["false_events"] = len(false)
@@ -357,7 +359,7 @@ def score_stack(result, plant="drive", detector="detector", adapt="adapt", mater
     out["false_names"] = false
     for crit in ("paper", "thinning"):      # both exit criteria, for comparison
         events["exit"][f"{crit}_rule_dz_mm"] = 1e3 * (interp_at(t, x_tool, det[f"t_exit_{crit}"])
-                                                   - interp_at(t, x_tool, truth[-1]))
+                                                   - interp_at(t, x_tool, truth[-1][0]))
     out["events"] = events
     fail = bool(det["fail"] >= 0.5)
     out["fail"] = int(fail)
@@ -367,7 +369,7 @@ def score_stack(result, plant="drive", detector="detector", adapt="adapt", mater
     out["x_fail_mm"] = 1e3 * det["x_fail"]
     inside = plan_windows is not None and all(
         math.isfinite(x) and lo - WINDOW_SLACK <= x <= hi + WINDOW_SLACK
-        for x, (lo, hi) in zip((interp_at(t, x_tool, tt) for tt in truth), plan_windows))
+        for x, (lo, hi) in zip((interp_at(t, x_tool, ta) for ta, _ in truth), plan_windows))
     out["stack_within_plan"] = bool(inside)
     out["false_fail"] = int(fail and inside)
     mode = int(round(last_value(result[f"{adapt}.failsafe"]))) if len(t) else 0

@@ -194,7 +194,6 @@ class InterfaceDetector(Block):
         entry_fraction: float = 0.3,
         step_fraction: float = 0.3,
         engage_fraction: float = 0.3,
-        rearm_fraction: float = 0.05,
         thd_min: float = 8.0,
         fail_disarms: bool = False,
     ):
@@ -231,9 +230,10 @@ class InterfaceDetector(Block):
         Then entry: F~ > entry_fraction * kc_1 * f_1; interface k: |F~| >
         max(thd_min, step_fraction * |kc_{k+1}/kc_k - 1| * F^) (the step the
         observed level F^ makes when the material changes under an unchanged process);
-        paper exit: F~ < -max(thd_min, step_fraction * F^); a layer's tests arm only
+        paper exit (recorded): F~ < -max(thd_min, F^ / 2); a layer's tests arm only
         once F^ >= engage_fraction * kc_k * feed_per_rev_min (the tool is in the
-        material, not in a gap); re-arm level max(thd_min / 2 ... rearm_fraction * F^).
+        material, not in a gap) and |F~| stayed below half the test's threshold
+        (at least rearm_level, default thd_min / 2) for rearm_samples.
         fail_disarms: a fail re-arms the tests as an event does (the adaptation changes
             the process on a fail: its thrust step is not an interface).
         """
@@ -280,15 +280,14 @@ class InterfaceDetector(Block):
                 raise ValueError("InterfaceDetector: kc and feed_per_rev must be > 0")
             fmin = min(fpr) if feed_per_rev_min is None else float(feed_per_rev_min)
             for name, v in (("entry_fraction", entry_fraction), ("step_fraction", step_fraction),
-                            ("engage_fraction", engage_fraction), ("rearm_fraction", rearm_fraction)):
+                            ("engage_fraction", engage_fraction)):
                 if not 0.0 < v < 1.0:
                     raise ValueError(f"InterfaceDetector: {name} must be in (0, 1), got {v}")
             self.thd_entry = entry_fraction * kc_[0] * fpr[0]
             self.step_gain = [step_fraction * abs(kc_[k + 1] / kc_[k] - 1.0) for k in range(n - 1)]
-            self.exit_gain = step_fraction
+            self.exit_gain = 0.5     # paper exit in relative terms: a drop of half the plateau
             self.floor = [engage_fraction * k_ * fmin for k_ in kc_]
             self.thd_min = float(thd_min)
-            self.rearm_fraction = float(rearm_fraction)
             self.rearm_level = 0.5 * self.thd_min if rearm_level is None else float(rearm_level)
         else:
             self.rearm_level = float(min(thd1, thd2, -thd3) if rearm_level is None else rearm_level)
@@ -365,9 +364,13 @@ class InterfaceDetector(Block):
         return -max(self.thd_min, self.exit_gain * F_pred)
 
     def _rearm_level(self, F_pred: float) -> float:
+        """|F~| must stay below this for rearm_samples before the next test arms. Relative
+        mode: half that test's own threshold (the post-event transient is over as far as
+        this test can tell) -- a thin, noisy low-thrust layer still arms for a large step."""
         if not self.relative:
             return self.rearm_level
-        return max(self.rearm_level, self.rearm_fraction * F_pred)
+        thd = self._thd_interface(self.flag, F_pred) if 1 <= self.flag < self.n else -self._thd_exit(F_pred)
+        return max(self.rearm_level, 0.5 * thd)
 
     def _engaged(self, F_pred: float) -> bool:
         """The tool cuts the current layer (not in a gap above it): its tests may arm."""
