@@ -333,6 +333,7 @@ class InterfaceDetector(Block):
         self.x_last = NAN
         self.F_pred = NAN
         self.F_err = NAN
+        self.F_level = NAN          # observed plateau level (last quiet F^)
         self.thd = NAN
 
     def _set_fail(self, code: int, t: float, x: float) -> None:
@@ -387,8 +388,16 @@ class InterfaceDetector(Block):
             F_pred = float(self.W[self.n_buf] @ self.buf[:self.n_buf])
             e = F - F_pred
             self.F_pred, self.F_err = F_pred, e
-            self.quiet = self.quiet + 1 if abs(e) < self._rearm_level(F_pred) else 0
-            if not self.armed and (self.flag == 0 or (self.quiet >= self.rearm_samples and self._engaged(F_pred))):
+            if math.isnan(self.F_level):
+                self.F_level = F_pred
+            if abs(e) < self._rearm_level(self.F_level):
+                # the observed level the relative thresholds scale with: frozen as soon as
+                # F~ grows (a step), else the threshold would climb the step with F^
+                self.quiet += 1
+                self.F_level = F_pred
+            else:
+                self.quiet = 0
+            if not self.armed and (self.flag == 0 or (self.quiet >= self.rearm_samples and self._engaged(self.F_level))):
                 self.armed = True
             self.thd = NAN
             if self.flag == 0 and self.armed:
@@ -396,14 +405,14 @@ class InterfaceDetector(Block):
                 if e > self.thd:
                     self._event(0, t, x)
             elif self.flag < self.n and self.armed:
-                self.thd = self._thd_interface(self.flag, F_pred)
+                self.thd = self._thd_interface(self.flag, self.F_level)
                 if abs(e) > self.thd:
                     self._event(self.flag, t, x)
             elif self.flag >= self.n and (self.armed or self.exit_armed):
                 # once armed in the last layer both exit tests run on, also after the
                 # selected one has fired (both estimates in every run)
                 self.exit_armed = True
-                self.thd = -self._thd_exit(F_pred)
+                self.thd = -self._thd_exit(self.F_level)
                 self._exit_tests(t, x, F, F_pred, e)
         # shift the regression window (oldest first)
         if self.n_buf < self.N:
@@ -420,7 +429,7 @@ class InterfaceDetector(Block):
             # last layer's plateau level: highest regression level since its tests
             # armed (Ti's thrust descends slowly, so this is its level near the top)
             self.F_ref = F_pred if math.isnan(self.F_ref) else max(self.F_ref, F_pred)
-            if e < self._thd_exit(F_pred):
+            if e < self._thd_exit(self.F_level):
                 self.drop = True  # paper criterion; F_ref frozen from here on
                 self.t_paper, self.x_paper = t, x
                 if self.exit_criterion == "paper" and self.flag == self.n:
