@@ -5,8 +5,10 @@ nominal stack and processes) and draws around it:
 
 * true thickness of every layer: uniform +-10 % of the plan's nominal;
 * gap above every layer but the first: uniform 0 .. 0.5 mm;
-* feed: uniform 6 .. 24 mm/min for the first layer's process; the other materials'
-  feeds scale by the same factor (the plan's feed *ratios* between materials stay);
+* feed: one factor on every material's feed (the plan's feed *ratios* between materials
+  stay), drawn so that every material's feed is uniform within 6 .. 24 mm/min as far as
+  the ratios allow (shipped plans: CFRP 12, Ti 9, Al 12 mm/min nominal: CFRP 8..24, Ti
+  6..18, Al 8..24 mm/min);
 * orbit: uniform 1 .. 4 Hz for the first layer's process, the others scaled alike;
 * tool wear: 0 .. 40 holes; noise seed.
 
@@ -60,9 +62,10 @@ def draw_hole(stack_type: str, rng: np.random.Generator, feed_range=RANGES["feed
         ov[p + "thickness"] = float(layer["thickness"] * (1.0 + rng.uniform(-RANGES["thickness"], RANGES["thickness"])))
         ov[p + "gap"] = float(rng.uniform(*RANGES["gap_m"])) if k > 1 else 0.0
     first = plan["process"][layers[0]["material"]]
-    feed = rng.uniform(*feed_range) / 60e3           # m/s
+    feeds = [plan["process"][L["material"]]["feed_rate"] * 60e3 for L in layers]     # mm/min
+    f_feed = rng.uniform(feed_range[0] / min(feeds), feed_range[1] / max(feeds))
     orbit = rng.uniform(*RANGES["orbit_hz"]) * 60.0  # rpm
-    f_feed, f_orbit = feed / first["feed_rate"], orbit / first["orbital_speed"]
+    f_orbit = orbit / first["orbital_speed"]
     for mat in dict.fromkeys(L["material"] for L in layers):
         proc = plan["process"][mat]
         ov[f"hole.process.{mat}.feed_rate"] = proc["feed_rate"] * f_feed

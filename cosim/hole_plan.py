@@ -32,6 +32,7 @@ NOMINAL_KC = {"cfrp": 2.0e7, "ti": 6.5e7, "al": 2.5e6}   # N/(m/rev), new tool (
 MAX_LAYERS = 4
 FAIL_ACTIONS = ("hold", "retract")
 PROCESS_KEYS = ("feed_rate", "spindle_speed", "orbital_speed")
+DETECTOR_TOLERANCE = 0.5e-3    # m, the detector's window half-width (InterfaceDetector tolerance)
 
 HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "approach", "breakthrough",
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
@@ -61,7 +62,7 @@ class HolePlan:
         self.surface = self._number(hole, "surface", required=True)
         self.gap_tolerance = self._number(hole, "gap_tolerance", 0.0, minimum=0.0)
         self.approach = self._number(hole, "approach", 0.6e-3, positive=True)
-        self.breakthrough = self._number(hole, "breakthrough", 0.5e-3, positive=True)
+        self.breakthrough = self._number(hole, "breakthrough", 0.3e-3, positive=True)
         self.stop_margin = self._number(hole, "stop_margin", 5.0, positive=True)
         self.match_tolerance = self._number(hole, "match_tolerance", 1.0e-3, positive=True)
         self.fail_action = hole.get("fail_action", "hold")
@@ -162,8 +163,10 @@ class HolePlan:
         if z_app < z_start:
             raise self.error("hole.approach", f"the feed would start at {z_app:g} m, before the trajectory's "
                                               f"z_start {z_start:g} m")
+        # past the end of the exit window (detector tolerance), so that a missing exit is a
+        # fail while the tool still feeds, not a hole that just ends
         return {"z_approach_end": z_app, "feed_rate": self.layer_process(0)["feed_rate"],
-                "z_end": self.bottom() + self.breakthrough}
+                "z_end": self.bottom() + DETECTOR_TOLERANCE + self.breakthrough}
 
     def stop_time(self, traj: dict) -> float:
         """Time to the deepest point at the slowest feed the plan may command, approach
@@ -187,6 +190,7 @@ class HolePlan:
             "feed_per_rev_min": min(fprs + [feed_per_rev(cons)]),
             "feed_rate": min(cons["feed_rate"], *(p["feed_rate"] for p in self.process.values())),
             "exit_criterion": "thinning",
+            "tolerance": DETECTOR_TOLERANCE,
             "fail_disarms": True,
         }
 
