@@ -39,6 +39,7 @@ STACKS = ROOT / "scenarios" / "stacks"
 TYPES = ("cfrp_ti", "ti_cfrp", "cfrp_al", "cfrp_ti_cfrp", "cfrp_al_ti")
 MATERIAL_CODE = {"cfrp": 1, "ti": 2, "al": 3}
 BARS_MM = {"entry": 0.094, "interface": 0.073, "exit": 0.2}
+PLANT_PARAMETERS = "fmus.drive.plant_parameters."
 RANGES = {"thickness": 0.10, "gap_m": (0.0, 0.5e-3), "feed_mm_min": (6.0, 24.0), "orbit_hz": (1.0, 4.0),
           "wear_holes": (0, 40)}
 
@@ -57,7 +58,7 @@ def draw_hole(stack_type: str, rng: np.random.Generator, feed_range=RANGES["feed
           "fmus.drive.plant_parameters.wear_holes": int(rng.integers(RANGES["wear_holes"][0], RANGES["wear_holes"][1] + 1)),
           "fmus.drive.plant_parameters.seed": int(rng.integers(1, 2 ** 31 - 1))}
     for k, layer in enumerate(layers, start=1):
-        p = f"fmus.drive.plant_parameters.layer{k}_"
+        p = PLANT_PARAMETERS + f"layer{k}_"      # contract names (docs/signal_contract.md)
         ov[p + "material"] = MATERIAL_CODE[layer["material"]]
         ov[p + "thickness"] = float(layer["thickness"] * (1.0 + rng.uniform(-RANGES["thickness"], RANGES["thickness"])))
         ov[p + "gap"] = float(rng.uniform(*RANGES["gap_m"])) if k > 1 else 0.0

@@ -173,13 +173,13 @@ def test_fail_holds_conservative_set_never_another_material(action, retract):
 
 
 def test_incomplete_hole_fails_the_cli(tmp_path):
-    """The true CFRP is 1 mm thicker than the plan's 2 +- 0.2 mm: the interface window closes,
+    """The true CFRP is 1.5 mm thicker than the plan's 2 +- 0.2 mm: the interface window closes,
     the fail-safe retracts, the exit is never found: status incomplete, exit code non-zero."""
     from cosim.cli import main
     sets = ["hole.layers[0].thickness=2.0e-3", "hole.layers[0].tolerance=0.2e-3",
             "hole.layers[1].thickness=1.0e-3", "hole.layers[1].tolerance=0.1e-3",
             "hole.fail_action=\"retract\"", "hole.process.cfrp.feed_rate=4e-4",
-            "fmus.drive.plant_parameters.layer1_thickness=3.0e-3",
+            "fmus.drive.plant_parameters.layer1_thickness=3.5e-3",
             "fmus.drive.plant_parameters.layer2_thickness=1.0e-3", "fmus.drive.plant_parameters.layer2_gap=0.0"]
     code = main(["run", str(CFRP_TI), "--out", str(tmp_path), "--quiet", *sum((["--set", s] for s in sets), [])])
     import json
