@@ -267,3 +267,120 @@ def score_adaptation(result, detector="detector", adapt="adapt", trajectory="tra
         except KeyError:
             pass
     return out
+
+
+# ---------------------------------------------------------------- n-layer holes (hole plan)
+def stack_transitions(time, layer, n_layers):
+    """True (start, end) times of each event from the scoring-only layer index: entry
+    (the tip reaches layer 1: start = end), interface k = 1..n-1 (start: the tip leaves
+    layer k; end: it reaches layer k+1 -- the same instant without a gap, the gap apart
+    otherwise) and exit (the tip leaves layer n). Times half-way between the two samples
+    around each change; NaN for what the tool never reached."""
+    time = np.asarray(time, float)
+    layer = np.rint(np.asarray(layer, float)).astype(int)
+
+    def first(mask, start=0):
+        idx = np.flatnonzero(mask[start:])
+        return None if idx.size == 0 else int(idx[0]) + start
+
+    def mid(i):
+        return math.nan if i is None else (float(time[i]) if i == 0 else 0.5 * float(time[i - 1] + time[i]))
+
+    i_in = [first(layer == k) for k in range(1, n_layers + 1)]
+    leave = [None if i is None else first(layer != k, i) for k, i in zip(range(1, n_layers + 1), i_in)]
+    entry = mid(first(layer >= 1))
+    out = [(entry, entry)]
+    out += [(mid(leave[k]), mid(i_in[k + 1])) for k in range(n_layers - 1)]
+    out.append((mid(leave[-1]), mid(leave[-1])))
+    return out
+
+
+def _event_labels(materials):
+    n = len(materials)
+    names = ["entry", *(f"interface{k}" for k in range(1, n)), "exit"]
+    what = [f"air/{materials[0]}", *(f"{materials[k - 1]}/{materials[k]}" for k in range(1, n)),
+            f"{materials[-1]}/air"]
+    return names, what
+
+
+WINDOW_SLACK = 0.05e-3   # m: tool tip (truth) against encoder (plan windows): deflection, quantisation
+
+_DET = ("t_entry", "t_interface1", "t_interface2", "t_interface3", "t_exit", "t_exit_paper",
+        "t_exit_thinning", "fail", "fail_code", "flag", "t_fail", "x_fail")
+
+
+@needs("{plant}.tool_position_true", "{plant}.layer_index", *(f"{{detector}}.{n}" for n in _DET),
+       "{adapt}.failsafe", "{adapt}.t_failsafe")
+def score_stack(result, plant="drive", detector="detector", adapt="adapt", materials=("cfrp", "ti"),
+                plan_windows=None, match_tolerance=1.0e-3, fail_action="hold"):
+    """Score of one hole of a hole plan (appended by :mod:`cosim.hole_plan`).
+
+    Per event (entry, interface1.., exit; ``events`` names the materials on both sides):
+    true and detected time and the depth error ``<event>_dz_mm`` (tool-tip travel between
+    the true and the detected time; negative = early). A detection more than
+    ``match_tolerance`` [m] from its true event is a *false* event and its true event
+    *missed*; an event the tool passed but the detector did not report is missed; a flag
+    before the tool touched the stack is false. ``missed_events`` / ``false_events``:
+    counts. ``false_fail``: the fail indicator was set although every true event lay
+    inside the plan's windows (``plan_windows``, encoder positions [m]). The fail-safe
+    (``failsafe``: none / hold / retract) and when it came into force. ``status``:
+    ``incomplete`` when the exit was not detected by the end of the run (the runner
+    makes it the run's status; the CLI exits non-zero).
+    """
+    t = np.asarray(result.time, float)
+    g = lambda name: np.asarray(result[name], float)  # noqa: E731
+    x_tool = g(f"{plant}.tool_position_true")
+    n = len(materials)
+    truth = stack_transitions(t, g(f"{plant}.layer_index"), n)
+    det = {k: last_value(result[f"{detector}.{k}"]) for k in _DET}
+    t_det = [det["t_entry"], *(det[f"t_interface{k}"] for k in range(1, n)), det["t_exit"]]
+    names, what = _event_labels(list(materials))
+    out = {}
+    events, missed, false = {}, [], []
+    for name, label, (ta, tb), td in zip(names, what, truth, t_det):
+        # inside a gap (between the two faces) counts as exact: the tool is between materials
+        xa, xb, x_det = interp_at(t, x_tool, ta), interp_at(t, x_tool, tb), interp_at(t, x_tool, td)
+        tt = ta if math.isfinite(ta) else tb
+        dz = x_det - xa if not x_det > xa else max(x_det - xb, 0.0) if math.isfinite(xb) else x_det - xa
+        events[name] = {"between": label, "t_true_s": [ta, tb], "t_det_s": td,
+                        "x_true_mm": [1e3 * xa, 1e3 * xb], "x_det_mm": 1e3 * x_det}
+        out[f"{name}_dz_mm"] = 1e3 * dz
+        if math.isfinite(td) and not (math.isfinite(dz) and abs(dz) <= match_tolerance):
+            false.append(name)
+            if math.isfinite(tt):
+                missed.append(name)
+        elif math.isfinite(tt) and not math.isfinite(td):
+            missed.append(name)
+    if flag_before_entry(t, g(f"{detector}.flag"), truth[0][0]) and "entry" not in false:
+        false.append("entry")
+    out["missed_events"] = len(missed)
+    out["false_events"] = len(false)
+    out["missed_names"] = missed
+    out["false_names"] = false
+    for crit in ("paper", "thinning"):      # both exit criteria, for comparison
+        events["exit"][f"{crit}_rule_dz_mm"] = 1e3 * (interp_at(t, x_tool, det[f"t_exit_{crit}"])
+                                                   - interp_at(t, x_tool, truth[-1][0]))
+    out["events"] = events
+    fail = bool(det["fail"] >= 0.5)
+    out["fail"] = int(fail)
+    code = int(det["fail_code"]) if fail else 0
+    out["fail_event"] = names[code - 1] if 1 <= code <= len(names) else None
+    out["t_fail_s"] = det["t_fail"]
+    out["x_fail_mm"] = 1e3 * det["x_fail"]
+    inside = plan_windows is not None and all(
+        math.isfinite(x) and lo - WINDOW_SLACK <= x <= hi + WINDOW_SLACK
+        for x, (lo, hi) in zip((interp_at(t, x_tool, ta) for ta, _ in truth), plan_windows))
+    out["stack_within_plan"] = bool(inside)
+    out["false_fail"] = int(fail and inside)
+    mode = int(round(last_value(result[f"{adapt}.failsafe"]))) if len(t) else 0
+    out["failsafe"] = ("none", "hold", "retract")[mode] if 0 <= mode <= 2 else f"code {mode}"
+    out["t_failsafe_s"] = last_value(result[f"{adapt}.t_failsafe"])
+    out["final_flag"] = det["flag"]
+    if math.isfinite(det["t_exit"]):
+        out["status"] = "completed"
+    else:
+        why = (f"fail-safe {out['failsafe']} since t = {out['t_failsafe_s']:.2f} s ({out['fail_event']} "
+               f"not where the plan expects it)" if fail else "the run ended before the exit was found")
+        out["status"] = "incomplete"
+        out["status_reason"] = f"hole incomplete: exit not detected ({why})"
+    return out

@@ -12,8 +12,20 @@ scenario::
     ]
 
 A stage is in force from the first sample whose ``flag`` is >= its ``flag`` (the
-highest such stage wins); ``fail = 1`` switches to ``fail_stage`` (by name) when
-given, a safe set of parameters for a process that left its expected course.
+highest such stage wins). A fail (``fail = 1``: the detector lost track of the
+stack) is answered by ``fail_action``:
+
+* ``"stage"`` (legacy, with ``fail_stage``): switch to the named stage;
+* ``"hold"``: switch to ``fail_parameters`` -- the most conservative set the plan
+  allows (lowest feed per revolution at the lowest spindle and orbital speed of
+  any material in the stack, :mod:`cosim.hole_plan`) -- and hold it to the end,
+  whatever the flag does afterwards. A fail means the detector's idea of the
+  material under the tool is not trustworthy, so it must never pick another
+  material's parameters (Ti's larger chip in CFRP delaminates it);
+* ``"retract"``: as "hold", and output ``retract = 1`` so that the trajectory
+  leaves the hole at once.
+
+Outputs ``failsafe`` (0 none, 1 hold, 2 retract) and ``t_failsafe`` say which and when.
 
 The change is *ramped*, so that the feed drive does not jerk: each output moves
 from the value in force to the new one along a raised-cosine (half-cycle) blend
@@ -41,6 +53,7 @@ from typing import Sequence
 from cosim.block import Block, Port
 
 PARAMS = ("feed_rate", "spindle_speed", "orbital_speed")
+FAIL_ACTIONS = ("none", "stage", "hold", "retract")
 
 
 class CuttingParameterAdaptation(Block):
@@ -55,11 +68,15 @@ class CuttingParameterAdaptation(Block):
         Port("stage", "1", "index of the stage whose parameters are the target"),
         Port("t_switch", "s", "time the current stage was entered (NaN before any switch)", math.nan),
         Port("ramp", "1", "progress of the current blend, 0..1"),
+        Port("retract", "1", "1 = leave the hole (fail_action 'retract' after a fail)"),
+        Port("failsafe", "1", "fail-safe in force: 0 none, 1 hold conservative parameters, 2 retract"),
+        Port("t_failsafe", "s", "time the fail-safe came into force (NaN while none)", math.nan),
     )
     direct_feedthrough = True
 
     def __init__(self, stages: Sequence[dict] = (), ramp_time: float = 0.2,
-                 fail_stage: str | None = None, sample_period: float = 0.0):
+                 fail_stage: str | None = None, sample_period: float = 0.0,
+                 fail_action: str | None = None, fail_parameters: dict | None = None):
         super().__init__(sample_period)
         if not stages:
             raise ValueError("CuttingParameterAdaptation: give at least one stage "
@@ -88,10 +105,26 @@ class CuttingParameterAdaptation(Block):
         if fail_stage is not None and fail_stage not in names:
             raise ValueError(f"CuttingParameterAdaptation: fail_stage {fail_stage!r} is not one of {names}")
         self.fail_index = None if fail_stage is None else names.index(fail_stage)
+        if fail_action is None:
+            fail_action = "stage" if fail_stage is not None else "none"
+        if fail_action not in FAIL_ACTIONS:
+            raise ValueError(f"CuttingParameterAdaptation: fail_action must be one of {FAIL_ACTIONS}, "
+                             f"got {fail_action!r}")
+        if fail_action == "stage" and fail_stage is None:
+            raise ValueError("CuttingParameterAdaptation: fail_action 'stage' needs fail_stage")
+        self.fail_action = fail_action
+        if fail_action in ("hold", "retract"):
+            fp = dict(fail_parameters or {})
+            missing = [p for p in PARAMS if not float(fp.get(p, 0.0)) > 0]
+            if missing:
+                raise ValueError(f"CuttingParameterAdaptation: fail_action {fail_action!r} needs "
+                                 f"fail_parameters with {missing} > 0")
+            self.stages.append({"flag": 10 ** 9, "name": "failsafe", **{p: float(fp[p]) for p in PARAMS}})
+            self.fail_index = len(self.stages) - 1
         self.reset(0.0)
 
     def _target_index(self, flag: float, fail: float) -> int:
-        if fail >= 0.5 and self.fail_index is not None:
+        if self.failsafe or (fail >= 0.5 and self.fail_index is not None):
             return self.fail_index
         idx = 0
         for i, s in enumerate(self.stages):
@@ -107,8 +140,13 @@ class CuttingParameterAdaptation(Block):
         self.t_switch = math.nan
         self.log = [(float(t0), s0["name"], *self.value)]
         self._t_prev = None
+        self.failsafe = 0
+        self.t_failsafe = math.nan
 
     def step(self, t, u):
+        if not self.failsafe and float(u[1]) >= 0.5 and self.fail_action in ("hold", "retract"):
+            self.failsafe = 1 if self.fail_action == "hold" else 2   # latched: the flag is no longer trusted
+            self.t_failsafe = float(t)
         idx = self._target_index(float(u[0]), float(u[1]))
         if idx != self.index:
             self.start = list(self.value)  # blend from what is in force (also mid-ramp)
@@ -130,7 +168,8 @@ class CuttingParameterAdaptation(Block):
             s = (t - self.t_switch + h) / self.ramp_time
             r = 1.0 if s >= 1.0 else 0.5 * (1.0 - math.cos(math.pi * max(s, 0.0)))
         self.value = [a + (b - a) * r for a, b in zip(self.start, target)]
-        return (*self.value, float(self.index), self.t_switch, r)
+        return (*self.value, float(self.index), self.t_switch, r,
+                float(self.failsafe == 2), float(self.failsafe), self.t_failsafe)
 
 
 class OneStepDelay(Block):

@@ -95,7 +95,8 @@ from cosim.block import Block, Port
 NAN = float("nan")
 
 EXIT_CRITERIA = ("paper", "thinning")
-
+MAX_LAYERS = 4   # what the project's plants model (docs/plants.md)
+MAX_INTERFACES = MAX_LAYERS - 1
 
 N_MAX = 2000     # samples of the regression window (40 s at dt = 0.02 s)
 
@@ -112,32 +113,59 @@ def regression_weights(n: int) -> np.ndarray:
     return 1.0 / n + (n + 1 - jbar) * (j - jbar) / sxx
 
 
+def event_names(n_layers: int) -> list[str]:
+    """Names of the events of an n-layer stack, in order: entry, interface1.., exit."""
+    return ["entry", *(f"interface{k}" for k in range(1, n_layers)), "exit"]
+
+
+def _per_layer(name, value, n, default=None):
+    if value is None:
+        value = default
+    if isinstance(value, (int, float)):
+        return (float(value),) * n
+    value = tuple(float(v) for v in value)
+    if len(value) != n:
+        raise ValueError(f"InterfaceDetector: {name} needs one value per layer ({n}), got {len(value)}")
+    return value
+
+
+_OUTPUTS = (
+    Port("flag", "1", "tool position indicator: 0 before entry, k in layer k (1..n), n+1 exited"),
+    Port("t_entry", "s", "time the entry was detected (NaN until then)", NAN),
+    Port("t_interface", "s", "time the first interface was detected (NaN until then)", NAN),
+    Port("t_exit", "s", "time the exit was detected by the selected criterion (NaN until then)", NAN),
+    Port("x_entry", "m", "encoder position at the entry detection", NAN),
+    Port("x_interface", "m", "encoder position at the first interface detection", NAN),
+    Port("x_exit", "m", "encoder position at the exit detection (selected criterion)", NAN),
+    Port("fail", "1", "fail indicator (latched): an event not found inside its nominal window"),
+    Port("fail_code", "1", "first failing event: 0 none, 1 entry, 1+k interface k, n+1 exit"),
+    Port("F_pred", "N", "regression prediction F^ of the current sample (NaN until the window fills)", NAN),
+    Port("F_err", "N", "prediction error F~ = F - F^ (NaN until the window fills)", NAN),
+    Port("armed", "1", "1 when the next event's test is armed (warm-up/re-arm done)"),
+    Port("t_exit_paper", "s", "exit time by the paper criterion (F~ < thd3)", NAN),
+    Port("x_exit_paper", "m", "exit position by the paper criterion", NAN),
+    Port("t_exit_thinning", "s", "exit time by the thinning criterion (F < exit_ratio*F_ref)", NAN),
+    Port("x_exit_thinning", "m", "exit position by the thinning criterion", NAN),
+    Port("F_ref", "N", "last layer's plateau level of the thinning criterion (NaN before its tests arm)", NAN),
+    *(Port(f"t_interface{k}", "s", f"time interface {k} (bottom of layer {k}) was detected", NAN)
+      for k in range(1, MAX_LAYERS)),
+    *(Port(f"x_interface{k}", "m", f"encoder position at the interface-{k} detection", NAN)
+      for k in range(1, MAX_LAYERS)),
+    Port("t_fail", "s", "time the fail indicator was set (NaN while no fail)", NAN),
+    Port("x_fail", "m", "encoder position when the fail indicator was set", NAN),
+    Port("thd", "N", "threshold of the armed test on |F~| (NaN when none is armed)", NAN),
+    Port("n_layers", "1", "layers of the nominal stack the detector expects"),
+)
+
+
 class InterfaceDetector(Block):
-    """Moving-linear-regression detector of tool entry, CFRP/Ti interface and exit."""
+    """Moving-linear-regression detector of tool entry, every interface and exit."""
 
     inputs = (
         Port("F", "N", "observed DC thrust force (from the observer)"),
         Port("x", "m", "table encoder position along the feed (positive into the workpiece)"),
     )
-    outputs = (
-        Port("flag", "1", "tool position indicator: 0 before entry, 1 in layer 1, 2 in layer 2, 3 exited"),
-        Port("t_entry", "s", "time the entry was detected (NaN until then)", NAN),
-        Port("t_interface", "s", "time the interface was detected (NaN until then)", NAN),
-        Port("t_exit", "s", "time the exit was detected by the selected criterion (NaN until then)", NAN),
-        Port("x_entry", "m", "encoder position at the entry detection", NAN),
-        Port("x_interface", "m", "encoder position at the interface detection", NAN),
-        Port("x_exit", "m", "encoder position at the exit detection (selected criterion)", NAN),
-        Port("fail", "1", "fail indicator (latched): an event not found inside its nominal window"),
-        Port("fail_code", "1", "first failing event: 0 none, 1 entry, 2 interface, 3 exit"),
-        Port("F_pred", "N", "regression prediction F^ of the current sample (NaN until the window fills)", NAN),
-        Port("F_err", "N", "prediction error F~ = F - F^ (NaN until the window fills)", NAN),
-        Port("armed", "1", "1 when the next event's test is armed (warm-up/re-arm done)"),
-        Port("t_exit_paper", "s", "exit time by the paper criterion (F~ < thd3)", NAN),
-        Port("x_exit_paper", "m", "exit position by the paper criterion", NAN),
-        Port("t_exit_thinning", "s", "exit time by the thinning criterion (F < exit_ratio*F_ref)", NAN),
-        Port("x_exit_thinning", "m", "exit position by the thinning criterion", NAN),
-        Port("F_ref", "N", "Ti plateau level of the thinning criterion (NaN before the layer-2 tests arm)", NAN),
-    )
+    outputs = _OUTPUTS
     direct_feedthrough = True
 
     def __init__(
@@ -159,6 +187,15 @@ class InterfaceDetector(Block):
         exit_tolerance: float = 1.5e-3,
         feed_rate: float = 0.0,
         time_margin: float = 2.0,
+        thickness_tolerances: Sequence[float] | float = 0.0,
+        kc: Sequence[float] | None = None,
+        feed_per_rev: Sequence[float] | None = None,
+        feed_per_rev_min: float | None = None,
+        entry_fraction: float = 0.3,
+        step_fraction: float = 0.3,
+        engage_fraction: float = 0.3,
+        thd_min: float = 8.0,
+        fail_disarms: bool = False,
     ):
         """Settings (SI units).
 
@@ -166,21 +203,39 @@ class InterfaceDetector(Block):
         N: regression window [samples] (see module docstring for the default).
         N_min: the window grows from N_min to N samples after a reset: the tests
             start once N_min samples are in (short approaches).
-        thd1, thd2 [N] (> 0), thd3 [N] (< 0): Table 4 thresholds 50, 50, -30 N.
+        thd1, thd2 [N] (> 0), thd3 [N] (< 0): Table 4 thresholds 50, 50, -30 N (fixed
+            thresholds, used when ``kc`` is not given; thd2 for every interface).
         exit_criterion: "paper" (F~ < thd3) or "thinning" (F < exit_ratio * F_ref
             after the paper drop has started).
-        exit_ratio: fraction of the Ti plateau thrust at which the thinning
+        exit_ratio: fraction of the last layer's plateau thrust at which the thinning
             criterion declares the exit.
         rearm_level [N], rearm_samples: re-arming after an event (module docstring);
-            defaults min(thd1, thd2, |thd3|) and N.
+            defaults min(thd1, thd2, |thd3|) (process-following: max(thd_min / 2 ...),
+            see below) and N.
         surface [m]: nominal top surface in encoder coordinates; None switches the
             fail windows off.
-        thicknesses [m]: nominal layer thicknesses (two layers: CFRP, Ti).
-        max_gap [m]: largest accepted gap between the layers.
-        tolerance [m]: window half-width around each nominal event position.
+        thicknesses [m]: nominal layer thicknesses, top first (1..4 layers).
+        thickness_tolerances [m]: +- tolerance of each thickness (one value or one per layer).
+        max_gap [m]: largest accepted gap between two layers.
+        tolerance [m]: window half-width around each nominal event position (detection).
         exit_tolerance [m]: early-side width of the exit window.
         feed_rate [m/s]: slowest nominal feed; > 0 adds the time frame check.
         time_margin [1]: factor on the nominal time to the end of the next window.
+
+        Process-following thresholds (docs/stacks.md), on when ``kc`` is given:
+        kc [N/(m/rev)]: nominal (new-tool) thrust coefficient of each layer;
+        feed_per_rev [m/rev]: feed per revolution of each layer's own process (the
+            first one is in force at the entry); feed_per_rev_min [m/rev]: the lowest
+            the adaptation may command (fail-safe included; default min(feed_per_rev)).
+        Then entry: F~ > entry_fraction * kc_1 * f_1; interface k: |F~| >
+        max(thd_min, step_fraction * |kc_{k+1}/kc_k - 1| * F^) (the step the
+        observed level F^ makes when the material changes under an unchanged process);
+        paper exit (recorded): F~ < -max(thd_min, F^ / 2); a layer's tests arm only
+        once F^ >= engage_fraction * kc_k * feed_per_rev_min (the tool is in the
+        material, not in a gap) and |F~| stayed below half the test's threshold
+        (at least rearm_level, default thd_min / 2) for rearm_samples.
+        fail_disarms: a fail re-arms the tests as an event does (the adaptation changes
+            the process on a fail: its thrust step is not an interface).
         """
         super().__init__(sample_period)
         if self.sample_period <= 0:
@@ -192,8 +247,10 @@ class InterfaceDetector(Block):
         if not 0.0 < exit_ratio < 1.0:
             raise ValueError(f"InterfaceDetector: exit_ratio must be in (0, 1), got {exit_ratio}")
         thicknesses = tuple(float(v) for v in thicknesses)
-        if len(thicknesses) != 2 or min(thicknesses) <= 0:
-            raise ValueError(f"InterfaceDetector: thicknesses must be two positive layer thicknesses [m], got {thicknesses}")
+        if not 1 <= len(thicknesses) <= MAX_LAYERS or min(thicknesses) <= 0:
+            raise ValueError(f"InterfaceDetector: thicknesses must be 1..{MAX_LAYERS} positive layer "
+                             f"thicknesses [m], got {thicknesses}")
+        self.n = n = len(thicknesses)
         self.N = int(N)
         if not self.N <= N_MAX:   # the weights of every window length grow as N^2 (N = 8000: 0.5 GB)
             raise ValueError(f"InterfaceDetector: N must be <= {N_MAX} samples, got {N}")
@@ -201,68 +258,124 @@ class InterfaceDetector(Block):
         if self.N_min < 3:
             raise ValueError(f"InterfaceDetector: N_min must be >= 3, got {N_min}")
         # weights for every window length the growing window passes through
-        self.W = {n: regression_weights(n) for n in range(self.N_min, self.N + 1)}
+        self.W = {n_: regression_weights(n_) for n_ in range(self.N_min, self.N + 1)}
         self.thd1, self.thd2, self.thd3 = float(thd1), float(thd2), float(thd3)
         self.exit_criterion = exit_criterion
         self.exit_ratio = float(exit_ratio)
-        self.rearm_level = float(min(thd1, thd2, -thd3) if rearm_level is None else rearm_level)
         self.rearm_samples = int(self.N if rearm_samples is None else rearm_samples)
         self.surface = None if surface is None else float(surface)
         self.thicknesses = thicknesses
+        self.thickness_tolerances = _per_layer("thickness_tolerances", thickness_tolerances, n)
         self.max_gap = float(max_gap)
         self.tolerance = float(tolerance)
         self.exit_tolerance = float(exit_tolerance)
         self.feed_rate = float(feed_rate)
         self.time_margin = float(time_margin)
+        self.fail_disarms = bool(fail_disarms)
+        self.relative = kc is not None
+        if self.relative:
+            kc_ = _per_layer("kc", kc, n)
+            fpr = _per_layer("feed_per_rev", feed_per_rev, n)
+            if min(kc_) <= 0 or min(fpr) <= 0:
+                raise ValueError("InterfaceDetector: kc and feed_per_rev must be > 0")
+            fmin = min(fpr) if feed_per_rev_min is None else float(feed_per_rev_min)
+            for name, v in (("entry_fraction", entry_fraction), ("step_fraction", step_fraction),
+                            ("engage_fraction", engage_fraction)):
+                if not 0.0 < v < 1.0:
+                    raise ValueError(f"InterfaceDetector: {name} must be in (0, 1), got {v}")
+            self.thd_entry = entry_fraction * kc_[0] * fpr[0]
+            self.step_gain = [step_fraction * abs(kc_[k + 1] / kc_[k] - 1.0) for k in range(n - 1)]
+            self.exit_gain = 0.5     # paper exit in relative terms: a drop of half the plateau
+            self.floor = [engage_fraction * k_ * fmin for k_ in kc_]
+            self.thd_min = float(thd_min)
+            self.rearm_level = 0.5 * self.thd_min if rearm_level is None else float(rearm_level)
+        else:
+            self.rearm_level = float(min(thd1, thd2, -thd3) if rearm_level is None else rearm_level)
         self.windows = self._windows()
         self.reset(0.0)
 
     # ------------------------------------------------------------------ windows
     def _windows(self):
-        """(earliest, latest) encoder position of entry, interface, exit."""
+        """(earliest, latest) encoder position of each event: entry, interfaces, exit.
+
+        Interface k is the bottom of layer k (or the top of layer k+1 after a gap, or the
+        start of the gap depression); a gap of up to ``max_gap`` may lie above every
+        layer but the first."""
         if self.surface is None:
             return None
-        s, (t1, t2), g, tol = self.surface, self.thicknesses, self.max_gap, self.tolerance
-        return (
-            (s - tol, s + tol),
-            (s + t1 - tol, s + t1 + g + tol),
-            (s + t1 + t2 - self.exit_tolerance, s + t1 + g + t2 + tol),
-        )
+        s, g, tol = self.surface, self.max_gap, self.tolerance
+        t, tt = np.asarray(self.thicknesses), np.asarray(self.thickness_tolerances)
+        lo = s + np.cumsum(t - tt)
+        hi = s + np.cumsum(t + tt)
+        win = [(s - tol, s + tol)]
+        win += [(lo[k] - tol, hi[k] + (k + 1) * g + tol) for k in range(self.n - 1)]
+        win.append((lo[-1] - self.exit_tolerance, hi[-1] + (self.n - 1) * g + tol))
+        return tuple(win)
 
     # ------------------------------------------------------------------ protocol
     def reset(self, t0: float) -> None:
         self.buf = np.zeros(self.N)
         self.n_buf = 0
         self.flag = 0
-        self.t_ev = [NAN, NAN, NAN]
-        self.x_ev = [NAN, NAN, NAN]
+        self.t_ev = [NAN] * (self.n + 1)
+        self.x_ev = [NAN] * (self.n + 1)
         self.t_paper = self.x_paper = NAN
         self.t_thin = self.x_thin = NAN
         self.F_ref = NAN
-        self.drop = False           # paper drop condition met in layer 2
-        self.exit_armed = False     # the layer-2 (exit) tests have been armed once
-        self.quiet = 0              # consecutive samples with |F~| < rearm_level
+        self.drop = False           # paper drop condition met in the last layer
+        self.exit_armed = False     # the last layer's (exit) tests have been armed once
+        self.quiet = 0              # consecutive samples with |F~| < rearm level
         self.armed = False
         self.fail = 0
         self.fail_code = 0
+        self.t_fail = self.x_fail = NAN
         self.t_last = t0            # time of the last event (time frame check)
         self.x_last = NAN
         self.F_pred = NAN
         self.F_err = NAN
+        self.F_level = NAN          # observed plateau level (last quiet F^)
+        self.thd = NAN
 
-    def _set_fail(self, code: int) -> None:
+    def _set_fail(self, code: int, t: float, x: float) -> None:
         if not self.fail:
             self.fail, self.fail_code = 1, code
+            self.t_fail, self.x_fail = t, x
+            if self.fail_disarms and self.flag <= self.n:
+                self.armed, self.quiet = False, 0
 
     def _event(self, k: int, t: float, x: float) -> None:
-        """Event k (0 entry, 1 interface, 2 exit) found at (t, x)."""
+        """Event k (0 entry, 1..n-1 interface k, n exit) found at (t, x)."""
         self.t_ev[k], self.x_ev[k] = t, x
         self.flag = k + 1
         self.armed = False
         self.quiet = 0
         self.t_last, self.x_last = t, x
         if self.windows is not None and x < self.windows[k][0]:
-            self._set_fail(k + 1)  # found before its window opens
+            self._set_fail(k + 1, t, x)  # found before its window opens
+
+    # thresholds of the armed test (fixed, or following the observed level)
+    def _thd_interface(self, k: int, F_pred: float) -> float:
+        if not self.relative:
+            return self.thd2
+        return max(self.thd_min, self.step_gain[k - 1] * F_pred)
+
+    def _thd_exit(self, F_pred: float) -> float:
+        if not self.relative:
+            return self.thd3
+        return -max(self.thd_min, self.exit_gain * F_pred)
+
+    def _rearm_level(self, F_pred: float) -> float:
+        """|F~| must stay below this for rearm_samples before the next test arms. Relative
+        mode: half that test's own threshold (the post-event transient is over as far as
+        this test can tell) -- a thin, noisy low-thrust layer still arms for a large step."""
+        if not self.relative:
+            return self.rearm_level
+        thd = self._thd_interface(self.flag, F_pred) if 1 <= self.flag < self.n else -self._thd_exit(F_pred)
+        return max(self.rearm_level, 0.5 * thd)
+
+    def _engaged(self, F_pred: float) -> bool:
+        """The tool cuts the current layer (not in a gap above it): its tests may arm."""
+        return not self.relative or not 1 <= self.flag <= self.n or F_pred >= self.floor[self.flag - 1]
 
     def step(self, t, u):
         F, x = float(u[0]), float(u[1])
@@ -275,19 +388,31 @@ class InterfaceDetector(Block):
             F_pred = float(self.W[self.n_buf] @ self.buf[:self.n_buf])
             e = F - F_pred
             self.F_pred, self.F_err = F_pred, e
-            self.quiet = self.quiet + 1 if abs(e) < self.rearm_level else 0
-            if not self.armed and (self.flag == 0 or self.quiet >= self.rearm_samples):
+            if math.isnan(self.F_level):
+                self.F_level = F_pred
+            if abs(e) < self._rearm_level(self.F_level):
+                # the observed level the relative thresholds scale with: frozen as soon as
+                # F~ grows (a step), else the threshold would climb the step with F^
+                self.quiet += 1
+                self.F_level = F_pred
+            else:
+                self.quiet = 0
+            if not self.armed and (self.flag == 0 or (self.quiet >= self.rearm_samples and self._engaged(self.F_level))):
                 self.armed = True
+            self.thd = NAN
             if self.flag == 0 and self.armed:
-                if e > self.thd1:
+                self.thd = self.thd1 if not self.relative else self.thd_entry
+                if e > self.thd:
                     self._event(0, t, x)
-            elif self.flag == 1 and self.armed:
-                if abs(e) > self.thd2:
-                    self._event(1, t, x)
-            elif self.flag >= 2 and (self.armed or self.exit_armed):
-                # once armed in layer 2 both exit tests run on, also after the
+            elif self.flag < self.n and self.armed:
+                self.thd = self._thd_interface(self.flag, self.F_level)
+                if abs(e) > self.thd:
+                    self._event(self.flag, t, x)
+            elif self.flag >= self.n and (self.armed or self.exit_armed):
+                # once armed in the last layer both exit tests run on, also after the
                 # selected one has fired (both estimates in every run)
                 self.exit_armed = True
+                self.thd = -self._thd_exit(self.F_level)
                 self._exit_tests(t, x, F, F_pred, e)
         # shift the regression window (oldest first)
         if self.n_buf < self.N:
@@ -301,38 +426,42 @@ class InterfaceDetector(Block):
 
     def _exit_tests(self, t, x, F, F_pred, e):
         if not self.drop:
-            # Ti plateau level: highest regression level since the layer-2 test
-            # armed (the Ti thrust descends slowly, so this is its level near the top)
+            # last layer's plateau level: highest regression level since its tests
+            # armed (Ti's thrust descends slowly, so this is its level near the top)
             self.F_ref = F_pred if math.isnan(self.F_ref) else max(self.F_ref, F_pred)
-            if e < self.thd3:
+            if e < self._thd_exit(self.F_level):
                 self.drop = True  # paper criterion; F_ref frozen from here on
                 self.t_paper, self.x_paper = t, x
-                if self.exit_criterion == "paper" and self.flag == 2:
-                    self._event(2, t, x)
+                if self.exit_criterion == "paper" and self.flag == self.n:
+                    self._event(self.n, t, x)
         if math.isnan(self.t_thin) and F < self.exit_ratio * self.F_ref:
             self.t_thin, self.x_thin = t, x
-            if self.exit_criterion == "thinning" and self.flag == 2:
-                self._event(2, t, x)
+            if self.exit_criterion == "thinning" and self.flag == self.n:
+                self._event(self.n, t, x)
 
     def _check_windows(self, t, x):
-        if self.windows is None or self.flag >= 3 or self.fail:
+        if self.windows is None or self.flag > self.n or self.fail:
             return
         k = self.flag  # index of the next expected event
         hi = self.windows[k][1]
         if x > hi:
-            self._set_fail(k + 1)
+            self._set_fail(k + 1, t, x)
         elif self.feed_rate > 0 and k >= 1 and not math.isnan(self.x_last):
             t_max = self.time_margin * max(hi - self.x_last, 0.0) / self.feed_rate
             if t - self.t_last > t_max:
-                self._set_fail(k + 1)
+                self._set_fail(k + 1, t, x)
 
     def _outputs(self):
+        t_if = self.t_ev[1:self.n] + [NAN] * (MAX_LAYERS - self.n)
+        x_if = self.x_ev[1:self.n] + [NAN] * (MAX_LAYERS - self.n)
         return (
             float(self.flag),
-            self.t_ev[0], self.t_ev[1], self.t_ev[2],
-            self.x_ev[0], self.x_ev[1], self.x_ev[2],
+            self.t_ev[0], t_if[0], self.t_ev[self.n],
+            self.x_ev[0], x_if[0], self.x_ev[self.n],
             float(self.fail), float(self.fail_code),
             self.F_pred, self.F_err, float(self.armed),
             self.t_paper, self.x_paper, self.t_thin, self.x_thin,
             self.F_ref,
+            *t_if, *x_if,
+            self.t_fail, self.x_fail, self.thd, float(self.n),
         )

@@ -72,12 +72,15 @@ class FeedTrajectory(Block):
         feed_rate_cmd [m/s]: feed-rate command; 0 (or negative) = use ``feed_rate``. It
         acts one sample after it is received (the block has no direct feed-through, so
         an adaptation block may read ``z_ref``/``phase`` and drive it without a loop).
+        retract [1]: > 0.5 ends the approach / feed at once (braking at a_max) and
+        retracts; unconnected it stays 0.
     Outputs
         z_ref [m], v_ref [m/s], a_ref [m/s2], phase [1] (0 wait, 1 approach, 2 feed,
         3 retract, 4 done).
     """
 
-    inputs = (Port("feed_rate_cmd", "m/s", "feed-rate command (0 = use the feed_rate setting)"),)
+    inputs = (Port("feed_rate_cmd", "m/s", "feed-rate command (0 = use the feed_rate setting)"),
+              Port("retract", "1", "> 0.5: leave the hole now (fail-safe retract), from the next sample"))
     outputs = (
         Port("z_ref", "m", "reference position"),
         Port("v_ref", "m/s", "reference velocity"),
@@ -115,6 +118,7 @@ class FeedTrajectory(Block):
         self._phase = PHASE_WAIT
         self._t_prev = None
         self._cmd = 0.0
+        self._retract = False
 
     def _feed(self, cmd: float) -> float:
         return cmd if cmd > 0.0 else self.feed_rate
@@ -122,7 +126,9 @@ class FeedTrajectory(Block):
     def step(self, t: float, u: Sequence[float]) -> Sequence[float]:
         # the command received now acts from the next sample on (no direct feed-through)
         feed = self._feed(self._cmd)
+        retract = self._retract
         self._cmd = float(u[0])
+        self._retract = len(u) > 1 and float(u[1]) > 0.5
         dt = self.dt if self._t_prev is None or t <= self._t_prev else t - self._t_prev
         self._t_prev = t
         z, v, ph = self._z, self._v, self._phase
@@ -132,6 +138,8 @@ class FeedTrajectory(Block):
         if ph == PHASE_APPROACH and z >= self.z_approach_end:
             ph = PHASE_FEED
         if ph == PHASE_FEED and z >= self.z_end:
+            ph = PHASE_RETRACT
+        if retract and ph in (PHASE_APPROACH, PHASE_FEED):
             ph = PHASE_RETRACT
         if ph == PHASE_RETRACT and z <= self.z_start and v == 0.0:
             ph = PHASE_DONE

@@ -123,6 +123,9 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
                        f"results so far in {out}", info.status, result, watch.signum)
 
     problems = _score_and_plot(sc, result, out, summary, echo=progress)
+    for scores in summary["scores"].values():   # a score may judge the run: a hole not finished (cosim/hole_plan.py)
+        if isinstance(scores, dict) and scores.get("status") == "incomplete":
+            summary.update(status="incomplete", error=scores.get("status_reason", "incomplete"))
     summary["files"] = {"csv": str(out / "data.csv"), "mat": str(out / "data.mat"),
                         "png": sorted(str(f) for f in out.glob("*.png"))}   # earlier PNGs were removed
     if problems:

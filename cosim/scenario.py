@@ -48,7 +48,7 @@ MAX_STEPS = 10 ** 9     # communication steps of one run (28 h of simulated time
 
 SECTIONS = {"scenario": TABLE, "fmus": TABLE, "blocks": TABLE, "connections": "an array of tables",
             "record": TABLE, "events": "an array of tables", "plots": "an array of tables",
-            "scores": "an array of tables"}
+            "scores": "an array of tables", "hole": TABLE}
 SCENARIO_KEYS = {"name": STRING, "description": STRING, "extends": STRING, "step_size": POSITIVE,
                  "stop_time": POSITIVE, "start_time": NUMBER, "step_rejection_floor": POSITIVE,
                  "allow_nonfinite": BOOL}
@@ -387,6 +387,9 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
     ``origins`` (from :func:`load_raw`): the file each key of a merged scenario comes
     from, for error messages and for FMU paths relative to the file that wrote them.
     """
+    if "hole" in raw:        # a hole plan derives trajectory, detector, adaptation, stop time (cosim/hole_plan.py)
+        from .hole_plan import expand
+        raw = expand(raw, _Checker(file, origins).error)
     check_shape(raw, file, origins)
     c = _Checker(file, origins)
     sc = raw["scenario"]
