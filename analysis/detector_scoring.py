@@ -139,6 +139,17 @@ def run_block_on_trace(block, t, inputs, period=None):
 
 
 # ---------------------------------------------------------------- scoring a run
+def _first_index(mask, start=0):
+    """The first index >= ``start`` where ``mask`` holds, or None."""
+    idx = np.flatnonzero(mask[start:])
+    return None if idx.size == 0 else int(idx[0]) + start
+
+
+def _mid_time(time, i):
+    """Half-way between sample ``i`` and the one before it (a change between two samples)."""
+    return math.nan if i is None else (float(time[i]) if i == 0 else 0.5 * float(time[i - 1] + time[i]))
+
+
 def _transitions(time, layer):
     """True event times from the scoring-only ``layer`` signal (tool tip):
     entry = first sample in layer 1; interface = first sample that leaves layer 1
@@ -148,12 +159,10 @@ def _transitions(time, layer):
     time = np.asarray(time, float)
     layer = np.rint(np.asarray(layer, float)).astype(int)
 
-    def first(mask, start=0):
-        idx = np.flatnonzero(mask[start:])
-        return None if idx.size == 0 else int(idx[0]) + start
+    first = _first_index
 
     def mid(i):
-        return math.nan if i is None else (float(time[i]) if i == 0 else 0.5 * float(time[i - 1] + time[i]))
+        return _mid_time(time, i)
 
     i_entry = first(layer >= 1)
     i_int = None if i_entry is None else first(layer != 1, i_entry)
@@ -279,12 +288,10 @@ def stack_transitions(time, layer, n_layers):
     time = np.asarray(time, float)
     layer = np.rint(np.asarray(layer, float)).astype(int)
 
-    def first(mask, start=0):
-        idx = np.flatnonzero(mask[start:])
-        return None if idx.size == 0 else int(idx[0]) + start
+    first = _first_index
 
     def mid(i):
-        return math.nan if i is None else (float(time[i]) if i == 0 else 0.5 * float(time[i - 1] + time[i]))
+        return _mid_time(time, i)
 
     i_in = [first(layer == k) for k in range(1, n_layers + 1)]
     leave = [None if i is None else first(layer != k, i) for k, i in zip(range(1, n_layers + 1), i_in)]
