@@ -262,6 +262,18 @@ def _add_limits(p) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except BrokenPipeError:
+        # `drillcosim list | head`: the reader left; end quietly, as Unix tools do
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``drillcosim`` argument parser (the docs' command lines are checked against it)."""
     p = argparse.ArgumentParser(prog="drillcosim", description="Co-simulation of drilling feed drives: "
                                 "plant FMUs + Python observers/controllers, configured by scenario files.")
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
@@ -332,14 +344,7 @@ def main(argv: list[str] | None = None) -> int:
                                            "the table in docs/conformance.md")
     c.add_argument("--no-write", action="store_true", help="print the table only")
     c.set_defaults(func=cmd_conformance)
-    args = p.parse_args(argv)
-    try:
-        return args.func(args)
-    except BrokenPipeError:
-        # `drillcosim list | head`: the reader left; end quietly, as Unix tools do
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
-        return 0
+    return p
 
 
 def _version() -> str:

@@ -61,3 +61,72 @@ def test_list_into_a_closed_pipe_is_quiet():
     exe = Path(sys.executable).parent / "drillcosim"
     p = subprocess.run(f"'{exe}' list | head -1", shell=True, cwd=REPO, capture_output=True, text=True)
     assert p.returncode == 0 and p.stderr == "" and len(p.stdout.splitlines()) == 1
+
+
+def _doc_command_lines() -> list[tuple[str, str]]:
+    """``(file, command)`` of every drillcosim line in a code block (fenced or indented) of
+    README.md and docs/ (continuation lines joined, comments dropped)."""
+    out = []
+    for md in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]:
+        block, pending = False, ""
+        for line in md.read_text().splitlines():
+            if line.startswith("```"):
+                block, pending = not block, ""
+                continue
+            indented = line.startswith("    ") and (pending or line.strip().startswith("drillcosim"))
+            if not block and not indented:          # fenced blocks, and indented code blocks
+                pending = ""
+                continue
+            text = (pending + " " + line.strip()) if pending else line.strip()
+            text = text.removeprefix("$ ")
+            if text.endswith("\\"):
+                pending = text[:-1].strip()
+                continue
+            pending = ""
+            words = text.split("  #")[0].split()
+            if words and words[0].endswith("drillcosim") and "/" not in words[0].replace(".venv/bin/", ""):
+                out.append((md.name, " ".join(words)))
+    return out
+
+
+DOC_COMMANDS = _doc_command_lines()
+
+
+def test_docs_have_commands():
+    assert {f for f, _ in DOC_COMMANDS} >= {"README.md", "bring_your_own_fmu.md", "commissioning.md", "faults.md"}
+
+
+@pytest.mark.parametrize("where,cmd", DOC_COMMANDS, ids=[f"{f}:{c[:60]}" for f, c in DOC_COMMANDS])
+def test_every_documented_command_parses_and_names_existing_files(where, cmd):
+    """All documented drillcosim lines, the long runs too, as written: the CLI accepts the
+    subcommand and its options, and the scenario, binding and sweep files they name exist
+    (what they write under results/, and placeholders in capitals, excepted)."""
+    from cosim.cli import build_parser
+    from cosim.paths import scenario_path
+    words = shlex.split(cmd)[1:]
+    if not words or words[0] == "--version":
+        return
+    if any(w.isupper() or w.startswith("ADDRESS") for w in words):        # SCENARIO, SWEEP.toml: placeholders
+        return
+    try:
+        build_parser().parse_args(words)
+    except SystemExit as e:
+        pytest.fail(f"{where}: `{cmd}` is refused by the CLI (exit {e.code})")
+    for w in words[1:]:
+        if w.endswith(".toml") and not w.startswith("results/"):
+            assert scenario_path(w).exists() or (REPO / w).exists(), f"{where}: `{cmd}` names {w}, which does not exist"
+
+
+def test_documented_python_modules_exist():
+    """``python -m <module>`` lines of README.md and docs/ name modules that exist (a moved
+    module leaves no stale command behind)."""
+    import importlib.util
+    import re
+    missing = []
+    for md in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]:
+        for mod in re.findall(r"python -m ([A-Za-z_][\w.]*)", md.read_text()):
+            if mod in ("pytest", "pip", "venv"):
+                continue
+            if importlib.util.find_spec(mod) is None:
+                missing.append(f"{md.name}: python -m {mod}")
+    assert not missing, missing
