@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import copy
 import os
-import tomllib
+from cosim.scenario import tomllib   # tomllib, or tomli on Python 3.10
 
 import pytest
 from hypothesis import HealthCheck, given, settings

@@ -152,7 +152,7 @@ def test_observer_and_controller_take_the_calibration_file():
 
 def test_no_block_reads_the_dynamometer():
     """Calibration and control are sensorless: only scores / plots see F_dyn and the truth."""
-    import tomllib
+    from cosim.scenario import tomllib   # tomllib, or tomli on Python 3.10
     for path in (CAL, FIG7, FIG4):
         raw = tomllib.loads(path.read_text())
         for c in raw["connections"]:

@@ -7,7 +7,7 @@ units), the recorded signals. ``run_scenario(FIG7, overrides=swap_overrides(...)
 """
 from __future__ import annotations
 
-import tomllib
+from cosim.scenario import tomllib   # tomllib, or tomli on Python 3.10
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
