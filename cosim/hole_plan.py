@@ -33,6 +33,12 @@ MAX_LAYERS = 4
 FAIL_ACTIONS = ("hold", "retract")
 PROCESS_KEYS = ("feed_rate", "spindle_speed", "orbital_speed")
 DETECTOR_TOLERANCE = 0.5e-3    # m, the detector's window half-width (InterfaceDetector tolerance)
+# Time in air before the entry window opens: the adaptive observer's start-up and the
+# approach's deceleration ring for about 2 s, and its ripple regressor needs a few orbits
+# (a 200-hole Monte Carlo with a fixed 0.6 mm approach found false entries 0.42-0.50 mm
+# above the surface: slow feeds, and 1 Hz orbits with a worn tool)
+OBSERVER_SETTLE_S = 3.0
+OBSERVER_SETTLE_ORBITS = 6.0
 
 HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "approach", "breakthrough",
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
@@ -61,7 +67,8 @@ class HolePlan:
                 raise error(f"hole.{k}", f"unknown key '{k}' (expected one of: {', '.join(sorted(HOLE_KEYS))})")
         self.surface = self._number(hole, "surface", required=True)
         self.gap_tolerance = self._number(hole, "gap_tolerance", 0.0, minimum=0.0)
-        self.approach = self._number(hole, "approach", 0.6e-3, positive=True)
+        # None: derived from the first layer's feed (trajectory())
+        self.approach = self._number(hole, "approach", None, positive=True) if "approach" in hole else None
         self.breakthrough = self._number(hole, "breakthrough", 0.3e-3, positive=True)
         self.stop_margin = self._number(hole, "stop_margin", 5.0, positive=True)
         self.match_tolerance = self._number(hole, "match_tolerance", 1.0e-3, positive=True)
@@ -159,14 +166,25 @@ class HolePlan:
 
     def trajectory(self, base: dict) -> dict:
         z_start = float(base.get("z_start", 0.0))
-        z_app = self.surface - self.approach
+        approach, wait = self.approach, 0.0
+        first = self.layer_process(0)
+        if approach is None:    # the entry window opens only once the observer has settled
+            settle = max(OBSERVER_SETTLE_S, OBSERVER_SETTLE_ORBITS * 60.0 / first["orbital_speed"])
+            approach = DETECTOR_TOLERANCE + settle * first["feed_rate"]
+            if approach > self.surface - z_start:     # not that much room: feed from the start,
+                approach = self.surface - z_start     # after a wait for the rest of the time
+                wait = settle - (approach - DETECTOR_TOLERANCE) / first["feed_rate"]
+        z_app = self.surface - approach
         if z_app < z_start:
             raise self.error("hole.approach", f"the feed would start at {z_app:g} m, before the trajectory's "
                                               f"z_start {z_start:g} m")
         # past the end of the exit window (detector tolerance), so that a missing exit is a
         # fail while the tool still feeds, not a hole that just ends
-        return {"z_approach_end": z_app, "feed_rate": self.layer_process(0)["feed_rate"],
-                "z_end": self.bottom() + DETECTOR_TOLERANCE + self.breakthrough}
+        out = {"z_approach_end": z_app, "feed_rate": first["feed_rate"],
+               "z_end": self.bottom() + DETECTOR_TOLERANCE + self.breakthrough}
+        if wait > 0:
+            out["t_start"] = float(base.get("t_start", 0.0)) + wait
+        return out
 
     def stop_time(self, traj: dict) -> float:
         """Time to the deepest point at the slowest feed the plan may command, approach

@@ -262,11 +262,12 @@ def test_slow_thinning_missed_by_paper_found_by_thinning_criterion():
 
 
 def test_non_finite_force_samples_are_skipped():
-    det = InterfaceDetector(N=10, N_min=5)
+    det = InterfaceDetector(N=20, N_min=5)
     det.reset(0.0)
-    for k in range(8):
+    for k in range(12):                # warm-up and N_min quiet samples: the entry test is armed
         det.step(0.02 * k, [1.0, 0.0])
-    y = det.step(0.16, [float("nan"), 0.0])
-    assert y[0] == 0 and det.n_buf == 8 and np.isfinite(det.buf[:8]).all()
-    y = det.step(0.18, [100.0, 0.0])   # a step after the gap is still seen
+    assert det.armed
+    y = det.step(0.24, [float("nan"), 0.0])
+    assert y[0] == 0 and det.n_buf == 12 and np.isfinite(det.buf[:12]).all()
+    y = det.step(0.26, [100.0, 0.0])   # a step after the gap is still seen
     assert y[0] == 1

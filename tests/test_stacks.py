@@ -62,15 +62,19 @@ def test_plan_derives_trajectory_detector_adaptation_stop_time():
     # deepest bottom: 3 x (3 + 0.35) mm + 2 gaps of 0.5 mm below the 1 mm surface, + the exit
     # window's 0.5 mm + 0.3 mm breakthrough (a missing exit is a fail before the feed ends)
     assert traj["z_end"] == pytest.approx(1e-3 + 3 * 3.35e-3 + 2 * 0.5e-3 + 0.5e-3 + 0.3e-3)
-    assert traj["z_approach_end"] == pytest.approx(0.4e-3) and traj["feed_rate"] == 2.0e-4
+    # the entry window opens after the observer settled (3 s = 6 orbits at 120 rpm): the feed
+    # would start 0.5 mm (tolerance) + 3 s x 0.2 mm/s above the 1 mm surface, below the
+    # trajectory's start: it starts there (0) after a 0.5 s wait
+    assert traj["z_approach_end"] == pytest.approx(0.0) and traj["feed_rate"] == 2.0e-4
+    assert traj["t_start"] == pytest.approx(0.5)
     assert det["thicknesses"] == [3e-3] * 3 and det["kc"] == [KC["cfrp"], KC["ti"], KC["cfrp"]]
     assert det["feed_per_rev"] == pytest.approx([6e-6, 9e-6, 6e-6])
     assert [s["flag"] for s in ad["stages"]] == [0, 2, 3]
     assert [s["name"] for s in ad["stages"]] == ["cfrp", "ti", "cfrp"]
     # fail-safe: CFRP's 6 um/rev at Ti's 1000 rpm = 6 mm/min, 60 rpm orbit: no material's set
     assert ad["fail_parameters"] == pytest.approx({"feed_rate": 1e-4, "spindle_speed": 1000.0, "orbital_speed": 60.0})
-    # stop: approach 0.4 mm at 2 mm/s + the whole travel at 6 mm/min + 5 s
-    assert sc.stop_time == pytest.approx(0.2 + (traj["z_end"] - 0.4e-3) / 1e-4 + 5.0)
+    # stop: the wait + the whole travel at 6 mm/min + 5 s
+    assert sc.stop_time == pytest.approx(0.5 + (traj["z_end"] - 0.0) / 1e-4 + 5.0)
     assert any(s[0] == "analysis.detector_scoring:score_stack" for s in sc.scores)
 
 
