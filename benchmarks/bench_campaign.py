@@ -34,7 +34,7 @@ def _pool_run(args):
 
 
 def main() -> dict:
-    from controllers import campaign_fang as cf
+    from analysis import campaign_fang as cf
     from cosim.campaign import run_campaign
     plan = cf.hole_plan(cf.select_holes(HOLES))
     runs = [p["overrides"] for p in plan]
