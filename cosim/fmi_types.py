@@ -208,6 +208,16 @@ def _check_supported(variables) -> None:
             raise CosimError(f"variable '{v.name}': {why}")
 
 
+def _float64_call(funcs, comp, fmi3: bool, variables: list, n: int, kind: str):
+    """The fast path when every variable is Float64: one raw ctypes Get/Set call bound to
+    preallocated value-reference and value arrays (``kind``: "Get" or "Set")."""
+    vrs = (c_uint * len(variables))(*[v.vr for v in variables])
+    buf = (c_double * n)()
+    name = f"fmi3{kind}Float64" if fmi3 else f"fmi2{kind}Real"
+    args = (comp, vrs, len(variables), buf) + ((n,) if fmi3 else ())
+    return functools.partial(funcs[name], *args), buf
+
+
 def typed_reader(fmu, fmi3: bool, variables: list):
     """``(read, buf)``: ``read()`` fills ``buf`` with the values of ``variables`` (in
     :func:`io_order`, array elements row-major) and returns the worst FMI status."""
@@ -216,11 +226,7 @@ def typed_reader(fmu, fmi3: bool, variables: list):
     groups = _groups(variables)
     n = sum(g[2] for g in groups)
     if all(t in ("Real", "Float64") for t, _g, _n in groups):
-        vrs = (c_uint * len(variables))(*[v.vr for v in variables])
-        buf = (c_double * n)()
-        name = "fmi3GetFloat64" if fmi3 else "fmi2GetReal"
-        args = (comp, vrs, len(variables), buf) + ((n,) if fmi3 else ())
-        return functools.partial(funcs[name], *args), buf
+        return _float64_call(funcs, comp, fmi3, variables, n, "Get")
     buf = [None] * n
     calls = []
     a = 0
@@ -282,11 +288,7 @@ def typed_writer(fmu, fmi3: bool, variables: list, on_error=None):
     groups = _groups(variables)
     n = sum(g[2] for g in groups)
     if all(t in ("Real", "Float64") for t, _g, _n in groups):
-        vrs = (c_uint * len(variables))(*[v.vr for v in variables])
-        buf = (c_double * n)()
-        name = "fmi3SetFloat64" if fmi3 else "fmi2SetReal"
-        args = (comp, vrs, len(variables), buf) + ((n,) if fmi3 else ())
-        return functools.partial(funcs[name], *args), buf
+        return _float64_call(funcs, comp, fmi3, variables, n, "Set")
     buf = [0.0] * n
     calls = []
     a = 0
