@@ -19,7 +19,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 SHARED_SOURCES = ["fglue.c", "cut.c"]
-SHARED_HEADERS = ["fglue.h", "cut.h"]
+SHARED_HEADERS = ["fglue.h", "cut.h", "stribeck.h"]
 FOREIGN = ("ForeignBallScrew", "ForeignZStage")
 
 __all__ = ["FOREIGN", "build", "build_all", "fmu_path"]

@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "cut.h"
+#include "stribeck.h"
 #include "fglue.h"
 
 /* Interface units: machine units (mA, mm, deg) by default. -DFOREIGN_SI_INTERFACE builds the
@@ -142,13 +143,7 @@ int fg_model_check(FgInst *c, const char *fn) {
 
 /* friction torque and its slope (for the linearly implicit speed update) */
 static double friction(const BS *s, double w, double *slope) {
-    double u = fabs(w) * s->ws_inv;
-    double e = u > 0.0 ? exp(-pow(u, s->sexp)) : 1.0;
-    double g = s->Tc + s->dTs * e;
-    double th = tanh(w * s->wreg_inv);
-    double dg = u > 0.0 ? -s->dTs * e * s->sexp * pow(u, s->sexp - 1.0) * s->ws_inv : 0.0;
-    *slope = dg * (w >= 0.0 ? 1.0 : -1.0) * th + g * (1.0 - th * th) * s->wreg_inv + s->b;
-    return g * th + s->b * w;
+    return stribeck_friction(w, s->Tc, s->dTs, s->ws_inv, s->sexp, s->wreg_inv, s->b, slope);
 }
 
 static void outputs(FgData *d) {

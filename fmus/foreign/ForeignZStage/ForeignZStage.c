@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "cut.h"
+#include "stribeck.h"
 #include "fglue.h"
 
 enum {
@@ -102,13 +103,7 @@ int fg_model_check(FgInst *c, const char *fn) {
 }
 
 static double friction(const ZS *s, double w, double *slope) {
-    double u = fabs(w) * s->vs_inv;
-    double e = u > 0.0 ? exp(-pow(u, s->sexp)) : 1.0;
-    double g = s->Fc0 + s->dFs * e;
-    double th = tanh(w * s->vreg_inv);
-    double dg = u > 0.0 ? -s->dFs * e * s->sexp * pow(u, s->sexp - 1.0) * s->vs_inv : 0.0;
-    *slope = dg * (w >= 0.0 ? 1.0 : -1.0) * th + g * (1.0 - th * th) * s->vreg_inv + s->c;
-    return g * th + s->c * w;
+    return stribeck_friction(w, s->Fc0, s->dFs, s->vs_inv, s->sexp, s->vreg_inv, s->c, slope);
 }
 
 static void outputs(FgData *d) {
