@@ -13,6 +13,7 @@ import contextlib
 import io
 import signal
 import sys
+import time
 from contextlib import nullcontext
 from pathlib import Path
 
@@ -67,10 +68,11 @@ def run_scenario(scenario, out_dir=None, overrides: dict | None = None, progress
     run stops at the end of its chunk. Both write everything and raise :class:`RunEnded`.
     A crash of an FMU kills this process: use :func:`cosim.supervisor.run_supervised`.
     """
+    started = time.perf_counter()
     sc = load(scenario, overrides)
     out = Path(out_dir) if out_dir is not None else default_out_dir(sc)
     with claim(out):
-        return run_in_folder(sc, out, progress, RunWatch(wall_timeout, max_steps), handle_signals)
+        return run_in_folder(sc, out, progress, RunWatch(wall_timeout, max_steps), handle_signals, started)
 
 
 def _base_summary(sc: Scenario, out: Path) -> dict:
@@ -80,8 +82,10 @@ def _base_summary(sc: Scenario, out: Path) -> dict:
 
 
 def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
-                  handle_signals: bool = True) -> Result:
-    """:func:`run_scenario` on a claimed (locked, cleared) folder ``out``."""
+                  handle_signals: bool = True, started: float | None = None) -> Result:
+    """:func:`run_scenario` on a claimed (locked, cleared) folder ``out``; ``started``: the
+    ``time.perf_counter()`` before the scenario was loaded (for summary.json's ``timing_s``)."""
+    t_run = time.perf_counter()
     recorder = Recorder(sc.record_signals, sc.decimation, out)
     summary = _base_summary(sc, out)
     signals = watch.signals_handled() if handle_signals else nullcontext()
@@ -103,7 +107,9 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
         e.result = result
         raise
     watch.heartbeat.finishing()
+    t_sim = time.perf_counter()
     result = recorder.finish()
+    t_written = time.perf_counter()
     summary.update(info.as_dict())
     summary["rows_recorded"] = len(result.time)
     summary["plants"] = {name: {"binding": b.file, "kind": b.kind, "roles": {r: x.variable for r, x in b.bound.items()},
@@ -123,6 +129,11 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
                        f"results so far in {out}", info.status, result, watch.signum)
 
     problems = _score_and_plot(sc, result, out, summary, echo=progress)
+    # where a run's wall time went: start-up and writing are what a campaign pays per run
+    summary["timing_s"] = {"load": None if started is None else round(t_run - started, 4),
+                           "simulate": round(t_sim - t_run, 4), "write_data": round(t_written - t_sim, 4),
+                           "scores_plots": round(time.perf_counter() - t_written, 4),
+                           "process_cpu": round(time.process_time(), 3)}
     for scores in summary["scores"].values():   # a score may judge the run: a hole not finished (cosim/hole_plan.py)
         if isinstance(scores, dict) and scores.get("status") == "incomplete":
             summary.update(status="incomplete", error=scores.get("status_reason", "incomplete"))

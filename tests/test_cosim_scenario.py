@@ -173,6 +173,9 @@ def test_full_run_writes_csv_mat_summary_png(scenario_file, tmp_path):
     assert summary["scenario"] == "mass_test" and summary["scores"]["final_position_score"]["final_position_mm"] == pytest.approx(
         r["mass.x"][-1] * 1000)
     assert summary["steps"] == len(r.time) - 1 and summary["wall_time_s"] > 0
+    timing = summary["timing_s"]          # where the wall time went, phases in order
+    assert set(timing) == {"load", "simulate", "write_data", "scores_plots", "process_cpu"}
+    assert all(v >= 0 for v in timing.values()) and timing["simulate"] >= summary["wall_time_s"]
     assert {p.name for p in out.glob("*.png")} == {"motion.png", "custom.png"}
     # the tunable-gain event at 0.05 s halves the acceleration
     v = r["mass.v"]

@@ -66,3 +66,14 @@ def test_sweep_errors_name_the_key(raw, key):
     with pytest.raises(ScenarioError) as e:
         expand(raw, "s.toml")
     assert e.value.file == "s.toml" and e.value.key == key
+
+
+def test_fork_server_preloads_blocks_scores_and_plots_of_a_campaign_scenario():
+    """A campaign's runs come from a fork server: what they import (blocks, score and plot
+    modules, pyplot when the scenario plots) is imported there once, not per run."""
+    from cosim.supervisor import _modules_of
+    raw = {"blocks": {"a": {"class": "controllers.trajectory:FeedTrajectory"}, "b": {"settings": {}}},
+           "scores": [{"function": "analysis.observer_scoring:fang_fig7"}],
+           "plots": [{"function": "analysis.observer_scoring:fang_fig7"}, {"y": ["x"]}]}
+    assert _modules_of(raw) == ["controllers.trajectory", "analysis.observer_scoring", "matplotlib.pyplot"]
+    assert _modules_of({"blocks": {}}) == []
