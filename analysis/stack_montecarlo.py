@@ -13,11 +13,11 @@ nominal stack and processes) and draws around it:
 * tool wear: 0 .. 40 holes; noise seed.
 
 The plan itself (the nominal stack) is not changed: the detector must find the drawn
-stack from the plan alone. Each hole runs in-process (:func:`cosim.run_scenario`) in a
-process pool; the result is one row per hole (``score_stack``) and, per stack type, the
-worst and 95th-percentile |depth error| of entry, interfaces and exit, the counts of
-missed / false events and of false fails, against the bars (0 / 0 / 0; entry <= 0.094 mm,
-every interface <= 0.073 mm, exit <= 0.2 mm).
+stack from the plan alone. The holes run as one campaign (:mod:`cosim.campaign`: Dask,
+each hole supervised, so a crashing FMU costs one row); the result is one row per hole
+(``score_stack``) and, per stack type, the worst and 95th-percentile |depth error| of
+entry, interfaces and exit, the counts of missed / false events and of false fails,
+against the bars (0 / 0 / 0; entry <= 0.094 mm, every interface <= 0.073 mm, exit <= 0.2 mm).
 
     python -m analysis.stack_montecarlo --holes 200 --workers 2     # the table + figure in docs/
 """
@@ -29,7 +29,6 @@ import math
 import os
 import sys
 import tempfile
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -74,20 +73,15 @@ def draw_hole(stack_type: str, rng: np.random.Generator, feed_range=RANGES["feed
     return ov
 
 
-def run_hole(job) -> dict:
-    """One hole: (index, stack type, overrides) -> its row."""
-    i, stack_type, ov = job
-    from cosim import run_scenario
-    with tempfile.TemporaryDirectory(prefix=f"stack_mc_{i:03d}_") as out:
-        try:
-            res = run_scenario(STACKS / f"{stack_type}.toml", out_dir=out, overrides=ov, progress=False)
-            s = res.summary
-        except Exception as e:          # a run that fails is a row too, never a silent gap
-            return {"hole": i, "type": stack_type, "status": "failed", "error": f"{type(e).__name__}: {e}",
-                    "overrides": ov}
-    sc = s["scores"]["score_stack"]
-    row = {"hole": i, "type": stack_type, "status": s.get("status"), "overrides": ov,
+def row_of(hole: int, stack_type: str, summary: dict) -> dict:
+    """One hole's row from its run's summary: status, overrides and the ``score_stack``
+    numbers (a run that failed or crashed is a row too, never a silent gap)."""
+    sc = (summary.get("scores") or {}).get("score_stack") or {}
+    row = {"hole": hole, "type": stack_type, "status": summary.get("status"),
+           "overrides": summary.get("overrides"),
            **{k: v for k, v in sc.items() if not isinstance(v, (dict, list))}}
+    if summary.get("status") not in ("completed", "stopped", "incomplete"):
+        row["error"] = summary.get("error") or summary.get("stop_reason", "")
     return row
 
 
@@ -96,16 +90,16 @@ def draw_campaign(n: int, seed: int = 12, types=TYPES, feed_range=RANGES["feed_m
     return [(i, types[i % len(types)], draw_hole(types[i % len(types)], rng, feed_range)) for i in range(n)]
 
 
-def run_campaign(jobs, workers: int = 2, progress: bool = True) -> list[dict]:
-    rows = []
-    with ProcessPoolExecutor(max_workers=max(1, workers)) as pool:
-        for row in pool.map(run_hole, jobs):
-            rows.append(row)
-            if progress:
-                bad = row.get("missed_events", 1) or row.get("false_events", 1) or row.get("false_fail", 1)
-                print(f"hole {row['hole']:3d} {row['type']:13s} {row['status']:10s}"
-                      f"{' CHECK' if bad else ''}", file=sys.stderr, flush=True)
-    return rows
+def run_campaign(jobs, workers: int = 2, progress: bool = True, out_dir=None, scheduler: str | None = None) -> list[dict]:
+    """Run the drawn holes as one campaign (:func:`cosim.campaign.run_campaign`: Dask, each
+    hole supervised, a crash is a ``crashed`` row); only summaries, scores and figures are
+    kept of good holes (``out_dir``, default a temporary folder)."""
+    from cosim.campaign import run_campaign as campaign
+    scenarios = [STACKS / f"{stack_type}.toml" for _i, stack_type, _ov in jobs]
+    with tempfile.TemporaryDirectory(prefix="stack_mc_") as tmp:
+        summaries = campaign(scenarios, [ov for _i, _t, ov in jobs], out_dir=out_dir or tmp, workers=workers,
+                             progress=progress, scheduler=scheduler, keep_data=False)
+    return [row_of(i, stack_type, s) for (i, stack_type, _ov), s in zip(jobs, summaries)]
 
 
 def _kind(key: str) -> str | None:
@@ -193,13 +187,13 @@ def main(argv=None) -> int:
     ap.add_argument("--holes", type=int, default=200)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=12)
-    ap.add_argument("--out", default="results/stack_montecarlo", help="rows.json and summary.json go here")
+    ap.add_argument("--out", default="results/stack_montecarlo", help="rows.json, summary.json and runs/ go here")
+    ap.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (default: a local cluster)")
     ap.add_argument("--docs", action="store_true", help="rewrite the table and figure of docs/stacks.md")
     a = ap.parse_args(argv)
-    rows = run_campaign(draw_campaign(a.holes, a.seed), a.workers)
-    summary = summarize(rows)
     out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
+    rows = run_campaign(draw_campaign(a.holes, a.seed), a.workers, out_dir=out / "runs", scheduler=a.scheduler)
+    summary = summarize(rows)
     (out / "rows.json").write_text(json.dumps(rows, indent=1, default=str))
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
     print(table_markdown(summary))

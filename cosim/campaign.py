@@ -28,11 +28,19 @@ from .outputs import jsonable, write_json_atomic
 # summary keys that describe the run rather than score it (left out of campaign.csv's scores)
 _RUN_KEYS = {"scenario", "file", "description", "step_size", "overrides", "out_dir", "files", "run",
              "events_fired", "step_rejection", "traceback", "stop_time", "rows_recorded", "signal_number",
-             "campaign_wall_time_s"}
+             "campaign_wall_time_s", "data_removed", "timing_s"}
 
 
-def _one_run(path: str, out_dir: str, overrides: dict, index: int, wall_timeout=None, max_steps=None) -> dict:
-    """A Dask task: one supervised run; never raises (its summary says what happened)."""
+# a run's data files, removed after a good run when a campaign keeps only its summaries
+DATA_FILES = ("data.csv", "data.mat", "data.columns.json")
+GOOD = ("completed", "stopped")
+
+
+def _one_run(path: str, out_dir: str, overrides: dict, index: int, wall_timeout=None, max_steps=None,
+             keep_data: bool = True) -> dict:
+    """A Dask task: one supervised run; never raises (its summary says what happened).
+    ``keep_data=False``: a good run's data files are deleted once it is scored (its summary,
+    scores and figures stay); a run that went wrong keeps them, they are the evidence."""
     from .errors import CosimError, SimulationError
     from .runner import RunEnded, run_scenario
     from .supervisor import run_supervised
@@ -58,6 +66,10 @@ def _one_run(path: str, out_dir: str, overrides: dict, index: int, wall_timeout=
     except (CosimError, OSError) as e:
         summary = {"status": "failed", "error": f"{type(e).__name__}: {e}"}
     summary.update(run=index, overrides=overrides, out_dir=out_dir)
+    if not keep_data and summary.get("status") in GOOD:
+        for name in DATA_FILES:
+            (out / name).unlink(missing_ok=True)
+        summary["data_removed"] = list(DATA_FILES)
     return summary
 
 
@@ -85,24 +97,33 @@ def connect(scheduler: str | None = None, workers: int | None = None):
 
 def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: int | None = None,
                  progress: bool = True, scheduler: str | None = None, wall_timeout: float | None = None,
-                 max_steps: int | None = None, retries: int = 0, client=None) -> list[dict]:
+                 max_steps: int | None = None, retries: int = 0, client=None,
+                 keep_data: bool = True) -> list[dict]:
     """Run ``scenario`` (a path) once per overrides dict; summaries in input order.
 
+    ``scenario`` may also be a list of paths, one per run (a campaign over several stacks).
     ``workers``: processes of the local cluster (default: cores); ``scheduler``: address of
     an existing cluster instead; ``client``: an existing :class:`distributed.Client`.
     ``wall_timeout`` [s] / ``max_steps``: limits per run; ``retries``: Dask retries of a
-    task whose worker died (0: reported ``crashed`` at once).
+    task whose worker died (0: reported ``crashed`` at once). ``keep_data=False`` deletes a
+    good run's data.csv/data.mat after scoring (summaries, scores and figures stay).
     """
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
+    from .errors import CosimError
     from .scenario import load_scenario
-    path = str(Path(scenario).resolve())
-    name = load_scenario(path).name                          # validates once, up front
-    out = Path(out_dir) if out_dir is not None else Path("results") / f"{name}_campaign"
+    many = isinstance(scenario, (list, tuple))
+    if many and len(scenario) != len(overrides_list):
+        raise CosimError(f"run_campaign: {len(scenario)} scenarios for {len(overrides_list)} runs; "
+                         f"expected one scenario, or one per run")
+    paths = [str(Path(p).resolve()) for p in (scenario if many else [scenario] * len(overrides_list))]
+    distinct = list(dict.fromkeys(paths)) or ([] if many else [str(Path(scenario).resolve())])
+    names = [load_scenario(p).name for p in distinct]        # validates each once, up front
+    out = Path(out_dir) if out_dir is not None else Path("results") / f"{names[0] if names else 'campaign'}_campaign"
     out.mkdir(parents=True, exist_ok=True)
     jobs = [(path, str((out / f"run_{i:03d}").resolve()), dict(ovr or {}), i)
-            for i, ovr in enumerate(overrides_list)]
+            for i, (path, ovr) in enumerate(zip(paths, overrides_list))]
     own = client is None
     if own:
         client = connect(scheduler, max(1, min(workers or os.cpu_count() or 1, len(jobs) or 1)))
@@ -113,8 +134,9 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
         from tqdm import tqdm
         bar = tqdm(total=len(jobs), unit="run", desc="campaign", file=sys.stderr)
     try:
-        futures = [client.submit(_one_run, *job, wall_timeout, max_steps, key=f"drillcosim-run-{i:03d}-{os.getpid()}",
-                                 pure=False, retries=retries) for i, job in enumerate(jobs)]
+        futures = [client.submit(_one_run, *job, wall_timeout, max_steps, keep_data,
+                                 key=f"drillcosim-run-{i:03d}-{os.getpid()}", pure=False, retries=retries)
+                   for i, job in enumerate(jobs)]
         index = {f.key: i for i, f in enumerate(futures)}
         for fut in as_completed(futures):
             i = index[fut.key]

@@ -85,7 +85,8 @@ def cmd_campaign(args) -> int:
         base = _parse_set(args.set)
         summaries = run_campaign(path, [{**base, **r} for r in runs], out_dir=args.out, workers=args.workers,
                                  progress=not args.quiet, scheduler=args.scheduler,
-                                 wall_timeout=args.timeout, max_steps=args.max_steps)
+                                 wall_timeout=args.timeout, max_steps=args.max_steps,
+                                 keep_data=not args.drop_data)
     except (CosimError, ValueError, OSError) as e:
         print(f"drillcosim: {e}", file=sys.stderr)
         return 1
@@ -296,6 +297,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://10.0.0.5:8786")
     c.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override for every run")
     c.add_argument("--quiet", action="store_true", help="no progress bar")
+    c.add_argument("--drop-data", action="store_true",
+                   help="delete data.csv/data.mat of each good run once scored (summaries, scores and figures "
+                        "stay; a run that failed or crashed keeps its data)")
     _add_limits(c)
     c.set_defaults(func=cmd_campaign)
     li = sub.add_parser("list", help="list the scenarios with their description")

@@ -9,7 +9,7 @@ import pytest
 
 from cosim import cli
 from cosim.campaign import run_campaign
-from cosim.errors import ScenarioError
+from cosim.errors import CosimError, ScenarioError
 from cosim.sweep import expand, load_sweep
 from test_faults_run import fault_fmu, scenario  # noqa: F401 - the fixture and the scenario writer
 
@@ -18,8 +18,12 @@ def test_campaign_one_crash_five_completed_on_two_local_workers(tmp_path, fault_
     path = scenario(tmp_path, fault_fmu("segfault"), fail=-1, stop=0.2)
     runs = [{"fmus.mass.parameters.m": 1.0 + i} for i in range(6)]
     runs[3]["fmus.mass.parameters.fail_time"] = 0.05             # this one segfaults at 0.05 s
-    summaries = run_campaign(path, runs, out_dir=tmp_path / "camp", workers=2, progress=False)
+    summaries = run_campaign(path, runs, out_dir=tmp_path / "camp", workers=2, progress=False, keep_data=False)
     assert [s["run"] for s in summaries] == list(range(6))
+    # summaries only of the good runs; the crashed one keeps its rows as evidence
+    assert not (tmp_path / "camp" / "run_000" / "data.csv").exists()
+    assert (tmp_path / "camp" / "run_000" / "summary.json").exists()
+    assert (tmp_path / "camp" / "run_003" / "data.csv").exists()
     statuses = [s["status"] for s in summaries]
     assert statuses == ["completed"] * 3 + ["crashed"] + ["completed"] * 2
     crashed = summaries[3]
@@ -77,3 +81,9 @@ def test_fork_server_preloads_blocks_scores_and_plots_of_a_campaign_scenario():
            "plots": [{"function": "analysis.observer_scoring:fang_fig7"}, {"y": ["x"]}]}
     assert _modules_of(raw) == ["controllers.trajectory", "analysis.observer_scoring", "matplotlib.pyplot"]
     assert _modules_of({"blocks": {}}) == []
+
+
+def test_campaign_needs_one_scenario_or_one_per_run(tmp_path, mass_fmu):
+    path = scenario(tmp_path, mass_fmu, fail=-1, stop=0.05)
+    with pytest.raises(CosimError, match="2 scenarios for 3 runs"):
+        run_campaign([path, path], [{}, {}, {}], out_dir=tmp_path / "c", progress=False)
