@@ -110,6 +110,7 @@ FREQUENCIES = (30.0, 40.0, 60.0, 80.0, 110.0, 140.0, 170.0, 210.0, 260.0, 310.0,
 T_EXCITE, SETTLE, WINDOW = 1.0, 0.03, 0.1       # s
 AMPLITUDE = 3.0                                  # N of thrust command
 SYS_LAG = 0.05                                   # stated tolerance of the identified current lag
+MAX_CONDITION = 1e4                               # of the column-normalised regression
 MAX_REL_STD = 0.3                                # stated confidence limit of k and d (1 sigma)
 TEMPLATE = Path(__file__).resolve().parent.parent / "scenarios" / "commissioning" / "contact_linear_stage.toml"
 
@@ -255,12 +256,12 @@ def identify_contact(result, steps, *, force_constant: float, friction, current_
     mode_damping = d + b_f + (k * alpha / (wc2 + alpha ** 2) if alpha > 0 else 0.0)
     d_spread = rel["damping"] * abs(d)
     ok = (k > 0 and d > 0 and fit["mass"] > 0 and rel["stiffness"] <= MAX_REL_STD
-          and d_spread <= MAX_REL_STD * abs(mode_damping))
+          and d_spread <= MAX_REL_STD * abs(mode_damping) and fit["condition_number"] <= MAX_CONDITION)
     if not ok:
         warnings.append(f"contact fit not trustworthy: k {k:.3g} N/m (+-{100 * rel['stiffness']:.0f} %), d {d:.3g} "
                         f"+- {d_spread:.3g} N s/m against {mode_damping:.3g} N s/m of damping of the contact mode, "
-                        f"residual {100 * fit['relative_residual']:.0f} % (limits: +-{100 * MAX_REL_STD:.0f} % of k "
-                        f"and of that damping; k, d, mass > 0): the margin is not checked with it")
+                        f"residual {100 * fit['relative_residual']:.0f} %, condition number {fit['condition_number']:.3g} (limits: +-{100 * MAX_REL_STD:.0f} % of k "
+                        f"and of that damping, condition {MAX_CONDITION:g}; k, d, mass > 0): the margin is not checked with it")
     return {"stiffness": k, "damping": d, "process_slope": k / alpha if alpha > 0 else math.inf,
             "source": "contact experiment", "working_point": {"thrust": float(np.mean(F_hat)), "feed": feed,
                                                               "friction_slope": b_f},

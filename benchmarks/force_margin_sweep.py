@@ -9,10 +9,10 @@ an oscillation of the true thrust above 1 N).
 The prediction gets what commissioning gives (mass, force constant, friction slope at the
 feed, current lag from i_ref/i_meas) and the contact as stated (the swept k, d); the
 process slope is ``exponent * F_cmd / feed`` with the stated cutting-law exponent (or the
-contact experiment's, ``--identified``: then k, d and the slope all come from the
-contact experiment run at that contact). Prints one row per point: predicted Kf, the
-simulated bracket (stable at / limit cycle at), the error of the prediction against the
-bracket's geometric middle.
+contact experiment's with ``--identified``: then k, d and the slope all come from the
+contact experiment run on the plant at that contact, nothing stated). Prints one row per
+point: predicted Kf, the simulated bracket (stable at / limit cycle at), the error of the
+prediction against the bracket's geometric middle. ``--com`` goes with one ``--plant``.
 """
 from __future__ import annotations
 
@@ -86,7 +86,22 @@ def predicted(doc: dict, plant: Plant, k_um: float, d: float) -> float | None:
     return critical(loop, "Kf", 0.02, 8.0)
 
 
-def sweep(name: str, com: Path | None, steps: int = 4) -> list[dict]:
+def predicted_identified(doc: dict, sc: Path, tmp: Path) -> tuple[float | None, str]:
+    """Critical Kf from the contact experiment run on the plant of ``sc`` (nothing stated)."""
+    from analysis.commissioning import read_target
+    from analysis.contact_identification import contact_experiment
+    warnings = []
+    c = contact_experiment(read_target(sc), sc, doc, tmp / f"contact_{sc.stem}", warnings)
+    if "stiffness" not in c or not c["confidence"]["ok"]:
+        return None, "; ".join(warnings)
+    loop = loop_from_commissioning({**doc, "contact": c}, feed=c["working_point"]["feed"])
+    rel = c["confidence"]["relative_std"]
+    return (critical(loop, "Kf", 0.02, 8.0),
+            f"k {c['stiffness'] / 1e6:.3g} N/um, d {c['damping']:.3g} (+-{100 * rel['damping']:.0f} %) N s/m, "
+            f"dF/dv {c['process_slope']:.4g} N s/m")
+
+
+def sweep(name: str, com: Path | None, steps: int = 4, identified: bool = False) -> list[dict]:
     plant = PLANTS[name]
     rows = []
     with tempfile.TemporaryDirectory() as t:
@@ -97,13 +112,18 @@ def sweep(name: str, com: Path | None, steps: int = 4) -> list[dict]:
             com = tmp / "com" / "commissioning.json"
         doc = json.loads(Path(com).read_text())
         for k, d in plant.points:
-            kp = predicted(doc, plant, k, d)
-            lo, hi = simulated_boundary(fig7(plant, Path(com).resolve(), k, d, tmp), kp, tmp, steps)
+            sc = fig7(plant, Path(com).resolve(), k, d, tmp)
+            kp, note = predicted_identified(doc, sc, tmp) if identified else (predicted(doc, plant, k, d), "")
+            if kp is None:
+                print(f"{name:>8} {k:>6g} {d:>7g}  no prediction: {note}", flush=True)
+                continue
+            lo, hi = simulated_boundary(sc, kp, tmp, steps)
             mid = (lo * hi) ** 0.5
             rows.append({"plant": name, "k_N_per_um": k, "d_Ns_per_m": d, "Kf_predicted": kp, "stable_at": lo,
                          "cycle_at": hi, "error_pct": 100 * (kp - mid) / mid})
             r = rows[-1]
-            print(f"{name:>8} {k:>6g} {d:>7g} {kp:>10.3f} {lo:>7.3f} / {hi:<7.3f} {r['error_pct']:>+7.1f} %", flush=True)
+            print(f"{name:>8} {k:>6g} {d:>7g} {kp:>10.3f} {lo:>7.3f} / {hi:<7.3f} {r['error_pct']:>+7.1f} %  {note}",
+                  flush=True)
     return rows
 
 
@@ -112,10 +132,12 @@ def main(argv=None) -> None:
     ap.add_argument("--plant", choices=sorted(PLANTS), action="append")
     ap.add_argument("--com", type=Path, help="commissioning.json to use (default: commission the plant here)")
     ap.add_argument("--steps", type=int, default=4, help="bisection steps after the bracket (default 4)")
+    ap.add_argument("--identified", action="store_true",
+                    help="predict from the contact experiment run at each point instead of the stated k, d, slope")
     a = ap.parse_args(argv)
     print(f"{'plant':>8} {'k N/um':>6} {'d N s/m':>7} {'predicted':>10} {'simulated stable / cycle':>17} {'error':>8}")
     for name in a.plant or sorted(PLANTS):
-        sweep(name, a.com, a.steps)
+        sweep(name, a.com, a.steps, a.identified)
 
 
 if __name__ == "__main__":

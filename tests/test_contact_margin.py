@@ -172,3 +172,20 @@ def test_margin_boundary_matches_simulation_over_contacts(commissioned, tmp_path
                                    Kc_v=process_slope(50.0, 1e-3, PLANTS[name][1]))
     K_crit = critical(loop, "Kf", 0.02, 8.0)
     _brackets(_fig7(name, out / "commissioning.json", tmp_path, k_um * 1e6, d), K_crit, tmp_path)
+
+
+@pytest.mark.long
+def test_contact_experiment_that_misses_the_workpiece_warns_and_computes_no_margin(tmp_path, monkeypatch):
+    """A workpiece out of reach: the file gets the reason instead of a contact, the report and
+    summary.json say it, and no margin is computed from nothing."""
+    import analysis.contact_identification as ci
+    from analysis.commissioning import commission, report_table
+    far = tmp_path / "contact_far.toml"
+    far.write_text(f'[scenario]\nextends = "{ci.TEMPLATE}"\n[fmus.drive.plant_parameters]\nsurface = 0.05\n')
+    monkeypatch.setattr(ci, "TEMPLATE", far)
+    doc = commission(ROOT / PLANTS["foreign"][0], tmp_path / "com", print_table=False)
+    assert "not in contact" in doc["contact"]["error"] and doc["force_loop"] is None
+    summary = json.loads((tmp_path / "com" / "summary.json").read_text())
+    assert any("not in contact" in w for w in summary["warnings"])
+    assert any("no margin computed" in w for w in summary["warnings"])
+    assert "not identified" in report_table(doc)
