@@ -261,7 +261,7 @@ def force_loop_margin(result, commissioning_file: str, contact_stiffness: float 
     ``min_gain_margin_db`` (or unstable) the score carries a ``warning`` -- in summary.json
     with the run."""
     from analysis.calibration import _scenario_raw
-    from controllers.calibration import load_commissioning  # noqa: F401  (format check below)
+    from controllers.calibration import load_commissioning
 
     raw = _scenario_raw(result)
     blocks = raw.get("blocks", {})
