@@ -11,8 +11,9 @@ then give the data sheet), it runs on the plant, through its roles only:
    (``scenarios/keio_thrust_constant_calibration.toml`` re-bound, the observer on the
    air-cut friction): ``Kt_n_cal``, and every effort identified through the data-sheet
    constant rescaled to it;
-3. the force-loop check (:mod:`analysis.force_margin`) at the working point when a contact
-   stiffness/damping is known (given, or the data sheet's).
+3. for a linear stage, the contact (given, or the contact experiment's:
+   :mod:`analysis.contact_identification`) and the force-loop check
+   (:mod:`analysis.force_margin`) at the working point.
 
 It writes ``commissioning.json`` (one set of nominal parameters per drive, the friction
 model, ripple, calibration, warnings), ``commissioning.png`` and ``summary.json``. Observers
@@ -258,21 +259,15 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
     doc = {"format": FORMAT, "plant": str(target["binding_path"]), "target": str(Path(target_path).resolve()),
            "nominal": nominal, "friction": fm.to_dict(), "calibration": cal, "inertia_fit": inertia,
            "contact": None, "force_loop": None, "warnings": warnings}
-    if kind == "linear_stage" and contact_stiffness:
-        from analysis.force_margin import ForceLoop, margins
-        loop = ForceLoop(mass=mass, force_constant=kt, contact_stiffness=contact_stiffness,
-                         contact_damping=contact_damping or 0.0,
-                         friction_slope=fm.slope(1e-3))
-        m = margins(loop)
-        doc["contact"] = {"stiffness": contact_stiffness, "damping": contact_damping, "source": "given"}
-        doc["force_loop"] = m
-        if not m["stable"] or m["gain_margin_db"] < 6.0:
-            warnings.append(f"force loop: gain margin {m['gain_margin_db']:.1f} dB (< 6 dB) with Kf {loop.Kf} and "
-                            f"g_thrust {loop.g_thrust} rad/s at the given contact: use analysis.force_margin.tune")
+    from analysis.contact_identification import current_loop_entry
+    doc["current_loop"] = current_loop_entry(res, warnings)
+    if kind == "linear_stage":
+        from analysis.contact_identification import contact_and_margin
+        contact_and_margin(doc, target, target_path, out, contact_stiffness, contact_damping)
     write_json_atomic(out / "commissioning.json", doc)
     report_figure(res, fm, target, out)
     summary = {"commissioning_file": str(out / "commissioning.json"), "kind": kind, "nominal": nominal,
-               "friction_model": fm.info.get("selection"), "warnings": warnings}
+               "friction_model": fm.info.get("selection"), "contact": doc["contact"], "warnings": warnings}
     write_json_atomic(out / "summary.json", summary)
     if print_table:
         print(report_table(doc))
@@ -302,6 +297,8 @@ def report_table(doc: dict) -> str:
     if doc.get("calibration"):
         c = doc["calibration"]
         rows.append(("calibration residual", f"{c.get('residual_rms_N', float('nan')):.3g}", "", "N"))
+    from analysis.contact_identification import contact_rows
+    rows += contact_rows(doc)
     if doc.get("force_loop"):
         m = doc["force_loop"]
         rows += [("force loop gain margin", f"{m['gain_margin_db']:.3g}", "", "dB"),

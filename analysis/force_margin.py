@@ -4,12 +4,16 @@ The loop, sample by sample as the blocks run it (period ``Ts``), linearised at t
 point (steady cut at feed ``v0`` and thrust ``F0``):
 
 * stage (continuous, exact ZOH over one sample): ``m z'' = K i_a - F_c - b_f v``,
-  current lag ``tau_cur i_a' = i_ref - i_a``; ``b_f`` the slope of the true friction at the
-  feed (negative inside a Stribeck curve);
+  current lag ``tau_cur i_a' = i_ref - i_a`` (the plant's, identified from ``i_ref`` and
+  ``i_meas``: at 400 Hz 0.12 ms is 17 deg of phase); ``b_f`` the slope of the true friction
+  at the feed (negative inside a Stribeck curve);
 * contact and process: ``F_c = k e + d (v - c')`` with the penetration ``e = z - c`` and the
   cut front ``c' = alpha e``, ``alpha = k / Kc_v`` where ``Kc_v = dF/dv`` is the process's
-  thrust-per-feed slope at the working point (``F0 / (exponent v0)`` for a power law
-  ``F ~ v^exponent``): the steady state is then ``F = Kc_v v`` as the process demands;
+  thrust-per-feed slope at the working point: ``exponent F0 / v0`` for a law
+  ``F ~ v^exponent`` (:func:`process_slope`; 1 for the project plants' linear law, 0.8 for
+  the foreign plants' ``F = K f^0.8``). The steady state is then ``F = Kc_v v``. At the
+  contact mode the cut-front branch ``k s / (s + alpha)`` leads by ``~alpha / w``: the
+  boundary depends on it as much as on ``d`` (docs/commissioning.md);
 * cutting-force observer (controllers/keio_observer.py, "held" timing): encoder velocity
   ``v_k = (z_k - z_{k-1})/Ts``, ``F_hat_k = a F_hat_{k-1} + (1-a)(Kt_n i_{k-1} - M_n (v_k -
   v_{k-1})/Ts - b_o v_k)``, ``a = exp(-g_thrust Ts)``, ``b_o`` the slope of the observer's
@@ -30,7 +34,9 @@ and the sweep that checks it against simulation.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -201,18 +207,59 @@ def tune(L: ForceLoop, gain_margin_db: float = 6.0, Kf_range=(0.05, 2.0), g_thru
             "message": f"no Kf in {Kf_range} and g_thrust in {g_thrust_range} leaves {gain_margin_db} dB"}
 
 
-def force_loop_margin(result, commissioning_file: str, contact_stiffness: float, contact_damping: float,
-                      feed: float, controller: str = "controller", observer: str = "observer",
-                      process_exponent: float = 1.0, min_gain_margin_db: float = 6.0,
-                      print_table: bool = True) -> dict:
+def process_slope(thrust: float, feed: float, exponent: float = 1.0) -> float:
+    """``dF/dv`` [N s/m] of a cutting law ``F ~ v^exponent`` at thrust ``thrust`` [N] and feed
+    ``feed`` [m/s]: ``exponent * thrust / feed``."""
+    if not (thrust > 0 and feed > 0 and exponent > 0):
+        raise ValueError(f"process slope: expected thrust > 0 N, feed > 0 m/s and exponent > 0, got "
+                         f"{thrust!r}, {feed!r}, {exponent!r}")
+    return exponent * thrust / feed
+
+
+def loop_from_commissioning(doc: dict, *, feed: float, contact_stiffness: float | None = None,
+                            contact_damping: float | None = None, Kc_v: float | None = None,
+                            tau_cur: float | None = None, **gains) -> ForceLoop:
+    """The :class:`ForceLoop` of a commissioned stage at feed ``feed`` [m/s]: mass, force
+    constant and friction slope from ``doc`` (commissioning.json as a dict); the contact
+    stiffness [N/m], damping [N s/m], process slope ``Kc_v`` [N s/m] and current lag
+    ``tau_cur`` [s] as given, else from its ``contact`` entry (the contact experiment) and
+    ``current_loop`` entry; ``gains``: Kf, g_thrust, g_dob, g_vel, Ts. A quantity neither
+    given nor in the file is an error naming it."""
+    from controllers.friction import FrictionModel
+
+    nom = doc["nominal"]
+    contact = doc.get("contact") or {}
+    cur = doc.get("current_loop") or {}
+    given = {"contact_stiffness": contact_stiffness, "contact_damping": contact_damping, "Kc_v": Kc_v,
+             "tau_cur": tau_cur}
+    from_file = {"contact_stiffness": contact.get("stiffness"), "contact_damping": contact.get("damping"),
+                 "Kc_v": contact.get("process_slope"), "tau_cur": cur.get("lag")}
+    vals = {k: (given[k] if given[k] is not None else from_file[k]) for k in given}
+    if vals["tau_cur"] is None:
+        vals["tau_cur"] = 0.0          # no i_meas role: nothing can see the lag (ideal current loop)
+    missing = [k for k, v in vals.items() if v is None]
+    if missing:
+        raise ValueError(f"force loop: {', '.join(missing)} neither given nor in the commissioning file's "
+                         "'contact' entry (run the contact experiment, or state them)")
+    fm = FrictionModel.from_dict(doc["friction"])
+    return ForceLoop(mass=nom["mass"], force_constant=nom["force_constant"], friction_slope=fm.slope(feed),
+                     **{k: float(v) for k, v in vals.items()}, **gains)
+
+
+def force_loop_margin(result, commissioning_file: str, contact_stiffness: float | None = None,
+                      contact_damping: float | None = None, feed: float = 1e-3, controller: str = "controller",
+                      observer: str = "observer", process_exponent: float | None = None,
+                      min_gain_margin_db: float = 6.0, print_table: bool = True) -> dict:
     """``[[scores]]`` function: the margin of the run's force loop at its working point.
 
-    The plant's nominal set and friction come from ``commissioning_file``; ``Kf``,
-    ``g_dob``, ``g_vel`` and the command from the controller's settings, ``g_thrust`` from
-    the observer's (the run's scenario); the contact ``contact_stiffness`` [N/m],
-    ``contact_damping`` [N s/m] and the working feed ``feed`` [m/s] are stated (the process
-    slope is ``F_cmd / (process_exponent feed)``). Below ``min_gain_margin_db`` (or
-    unstable) the score carries a ``warning`` -- in summary.json with the run."""
+    The plant's nominal set, friction, current lag and (when not stated here) the
+    contact come from ``commissioning_file``; ``Kf``, ``g_dob``, ``g_vel`` and the command
+    from the controller's settings, ``g_thrust`` from the observer's (the run's scenario);
+    ``contact_stiffness`` [N/m], ``contact_damping`` [N s/m] and the working feed ``feed``
+    [m/s] may be stated; ``process_exponent`` (``F ~ v^exponent``) states the process slope
+    as ``exponent F_cmd / feed`` instead of the contact experiment's. Below
+    ``min_gain_margin_db`` (or unstable) the score carries a ``warning`` -- in summary.json
+    with the run."""
     from analysis.calibration import _scenario_raw
     from controllers.calibration import load_commissioning
 
@@ -220,21 +267,30 @@ def force_loop_margin(result, commissioning_file: str, contact_stiffness: float,
     blocks = raw.get("blocks", {})
     cs = blocks.get(controller, {}).get("settings") or {}
     os_ = blocks.get(observer, {}).get("settings") or {}
-    com = load_commissioning(commissioning_file, "linear_stage")
-    nom, fm = com["nominal"], com["friction"]
+    load_commissioning(commissioning_file, "linear_stage")       # refuses a wrong file with its reason
+    doc = json.loads(Path(commissioning_file).read_text())
     F_cmd = float(cs.get("F_cmd", 50.0))
-    loop = ForceLoop(mass=nom["mass"], force_constant=nom["force_constant"],
-                     contact_stiffness=float(contact_stiffness), contact_damping=float(contact_damping), friction_slope=fm.slope(feed),
-                     Kc_v=F_cmd / (process_exponent * feed), Kf=float(cs.get("Kf", 0.45)),
-                     g_thrust=float(os_.get("g_thrust", 1200.0)), g_dob=float(cs.get("g_dob", 1200.0)),
-                     g_vel=float(cs.get("g_vel", 2000.0)))
+    Kc_v = process_slope(F_cmd, feed, process_exponent) if process_exponent is not None else None
+    if Kc_v is None and not (doc.get("contact") or {}).get("process_slope"):
+        Kc_v = process_slope(F_cmd, feed)         # no experiment: a linear law F ~ v
+    loop = loop_from_commissioning(doc, feed=feed, contact_stiffness=contact_stiffness,
+                                   contact_damping=contact_damping, Kc_v=Kc_v, Kf=float(cs.get("Kf", 0.45)),
+                                   g_thrust=float(os_.get("g_thrust", 1200.0)), g_dob=float(cs.get("g_dob", 1200.0)),
+                                   g_vel=float(cs.get("g_vel", 2000.0)))
+    return margin_verdict(loop, min_gain_margin_db, print_table)
+
+
+def margin_verdict(loop: ForceLoop, min_gain_margin_db: float = 6.0, print_table: bool = False) -> dict:
+    """:func:`margins` of ``loop`` (poles left out) with a ``warning`` and a :func:`tune`d
+    suggestion when it is unstable or its gain margin is below ``min_gain_margin_db``."""
     m = margins(loop, n_freq=1500)
     m.pop("poles")
     if not m["stable"] or m["gain_margin_db"] < min_gain_margin_db:
         t = tune(loop, gain_margin_db=min_gain_margin_db)
         m["warning"] = (f"force loop: {'unstable' if not m['stable'] else 'gain margin %.1f dB' % m['gain_margin_db']}"
                         f" (< {min_gain_margin_db} dB) with Kf {loop.Kf}, g_thrust {loop.g_thrust} rad/s at "
-                        f"k {contact_stiffness:g} N/m, d {contact_damping:g} N s/m; "
+                        f"k {loop.contact_stiffness:g} N/m, d {loop.contact_damping:g} N s/m, process slope "
+                        f"{loop.Kc_v:g} N s/m; "
                         + (f"Kf {t['Kf']:.3g} with g_thrust {t['g_thrust']:.4g} rad/s leaves it" if t["found"]
                            else t["message"]))
         m["suggested"] = t

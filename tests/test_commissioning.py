@@ -1,6 +1,7 @@
 """Commissioning (issue 11): friction model selection, oscillation-aware force scores, the
 force-loop margin tool, refusals. Fast tests on synthetic records; the plant runs (air cuts
-on the foreign plants, the margin against simulation) are marked long.
+on the foreign plants) are marked long; the margin against simulation and the contact
+experiment: tests/test_contact_margin.py.
 
 Tolerances (docs/commissioning.md): Stribeck velocity 10 %, Stribeck exponent exact (from
 {1, 1.5, 2}), Coulomb 5 %, ripple harmonic per revolution exact, magnet pitch 0.5 %, ripple
@@ -141,7 +142,7 @@ def test_limit_cycle_fails_the_score_though_its_average_passes():
 
 
 # --------------------------------------------------------------------------- margin tool
-FOREIGN_Z = dict(mass=4.3, force_constant=24.6, contact_stiffness=2e7, Kc_v=62500.0, tau_cur=1.2e-4)
+FOREIGN_Z = dict(mass=4.3, force_constant=24.6, contact_stiffness=2e7, Kc_v=40300.0, tau_cur=1.2e-4)   # 0.8 F/v
 
 
 def test_margin_tool_sees_what_removes_the_limit_cycle():
@@ -153,7 +154,7 @@ def test_margin_tool_sees_what_removes_the_limit_cycle():
     assert m["stable"] and m["gain_margin_db"] < 6.0
     assert 300 < m["gain_margin_frequency_Hz"] < 500
     import dataclasses
-    assert margins(dataclasses.replace(base, Kf=0.2), 1500)["gain_margin_db"] > m["gain_margin_db"] + 6
+    assert margins(dataclasses.replace(base, Kf=0.2), 1500)["gain_margin_db"] > 6.0 > m["gain_margin_db"] + 2
     assert margins(dataclasses.replace(base, contact_damping=3000.0), 1500)["gain_margin_db"] > m["gain_margin_db"] + 3
     assert not margins(dataclasses.replace(base, Kf=1.0), 1500)["stable"]
     t = tune(base, gain_margin_db=6.0)
@@ -200,31 +201,6 @@ def test_commissioned_fig7_on_foreign_zstage_passes(commissioned_zstage, tmp_pat
     assert s["worst_mean_error_pct"] <= 1.0
     assert s["worst_true_raw_peak_error_N"] <= 5.0
     assert s["oscillation_amplitude_N"] <= 1.0 and s["passed"]
-
-
-@pytest.mark.long
-@pytest.mark.parametrize("k_um, d", [(20.0, 300.0), (20.0, 1000.0)])
-def test_margin_boundary_matches_simulation(commissioned_zstage, tmp_path, k_um, d):
-    """The critical Kf the margin tool predicts from the commissioning file and the contact
-    (k, d) separates simulated runs within 20 %: 0.8x has no limit cycle, 1.2x has one."""
-    from cosim.runner import run_scenario
-    out, doc = commissioned_zstage
-    fm = FrictionModel.from_dict(doc["friction"])
-    nom = doc["nominal"]
-    loop = ForceLoop(mass=nom["mass"], force_constant=nom["force_constant"], contact_stiffness=k_um * 1e6,
-                     contact_damping=d,
-                     friction_slope=fm.slope(1e-3), Kc_v=50.0 / 1e-3)
-    K_crit = critical(loop, "Kf", 0.05, 5.0)
-    assert K_crit is not None
-    sc = tmp_path / "fig7.toml"
-    sc.write_text(f'[scenario]\nextends = "{ROOT}/scenarios/foreign/keio_fig7_aluminium_force_control.toml"\n'
-                  f'[fmus.stage.parameters]\nk_contact = {k_um}\nd_contact = {d}\n'
-                  f'[blocks.observer.settings]\ncommissioning_file = "{out}/commissioning.json"\n'
-                  f'[blocks.controller.settings]\ncommissioning_file = "{out}/commissioning.json"\n')
-    for factor, cycle in ((0.8, False), (1.2, True)):
-        res = run_scenario(sc, out_dir=tmp_path / f"run{factor}", progress=False, handle_signals=False,
-                           overrides={"blocks.controller.settings.Kf": factor * K_crit})
-        assert res.summary["scores"]["force_control"]["limit_cycle"] is cycle, (factor, K_crit)
 
 
 def test_scenario_gains_without_margin_warn_in_the_summary(tmp_path):
