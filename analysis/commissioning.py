@@ -334,6 +334,22 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
     return doc
 
 
+def without_calibration(doc: dict) -> dict:
+    """The commissioning file as it would be without the reference cut: the data-sheet
+    force constant, and every effort (friction, gravity, mass or inertia) back in the
+    data-sheet constant's units -- the uncalibrated drive, for comparison runs."""
+    from controllers.calibration import rescale_friction
+    from controllers.friction import FrictionModel
+    nom = dict(doc["nominal"])
+    back = nom["force_constant_datasheet"] / nom["force_constant"]
+    mass_key = "mass" if nom["kind"] == "linear_stage" else "inertia"
+    nom.update(force_constant=nom["force_constant_datasheet"], **{mass_key: nom[mass_key] * back})
+    if "gravity_comp" in nom:
+        nom["gravity_comp"] *= back
+    fm = rescale_friction(FrictionModel.from_dict(doc["friction"]), back)
+    return {**doc, "nominal": nom, "friction": fm.to_dict(), "calibration": None}
+
+
 def _repo_relative(obj):
     """Paths inside the repository written relative to its root (a commissioning file is
     committed and read from other checkouts); others as they are."""
