@@ -89,6 +89,8 @@ otherwise the fail indicator fires.
 from __future__ import annotations
 
 import math
+from collections import deque
+from itertools import islice
 from typing import Sequence
 
 import numpy as np
@@ -199,6 +201,7 @@ class InterfaceDetector(Block):
         engage_fraction: float = 0.3,
         thd_min: float = 8.0,
         fail_disarms: bool = False,
+        thd_noise_factor: float = 0.0,
     ):
         """Settings (SI units).
 
@@ -239,6 +242,16 @@ class InterfaceDetector(Block):
         (at least rearm_level, default thd_min / 2) for rearm_samples.
         fail_disarms: a fail re-arms the tests as an event does (the adaptation changes
             the process on a fail: its thrust step is not an interface).
+        thd_noise_factor: > 0 lowers an interface test's threshold to this multiple of the
+            largest |F~| over the N samples before the regression window (the layer's own
+            plateau noise, measured; a change under way cannot raise its own threshold),
+            never below thd_min and never above the
+            threshold above; 0 (default) keeps the thresholds as they are. Why: a fixed
+            or step-scaled threshold is reached only once the new layer's thrust has
+            risen by it, and a drill whose thrust blends slowly into the harder layer
+            (a smoothstep over its engagement length) is then found late by a depth
+            that grows with the threshold's share of the step; on a quiet plateau a
+            threshold a few times its noise finds it near the onset.
         """
         super().__init__(sample_period)
         if self.sample_period <= 0:
@@ -275,6 +288,10 @@ class InterfaceDetector(Block):
         self.feed_rate = float(feed_rate)
         self.time_margin = float(time_margin)
         self.fail_disarms = bool(fail_disarms)
+        self.thd_min = float(thd_min)
+        if not thd_noise_factor >= 0.0:
+            raise ValueError(f"InterfaceDetector: thd_noise_factor must be >= 0 (0 = off), got {thd_noise_factor!r}")
+        self.thd_noise_factor = float(thd_noise_factor)
         self.relative = kc is not None
         if self.relative:
             kc_ = _per_layer("kc", kc, n)
@@ -328,6 +345,7 @@ class InterfaceDetector(Block):
         self.drop = False           # paper drop condition met in the last layer
         self.exit_armed = False     # the last layer's (exit) tests have been armed once
         self.quiet = 0              # consecutive samples with |F~| < rearm level
+        self.err_hist = deque(maxlen=2 * self.N)   # |F~| of the last 2 N samples (noise threshold)
         self.armed = False
         self.fail = 0
         self.fail_code = 0
@@ -358,9 +376,13 @@ class InterfaceDetector(Block):
 
     # thresholds of the armed test (fixed, or following the observed level)
     def _thd_interface(self, k: int, F_pred: float) -> float:
-        if not self.relative:
-            return self.thd2
-        return max(self.thd_min, self.step_gain[k - 1] * F_pred)
+        thd = self.thd2 if not self.relative else max(self.thd_min, self.step_gain[k - 1] * F_pred)
+        if self.thd_noise_factor > 0.0 and len(self.err_hist) == self.err_hist.maxlen:
+            # the plateau noise of the window *before* the regression window: a change now
+            # under way (whose F~ grows over its engagement) cannot raise its own threshold
+            noise = max(islice(self.err_hist, 0, self.N))
+            thd = min(thd, max(self.thd_min, self.thd_noise_factor * noise))
+        return thd
 
     def _thd_exit(self, F_pred: float) -> float:
         if not self.relative:
@@ -400,6 +422,8 @@ class InterfaceDetector(Block):
                 self.F_level = F_pred
             else:
                 self.quiet = 0
+            if self.thd_noise_factor > 0.0:
+                self.err_hist.append(abs(e))
             if not self.armed and self._may_arm(x):
                 self.armed = True
             self.thd = NAN
