@@ -202,6 +202,7 @@ class InterfaceDetector(Block):
         thd_min: float = 8.0,
         fail_disarms: bool = False,
         thd_noise_factor: float = 0.0,
+        step_signs: Sequence[float] | None = None,
     ):
         """Settings (SI units).
 
@@ -251,7 +252,12 @@ class InterfaceDetector(Block):
             risen by it, and a drill whose thrust blends slowly into the harder layer
             (a smoothstep over its engagement length) is then found late by a depth
             that grows with the threshold's share of the step; on a quiet plateau a
-            threshold a few times its noise finds it near the onset.
+            threshold a few times its noise finds it near the onset. Only an F~ of the
+            sign of the step into the next layer (``step_signs``) meets the lowered
+            threshold: a plate thinning out over a gap (the depression) deflects over a
+            length the detector cannot know, and its onset is no interface.
+        step_signs: per interface, +1 when the next layer cuts harder (thrust rises), -1
+            softer; default from ``kc`` when given, else +1 (Fang's CFRP over Ti).
         """
         super().__init__(sample_period)
         if self.sample_period <= 0:
@@ -292,6 +298,13 @@ class InterfaceDetector(Block):
         if not thd_noise_factor >= 0.0:
             raise ValueError(f"InterfaceDetector: thd_noise_factor must be >= 0 (0 = off), got {thd_noise_factor!r}")
         self.thd_noise_factor = float(thd_noise_factor)
+        if step_signs is None:     # from the plan's kc when given, else Fang's stack (a harder layer below)
+            step_signs = [math.copysign(1.0, kc[k + 1] - kc[k]) for k in range(n - 1)] \
+                if kc is not None and not isinstance(kc, (int, float)) else [1.0] * (n - 1)
+        self.step_signs = [float(v) for v in step_signs]
+        if len(self.step_signs) != n - 1 or any(v not in (-1.0, 1.0) for v in self.step_signs):
+            raise ValueError(f"InterfaceDetector: step_signs needs one +1 (next layer harder) or -1 (softer) per "
+                             f"interface ({n - 1}), got {list(step_signs)}")
         self.relative = kc is not None
         if self.relative:
             kc_ = _per_layer("kc", kc, n)
@@ -376,13 +389,20 @@ class InterfaceDetector(Block):
 
     # thresholds of the armed test (fixed, or following the observed level)
     def _thd_interface(self, k: int, F_pred: float) -> float:
-        thd = self.thd2 if not self.relative else max(self.thd_min, self.step_gain[k - 1] * F_pred)
-        if self.thd_noise_factor > 0.0 and len(self.err_hist) == self.err_hist.maxlen:
-            # the plateau noise of the window *before* the regression window: a change now
-            # under way (whose F~ grows over its engagement) cannot raise its own threshold
-            noise = max(islice(self.err_hist, 0, self.N))
-            thd = min(thd, max(self.thd_min, self.thd_noise_factor * noise))
-        return thd
+        if not self.relative:
+            return self.thd2
+        return max(self.thd_min, self.step_gain[k - 1] * F_pred)
+
+    def _thd_onset(self, k: int, e: float, thd: float) -> float:
+        """Interface k's threshold for this F~: lowered to thd_noise_factor x the plateau
+        noise when F~ has the sign of the step into layer k+1 (its onset), else ``thd``."""
+        if self.thd_noise_factor <= 0.0 or e * self.step_signs[k - 1] <= 0.0 \
+                or len(self.err_hist) < self.err_hist.maxlen:
+            return thd
+        # the plateau noise of the window *before* the regression window: a change now
+        # under way (whose F~ grows over its engagement) cannot raise its own threshold
+        noise = max(islice(self.err_hist, 0, self.N))
+        return min(thd, max(self.thd_min, self.thd_noise_factor * noise))
 
     def _thd_exit(self, F_pred: float) -> float:
         if not self.relative:
@@ -433,7 +453,7 @@ class InterfaceDetector(Block):
                     self._event(0, t, x)
             elif self.flag < self.n and self.armed:
                 self.thd = self._thd_interface(self.flag, self.F_level)
-                if abs(e) > self.thd:
+                if abs(e) > self._thd_onset(self.flag, e, self.thd):
                     self._event(self.flag, t, x)
             elif self.flag >= self.n and (self.armed or self.exit_armed):
                 # once armed in the last layer both exit tests run on, also after the

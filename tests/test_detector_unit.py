@@ -290,5 +290,13 @@ def test_noise_factor_finds_a_slow_interface_earlier_without_false_events():
             worst = max(worst, final(rec, "x_interface") - b[1])
         errs[fac] = worst
     assert errs[3.0] < errs[0.0] - 0.015 * MM and 0.0 < errs[3.0] <= 0.05 * MM, errs
+    # a CFRP plate thinning out over 0.5 mm above a gap (a falling F~): not the interface
+    h = SyntheticHole(F_cfrp=115.0, F_ti=289.0, engage=0.15 * MM, gap=0.02 * MM, gap_thinning=0.5 * MM,
+                      noise=1.5, ripple=3.0, lag=0.01, seed=1)
+    for name, kw in (("rise", {}), ("fall", {"step_signs": [-1.0]})):
+        det, rec = detect(h, thd_noise_factor=3.0, **kw)
+        errs[name] = final(rec, "x_interface") - h.boundaries[1]
+    assert 0.0 <= errs["rise"] <= 0.05 * MM, errs      # on the Ti (error to the nearer face)
+    assert errs["fall"] < -0.2 * MM, errs              # lowered on falls too, it fires on the thinning
     with pytest.raises(ValueError, match="thd_noise_factor"):
         InterfaceDetector(thd_noise_factor=-1.0)
