@@ -245,9 +245,10 @@ def reference_block_windows(params: dict) -> list[tuple[float, float]]:
 
 def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: float, out: Path) -> dict:
     """The reference cut of ``scenarios/commissioning/thrust_cut_ball_screw.toml`` on the
-    plant: K_T,cal = gain * K_Tn over the layers of the reference block (the observer runs
-    on the data sheet's K_Tn, pitch and eta with the identified inertia and the air-cut
-    friction, so that friction which changes with speed does not pull the slope)."""
+    plant: calibrated torque constant = gain x the data sheet's, over the layers of the
+    reference block (the observer runs on the data sheet's constant, pitch and eta with the
+    identified inertia and the air-cut friction, so that friction which changes with speed
+    does not pull the slope)."""
     from analysis.calibration import fit_thrust_constant, window_levels
     from cosim.scenario import read_toml
 
@@ -255,8 +256,9 @@ def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: fl
     template = TEMPLATES / "thrust_cut_ball_screw.toml"
     block = dict(read_toml(template)["fmus"]["drive"]["plant_parameters"])
     block.update({k: v for k, v in target["plant_parameters"].items() if k == "seed"})
-    observer = {"J_en": inertia, "K_Tn": ds["force_constant"], "K_pitch": ds["pitch"], "eta": ds["eta"],
-                "friction_file": str(friction_file)}
+    names = DATASHEET_SETTINGS["ball_screw"]
+    observer = {names[q][0]: (inertia if q == "inertia" else ds[q]) for q in names}
+    observer["friction_file"] = str(friction_file)
     controller = {DATASHEET_SETTINGS["ball_screw"][q][-1]: ds[q] for q in ds}
     tables = {"scenario": {"extends": str(template), "description": "commissioning reference cut (thrust constant)"},
               "fmus.drive": {"plant": str(target["binding_path"])},
@@ -270,7 +272,7 @@ def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: fl
     fit = fit_thrust_constant(levels, ds["force_constant"], unit="N m/A")
     fit["source"] = {"scenario": str(sc), "seed": block.get("seed"), "block": block,
                      "window": {"after_top_m": WINDOW_AFTER_TOP, "before_bottom_m": WINDOW_BEFORE_BOTTOM},
-                     "note": "eta and pitch kept at the data sheet: the gain calibrates K_T eta / pitch "
+                     "note": "eta and pitch kept at the data sheet: the gain calibrates torque constant x eta / pitch "
                              "as one product, carried by the force constant"}
     write_json_atomic(out / "thrust_calibration" / "thrust_calibration.json", fit)
     return fit
