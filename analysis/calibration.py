@@ -95,18 +95,38 @@ def steady_levels(t, F_meas, F_hat, F_cmd, active, *, settle=0.25, margin=0.02) 
     return out
 
 
-def fit_thrust_constant(levels: list[dict], Kt_n_reference: float) -> dict:
-    """Least squares ``F_meas = gain * F_thrust_hat + intercept`` over the level means."""
-    if len({round(x["F_cmd_N"], 9) for x in levels}) < 2:
+def window_levels(x, F_meas, F_hat, windows) -> list[dict]:
+    """Levels of a reference cut under position control (a ball screw has no force loop):
+    one per window ``[x_from, x_to]`` [m] of the table encoder ``x`` -- inside a layer of
+    the reference block, clear of its engagement and exit -- with the mean measured thrust
+    and mean estimate over it."""
+    x = np.asarray(x, float)
+    out = []
+    for j, (lo, hi) in enumerate(windows):
+        sel = (x >= lo) & (x <= hi)
+        if sel.sum() < 10:
+            raise ValueError(f"thrust calibration: window {j + 1} ({lo * 1e3:.2f}-{hi * 1e3:.2f} mm of table travel) "
+                             f"holds {int(sel.sum())} samples; the reference cut did not reach it")
+        out.append({"level": f"window {j + 1}", "x_from_m": float(lo), "x_to_m": float(hi), "samples": int(sel.sum()),
+                    "F_dyn_mean_N": float(np.mean(np.asarray(F_meas)[sel])),
+                    "F_thrust_hat_mean_N": float(np.mean(np.asarray(F_hat)[sel]))})
+    return out
+
+
+def fit_thrust_constant(levels: list[dict], Kt_n_reference: float, unit: str = "N/A") -> dict:
+    """Least squares ``F_meas = gain * F_thrust_hat + intercept`` over the level means
+    (levels told apart by their command ``F_cmd_N``, or by ``level`` for window levels)."""
+    names = {x["level"] if "level" in x else round(x["F_cmd_N"], 9) for x in levels}
+    if len(names) < 2:
         raise ValueError("thrust calibration needs steady cutting at two or more force levels, "
-                         f"found {[x['F_cmd_N'] for x in levels]}")
+                         f"found {sorted(map(str, names))}")
     x = np.array([v["F_thrust_hat_mean_N"] for v in levels])
     y = np.array([v["F_dyn_mean_N"] for v in levels])
     (gain, c), *_ = np.linalg.lstsq(np.column_stack([x, np.ones_like(x)]), y, rcond=None)
     res = y - (gain * x + c)
     for v, r in zip(levels, res):
         v["residual_N"] = float(r)
-    return {"Kt_n_cal": float(gain * Kt_n_reference), "unit": "N/A",
+    return {"Kt_n_cal": float(gain * Kt_n_reference), "unit": unit,
             "Kt_n_reference": float(Kt_n_reference), "gain": float(gain), "intercept_N": float(c),
             "residual_rms_N": float(np.sqrt(np.mean(res ** 2))),
             "residual_max_N": float(np.abs(res).max()), "model": MODEL, "levels": levels}
@@ -132,6 +152,8 @@ def calibration_in_use(result, block: str, raw: dict | None = None) -> dict:
     ``raw``: the run's scenario when the caller has it already (:func:`_scenario_raw`)."""
     raw = _scenario_raw(result) if raw is None else raw
     settings = (raw.get("blocks", {}).get(block, {}).get("settings") or {})
+    if settings.get("commissioning_file"):
+        return _commissioned_constant(block, settings["commissioning_file"])
     f = settings.get("calibration_file")
     if not f:
         return {"block": block, "calibration_file": None,
@@ -144,6 +166,22 @@ def calibration_in_use(result, block: str, raw: dict | None = None) -> dict:
             "from_seed": src.get("seed"),
             "uncalibrated_run": f"--set 'blocks.{block}.settings.calibration_file=\"\"' (and the same "
                                 f"for the controller) gives the nominal-Kt_n result"}
+
+
+def _commissioned_constant(block: str, path) -> dict:
+    """:func:`calibration_in_use` for a block on a commissioning file: its force constant,
+    calibrated when the commissioning ran a reference cut."""
+    from controllers.calibration import COMMISSIONING_FORMAT
+    from controllers.friction import resolve_path
+    doc = json.loads(Path(resolve_path(path)).read_text())
+    if doc.get("format") != COMMISSIONING_FORMAT:
+        raise ValueError(f"{path}: not a commissioning file (format {doc.get('format')!r})")
+    nom, cal = doc["nominal"], doc.get("calibration")
+    out = {"block": block, "commissioning_file": str(path), "Kt_n": nom["force_constant"],
+           "calibrated": cal is not None, "Kt_n_reference": nom["force_constant_datasheet"]}
+    if cal is not None:
+        out.update(residual_rms_N=cal.get("residual_rms_N"), from_seed=(cal.get("source") or {}).get("seed"))
+    return out
 
 
 def _levels_of(result, stage, observer, controller, settle, margin):

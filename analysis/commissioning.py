@@ -7,10 +7,11 @@ then give the data sheet), it runs on the plant, through its roles only:
    of both signs at 9-10 log-spaced feeds; :func:`analysis.identification.select_friction_model`
    chooses and fits friction, Stribeck, gravity offset and position ripple; the ramps
    give the inertia (:func:`analysis.identification.identify_inertia`);
-2. for a linear stage with a dynamometer role, the thrust-constant reference cut
-   (``scenarios/keio_thrust_constant_calibration.toml`` re-bound, the observer on the
-   air-cut friction): ``Kt_n_cal``, and every effort identified through the data-sheet
-   constant rescaled to it;
+2. for a drive with a dynamometer role, the thrust-constant reference cut (linear stage:
+   ``scenarios/keio_thrust_constant_calibration.toml`` re-bound; ball screw:
+   ``scenarios/commissioning/thrust_cut_ball_screw.toml``, a CFRP/Ti/Al block at the
+   drilling feed; the observer on the air-cut friction in both): the calibrated force
+   constant, and every effort identified through the data-sheet constant rescaled to it;
 3. for a linear stage, the contact (given, or the contact experiment's:
    :mod:`analysis.contact_identification`) and the force-loop check
    (:mod:`analysis.force_margin`) at the working point.
@@ -200,10 +201,20 @@ def fit_air_cut(result, target: dict) -> tuple:
 
 
 # --------------------------------------------------------------------------- experiment 2
+# reference block of the ball-screw cut: the fit's window in each layer starts this far below
+# its top (engagement, and the adaptive ripple estimate re-converging: Fang scoring's 5 s of
+# feed) and ends this far above its bottom (the next layer's engagement, the exit thinning)
+WINDOW_AFTER_TOP = 1.0e-3         # m
+WINDOW_BEFORE_BOTTOM = 0.8e-3     # m
+
+
 def thrust_calibration(target: dict, friction_file: Path, mass: float, out: Path):
-    """The reference cut with the dynamometer (linear stage): Kt_n_cal, or None."""
-    if target["kind"] != "linear_stage" or "thrust_dyn" not in target["binding"].roles:
+    """The reference cut with the dynamometer: Kt_n_cal (N/A or N m/A), or None when the
+    plant has no ``thrust_dyn`` role."""
+    if "thrust_dyn" not in target["binding"].roles:
         return None
+    if target["kind"] == "ball_screw":
+        return ball_screw_thrust_calibration(target, friction_file, mass, out)
     ds = target["datasheet"]
     params = {k: v for k, v in target["plant_parameters"].items() if k == "seed"}
     params.update(spindle_speed=314.159265)
@@ -220,6 +231,52 @@ def thrust_calibration(target: dict, friction_file: Path, mass: float, out: Path
     sc = write_scenario(out / "experiments" / "thrust_calibration.toml", tables)
     _run(sc, out / "thrust_calibration")
     return json.loads((out / "thrust_calibration" / "thrust_calibration.json").read_text())
+
+
+def reference_block_windows(params: dict) -> list[tuple[float, float]]:
+    """The fit's table-position window inside each layer of the reference block
+    (contract parameters: surface, n_layers, layerK_thickness/gap)."""
+    z, out = float(params["surface"]), []
+    for k in range(1, int(params["n_layers"]) + 1):
+        z += float(params.get(f"layer{k}_gap", 0.0))
+        top, z = z, z + float(params[f"layer{k}_thickness"])
+        out.append((top + WINDOW_AFTER_TOP, z - WINDOW_BEFORE_BOTTOM))
+    return out
+
+
+def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: float, out: Path) -> dict:
+    """The reference cut of ``scenarios/commissioning/thrust_cut_ball_screw.toml`` on the
+    plant: calibrated torque constant = gain x the data sheet's, over the layers of the
+    reference block (the observer runs on the data sheet's constant, pitch and eta with the
+    identified inertia and the air-cut friction, so that friction which changes with speed
+    does not pull the slope)."""
+    from analysis.calibration import fit_thrust_constant, window_levels
+    from cosim.scenario import read_toml
+
+    ds = target["datasheet"]
+    template = TEMPLATES / "thrust_cut_ball_screw.toml"
+    block = dict(read_toml(template)["fmus"]["drive"]["plant_parameters"])
+    block.update({k: v for k, v in target["plant_parameters"].items() if k == "seed"})
+    names = DATASHEET_SETTINGS["ball_screw"]
+    observer = {names[q][0]: (inertia if q == "inertia" else ds[q]) for q in names}
+    observer["friction_file"] = str(friction_file)
+    controller = {DATASHEET_SETTINGS["ball_screw"][q][-1]: ds[q] for q in ds}
+    tables = {"scenario": {"extends": str(template), "description": "commissioning reference cut (thrust constant)"},
+              "fmus.drive": {"plant": str(target["binding_path"])},
+              "fmus.drive.plant_parameters": block,
+              "blocks.controller.settings": controller, "blocks.observer.settings": observer,
+              "[[connections]]": [{"from": "drive.motor_angle", "to": "controller.z", "scale": ds["pitch"]}]}
+    sc = write_scenario(out / "experiments" / "thrust_calibration.toml", tables)
+    res = _run(sc, out / "thrust_calibration")
+    levels = window_levels(res["drive.table_position"], res["drive.thrust_dyn"], res["observer.F_dc_hat"],
+                           reference_block_windows(block))
+    fit = fit_thrust_constant(levels, ds["force_constant"], unit="N m/A")
+    fit["source"] = {"scenario": str(sc), "seed": block.get("seed"), "block": block,
+                     "window": {"after_top_m": WINDOW_AFTER_TOP, "before_bottom_m": WINDOW_BEFORE_BOTTOM},
+                     "note": "eta and pitch kept at the data sheet: the gain calibrates torque constant x eta / pitch "
+                             "as one product, carried by the force constant"}
+    write_json_atomic(out / "thrust_calibration" / "thrust_calibration.json", fit)
+    return fit
 
 
 # --------------------------------------------------------------------------- the whole
@@ -248,8 +305,8 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
         # the fitted inertia was seen through the data-sheet constant too
         mass *= scale
     else:
-        warnings.append("thrust constant: not calibrated (no reference cut for this plant: a linear stage with a "
-                        "dynamometer role is needed); the data-sheet value is used")
+        warnings.append("thrust constant: not calibrated (no reference cut for this plant: a dynamometer role "
+                        "thrust_dyn is needed); the data-sheet value is used")
     nominal = {"kind": kind, mass_key: mass, "force_constant": kt, "force_constant_datasheet": ds["force_constant"],
                f"{mass_key}_datasheet": ds[mass_key]}
     if kind == "ball_screw":
@@ -264,7 +321,7 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
     if kind == "linear_stage":
         from analysis.contact_identification import contact_and_margin
         contact_and_margin(doc, target, target_path, out, contact_stiffness, contact_damping)
-    write_json_atomic(out / "commissioning.json", doc)
+    write_json_atomic(out / "commissioning.json", _repo_relative(doc))
     report_figure(res, fm, target, out)
     summary = {"commissioning_file": str(out / "commissioning.json"), "kind": kind, "nominal": nominal,
                "friction_model": fm.info.get("selection"), "contact": doc["contact"], "warnings": warnings}
@@ -272,6 +329,34 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
     if print_table:
         print(report_table(doc))
     return doc
+
+
+def without_calibration(doc: dict) -> dict:
+    """The commissioning file as it would be without the reference cut: the data-sheet
+    force constant, and every effort (friction, gravity, mass or inertia) back in the
+    data-sheet constant's units -- the uncalibrated drive, for comparison runs."""
+    from controllers.calibration import rescale_friction
+    from controllers.friction import FrictionModel
+    nom = dict(doc["nominal"])
+    back = nom["force_constant_datasheet"] / nom["force_constant"]
+    mass_key = "mass" if nom["kind"] == "linear_stage" else "inertia"
+    nom.update(force_constant=nom["force_constant_datasheet"], **{mass_key: nom[mass_key] * back})
+    if "gravity_comp" in nom:
+        nom["gravity_comp"] *= back
+    fm = rescale_friction(FrictionModel.from_dict(doc["friction"]), back)
+    return {**doc, "nominal": nom, "friction": fm.to_dict(), "calibration": None}
+
+
+def _repo_relative(obj):
+    """Paths inside the repository written relative to its root (a commissioning file is
+    committed and read from other checkouts); others as they are."""
+    if isinstance(obj, dict):
+        return {k: _repo_relative(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_repo_relative(v) for v in obj]
+    if isinstance(obj, str) and obj.startswith(str(ROOT) + "/"):
+        return obj[len(str(ROOT)) + 1:]
+    return obj
 
 
 # --------------------------------------------------------------------------- report

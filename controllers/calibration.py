@@ -54,7 +54,8 @@ DATASHEET_DEFAULT = {"linear_stage": {"mass": KeioNominal.M_n, "force_constant":
 def load_commissioning(path, kind: str) -> dict:
     """Read a ``commissioning.json`` (``drillcosim commission``) for a drive of ``kind``
     (``linear_stage`` / ``ball_screw``): its ``nominal`` set (one per drive, shared by the
-    observer and the controller) and ``friction`` (a :class:`FrictionModel`, efforts in the
+    observer and the controller: mass, force constant, gravity_comp of a linear stage;
+    inertia, force constant, pitch, eta of a ball screw) and ``friction`` (a :class:`FrictionModel`, efforts in the
     calibrated force constant's newtons)."""
     p = resolve_path(path)
     try:
@@ -66,8 +67,13 @@ def load_commissioning(path, kind: str) -> dict:
     nom = d.get("nominal", {})
     if nom.get("kind") != kind:
         raise ValueError(f"{p}: commissions a {nom.get('kind')!r} drive, this block needs a {kind!r}")
-    mass_key = "mass" if kind == "linear_stage" else "inertia"
-    for key in (mass_key, "force_constant"):
+    keys = ("mass", "force_constant", "gravity_comp") if kind == "linear_stage" else \
+        ("inertia", "force_constant", "pitch", "eta")
+    for key in keys:
+        if key == "gravity_comp":       # any sign; it must be there (the blocks take it from here)
+            if not isinstance(nom.get(key), (int, float)):
+                raise ValueError(f"{p}: nominal.{key} must be a number [N], got {nom.get(key)!r}")
+            continue
         if not float(nom.get(key, 0.0)) > 0:
             raise ValueError(f"{p}: nominal.{key} must be > 0, got {nom.get(key)!r}")
     return {"nominal": nom, "friction": FrictionModel.from_dict(d["friction"]), "warnings": d.get("warnings", [])}

@@ -81,6 +81,10 @@ Implementation choices (the paper leaves them open)
   identification, N m / rad/s / rad) or the settings ``tau_coulomb`` [N m], ``D_viscous``
   [N m s/rad], ``tau_offset`` [N m], ``tau_ripple`` (rows [harmonic per rev, a_sin, a_cos]
   in N m). A file, when given, replaces those settings.
+* ``commissioning_file`` (commissioning.json of ``drillcosim commission``): its nominal set
+  (inertia, calibrated force constant, pitch, eta) replaces ``J_en``, ``K_Tn``, ``K_pitch``,
+  ``eta`` and its friction model the friction settings and ``friction_file`` -- the same set
+  the position controller reads (docs/commissioning.md).
 """
 from __future__ import annotations
 
@@ -92,6 +96,7 @@ import numpy as np
 import scipy.linalg
 
 from cosim.block import Port
+from controllers.calibration import load_commissioning
 from controllers.friction import make_friction, resolve_path
 from controllers.nominal_models import (DiscretisedBlock, FangNominal, FangObserverTuning, fang_model,
                                         zoh, check_observable)
@@ -127,8 +132,13 @@ class AdaptiveThrustObserver(DiscretisedBlock):
                  tau_coulomb: float | None = None, D_viscous: float | None = None,
                  tau_offset: float | None = None, tau_ripple=None, w_eps: float = 1e-3,
                  g_fric_vel: float = 50.0,
-                 friction_file: str | None = None, kernel: str = "auto", sample_period: float = 1e-4):
+                 friction_file: str | None = None, kernel: str = "auto", sample_period: float = 1e-4,
+                 commissioning_file: str | None = None):
         super().__init__(sample_period)
+        com = None
+        if commissioning_file:      # one nominal set per drive: it replaces the data-sheet settings
+            com = load_commissioning(commissioning_file, "ball_screw")
+            J_en, K_Tn, K_pitch, eta = (com["nominal"][k] for k in ("inertia", "force_constant", "pitch", "eta"))
         self.nominal = FangNominal(J_en=float(J_en), K_Tn=float(K_Tn), K_pitch=float(K_pitch), eta=float(eta))
         if position_unit not in _UNITS:
             raise ValueError(f"AdaptiveThrustObserver: position_unit must be one of {sorted(_UNITS)}, got {position_unit!r}")
@@ -146,9 +156,13 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         # setting is None / 0 (TOML has no null; 0 rpm would make the ripple a constant)
         use_input = orbital_speed_input or orbital_speed_rpm is None or float(orbital_speed_rpm) == 0.0
         self.orbital_speed_rpm = None if use_input else float(orbital_speed_rpm)
-        self.friction = make_friction(resolve_path(friction_file), tau_coulomb, D_viscous, None, None, w_eps,
-                                      effort_unit="N m", velocity_unit="rad/s", ripple=tau_ripple,
-                                      offset=tau_offset, position_unit="rad")
+        if com is not None:
+            self.friction = com["friction"]
+            self.friction.v_eps = float(w_eps)
+        else:
+            self.friction = make_friction(resolve_path(friction_file), tau_coulomb, D_viscous, None, None, w_eps,
+                                          effort_unit="N m", velocity_unit="rad/s", ripple=tau_ripple,
+                                          offset=tau_offset, position_unit="rad")
         self.tau_offset = self.friction.offset
         self._use_theta = measurement == "theta" or self.friction.has_ripple
         if not g_fric_vel > 0:

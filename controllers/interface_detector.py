@@ -89,6 +89,8 @@ otherwise the fail indicator fires.
 from __future__ import annotations
 
 import math
+from collections import deque
+from itertools import islice
 from typing import Sequence
 
 import numpy as np
@@ -199,6 +201,8 @@ class InterfaceDetector(Block):
         engage_fraction: float = 0.3,
         thd_min: float = 8.0,
         fail_disarms: bool = False,
+        thd_noise_factor: float = 0.0,
+        step_signs: Sequence[float] | None = None,
     ):
         """Settings (SI units).
 
@@ -239,6 +243,21 @@ class InterfaceDetector(Block):
         (at least rearm_level, default thd_min / 2) for rearm_samples.
         fail_disarms: a fail re-arms the tests as an event does (the adaptation changes
             the process on a fail: its thrust step is not an interface).
+        thd_noise_factor: > 0 lowers an interface test's threshold to this multiple of the
+            largest |F~| over the N samples before the regression window (the layer's own
+            plateau noise, measured; a change under way cannot raise its own threshold),
+            never below thd_min and never above the
+            threshold above; 0 (default) keeps the thresholds as they are. Why: a fixed
+            or step-scaled threshold is reached only once the new layer's thrust has
+            risen by it, and a drill whose thrust blends slowly into the harder layer
+            (a smoothstep over its engagement length) is then found late by a depth
+            that grows with the threshold's share of the step; on a quiet plateau a
+            threshold a few times its noise finds it near the onset. Only an F~ of the
+            sign of the step into the next layer (``step_signs``) meets the lowered
+            threshold: a plate thinning out over a gap (the depression) deflects over a
+            length the detector cannot know, and its onset is no interface.
+        step_signs: per interface, +1 when the next layer cuts harder (thrust rises), -1
+            softer; default from ``kc`` when given, else +1 (Fang's CFRP over Ti).
         """
         super().__init__(sample_period)
         if self.sample_period <= 0:
@@ -275,6 +294,17 @@ class InterfaceDetector(Block):
         self.feed_rate = float(feed_rate)
         self.time_margin = float(time_margin)
         self.fail_disarms = bool(fail_disarms)
+        self.thd_min = float(thd_min)
+        if not thd_noise_factor >= 0.0:
+            raise ValueError(f"InterfaceDetector: thd_noise_factor must be >= 0 (0 = off), got {thd_noise_factor!r}")
+        self.thd_noise_factor = float(thd_noise_factor)
+        if step_signs is None:     # from the plan's kc when given, else Fang's stack (a harder layer below)
+            step_signs = [math.copysign(1.0, kc[k + 1] - kc[k]) for k in range(n - 1)] \
+                if kc is not None and not isinstance(kc, (int, float)) else [1.0] * (n - 1)
+        self.step_signs = [float(v) for v in step_signs]
+        if len(self.step_signs) != n - 1 or any(v not in (-1.0, 1.0) for v in self.step_signs):
+            raise ValueError(f"InterfaceDetector: step_signs needs one +1 (next layer harder) or -1 (softer) per "
+                             f"interface ({n - 1}), got {list(step_signs)}")
         self.relative = kc is not None
         if self.relative:
             kc_ = _per_layer("kc", kc, n)
@@ -328,6 +358,7 @@ class InterfaceDetector(Block):
         self.drop = False           # paper drop condition met in the last layer
         self.exit_armed = False     # the last layer's (exit) tests have been armed once
         self.quiet = 0              # consecutive samples with |F~| < rearm level
+        self.err_hist = deque(maxlen=2 * self.N)   # |F~| of the last 2 N samples (noise threshold)
         self.armed = False
         self.fail = 0
         self.fail_code = 0
@@ -361,6 +392,17 @@ class InterfaceDetector(Block):
         if not self.relative:
             return self.thd2
         return max(self.thd_min, self.step_gain[k - 1] * F_pred)
+
+    def _thd_onset(self, k: int, e: float, thd: float) -> float:
+        """Interface k's threshold for this F~: lowered to thd_noise_factor x the plateau
+        noise when F~ has the sign of the step into layer k+1 (its onset), else ``thd``."""
+        if self.thd_noise_factor <= 0.0 or e * self.step_signs[k - 1] <= 0.0 \
+                or len(self.err_hist) < self.err_hist.maxlen:
+            return thd
+        # the plateau noise of the window *before* the regression window: a change now
+        # under way (whose F~ grows over its engagement) cannot raise its own threshold
+        noise = max(islice(self.err_hist, 0, self.N))
+        return min(thd, max(self.thd_min, self.thd_noise_factor * noise))
 
     def _thd_exit(self, F_pred: float) -> float:
         if not self.relative:
@@ -400,6 +442,8 @@ class InterfaceDetector(Block):
                 self.F_level = F_pred
             else:
                 self.quiet = 0
+            if self.thd_noise_factor > 0.0:
+                self.err_hist.append(abs(e))
             if not self.armed and self._may_arm(x):
                 self.armed = True
             self.thd = NAN
@@ -409,7 +453,7 @@ class InterfaceDetector(Block):
                     self._event(0, t, x)
             elif self.flag < self.n and self.armed:
                 self.thd = self._thd_interface(self.flag, self.F_level)
-                if abs(e) > self.thd:
+                if abs(e) > self._thd_onset(self.flag, e, self.thd):
                     self._event(self.flag, t, x)
             elif self.flag >= self.n and (self.armed or self.exit_armed):
                 # once armed in the last layer both exit tests run on, also after the

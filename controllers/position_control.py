@@ -181,7 +181,9 @@ class PositionController(Block):
         DOB cutoff (1200); g_vel [rad/s] pseudo-differentiator cutoff (2000);
         i_max [A] drive current limit; F_bias [N] known static force in +z (gravity
         minus compensator); dt [s] sample period used when ``sample_period`` is 0
-        (after the first call the actual spacing of the calls is used).
+        (after the first call the actual spacing of the calls is used);
+        commissioning_file (commissioning.json of ``drillcosim commission``): its mass,
+        force constant and gravity_comp replace mass_nominal, force_constant_nominal, F_bias.
     Inputs
         z_ref [m], v_ref [m/s], a_ref [m/s2] (reference and feed-forward), z [m] encoder.
     Outputs
@@ -197,8 +199,12 @@ class PositionController(Block):
     def __init__(self, Kp: float = 25.0, Kv: float = 100.0, mass_nominal: float = 3.95,
                  force_constant_nominal: float = 24.0, g_dob: float = 1200.0,
                  g_vel: float = 2000.0, i_max: float = 10.0, F_bias: float = 0.0,
-                 dt: float = 1e-4, sample_period: float = 0.0):
+                 dt: float = 1e-4, sample_period: float = 0.0, commissioning_file: str | None = None):
         super().__init__(sample_period)
+        if commissioning_file:      # the drive's one nominal set (docs/commissioning.md)
+            from controllers.calibration import load_commissioning
+            nom = load_commissioning(commissioning_file, "linear_stage")["nominal"]
+            mass_nominal, force_constant_nominal, F_bias = nom["mass"], nom["force_constant"], nom["gravity_comp"]
         if not Kp > 0 or not Kv > 0:
             raise ValueError(f"PositionController: Kp and Kv must be > 0 1/s, got {Kp!r}, {Kv!r}")
         self.Kp = float(Kp)
@@ -247,10 +253,17 @@ class BallScrewPositionController(PositionController):
 
     Settings ``J_en`` [kg m2], ``K_Tn`` [N m/A], ``K_pitch`` [m/rad], ``eta`` [1] (Fang
     Table 1 defaults: 0.0003, 1.10, 0.637e-3, 0.95), the rest as PositionController.
+    ``commissioning_file`` (commissioning.json of ``drillcosim commission``): its nominal
+    inertia, force constant, pitch and eta replace those four settings (the set the Fang
+    observer reads).
     """
 
     def __init__(self, J_en: float = 0.0003, K_Tn: float = 1.10, K_pitch: float = 0.637e-3,
-                 eta: float = 0.95, **kw):
+                 eta: float = 0.95, commissioning_file: str | None = None, **kw):
+        if commissioning_file:
+            from controllers.calibration import load_commissioning
+            nom = load_commissioning(commissioning_file, "ball_screw")["nominal"]
+            J_en, K_Tn, K_pitch, eta = (nom[k] for k in ("inertia", "force_constant", "pitch", "eta"))
         kw["mass_nominal"], kw["force_constant_nominal"] = ball_screw_linear(J_en, K_Tn, K_pitch)
         super().__init__(**kw)
         self.eta = float(eta)

@@ -167,7 +167,8 @@ def test_margin_tool_sees_what_removes_the_limit_cycle():
 def commissioned_zstage(tmp_path_factory):
     from analysis.commissioning import commission
     out = tmp_path_factory.mktemp("com_fz")
-    return out, commission(ROOT / "scenarios/foreign/keio_fig7_aluminium_force_control.toml", out, print_table=False)
+    # the foreign air-cut twin holds the stage's data sheet (the experiments read the committed file)
+    return out, commission(ROOT / "scenarios/foreign/air_cut_friction_identification_keio.toml", out, print_table=False)
 
 
 @pytest.mark.long

@@ -271,3 +271,32 @@ def test_non_finite_force_samples_are_skipped():
     assert y[0] == 0 and det.n_buf == 12 and np.isfinite(det.buf[:12]).all()
     y = det.step(0.26, [100.0, 0.0])   # a step after the gap is still seen
     assert y[0] == 1
+
+
+def test_noise_factor_finds_a_slow_interface_earlier_without_false_events():
+    """thd_noise_factor: the interface test's threshold follows the CFRP plateau's own |F~|
+    (3x its largest in the window before the regression window). A slow blend into the Ti
+    (0.15 mm, the foreign plant's engagement) at a modest step is then found near its
+    onset, not when it has risen by Table 4's 50 N; nothing fires on the plateau."""
+    errs = {}
+    for fac in (0.0, 3.0):
+        worst = 0.0
+        for seed in range(4):
+            h = SyntheticHole(F_cfrp=115.0, F_ti=289.0, engage=0.15 * MM, noise=1.5, ripple=3.0, lag=0.01, seed=seed)
+            b = h.boundaries
+            det, rec = detect(h, thd_noise_factor=fac)
+            assert np.all(np.diff(rec["flag"]) >= 0) and final(rec, "flag") == 3 and final(rec, "fail") == 0
+            assert np.all(rec["flag"][rec["x"] < b[1]] <= 1)            # no interface on the CFRP plateau
+            worst = max(worst, final(rec, "x_interface") - b[1])
+        errs[fac] = worst
+    assert errs[3.0] < errs[0.0] - 0.015 * MM and 0.0 < errs[3.0] <= 0.05 * MM, errs
+    # a CFRP plate thinning out over 0.5 mm above a gap (a falling F~): not the interface
+    h = SyntheticHole(F_cfrp=115.0, F_ti=289.0, engage=0.15 * MM, gap=0.02 * MM, gap_thinning=0.5 * MM,
+                      noise=1.5, ripple=3.0, lag=0.01, seed=1)
+    for name, kw in (("rise", {}), ("fall", {"step_signs": [-1.0]})):
+        det, rec = detect(h, thd_noise_factor=3.0, **kw)
+        errs[name] = final(rec, "x_interface") - h.boundaries[1]
+    assert 0.0 <= errs["rise"] <= 0.05 * MM, errs      # on the Ti (error to the nearer face)
+    assert errs["fall"] < -0.2 * MM, errs              # lowered on falls too, it fires on the thinning
+    with pytest.raises(ValueError, match="thd_noise_factor"):
+        InterfaceDetector(thd_noise_factor=-1.0)

@@ -19,8 +19,17 @@ FIG4 = ROOT / "scenarios" / "keio_fig4_composite_force_control.toml"
 FIG7 = ROOT / "scenarios" / "keio_fig7_aluminium_force_control.toml"
 CAL = ROOT / "scenarios" / "keio_thrust_constant_calibration.toml"
 CAL_FILE = ROOT / "scenarios" / "calibration" / "keio_stage_thrust_calibration.json"
-UNCALIBRATED = {"blocks.observer.settings.calibration_file": "",
-                "blocks.controller.settings.calibration_file": ""}
+COMMISSIONED = ROOT / "scenarios" / "commissioning" / "linear_stage.json"
+
+
+def uncalibrated(tmp_path) -> dict:
+    """Overrides that run the shipped drive without its reference cut (data-sheet Kt)."""
+    import json
+    from analysis.commissioning import without_calibration
+    f = tmp_path / "uncalibrated.json"
+    f.write_text(json.dumps(without_calibration(json.loads(COMMISSIONED.read_text()))))
+    return {"blocks.observer.settings.commissioning_file": str(f),
+            "blocks.controller.settings.commissioning_file": str(f)}
 F_BIAS = 3.95 * 9.81 - 40.0
 SURF = 1e-3
 # CFRP-like / 2.5x harder / CFRP-like, 0.5 mm each, at 3000 rpm: Kc_v = kc/50
@@ -222,9 +231,10 @@ def test_fig7_aluminium_on_the_fmu(tmp_path):
 
 
 def test_fig7_uncalibrated_is_off_by_the_force_constant(tmp_path):
-    """The documented --set override runs the nominal Kt_n = 24 N/A: the estimate is still
-    exact, the real thrust is low by Kt/Kt_n (-3 %) -- what the calibration removes."""
-    s = _run(FIG7, tmp_path, **UNCALIBRATED).summary["scores"]["force_control"]
+    """The commissioning file without its reference cut runs the data-sheet Kt_n = 24 N/A:
+    the estimate is still exact, the real thrust is low by Kt/Kt_n (-3 %) -- what the
+    calibration removes."""
+    s = _run(FIG7, tmp_path / "run", **uncalibrated(tmp_path)).summary["scores"]["force_control"]
     assert not s["thrust_constant"]["calibrated"]
     x = s["layers"][0]
     assert abs(x["estimate_mean_error_pct"]) < 0.1, x
