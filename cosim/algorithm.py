@@ -36,6 +36,7 @@ import time as _time
 from dataclasses import dataclass, field
 from operator import itemgetter
 
+from . import kernel_group
 from .errors import ScenarioError, SimulationError
 from .manipulators import OPERATORS, Event, fire_step, parse_condition, setter_for
 from .outputs import OutputError
@@ -246,7 +247,7 @@ def _compile(system, recorder, events, extra_record) -> _Plan:
             for e, start in zip(v.elements, v.start_values()):
                 bus.add(f"{name}.{e}", start)
         read_plan.append((slave, names, a, len(bus.values)))
-    order = system.block_order()
+    order, groups = kernel_group.plan(system, system.block_order())
     block_slots = []
     for name in order:
         a = len(bus.values)
@@ -273,10 +274,19 @@ def _compile(system, recorder, events, extra_record) -> _Plan:
             write_plan.append((slave, [v.name for v in in_vars],
                                _reader([bus.ref(s, wire=True) for s in in_signals])))
     blocks = []
+    first_of = {g[0]: g for g in groups}
+    in_group = {n for g in groups for n in g}
+    slots_of = {name: (a, b) for name, a, b in block_slots}
     for name, a, b in block_slots:
-        block = system.blocks[name]
-        read_u = _reader([bus.ref(f"{name}.{p.name}") for p in block.inputs])
-        blocks.append((system.rate(name), block.step, read_u, a, b, b - a, name))
+        if name in first_of:            # C-kernel blocks: one call for the group (cosim/kernel_group.py)
+            g = first_of[name]
+            b = slots_of[g[-1]][1]
+            step, ext = kernel_group.build(system, bus, g, a, b)
+            blocks.append((system.rate(name), step, _getter(ext), a, b, b - a, "+".join(g)))
+        elif name not in in_group:
+            block = system.blocks[name]
+            read_u = _reader([bus.ref(f"{name}.{p.name}") for p in block.inputs])
+            blocks.append((system.rate(name), block.step, read_u, a, b, b - a, name))
     cond_events = [e for e in events if e.when is not None]
     conds = [(*bus.ref(sig), OPERATORS[op], number, ev)
              for ev, (sig, op, number) in zip(cond_events, conditions)]
