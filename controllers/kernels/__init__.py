@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ctypes
 import os
+import struct
 import subprocess
 import sys
 import tempfile
@@ -117,12 +118,14 @@ class Kernel:
         buf[n1:] = starts
         gref, bref = ctypes.byref(g), ctypes.byref(buf)
         keep = (mem, w, g, [k for k, _a, _y in members])      # alive as long as the step
+        # in: one struct.pack_into; out: a memoryview's tolist (both ~2-4x faster than
+        # slicing the ctypes array)
+        pack, out = struct.Struct(f"{n1}d").pack_into, memoryview(buf).cast("B").cast("d")[n1:].tolist
 
-        def step(t, u, buf=buf, fn=fn, gref=gref, bref=bref, n1=n1, keep=keep):
-            buf[0] = t
-            buf[1:n1] = u
+        def step(t, u, buf=buf, fn=fn, gref=gref, bref=bref, pack=pack, out=out, keep=keep):
+            pack(buf, 0, t, *u)
             fn(gref, bref)
-            return buf[n1:]
+            return out()
         return step
 
 
