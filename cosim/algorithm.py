@@ -409,6 +409,7 @@ class _Loop:
         computed and recorded but not stepped from."""
         values, reads, writes, steppers = self.values, self.reads, self.writes, self.steppers
         schedule, period, conditions = self.schedule, self.period, self.conditions
+        any_fires = _any_fires(conditions)
         record, decimation, rows, beat = self.record, self.decimation, self.rows, self.beat
         g, n_run = self.grid, self.n_run
         t0, h, n_last, stop_time, n_short, h_last = g.t0, g.h, g.n_last, g.stop_time, g.n_short, g.h_last
@@ -438,13 +439,14 @@ class _Loop:
                     values[a:b] = y
                 # 4. condition events
                 phase = "event"
-                if conditions:
+                if conditions and any_fires(values):
                     for c in conditions:
                         i, s, o, op, number, ev = c
                         if op(s * values[i] + o, number):
                             # fires once; rebinding leaves the list being iterated intact
                             conditions = self.conditions = [x for x in conditions if x is not c]
                             stop = self._apply(ev, t) or stop
+                    any_fires = _any_fires(conditions)
                 # 5. record
                 if decimation and (n % decimation == 0 or stop):
                     rows.append((t, *record(values)))
@@ -566,6 +568,20 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
             bar.close()
         for slave in started:
             slave.free(failed=(slave.name == failed))
+
+
+def _any_fires(conditions: list):
+    """``values -> bool``: does any condition hold? One generated expression (the same
+    ``s * v[i] + o`` and comparison as the loop), so a step without an event costs one
+    call, not a loop over the conditions."""
+    if not conditions:
+        return lambda v: False
+    symbol = {f: text for text, f in OPERATORS.items()}
+    consts, terms = {}, []
+    for j, (i, s, o, op, number, _ev) in enumerate(conditions):
+        consts[f"s{j}"], consts[f"o{j}"], consts[f"n{j}"] = s, o, number
+        terms.append(f"(s{j} * v[{i}] + o{j} {symbol[op]} n{j})")
+    return eval(f"lambda v: {' or '.join(terms)}", consts)   # noqa: S307 - text built here from ints
 
 
 def _puller(buf):

@@ -238,3 +238,14 @@ def test_csv_chunk_text_reads_back_bit_for_bit():
         assert back.shape == chunk.shape
         assert np.array_equal(back.view(np.int64)[~np.isnan(back)], chunk.view(np.int64)[~np.isnan(chunk)])
         assert np.array_equal(np.isnan(back), np.isnan(chunk))
+
+
+def test_condition_check_is_the_loops_comparison():
+    from cosim.algorithm import _any_fires
+    from cosim.manipulators import OPERATORS
+    bus = [0.0, 2.5, -1.0]
+    for text, op in OPERATORS.items():
+        for i, s, o, number in ((1, 1.0, 0.0, 2.5), (2, -2.0, 0.5, 2.5), (0, 1.0, 0.0, 1.0)):
+            assert _any_fires([(i, s, o, op, number, None)])(bus) == op(s * bus[i] + o, number), text
+    assert not _any_fires([])(bus)
+    assert _any_fires([(0, 1.0, 0.0, OPERATORS[">"], 1.0, None), (1, 1.0, 0.0, OPERATORS[">="], 2.5, None)])(bus)
