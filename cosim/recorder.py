@@ -293,10 +293,12 @@ def format_chunk(chunk: np.ndarray) -> str:
     the same double. ``repr`` costs ~1 us a value here -- 1.5 to 7 us of every 10 kHz step
     of a shipped scenario (docs/performance.md). Without orjson, or with an infinity
     (orjson writes every non-finite value as ``null``), the chunk is formatted by repr."""
-    if _orjson is not None and not np.isinf(chunk).any():
-        text = _orjson.dumps(chunk, option=_orjson.OPT_SERIALIZE_NUMPY)
-        # b"[[a,b],[c,d]]" -> "a,b\nc,d\n"; null can only be a NaN here
-        return text[2:-2].replace(b"],[", b"\n").replace(b"null", b"nan").decode("ascii") + "\n"
+    finite = np.isfinite(chunk)
+    if _orjson is not None and (finite.all() or not np.isinf(chunk[~finite]).any()):
+        text = _orjson.dumps(chunk, option=_orjson.OPT_SERIALIZE_NUMPY)[2:-2].replace(b"],[", b"\n")
+        if not finite.all():             # b"[[a,b],[c,d]]" -> "a,b\nc,d\n"; null can only be a NaN here
+            text = text.replace(b"null", b"nan")
+        return text.decode("ascii") + "\n"
     # one %-format over the whole chunk costs 40 % less than joining row by row
     row = ",".join(["%r"] * chunk.shape[1]) + "\n"
     return (row * len(chunk)) % tuple(chunk.ravel().tolist())
