@@ -249,3 +249,12 @@ def test_condition_check_is_the_loops_comparison():
             assert _any_fires([(i, s, o, op, number, None)])(bus) == op(s * bus[i] + o, number), text
     assert not _any_fires([])(bus)
     assert _any_fires([(0, 1.0, 0.0, OPERATORS[">"], 1.0, None), (1, 1.0, 0.0, OPERATORS[">="], 2.5, None)])(bus)
+
+
+def test_velocity_segments_kernel_matches_python_step():
+    from controllers.friction import VelocitySegments
+
+    def inputs():                         # before the start, every ramp and hold, after the end
+        for k in range(0, 140000, 7):
+            yield k * 1e-4, ()
+    _agree(lambda: VelocitySegments(velocities=(1e-3, -2.5e-3, 5e-3), hold=(0.5, 2.0, 1.0), t_start=0.3), inputs)

@@ -339,3 +339,42 @@ void keio_observer_step(KeioObserver *s, double t, const double *u, double *y)
     y[1] = s->Kt_n * i_in - fric_lp + s->F_grav_comp;
     y[2] = s->v_lp;
 }
+
+/* ---------------------------------------------------------------- VelocitySegments */
+
+#define MAX_PHASES 96
+
+typedef struct {
+    double n, z_end;
+    double ph[6 * MAX_PHASES];    /* rows [t0, duration, a, v0, z0, segment] */
+} Segments;
+
+/* controllers.friction.VelocitySegments.step: no inputs; y: z_ref, v_ref, a_ref, segment */
+void segments_step(Segments *s, double t, const double *u, double *y)
+{
+    (void)u;
+    int n = (int)s->n;
+    for (int j = 0; j < n; j++) {
+        const double *p = s->ph + 6 * j;
+        double t0 = p[0], dur = p[1], a = p[2], v0 = p[3], z0 = p[4];
+        if (t0 <= t && t < t0 + dur) {
+            double q = t - t0;
+            y[0] = z0 + v0 * q + 0.5 * a * q * q;
+            y[1] = v0 + a * q;
+            y[2] = a;
+            y[3] = p[5];
+            return;
+        }
+        if (t < t0) {
+            y[0] = z0;
+            y[1] = 0.0;
+            y[2] = 0.0;
+            y[3] = 0.0;
+            return;
+        }
+    }
+    y[0] = s->z_end;
+    y[1] = 0.0;
+    y[2] = 0.0;
+    y[3] = 0.0;
+}

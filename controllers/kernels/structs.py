@@ -9,6 +9,7 @@ import ctypes
 
 _D = ctypes.c_double
 MAX_RIPPLE = 8          # rows of a friction ripple the C side holds (drive_control.c)
+MAX_PHASES = 96         # phases of VelocitySegments the C side holds (drive_control.c)
 
 
 def _doubles(names: str) -> list:
@@ -45,6 +46,10 @@ class Force(ctypes.Structure):
 class KeioObserver(ctypes.Structure):
     _fields_ = _doubles("Kt_n M_n F_grav_comp a b Ts v_stick F_static held has_ripple "
                         "first z_prev v_prev i_prev F_dis v_lp") + [("fr", Friction)]
+
+
+class Segments(ctypes.Structure):
+    _fields_ = _doubles("n z_end") + [("ph", _D * (6 * MAX_PHASES))]
 
 
 def fill(struct, **values) -> None:
