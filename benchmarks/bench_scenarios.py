@@ -8,13 +8,15 @@ closed loop), in one process:
   plots excluded). ``us_per_step`` is the wall time of :func:`cosim.algorithm.simulate`
   per communication step, ``x_real_time`` the simulated time over that wall time;
   ``startup_s`` is load + compile + FMU instantiation, ``write_s`` the final write.
-* **raw**: the floor on the same plant FMU, with the scenario's step size -- fmpy's loaded
-  C functions called through ctypes on preallocated arrays: one ``getReal`` of every
-  output the scenario reads, one ``setReal`` of every input it drives (held values),
-  ``doStep``. ``ratio_to_raw`` = run / raw.
+* **raw**: the floor on the same plant FMUs (every FMU of the scenario: ``fmus``), with the
+  scenario's step size -- fmpy's loaded C functions called through ctypes on preallocated
+  arrays: per FMU one ``getReal`` of every output the scenario reads, one ``setReal`` of
+  every input it drives (held values), ``doStep``. ``ratio_to_raw`` = run / raw;
+  ``meets_ratio``: at most :data:`TARGET_RATIO`.
 
 The raw loop is timed ``RAW_REPEAT`` times (minimum counts, the machine may be shared);
-each scenario runs once, in full (a run's cost is not uniform: contact, events). Writes
+each scenario runs in full (a run's cost is not uniform: contact, events), once, or
+``SHORT_REPEAT`` times (minimum counts) when it is shorter than ``SHORT_STEPS``. Writes
 ``results/benchmarks/scenarios.json``. ``python -m benchmarks scenarios [NAME ...]`` (names
 without ``.toml``) or ``python benchmarks/bench_scenarios.py [NAME ...]``.
 """
@@ -35,7 +37,10 @@ if str(ROOT) not in sys.path:
 
 RAW_STEPS = 50_000
 RAW_REPEAT = 3
+SHORT_STEPS = 200_000   # runs shorter than this (20 s simulated) are timed SHORT_REPEAT times, the best counts
+SHORT_REPEAT = 3
 TARGET_US = 10.0        # issue #15: <= 10 us per step, >= 10x real time at h = 1e-4 s
+TARGET_RATIO = 2.9      # the same goal on a machine whose raw loop is slower: 10 us / ~3.4 us (docs/performance.md)
 
 
 def closed_loop(system) -> bool:
@@ -65,45 +70,50 @@ def _io(sc, slave_name: str) -> tuple[list, list]:
     return [slave.variable(v) for v in outs], [slave.variable(v) for v in ins]
 
 
-def raw_loop(model_path, outs, ins, h: float, n: int) -> float:
-    """Seconds for ``n`` steps of get/set/doStep through ctypes (fmpy's loaded functions)."""
+def raw_loop(plants: list, h: float, n: int) -> float:
+    """Seconds for ``n`` steps of get/set/doStep through ctypes (fmpy's loaded functions) of
+    every plant FMU ``(model_path, outs, ins)`` of a scenario, in one loop."""
     import fmpy
     from fmpy.fmi2 import FMU2Slave
-    md = fmpy.read_model_description(str(model_path))
-    if md.fmiVersion != "2.0":
-        raise RuntimeError(f"raw loop: FMI 2.0 plants only, {model_path} is FMI {md.fmiVersion}")
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(model_path)),
-                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="raw")
-    fmu.instantiate()
-    fmu.setupExperiment(startTime=0.0)
-    fmu.enterInitializationMode()
-    fmu.exitInitializationMode()
-    f, c = fmu._functions, fmu.component
-    get, put, step = f["fmi2GetReal"], f["fmi2SetReal"], f["fmi2DoStep"]
-    ovr, ivr = (c_uint * len(outs))(*[v.vr for v in outs]), (c_uint * len(ins))(*[v.vr for v in ins])
-    ob = (c_double * len(outs))()
-    ib = (c_double * len(ins))(*[float(v.start_values()[0]) for v in ins])
-    no, ni = len(outs), len(ins)
+    calls, fmus = [], []
+    for j, (model_path, outs, ins) in enumerate(plants):
+        md = fmpy.read_model_description(str(model_path))
+        if md.fmiVersion != "2.0":
+            raise RuntimeError(f"raw loop: FMI 2.0 plants only, {model_path} is FMI {md.fmiVersion}")
+        fmu = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(model_path)),
+                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName=f"raw{j}")
+        fmu.instantiate()
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        fmus.append(fmu)
+        f, c = fmu._functions, fmu.component
+        ovr, ivr = (c_uint * len(outs))(*[v.vr for v in outs]), (c_uint * len(ins))(*[v.vr for v in ins])
+        ob = (c_double * len(outs))()
+        ib = (c_double * len(ins))(*[float(v.start_values()[0]) for v in ins])
+        calls.append((f["fmi2GetReal"], f["fmi2SetReal"], f["fmi2DoStep"], c, ovr, ivr, ob, ib, len(outs), len(ins)))
     t0 = time.perf_counter()
     for k in range(n):
-        get(c, ovr, no, ob)
-        put(c, ivr, ni, ib)
-        step(c, k * h, h, 1)
+        for get, put, step, c, ovr, ivr, ob, ib, no, ni in calls:
+            get(c, ovr, no, ob)
+            put(c, ivr, ni, ib)
+            step(c, k * h, h, 1)
     dt = time.perf_counter() - t0
-    fmu.terminate()
-    fmu.freeInstance()
+    for fmu in fmus:
+        fmu.terminate()
+        fmu.freeInstance()
     return dt
 
 
-def run_one(path: Path) -> dict | None:
+def _timed(path: Path, sc=None):
+    """One run as ``drillcosim run`` does it in-process: ``(scenario, RunInfo, load s,
+    start-up s of simulate, write s)``; ``sc``: already loaded (its load time is then 0)."""
     from cosim.algorithm import simulate
     from cosim.recorder import Recorder
     from cosim.runner import load
 
     t0 = time.perf_counter()
-    sc = load(path)
-    if not closed_loop(sc.system):
-        return None
+    sc = sc if sc is not None else load(path)
     t_load = time.perf_counter() - t0
     with tempfile.TemporaryDirectory() as out:
         rec = Recorder(sc.record_signals, sc.decimation, out)
@@ -113,18 +123,38 @@ def run_one(path: Path) -> dict | None:
         t2 = time.perf_counter()
         rec.finish()
         t_write = time.perf_counter() - t2
+    return sc, info, t_load, t2 - t1 - info.wall_time_s, t_write
+
+
+def run_one(path: Path) -> dict | None:
+    from cosim.runner import load
+
+    t0 = time.perf_counter()
+    sc = load(path)
+    t_load = time.perf_counter() - t0
+    if not closed_loop(sc.system):
+        return None
+    sc, info, _t, t_start, t_write = _timed(path, sc)
     us = info.wall_time_s / info.steps * 1e6
-    (plant, slave), = list(sc.system.slaves.items())[:1]
-    outs, ins = _io(sc, plant)
+    for _ in range(SHORT_REPEAT - 1 if info.steps < SHORT_STEPS else 0):
+        # a short run meets a burst of the machine's other jobs in full: the best of a few
+        # runs, as for the raw loop (start-up and writing: the first run's, imports included)
+        _sc, again, *_ = _timed(path)
+        us = min(us, again.wall_time_s / again.steps * 1e6)
+    plants = [(slave.model.path, *_io(sc, name)) for name, slave in sc.system.slaves.items()]
     h = sc.step_size
-    raw = min(raw_loop(slave.model.path, outs, ins, h, RAW_STEPS) for _ in range(RAW_REPEAT)) / RAW_STEPS * 1e6
+    raw = min(raw_loop(plants, h, RAW_STEPS) for _ in range(RAW_REPEAT)) / RAW_STEPS * 1e6
     sim_time = info.time_reached - sc.system.start_time
     blocks = ", ".join(f"{n}/{sc.system.rate(n)}" for n in sc.system.block_order())
+    from cosim.kernel_group import plan
+    in_c = " ".join("+".join(g) for g in plan(sc.system, sc.system.block_order())[1])
     return {"scenario": path.stem, "steps": info.steps, "us_per_step": round(us, 2),
-            "x_real_time": round(sim_time / info.wall_time_s, 1),
-            "raw_us_per_step": round(raw, 2), "ratio_to_raw": round(us / raw, 2),
-            "startup_s": round(t_load + (t2 - t1 - info.wall_time_s), 2), "write_s": round(t_write, 2),
-            "meets_10us": us <= TARGET_US, "blocks_rate": blocks}
+            "x_real_time": round(sim_time / (us * 1e-6 * info.steps), 1),
+            "fmus": len(plants), "raw_us_per_step": round(raw, 2), "ratio_to_raw": round(us / raw, 2),
+            "meets_ratio": us / raw <= TARGET_RATIO,
+            "startup_s": round(t_load + t_start, 2), "write_s": round(t_write, 2),
+            "meets_10us": us <= TARGET_US, "blocks_rate": blocks,
+            "c_groups": in_c}
 
 
 def machine() -> dict:

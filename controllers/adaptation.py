@@ -142,12 +142,18 @@ class CuttingParameterAdaptation(Block):
         self._t_prev = None
         self.failsafe = 0
         self.t_failsafe = math.nan
+        self._settled = None      # the outputs once a ramp has ended (no switch since): held as they are
 
     def step(self, t, u):
         if not self.failsafe and float(u[1]) >= 0.5 and self.fail_action in ("hold", "retract"):
             self.failsafe = 1 if self.fail_action == "hold" else 2   # latched: the flag is no longer trusted
             self.t_failsafe = float(t)
+            self._settled = None
         idx = self._target_index(float(u[0]), float(u[1]))
+        if idx == self.index and self._settled is not None:
+            # the ramp has ended and nothing switched: the same outputs (r = 1) without the blend
+            self._t_prev = float(t)
+            return self._settled
         if idx != self.index:
             self.start = list(self.value)  # blend from what is in force (also mid-ramp)
             self.index = idx
@@ -168,8 +174,10 @@ class CuttingParameterAdaptation(Block):
             s = (t - self.t_switch + h) / self.ramp_time
             r = 1.0 if s >= 1.0 else 0.5 * (1.0 - math.cos(math.pi * max(s, 0.0)))
         self.value = [a + (b - a) * r for a, b in zip(self.start, target)]
-        return (*self.value, float(self.index), self.t_switch, r,
-                float(self.failsafe == 2), float(self.failsafe), self.t_failsafe)
+        out = (*self.value, float(self.index), self.t_switch, r,
+               float(self.failsafe == 2), float(self.failsafe), self.t_failsafe)
+        self._settled = out if r == 1.0 else None
+        return out
 
 
 class OneStepDelay(Block):

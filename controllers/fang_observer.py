@@ -122,6 +122,7 @@ class _KernelState(ctypes.Structure):
 
 class AdaptiveThrustObserver(DiscretisedBlock):
     direct_feedthrough = True
+    c_kernel = None             # the C step (set by _kernel), run alone or in a group by the master
 
     def __init__(self, J_en: float = FangNominal.J_en, K_Tn: float = FangNominal.K_Tn,
                  K_pitch: float = FangNominal.K_pitch, eta: float = FangNominal.eta,
@@ -207,7 +208,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._kf = self.nominal.force_per_torque       # eta/K_pitch: torque -> table force
         self._cont = (AK, B, K, G)
         self._k = self._kernel(kernel)
-        self.step = self._step_c if self._k is not None else self._step_python
+        self.step = self.c_kernel.step if self._k is not None else self._step_python
         self.ensure_discretised()
         self.reset(0.0)
 
@@ -218,13 +219,17 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         fr = self.friction
         if kernel == "python":
             return None
+        if getattr(fr, "stribeck_exponent", 2.0) != 2.0 and fr.stribeck:   # the C friction is Gaussian
+            if kernel == "c":
+                raise ValueError("AdaptiveThrustObserver: the C kernel's Stribeck curve has exponent 2")
+            return None
         if len(fr.ripple) > MAX_RIPPLE:
             if kernel == "c":
                 raise ValueError(f"AdaptiveThrustObserver: the C kernel holds {MAX_RIPPLE} tau_ripple rows")
             return None
-        from controllers.kernels import KernelUnavailable, library
+        from controllers.kernels import Kernel, KernelUnavailable, library
         try:
-            lib = library("fang_observer")
+            library("fang_observer")
         except KernelUnavailable as e:
             if kernel == "c":
                 raise
@@ -242,11 +247,8 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         names = [p.name for p in self.inputs]
         k.k_theta = names.index("theta") if "theta" in names else -1
         k.k_orbital = names.index("orbital_speed") if "orbital_speed" in names else -1
-        fn = lib.fang_observer_step
-        fn.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p]
-        fn.restype = None
-        self._u_c, self._y_c = (_D * len(self.inputs))(), (_D * len(self.outputs))()
-        self._c_call = (fn, ctypes.addressof(k), ctypes.addressof(self._u_c), ctypes.addressof(self._y_c))
+        # one sample: self.c_kernel.step; the master may also run it in a group (cosim/kernel_group.py)
+        self.c_kernel = Kernel("fang_observer", "fang_observer_step", k, len(self.inputs), len(self.outputs))
         return k
 
     # ------------------------------------------------------------------ set-up
@@ -286,13 +288,6 @@ class AdaptiveThrustObserver(DiscretisedBlock):
             k.x[:], k.Y[:], k.th[:], k.Si[:] = self._x, self._Y, self._th, self._Si
 
     # ------------------------------------------------------------------ per sample
-    def _step_c(self, t, u):
-        """One sample in C (controllers/kernels/fang_observer.c): the same as _step_python."""
-        fn, k, u_c, y_c = self._c_call
-        self._u_c[:] = u
-        fn(k, t, u_c, y_c)
-        return self._y_c[:]
-
     def _step_python(self, t, u):
         """One sample, the reference implementation (the C kernel mirrors it line by line)."""
         i_m = float(u[0])

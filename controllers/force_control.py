@@ -103,6 +103,8 @@ from typing import Sequence
 
 from cosim.block import Block, Port
 from controllers.calibration import load_calibration, load_commissioning
+from controllers.kernels import Kernel, KernelBlock
+from controllers.kernels import structs
 from controllers.position_control import (CORE_PORTS, ENCODER_PORT, TRAJECTORY_PORTS, RobustAcceleration,
                                           pd_feedforward)
 from controllers.trajectory import profile_step
@@ -120,7 +122,7 @@ def held_for(condition: bool, t: float, since: float | None, duration: float) ->
     return since, t - since >= duration - 1e-12
 
 
-class ThrustForceController(Block):
+class ThrustForceController(KernelBlock, Block):
     """Position control on approach / retract, P thrust-force control while cutting.
 
     Settings (SI; defaults = Keio Table 2)
@@ -215,6 +217,21 @@ class ThrustForceController(Block):
         self.zr = self.vr = 0.0  # retract reference state
         self.i_abs_max = 0.0
         self.sat_any = 0.0
+        self._c_attach()
+
+    def _c_make(self):
+        """The step in C (controllers/kernels/drive_control.c), unless a subclass changes it."""
+        if type(self).step is not ThrustForceController.step or type(self.core) is not RobustAcceleration:
+            return None
+        return Kernel("drive_control", "force_control_step", structs.Force(), 6, 10)
+
+    def _c_fill(self, c) -> None:
+        structs.fill(c, **{n: getattr(self, n) for n in (
+            "Kp", "Kv", "Kf", "force_control", "F_contact", "t_confirm", "z_contact_min", "exit_min_depth",
+            "F_exit_ratio", "t_exit_confirm", "z_limit", "z_retract", "v_retract", "a_retract", "v_max",
+            "tau_switch", "mode", "a_last", "a_off", "t_switch", "t_above", "t_below", "z_contact", "zr", "vr",
+            "i_abs_max", "sat_any")}, has_above=self.t_above is not None, has_below=self.t_below is not None)
+        structs.fill_robust(c.core, self.core)
 
     def _switch(self, t: float, mode: int, z: float, v_hat: float) -> None:
         self.mode = mode

@@ -34,6 +34,8 @@ from pathlib import Path
 import numpy as np
 
 from cosim.block import Block, Port
+from controllers.kernels import Kernel, KernelBlock
+from controllers.kernels import structs
 
 
 @dataclass
@@ -174,7 +176,7 @@ def make_friction(friction_file=None, coulomb=None, viscous=None, stribeck=None,
 
 
 # --------------------------------------------------------------------------- air-cut motion
-class VelocitySegments(Block):
+class VelocitySegments(KernelBlock, Block):
     """Reference for an air-cutting identification run: constant-velocity segments.
 
     For each entry of ``velocities`` [m/s] (feed coordinate, sign = direction): ramp at
@@ -215,6 +217,20 @@ class VelocitySegments(Block):
         self.z_start = float(z_start)
         self.t_end = t
         self.z_end = z
+        self._c_attach()
+
+    def reset(self, t0: float) -> None:
+        self._c_attach()
+
+    def _c_make(self):
+        """The step in C (controllers/kernels/drive_control.c), unless a subclass changes it."""
+        if type(self).step is not VelocitySegments.step or len(self._phases) > structs.MAX_PHASES:
+            return None
+        return Kernel("drive_control", "segments_step", structs.Segments(), 0, 4)
+
+    def _c_fill(self, c) -> None:
+        c.n, c.z_end = len(self._phases), self.z_end
+        c.ph[:6 * len(self._phases)] = [float(x) for row in self._phases for x in row]
 
     def step(self, t, u):
         for t0, dur, a, v0, z0, seg in self._phases:

@@ -63,11 +63,13 @@ from __future__ import annotations
 
 from cosim.block import Port
 from controllers.calibration import load_calibration, load_commissioning, rescale_friction
-from controllers.friction import make_friction, resolve_path
+from controllers.friction import FrictionModel, make_friction, resolve_path
+from controllers.kernels import Kernel, KernelBlock
+from controllers.kernels import structs
 from controllers.nominal_models import DiscretisedBlock, KeioNominal, keio_model, zoh
 
 
-class CuttingForceObserver(DiscretisedBlock):
+class CuttingForceObserver(KernelBlock, DiscretisedBlock):
     inputs = (Port("i_ref", "A", "current reference to the drive"),
               Port("z", "m", "linear encoder, feed coordinate (positive into the workpiece)"))
     outputs = (Port("F_thrust_hat", "N", "observed thrust force, eq. 1"),
@@ -139,6 +141,23 @@ class CuttingForceObserver(DiscretisedBlock):
         self._i_prev = 0.0
         self._F_dis = 0.0                     # thrust estimate (filtered)
         self._v_lp = 0.0
+        self._c_attach()
+
+    def _c_make(self):
+        """The step in C (controllers/kernels/drive_control.c), unless a subclass changes it."""
+        if type(self).step is not CuttingForceObserver.step or type(self.friction) is not FrictionModel \
+                or len(self.friction.ripple) > structs.MAX_RIPPLE:
+            return None
+        return Kernel("drive_control", "keio_observer_step", structs.KeioObserver(), 2, 3)
+
+    def _c_fill(self, c) -> None:
+        nom = self.nominal
+        structs.fill(c, Kt_n=nom.Kt_n, M_n=nom.M_n, F_grav_comp=self.F_grav_comp, a=self._a, b=self._b,
+                     Ts=self._Ts_used, v_stick=self.v_stick, F_static=self._F_static,
+                     held=self.i_ref_timing == "held", has_ripple=self._ripple, first=self._first,
+                     z_prev=self._z_prev, v_prev=self._v_prev, i_prev=self._i_prev, F_dis=self._F_dis,
+                     v_lp=self._v_lp)
+        structs.fill_friction(c.fr, self.friction)
 
     def step(self, t, u):
         i_in, z = float(u[0]), float(u[1])

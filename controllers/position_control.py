@@ -65,6 +65,8 @@ from typing import Sequence
 import numpy as np
 
 from cosim.block import Block, Port
+from controllers.kernels import Kernel, KernelBlock
+from controllers.kernels import structs
 
 
 def nominal_loop_poles(Kp: float, Kv: float) -> np.ndarray:
@@ -172,7 +174,7 @@ class RobustAcceleration:
         return abs(self.i_unsat) > self.i_max
 
 
-class PositionController(Block):
+class PositionController(KernelBlock, Block):
     """PD + feed-forward position control as robust acceleration control (Keio Fig. 2).
 
     Settings
@@ -212,6 +214,7 @@ class PositionController(Block):
         self.eta = 1.0
         self.core = RobustAcceleration(mass_nominal, force_constant_nominal, g_dob, g_vel, i_max,
                                        F_bias, sample_period if sample_period > 0 else dt)
+        self.reset(0.0)
 
     @classmethod
     def for_ball_screw(cls, J_en: float, K_Tn: float, K_pitch: float, eta: float = 1.0, **kw):
@@ -238,6 +241,17 @@ class PositionController(Block):
 
     def reset(self, t0: float) -> None:
         self.core.reset()
+        self._c_attach()
+
+    def _c_make(self):
+        """The step in C (controllers/kernels/drive_control.c), unless a subclass changes it."""
+        if type(self).step is not PositionController.step or type(self.core) is not RobustAcceleration:
+            return None
+        return Kernel("drive_control", "position_step", structs.Position(), 4, 5)
+
+    def _c_fill(self, c) -> None:
+        c.Kp, c.Kv = self.Kp, self.Kv
+        structs.fill_robust(c.core, self.core)
 
     def step(self, t: float, u: Sequence[float]) -> Sequence[float]:
         z_ref, v_ff, a_ff, z = u

@@ -29,6 +29,8 @@ import math
 from typing import Sequence
 
 from cosim.block import Block, Port
+from controllers.kernels import Kernel, KernelBlock
+from controllers.kernels import structs
 
 PHASE_WAIT, PHASE_APPROACH, PHASE_FEED, PHASE_RETRACT, PHASE_DONE = 0, 1, 2, 3, 4
 
@@ -57,7 +59,7 @@ def profile_step(z: float, v: float, z_target: float, v_max: float, a_max: float
     return z_new, v_new, a
 
 
-class FeedTrajectory(Block):
+class FeedTrajectory(KernelBlock, Block):
     """Approach / constant feed / retract reference for one drilled hole.
 
     Settings
@@ -119,6 +121,20 @@ class FeedTrajectory(Block):
         self._t_prev = None
         self._cmd = 0.0
         self._retract = False
+        self._c_attach()
+
+    def _c_make(self):
+        """The step in C (controllers/kernels/drive_control.c), unless a subclass changes it."""
+        if type(self).step is not FeedTrajectory.step or len(self.inputs) != 2:
+            return None
+        return Kernel("drive_control", "trajectory_step", structs.Trajectory(), 2, 4)
+
+    def _c_fill(self, c) -> None:
+        structs.fill(c, z_start=self.z_start, z_approach_end=self.z_approach_end, v_approach=self.v_approach,
+                     feed_rate=self.feed_rate, z_end=self.z_end, v_retract=self.v_retract, a_max=self.a_max,
+                     t_start=self.t_start, dt=self.dt, z=self._z, v=self._v, phase=self._phase,
+                     has_t_prev=self._t_prev is not None, t_prev=self._t_prev, cmd=self._cmd,
+                     retract=self._retract)
 
     def _feed(self, cmd: float) -> float:
         return cmd if cmd > 0.0 else self.feed_rate

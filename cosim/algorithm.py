@@ -30,12 +30,15 @@ step, so a block that runs every 10th step costs nothing in the nine others
 """
 from __future__ import annotations
 
+import ctypes
 import math
+import struct
 import sys
 import time as _time
 from dataclasses import dataclass, field
 from operator import itemgetter
 
+from . import kernel_group
 from .errors import ScenarioError, SimulationError
 from .manipulators import OPERATORS, Event, fire_step, parse_condition, setter_for
 from .outputs import OutputError
@@ -246,7 +249,7 @@ def _compile(system, recorder, events, extra_record) -> _Plan:
             for e, start in zip(v.elements, v.start_values()):
                 bus.add(f"{name}.{e}", start)
         read_plan.append((slave, names, a, len(bus.values)))
-    order = system.block_order()
+    order, groups = kernel_group.plan(system, system.block_order())
     block_slots = []
     for name in order:
         a = len(bus.values)
@@ -273,10 +276,19 @@ def _compile(system, recorder, events, extra_record) -> _Plan:
             write_plan.append((slave, [v.name for v in in_vars],
                                _reader([bus.ref(s, wire=True) for s in in_signals])))
     blocks = []
+    first_of = {g[0]: g for g in groups}
+    in_group = {n for g in groups for n in g}
+    slots_of = {name: (a, b) for name, a, b in block_slots}
     for name, a, b in block_slots:
-        block = system.blocks[name]
-        read_u = _reader([bus.ref(f"{name}.{p.name}") for p in block.inputs])
-        blocks.append((system.rate(name), block.step, read_u, a, b, b - a, name))
+        if name in first_of:            # C-kernel blocks: one call for the group (cosim/kernel_group.py)
+            g = first_of[name]
+            b = slots_of[g[-1]][1]
+            step, ext = kernel_group.build(system, bus, g, a, b)
+            blocks.append((system.rate(name), step, _getter(ext), a, b, b - a, "+".join(g)))
+        elif name not in in_group:
+            block = system.blocks[name]
+            read_u = _reader([bus.ref(f"{name}.{p.name}") for p in block.inputs])
+            blocks.append((system.rate(name), block.step, read_u, a, b, b - a, name))
     cond_events = [e for e in events if e.when is not None]
     conds = [(*bus.ref(sig), OPERATORS[op], number, ev)
              for ev, (sig, op, number) in zip(cond_events, conditions)]
@@ -335,9 +347,9 @@ class _Loop:
             in_names, read_in = written.get(id(slave), ([], None))
             get, obuf, put, ibuf, do_step = slave.step_io(names, in_names)
             if names:
-                self.reads.append((get, obuf, a, b, slave))
+                self.reads.append((get, _puller(obuf), a, b, slave))
             if in_names:
-                self.writes.append((put, ibuf, read_in, slave))
+                self.writes.append((put, _pusher(ibuf, read_in), slave))
             steppers.append((do_step, slave))
         self.rejection = None
         if step_rejection_floor:
@@ -349,7 +361,10 @@ class _Loop:
         # reads them when the process dies in C)
         self.beat = watch.heartbeat.slots
         watch.heartbeat.begin([s.name for _d, s in steppers], grid.h, grid.t0)
-        self.steppers = [(do_step, slave, float(k)) for k, (do_step, slave) in enumerate(steppers)]
+        # (call(t, h, 1) -> status, on Discard -> status, slave, index): an FMI 2.0 slave's raw
+        # doStep without a Python frame; anything else through its do_step
+        self.steppers = [(*getattr(do_step, "fast", (_three(do_step), None)), slave, float(k))
+                         for k, (do_step, slave) in enumerate(steppers)]
         self.schedule, self.period = _schedule(plan.blocks, n_run)
         self.conditions = plan.conditions
         self.timed = list(plan.timed)
@@ -394,10 +409,11 @@ class _Loop:
         computed and recorded but not stepped from."""
         values, reads, writes, steppers = self.values, self.reads, self.writes, self.steppers
         schedule, period, conditions = self.schedule, self.period, self.conditions
+        any_fires = _any_fires(conditions)
         record, decimation, rows, beat = self.record, self.decimation, self.rows, self.beat
         g, n_run = self.grid, self.n_run
         t0, h, n_last, stop_time, n_short, h_last = g.t0, g.h, g.n_last, g.stop_time, g.n_short, g.h_last
-        stop, t = False, self.t
+        stop, t, next_timed = False, self.t, self.next_timed
         phase, block_name = "read", ""
         try:
             while n < n_end:
@@ -405,14 +421,15 @@ class _Loop:
                 beat[0] = n
                 # 1. plant outputs at t
                 phase = "read"
-                for get, obuf, a, b, slave in reads:
+                for get, pull, a, b, slave in reads:
                     status = get()
                     if status:
                         _check(status, "getReal", slave, t)
-                    values[a:b] = obuf
+                    values[a:b] = pull()
                 # 2. time events due at t
-                if n == self.next_timed:
+                if n == next_timed:
                     stop = self._fire_timed(n, t)
+                    next_timed = self.next_timed
                 # 3. the blocks due at t, in dependency order (the others hold their outputs)
                 phase = "block"
                 for step, read_u, a, b, nb, block_name in schedule[n % period]:
@@ -422,13 +439,14 @@ class _Loop:
                     values[a:b] = y
                 # 4. condition events
                 phase = "event"
-                if conditions:
+                if conditions and any_fires(values):
                     for c in conditions:
                         i, s, o, op, number, ev = c
                         if op(s * values[i] + o, number):
                             # fires once; rebinding leaves the list being iterated intact
                             conditions = self.conditions = [x for x in conditions if x is not c]
                             stop = self._apply(ev, t) or stop
+                    any_fires = _any_fires(conditions)
                 # 5. record
                 if decimation and (n % decimation == 0 or stop):
                     rows.append((t, *record(values)))
@@ -436,17 +454,19 @@ class _Loop:
                     break
                 # 6. plant inputs, 7. advance every FMU from t to t + h
                 phase = "write"
-                for put, ibuf, read_in, slave in writes:
-                    ibuf[:] = read_in(values)
+                for put, push, slave in writes:
+                    push(values)
                     status = put()
                     if status:
                         _check(status, "setReal", slave, t)
                 phase = "doStep"
                 hn = h if n != n_short else h_last
-                for do_step, slave, k in steppers:
+                for do_step, discarded, slave, k in steppers:
                     beat[1] = k
-                    status = do_step(t, hn)
+                    status = do_step(t, hn, 1)
                     if status:
+                        if status == 2 and discarded is not None:
+                            status = discarded(t, hn)
                         if status == TERMINATE_REQUESTED:
                             stop = True
                             self._terminated(slave, t + hn)
@@ -548,6 +568,48 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
             bar.close()
         for slave in started:
             slave.free(failed=(slave.name == failed))
+
+
+def _any_fires(conditions: list):
+    """``values -> bool``: does any condition hold? One generated expression (the same
+    ``s * v[i] + o`` and comparison as the loop), so a step without an event costs one
+    call, not a loop over the conditions."""
+    if not conditions:
+        return lambda v: False
+    symbol = {f: text for text, f in OPERATORS.items()}
+    consts, terms = {}, []
+    for j, (i, s, o, op, number, _ev) in enumerate(conditions):
+        consts[f"s{j}"], consts[f"o{j}"], consts[f"n{j}"] = s, o, number
+        terms.append(f"(s{j} * v[{i}] + o{j} {symbol[op]} n{j})")
+    return eval(f"lambda v: {' or '.join(terms)}", consts)   # noqa: S307 - text built here from ints
+
+
+def _puller(buf):
+    """``() -> list`` of an FMU output buffer's values: a ctypes double array through a
+    memoryview (``tolist`` is ~4x faster than slicing the array); a list as it is."""
+    if isinstance(buf, ctypes.Array) and buf._type_ is ctypes.c_double:
+        return memoryview(buf).cast("B").cast("d").tolist
+    return lambda: buf
+
+
+def _pusher(buf, read_in):
+    """``values -> None`` writing an FMU input buffer from the bus: a ctypes double array
+    by one ``struct.pack_into``; else (typed inputs) by slice assignment."""
+    if isinstance(buf, ctypes.Array) and buf._type_ is ctypes.c_double:
+        pack = struct.Struct(f"{len(buf)}d").pack_into
+
+        def push(values):
+            pack(buf, 0, *read_in(values))
+        return push
+
+    def push_typed(values):
+        buf[:] = read_in(values)
+    return push_typed
+
+
+def _three(do_step):
+    """``do_step(t, h)`` called as ``(t, h, 1)``, as the loop calls an FMI 2.0 doStep."""
+    return lambda t, h, _new_step: do_step(t, h)
 
 
 def _steps(loop) -> int:

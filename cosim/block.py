@@ -33,6 +33,10 @@ Rules the master relies on
   once before the first step.
 * Per-step code is plain Python/numpy on floats: derive models (casadi) in the
   constructor, never per step.
+* Optional, for speed: a block may also offer its step in C, an attribute ``c_kernel``
+  whose ``step`` is the block's ``step`` (``controllers.kernels.Kernel``); the master
+  then runs it, with the other such blocks due at the same steps, in one C call
+  (:mod:`cosim.kernel_group`). A plain block needs none of this.
 """
 from __future__ import annotations
 

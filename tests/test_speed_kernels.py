@@ -43,7 +43,7 @@ CASES = [
 def test_fang_kernel_matches_python_step(kw):
     c = AdaptiveThrustObserver(kernel="c", **kw)
     p = AdaptiveThrustObserver(kernel="python", **kw)
-    assert c.step.__func__ is AdaptiveThrustObserver._step_c
+    assert c.step == c.c_kernel.step and p.c_kernel is None
     names = c.input_names()
     for run in range(2):                          # the second run checks reset
         c.reset(0.0)
@@ -95,3 +95,166 @@ def test_reader_scales_like_the_connection():
     r = _reader([(3, 0.637e-3, 0.0), (1, 1.0, 0.0), (0, -2.0, 0.5)])
     assert r(bus) == (0.637e-3 * 4.0 + 0.0, 2.0, -2.0 * 1.0 + 0.5)
     assert tuple(_reader([])(bus)) == ()
+
+
+# --- the Keio / ball-screw drive blocks in C (controllers/kernels/drive_control.c) -------
+def _agree(make, inputs, n_runs=2):
+    """Python reference and C step of the same block give the same outputs (to 1e-9 of
+    1 + |value|: the same operations in the same order), also after a reset."""
+    c, p = make(), make()
+    p.kernel = "python"
+    p.reset(0.0)
+    assert c.c_kernel is not None and c.step == c.c_kernel.step and p.c_kernel is None
+    for _ in range(n_runs):
+        c.reset(0.0)
+        p.reset(0.0)
+        worst = 0.0
+        for t, u in inputs():
+            yc, yp = c.step(t, u), p.step(t, u)
+            assert len(yc) == len(c.outputs)
+            for a, b in zip(yc, yp):
+                if not (math.isnan(a) and math.isnan(b)):
+                    worst = max(worst, abs(a - b) / (1.0 + abs(b)))
+        assert worst < 1e-9, worst
+    return c, p
+
+
+def _encoder(t: float) -> float:
+    """An encoder (1 nm) moving down at ~1 mm/s with a wobble, stopping after 0.6 s."""
+    z = 1e-3 * min(t, 0.6) + 2e-6 * math.sin(40 * t)
+    return math.floor(z / 1e-9) * 1e-9
+
+
+def test_trajectory_kernel_matches_python_step():
+    from controllers.trajectory import FeedTrajectory
+
+    def inputs():                         # approach, feed at the setting then a command, a retract
+        for k in range(9000):
+            t = k * 1e-4
+            yield t, (2e-3 if t > 0.4 else 0.0, 1.0 if t > 0.7 else 0.0)
+    _agree(lambda: FeedTrajectory(z_approach_end=0.5e-3, v_approach=5e-3, feed_rate=1e-3, z_end=4e-3,
+                                  a_max=0.5, t_start=0.01), inputs)
+
+
+def test_position_kernels_match_python_step():
+    from controllers.position_control import BallScrewPositionController, PositionController
+
+    def inputs():
+        for k in range(8000):
+            t = k * 1e-4
+            yield t, (1e-3 * t, 1e-3, 0.0, _encoder(t))
+    _agree(lambda: PositionController(i_max=2.0, F_bias=0.7), inputs)      # saturates at the start
+    _agree(lambda: BallScrewPositionController(i_max=6.0), inputs)
+
+
+def test_force_control_kernel_matches_python_step():
+    from controllers.force_control import ThrustForceController
+
+    def inputs():                         # contact at 0.1 s, exit (thrust lost) at 0.5 s
+        for k in range(9000):
+            t = k * 1e-4
+            F = 50.0 + 5 * math.sin(300 * t) if 0.1 < t < 0.5 else 0.5
+            yield t, (1e-3 * t, 1e-3, 0.0, _encoder(t), 50.0, F)
+    for kw in ({}, {"v_max": 3e-3, "i_max": 1.0}, {"force_control": False}):
+        c, p = _agree(lambda: ThrustForceController(F_bias=0.7, z_contact_min=0.0, exit_min_depth=0.2e-3,
+                                                    a_retract=0.5, **kw), inputs)
+        assert p.mode == (0 if kw.get("force_control") is False else 2)     # every mode was visited
+
+
+def test_keio_observer_kernel_matches_python_step():
+    from controllers.keio_observer import CuttingForceObserver
+
+    def inputs():
+        for k in range(8000):
+            t = k * 1e-4
+            yield t, (2.0 + math.sin(50 * t), _encoder(t))
+    for kw in ({"F_coulomb": 8.0, "b_viscous": 30.0, "F_stribeck": 3.0, "v_stribeck": 1e-3,
+                "F_ripple": [[392.7, -1.03, 0.0006], [785.4, 0.1, 0.2]]},
+               {"F_coulomb": 8.0, "i_ref_timing": "previous_call", "v_stick": 0.0}):
+        _agree(lambda: CuttingForceObserver(F_grav_comp=0.7, **kw), inputs)
+
+
+def test_kernel_groups_keep_the_order_of_connected_blocks():
+    """Group members become adjacent only by moving blocks connected to none of the
+    members they pass; a Python block stays where it was."""
+    from types import SimpleNamespace as NS
+    from cosim import kernel_group
+
+    class K:
+        def __init__(self, kernel=True):
+            self.c_kernel = NS(step=self.step) if kernel else None
+
+        def step(self, t, u):
+            return ()
+    blocks = {"a": K(), "x": K(False), "b": K(), "y": K(False), "c": K()}
+    conns = [NS(src="x.o", dst="y.i"), NS(src="b.o", dst="y.i2"), NS(src="y.o", dst="c.i")]
+    rates = {"a": 1, "x": 10, "b": 1, "y": 1, "c": 1}
+    system = NS(blocks=blocks, connections=conns, rate=rates.get)
+    order, groups = kernel_group.plan(system, list(blocks))
+    # x moves ahead of a (no link with a); y reads b, so it cannot pass b: the group ends at b
+    assert order == ["x", "a", "b", "y", "c"] and groups == [["a", "b"], ["c"]]
+    blocks["b"].step = lambda t, u: ()          # a wrapped step runs in Python, where it was ...
+    assert kernel_group.plan(system, list(blocks)) == (["x", "b", "y", "a", "c"], [["a", "c"]])  # ... after x
+
+
+def test_grouped_scenario_gives_the_python_blocks_results(tmp_path):
+    """Keio Fig. 7 for 1 s (approach, contact, force control): the blocks in one C group
+    and the Python reference steps record the same doubles."""
+    from pathlib import Path
+
+    from cosim.algorithm import simulate
+    from cosim.recorder import Recorder
+    from cosim.runner import load
+    path = Path(__file__).resolve().parent.parent / "scenarios" / "keio_fig7_aluminium_force_control.toml"
+    results = []
+    for kernel in ("auto", "python"):
+        sc = load(path)
+        for b in sc.system.blocks.values():
+            b.kernel = kernel
+            b.reset(0.0)
+        rec = Recorder(sc.record_signals, sc.decimation, tmp_path / kernel)
+        simulate(sc.system, 1.0, rec, sc.events)
+        results.append(rec.finish(write_mat=False))
+    c, p = results
+    assert (c["controller.mode"] == 1).any()
+    for s in p.signals:
+        assert np.array_equal(c[s], p[s], equal_nan=True), s
+    # the CSV reads back to the same doubles (format_chunk)
+    from cosim.recorder import Result
+    back = Result.from_csv(tmp_path / "auto" / "data.csv")
+    for s in c.signals:
+        assert np.array_equal(back[s], c[s], equal_nan=True), s
+
+
+def test_csv_chunk_text_reads_back_bit_for_bit():
+    from cosim.recorder import format_chunk
+    rng = np.random.default_rng(3)
+    v = rng.standard_normal(4000) * 10.0 ** rng.integers(-300, 300, 4000)
+    v[::7] = np.nan
+    v[1:4] = [0.0, -0.0, 5e-324]
+    for chunk in (v.reshape(-1, 8), np.where(np.arange(4000) == 9, np.inf, v).reshape(-1, 8)):
+        lines = format_chunk(chunk).splitlines()
+        back = np.array([[float(x) for x in line.split(",")] for line in lines])
+        assert back.shape == chunk.shape
+        assert np.array_equal(back.view(np.int64)[~np.isnan(back)], chunk.view(np.int64)[~np.isnan(chunk)])
+        assert np.array_equal(np.isnan(back), np.isnan(chunk))
+
+
+def test_condition_check_is_the_loops_comparison():
+    from cosim.algorithm import _any_fires
+    from cosim.manipulators import OPERATORS
+    bus = [0.0, 2.5, -1.0]
+    for text, op in OPERATORS.items():
+        for i, s, o, number in ((1, 1.0, 0.0, 2.5), (2, -2.0, 0.5, 2.5), (0, 1.0, 0.0, 1.0)):
+            assert _any_fires([(i, s, o, op, number, None)])(bus) == op(s * bus[i] + o, number), text
+    assert not _any_fires([])(bus)
+    assert _any_fires([(0, 1.0, 0.0, OPERATORS[">"], 1.0, None), (1, 1.0, 0.0, OPERATORS[">="], 2.5, None)])(bus)
+
+
+def test_velocity_segments_kernel_matches_python_step():
+    from controllers.friction import VelocitySegments
+
+    def inputs():                         # before the start, every ramp and hold, after the end
+        for k in range(0, 140000, 7):
+            yield k * 1e-4, ()
+    _agree(lambda: VelocitySegments(velocities=(1e-3, -2.5e-3, 5e-3), hold=(0.5, 2.0, 1.0), t_start=0.3), inputs)

@@ -1,0 +1,79 @@
+"""ctypes mirrors of the state structs of drive_control.c, field for field (all doubles).
+
+:func:`fill` copies same-named attributes of a Python object into a struct, so a block
+states its constants once, by name, and the C side reads them.
+"""
+from __future__ import annotations
+
+import ctypes
+
+_D = ctypes.c_double
+MAX_RIPPLE = 8          # rows of a friction ripple the C side holds (drive_control.c)
+MAX_PHASES = 96         # phases of VelocitySegments the C side holds (drive_control.c)
+
+
+def _doubles(names: str) -> list:
+    return [(n, _D) for n in names.split()]
+
+
+class Robust(ctypes.Structure):
+    _fields_ = _doubles("M Kt g_dob g_vel i_max F_bias dt0 "
+                        "has_prev z_prev t_prev v a F_dis i i_unsat dt has_poles dt_poles av ad")
+
+
+class Friction(ctypes.Structure):
+    _fields_ = _doubles("coulomb viscous stribeck v_stribeck exponent v_eps n_ripple") + \
+        [("ripple", _D * (3 * MAX_RIPPLE))]
+
+
+class Trajectory(ctypes.Structure):
+    _fields_ = _doubles("z_start z_approach_end v_approach feed_rate z_end v_retract a_max t_start dt "
+                        "z v phase has_t_prev t_prev cmd retract")
+
+
+class Position(ctypes.Structure):
+    _fields_ = _doubles("Kp Kv") + [("core", Robust)]
+
+
+class Force(ctypes.Structure):
+    _fields_ = _doubles("Kp Kv Kf force_control F_contact t_confirm z_contact_min "
+                        "exit_min_depth F_exit_ratio t_exit_confirm z_limit "
+                        "z_retract v_retract a_retract v_max tau_switch "
+                        "mode a_last a_off t_switch has_above t_above has_below t_below "
+                        "z_contact zr vr i_abs_max sat_any") + [("core", Robust)]
+
+
+class KeioObserver(ctypes.Structure):
+    _fields_ = _doubles("Kt_n M_n F_grav_comp a b Ts v_stick F_static held has_ripple "
+                        "first z_prev v_prev i_prev F_dis v_lp") + [("fr", Friction)]
+
+
+class Segments(ctypes.Structure):
+    _fields_ = _doubles("n z_end") + [("ph", _D * (6 * MAX_PHASES))]
+
+
+def fill(struct, **values) -> None:
+    """Set fields by name; None means "not yet" (stored as 0.0 with its has_ flag at 0)."""
+    for name, v in values.items():
+        setattr(struct, name, 0.0 if v is None else float(v))
+
+
+def fill_robust(c: Robust, core) -> None:
+    """controllers.position_control.RobustAcceleration -> its struct (settings and state)."""
+    fill(c, M=core.M, Kt=core.Kt, g_dob=core.g_dob, g_vel=core.g_vel, i_max=core.i_max, F_bias=core.F_bias,
+         dt0=core.dt0, has_prev=core.z_prev is not None, z_prev=core.z_prev, t_prev=core.t_prev, v=core.v,
+         a=core.a, F_dis=core.F_dis, i=core.i, i_unsat=core.i_unsat, dt=core.dt,
+         has_poles=core._dt_poles is not None, dt_poles=core._dt_poles)
+    if core._dt_poles is not None:
+        c.av, c.ad = core._av, core._ad
+
+
+def fill_friction(f: Friction, model) -> bool:
+    """controllers.friction.FrictionModel -> its struct; False when C cannot hold it."""
+    if len(model.ripple) > MAX_RIPPLE:
+        return False
+    fill(f, coulomb=model.coulomb, viscous=model.viscous, stribeck=model.stribeck, v_stribeck=model.v_stribeck,
+         exponent=model.stribeck_exponent, v_eps=model.v_eps, n_ripple=len(model.ripple))
+    for j, row in enumerate(model.ripple):
+        f.ripple[3 * j:3 * j + 3] = [float(v) for v in row]
+    return True
