@@ -56,13 +56,15 @@ def exit_code(summary: dict) -> int:
 
 def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progress: bool = True,
                    wall_timeout: float | None = None, max_steps: int | None = None,
-                   grace: float = GRACE_S, log_file=None) -> dict:
+                   grace: float = GRACE_S, log_file=None, server=None) -> dict:
     """Run ``scenario`` in a child process; return its summary (also in summary.json).
 
     Raises only for what happens before the run (:class:`cosim.errors.ScenarioError`,
     :class:`cosim.outputs.OutputError`); every outcome of the run itself -- ``completed``,
     ``stopped``, ``failed``, ``interrupted``, ``timeout``, ``crashed`` -- is a summary.
-    ``log_file``: the child's stdout and stderr (C-level output too) go there.
+    ``log_file``: the child's stdout and stderr (C-level output too) go there. ``server``: a
+    :class:`cosim.run_server.RunServer` whose warm child runs it (a campaign's worker), when
+    this process is threaded; else a child of its own.
     """
     RunWatch(wall_timeout, max_steps)             # checks the limits before anything starts
     # forked: load here, the child inherits it; else the child loads and this process reads
@@ -73,7 +75,7 @@ def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progre
     with claim(out):
         tmp = tempfile.mkdtemp(prefix="drillcosim-")
         try:
-            return _supervise(sc, out, progress, wall_timeout, max_steps, grace, tmp, log_file)
+            return _supervise(sc, out, progress, wall_timeout, max_steps, grace, tmp, log_file, server)
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
             (out / HEARTBEAT_NAME).unlink(missing_ok=True)
@@ -121,7 +123,27 @@ def _context(sc):
     return ctx, False
 
 
-def _supervise(sc, out: Path, progress, wall_timeout, max_steps, grace, tmp, log_file) -> dict:
+class _OneRun:
+    """A child process for one run: done when it has exited."""
+
+    def __init__(self, ctx, payload: dict, name: str):
+        self.proc = ctx.Process(target=_child, args=(payload,), name=name)
+        self.proc.start()
+        self.pid = self.proc.pid
+
+    def wait(self, timeout: float) -> bool:
+        self.proc.join(timeout)
+        return not self.proc.is_alive()
+
+    def result(self) -> int:
+        return self.proc.exitcode
+
+    def kill(self) -> None:
+        self.proc.kill()
+        self.proc.join()
+
+
+def _supervise(sc, out: Path, progress, wall_timeout, max_steps, grace, tmp, log_file, server=None) -> dict:
     ctx, forked = _context(sc)
     payload = {"scenario": sc if forked else None, "path": str(sc.path) if sc.path else None,
                "overrides": sc.overrides, "out": str(out), "progress": progress, "tmp": tmp,
@@ -132,30 +154,31 @@ def _supervise(sc, out: Path, progress, wall_timeout, max_steps, grace, tmp, log
     if not forked and sc.path is None:
         raise CosimError("a scenario built in Python runs supervised only from a single-threaded "
                          "process; use cosim.run_scenario (in-process) instead")
-    proc = ctx.Process(target=_child, args=(payload,), name=f"drillcosim-{sc.name}")
     received: list[int] = []
+    job = None
 
     def forward(signum, _frame):
         received.append(signum)
-        if proc.pid is not None:
+        if job is not None and job.pid is not None:
             try:
-                os.kill(proc.pid, signal.SIGKILL if len(received) > 1 else signum)
+                os.kill(job.pid, signal.SIGKILL if len(received) > 1 else signum)
             except ProcessLookupError:
                 pass
 
     main = threading.current_thread() is threading.main_thread()
     old = {}
-    proc.start()
+    if server is not None and not forked:
+        payload["scenario"] = None
+        job = server.submit(ctx, payload)
+    else:
+        job = _OneRun(ctx, payload, f"drillcosim-{sc.name}")
     t_start = time.monotonic()
     killed_for = None            # ("timeout" | "interrupted", reason) when the parent had to kill
     try:
         if main:
             old = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
         t_signal = None
-        while proc.is_alive():
-            proc.join(POLL_S)
-            if not proc.is_alive():
-                break
+        while not job.wait(POLL_S):
             now = time.monotonic()
             beat = Heartbeat.read(out / HEARTBEAT_NAME) or {}
             if beat.get("finishing") and len(received) < 2:
@@ -169,12 +192,12 @@ def _supervise(sc, out: Path, progress, wall_timeout, max_steps, grace, tmp, log
                 killed_for = ("timeout", f"wall-clock timeout of {wall_timeout:g} s; the run did not "
                               f"stop within {grace:g} s (stuck in an FMU?) and was killed")
             if killed_for:
-                proc.kill()
-                proc.join()
+                job.kill()
+                break
     finally:
         for s, h in old.items():
             signal.signal(s, h)
-    return _outcome(sc, out, proc.exitcode, killed_for, received)
+    return _outcome(sc, out, job.result(), killed_for, received)
 
 
 def _outcome(sc, out: Path, exitcode: int, killed_for, received: list[int]) -> dict:
@@ -246,15 +269,31 @@ def _mat_from_csv(out: Path, summary: dict) -> str | None:
 
 
 def _child(p: dict) -> None:
-    """The child: run in the claimed folder, exit with the status's code (never returns)."""
+    """The child of one run: run, exit with the status's code (never returns)."""
+    code = EXIT_FAILED
+    try:
+        code = run_payload(p)
+    finally:
+        try:
+            sys.stdout.flush()
+            sys.stderr.flush()
+        finally:
+            os._exit(code)
+
+
+def run_payload(p: dict) -> int:
+    """Run in the claimed folder ``p["out"]``; the exit code of its status. Whatever happens,
+    the parent finds a summary (or a crash it can read from the heartbeat)."""
     code = EXIT_FAILED
     out = Path(p["out"])
+    trace = None
     try:
         tempfile.tempdir = p["tmp"]               # fmpy unpacks the FMUs here; the parent removes it
         if p["log_file"]:
             fd = os.open(p["log_file"], os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
             sys.stdout.flush(), sys.stderr.flush()
             os.dup2(fd, 1), os.dup2(fd, 2)        # C-level output of the FMUs too
+            os.close(fd)
         trace = open(out / TRACEBACK_NAME, "w")
         faulthandler.enable(file=trace)           # a segfault leaves the Python stack here
         started = time.perf_counter()
@@ -270,6 +309,8 @@ def _child(p: dict) -> None:
         except CosimError as e:                    # scoring / plotting failed after the run
             print(f"drillcosim: {e}", file=sys.stderr)
             code = EXIT_FAILED
+        finally:
+            watch.heartbeat.close()                # a run server's child goes on to the next run
     except BaseException as e:  # noqa: BLE001 - whatever happens, the parent gets a summary
         import traceback
         traceback.print_exc()
@@ -281,11 +322,12 @@ def _child(p: dict) -> None:
             pass
         code = exit_code_for(signal.SIGINT) if isinstance(e, KeyboardInterrupt) else EXIT_FAILED
     finally:
-        try:
-            sys.stdout.flush()
-            sys.stderr.flush()
-        finally:
-            os._exit(code)
+        if trace is not None:
+            faulthandler.disable()
+            trace.close()
+        sys.stdout.flush()
+        sys.stderr.flush()
+    return code
 
 
 __all__ = ["run_supervised", "exit_code", "EXIT_CRASHED", "EXIT_TIMEOUT", "EXIT_FAILED"]

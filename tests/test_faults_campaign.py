@@ -87,3 +87,38 @@ def test_campaign_needs_one_scenario_or_one_per_run(tmp_path, mass_fmu):
     path = scenario(tmp_path, mass_fmu, fail=-1, stop=0.05)
     with pytest.raises(CosimError, match="2 scenarios for 3 runs"):
         run_campaign([path, path], [{}, {}, {}], out_dir=tmp_path / "c", progress=False)
+
+
+def test_run_server_keeps_one_warm_child_and_replaces_a_crashed_one(tmp_path, fault_fmu):
+    """A campaign worker's runs share one supervised child (warm, as a pool process); a run
+    that crashes it is reported crashed and the next run gets a new child."""
+    import threading
+
+    from cosim.run_server import RunServer
+    from cosim.supervisor import run_supervised
+    ok = scenario(tmp_path, fault_fmu("segfault"), fail=-1, stop=0.05, name="ok.toml")
+    crash = scenario(tmp_path, fault_fmu("segfault"), fail=0.02, stop=0.05, name="crash.toml")
+    hold = threading.Event()
+    thread = threading.Thread(target=hold.wait)    # a threaded process, as a Dask worker is
+    thread.start()
+    server = RunServer()
+    try:
+        assert run_supervised(ok, tmp_path / "a", progress=False, server=server)["status"] == "completed"
+        first = server.proc.pid
+        assert run_supervised(ok, tmp_path / "b", progress=False, server=server)["status"] == "completed"
+        assert server.proc.pid == first
+        crashed = run_supervised(crash, tmp_path / "c", progress=False, server=server)
+        assert crashed["status"] == "crashed" and crashed["signal"] == "SIGSEGV"
+        assert crashed["time_reached"] == pytest.approx(0.02)
+        assert run_supervised(ok, tmp_path / "d", progress=False, server=server)["status"] == "completed"
+        second = server.proc.pid
+        assert second != first
+        hang = scenario(tmp_path, fault_fmu("hang"), fail=0.02, stop=5.0, name="hang.toml")
+        stuck = run_supervised(hang, tmp_path / "e", progress=False, server=server, wall_timeout=0.5, grace=0.5)
+        assert stuck["status"] == "timeout" and stuck["killed"] and stuck["stuck_instance"] == "mass"
+        assert run_supervised(ok, tmp_path / "f", progress=False, server=server)["status"] == "completed"
+        assert server.proc.pid not in (first, second)
+    finally:
+        server.close()
+        hold.set()
+        thread.join()
