@@ -246,14 +246,14 @@ def loop_from_commissioning(doc: dict, *, feed: float, contact_stiffness: float 
                      **{k: float(v) for k, v in vals.items()}, **gains)
 
 
-def force_loop_margin(result, commissioning_file: str, contact_stiffness: float | None = None,
+def force_loop_margin(result, commissioning_file: str | None = None, contact_stiffness: float | None = None,
                       contact_damping: float | None = None, feed: float = 1e-3, controller: str = "controller",
                       observer: str = "observer", process_exponent: float | None = None,
                       min_gain_margin_db: float = 6.0, print_table: bool = True) -> dict:
     """``[[scores]]`` function: the margin of the run's force loop at its working point.
 
     The plant's nominal set, friction, current lag and (when not stated here) the
-    contact come from ``commissioning_file``; ``Kf``, ``g_dob``, ``g_vel`` and the command
+    contact come from ``commissioning_file`` (default: the one the controller reads); ``Kf``, ``g_dob``, ``g_vel`` and the command
     from the controller's settings, ``g_thrust`` from the observer's (the run's scenario);
     ``contact_stiffness`` [N/m], ``contact_damping`` [N s/m] and the working feed ``feed``
     [m/s] may be stated; ``process_exponent`` (``F ~ v^exponent``) states the process slope
@@ -267,6 +267,10 @@ def force_loop_margin(result, commissioning_file: str, contact_stiffness: float 
     blocks = raw.get("blocks", {})
     cs = blocks.get(controller, {}).get("settings") or {}
     os_ = blocks.get(observer, {}).get("settings") or {}
+    commissioning_file = commissioning_file or cs.get("commissioning_file")
+    if not commissioning_file:
+        raise ValueError(f"force_loop_margin: no commissioning_file given and block '{controller}' "
+                         "has no commissioning_file setting")
     load_commissioning(commissioning_file, "linear_stage")       # refuses a wrong file with its reason
     doc = json.loads(Path(commissioning_file).read_text())
     F_cmd = float(cs.get("F_cmd", 50.0))
