@@ -25,8 +25,9 @@ fmus: $(VENV)/.installed
 demo: fmus
 	$(VENV)/bin/drillcosim run $(DEMO_SCENARIO) --out $(DEMO_OUT)
 
+# two processes, a test file each at a time (module fixtures are shared within a file)
 test: fmus
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n 2 --dist loadfile
 
 test-long: fmus
 	$(PY) -m pytest -q -m long
