@@ -27,7 +27,7 @@ EXPERIMENTS = {"air_cut_friction_identification.toml", "air_cut_friction_identif
 
 
 def _shipped():
-    return [p for d in ("scenarios", "scenarios/foreign") for p in sorted((ROOT / d).glob("*.toml"))
+    return [p for d in ("scenarios", "scenarios/foreign", "scenarios/stacks") for p in sorted((ROOT / d).glob("*.toml"))
             if p.name not in EXPERIMENTS]
 
 
