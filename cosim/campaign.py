@@ -2,11 +2,12 @@
 
 Each run is a Dask task that runs the scenario supervised (:func:`cosim.supervisor.run_supervised`,
 in the warm child of the worker's :class:`cosim.run_server.RunServer`) in its own folder
-``<out_dir>/run_NNN`` and returns its summary; what the run prints goes to ``run_NNN/log.txt``. A run that fails, times out or crashes is recorded with its status and
-overrides, and the others go on: a crashing FMU kills only the run's child process, never
-the Dask worker. Should a worker die anyway (out of memory, a worker that cannot start
-child processes and runs in-process), its task is reported ``crashed`` -- not retried, since
-the scheduler's ``allowed-failures`` is 0 for a local cluster (``retries`` can change that).
+``<out_dir>/run_NNN`` and returns its summary; what the run prints goes to ``run_NNN/log.txt``.
+A run that fails, times out or crashes is recorded with its status and overrides, and the
+others go on: a crashing FMU kills only the run's child process, never the Dask worker.
+Should a worker die anyway (out of memory, a worker that cannot start child processes and
+runs in-process), its task is reported ``crashed`` -- not retried, since the scheduler's
+``allowed-failures`` is 0 for a local cluster (``retries`` can change that).
 
 By default a :class:`distributed.LocalCluster` on loopback with one single-threaded worker
 process per core; ``scheduler="tcp://host:8786"`` uses an existing cluster (docs/faults.md
