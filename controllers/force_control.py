@@ -103,7 +103,7 @@ from typing import Sequence
 
 from cosim.block import Block, Port
 from controllers.calibration import load_calibration, load_commissioning
-from controllers.kernels import Kernel, KernelBlock
+from controllers.kernels import KernelBlock
 from controllers.kernels import structs
 from controllers.position_control import (CORE_PORTS, ENCODER_PORT, TRAJECTORY_PORTS, RobustAcceleration,
                                           pd_feedforward)
@@ -219,11 +219,10 @@ class ThrustForceController(KernelBlock, Block):
         self.sat_any = 0.0
         self._c_attach()
 
-    def _c_make(self):
-        """The step in C (controllers/kernels/drive_control.c), unless a subclass changes it."""
-        if type(self).step is not ThrustForceController.step or type(self.core) is not RobustAcceleration:
-            return None
-        return Kernel("drive_control", "force_control_step", structs.Force(), 6, 10)
+    c_step = ("drive_control", "force_control_step", structs.Force, 6, 10)   # kernels/drive_control.c
+
+    def _c_supports(self) -> bool:
+        return type(self.core) is RobustAcceleration
 
     def _c_fill(self, c) -> None:
         structs.fill(c, **{n: getattr(self, n) for n in (

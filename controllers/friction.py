@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from cosim.block import Block, Port
-from controllers.kernels import Kernel, KernelBlock
+from controllers.kernels import KernelBlock
 from controllers.kernels import structs
 
 
@@ -222,11 +222,10 @@ class VelocitySegments(KernelBlock, Block):
     def reset(self, t0: float) -> None:
         self._c_attach()
 
-    def _c_make(self):
-        """The step in C (controllers/kernels/drive_control.c), unless a subclass changes it."""
-        if type(self).step is not VelocitySegments.step or len(self._phases) > structs.MAX_PHASES:
-            return None
-        return Kernel("drive_control", "segments_step", structs.Segments(), 0, 4)
+    c_step = ("drive_control", "segments_step", structs.Segments, 0, 4)   # kernels/drive_control.c
+
+    def _c_supports(self) -> bool:
+        return len(self._phases) <= structs.MAX_PHASES
 
     def _c_fill(self, c) -> None:
         c.n, c.z_end = len(self._phases), self.z_end

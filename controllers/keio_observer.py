@@ -64,7 +64,7 @@ from __future__ import annotations
 from cosim.block import Port
 from controllers.calibration import load_calibration, load_commissioning, rescale_friction
 from controllers.friction import FrictionModel, make_friction, resolve_path
-from controllers.kernels import Kernel, KernelBlock
+from controllers.kernels import KernelBlock
 from controllers.kernels import structs
 from controllers.nominal_models import DiscretisedBlock, KeioNominal, keio_model, zoh
 
@@ -143,12 +143,10 @@ class CuttingForceObserver(KernelBlock, DiscretisedBlock):
         self._v_lp = 0.0
         self._c_attach()
 
-    def _c_make(self):
-        """The step in C (controllers/kernels/drive_control.c), unless a subclass changes it."""
-        if type(self).step is not CuttingForceObserver.step or type(self.friction) is not FrictionModel \
-                or len(self.friction.ripple) > structs.MAX_RIPPLE:
-            return None
-        return Kernel("drive_control", "keio_observer_step", structs.KeioObserver(), 2, 3)
+    c_step = ("drive_control", "keio_observer_step", structs.KeioObserver, 2, 3)   # kernels/drive_control.c
+
+    def _c_supports(self) -> bool:
+        return type(self.friction) is FrictionModel and len(self.friction.ripple) <= structs.MAX_RIPPLE
 
     def _c_fill(self, c) -> None:
         nom = self.nominal

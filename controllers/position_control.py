@@ -65,7 +65,7 @@ from typing import Sequence
 import numpy as np
 
 from cosim.block import Block, Port
-from controllers.kernels import Kernel, KernelBlock
+from controllers.kernels import KernelBlock
 from controllers.kernels import structs
 
 
@@ -243,11 +243,10 @@ class PositionController(KernelBlock, Block):
         self.core.reset()
         self._c_attach()
 
-    def _c_make(self):
-        """The step in C (controllers/kernels/drive_control.c), unless a subclass changes it."""
-        if type(self).step is not PositionController.step or type(self.core) is not RobustAcceleration:
-            return None
-        return Kernel("drive_control", "position_step", structs.Position(), 4, 5)
+    c_step = ("drive_control", "position_step", structs.Position, 4, 5)   # kernels/drive_control.c
+
+    def _c_supports(self) -> bool:
+        return type(self.core) is RobustAcceleration
 
     def _c_fill(self, c) -> None:
         c.Kp, c.Kv = self.Kp, self.Kv

@@ -29,7 +29,7 @@ import math
 from typing import Sequence
 
 from cosim.block import Block, Port
-from controllers.kernels import Kernel, KernelBlock
+from controllers.kernels import KernelBlock
 from controllers.kernels import structs
 
 PHASE_WAIT, PHASE_APPROACH, PHASE_FEED, PHASE_RETRACT, PHASE_DONE = 0, 1, 2, 3, 4
@@ -123,11 +123,10 @@ class FeedTrajectory(KernelBlock, Block):
         self._retract = False
         self._c_attach()
 
-    def _c_make(self):
-        """The step in C (controllers/kernels/drive_control.c), unless a subclass changes it."""
-        if type(self).step is not FeedTrajectory.step or len(self.inputs) != 2:
-            return None
-        return Kernel("drive_control", "trajectory_step", structs.Trajectory(), 2, 4)
+    c_step = ("drive_control", "trajectory_step", structs.Trajectory, 2, 4)   # kernels/drive_control.c
+
+    def _c_supports(self) -> bool:
+        return len(self.inputs) == 2
 
     def _c_fill(self, c) -> None:
         structs.fill(c, z_start=self.z_start, z_approach_end=self.z_approach_end, v_approach=self.v_approach,

@@ -144,14 +144,28 @@ class _Group(ctypes.Structure):
 class KernelBlock:
     """Mixin of a block whose step also exists in C (mirrored operation for operation).
 
-    The subclass gives ``_c_make()`` (a :class:`Kernel`, or None when this instance's
-    settings or class cannot run in C) and ``_c_fill(state)`` (settings and state -> the
-    struct), and calls :meth:`_c_attach` at the end of ``reset``. ``kernel`` = "auto"
-    (default: C when the compiler is there, else the Python step with a warning),
-    "python" (the reference step; set it before ``reset``) or "c" (insist)."""
+    The subclass names its C step in ``c_step`` = (library, function, struct type, inputs,
+    outputs), may say in ``_c_supports()`` that this instance's settings have none, gives
+    ``_c_fill(state)`` (settings and state -> the struct), and calls :meth:`_c_attach` at
+    the end of ``reset``. ``kernel`` = "auto" (default: C when the compiler is there, else
+    the Python step with a warning), "python" (the reference step; set it before
+    ``reset``) or "c" (insist)."""
 
     kernel = "auto"
     c_kernel = None
+    c_step: tuple | None = None
+
+    def _c_supports(self) -> bool:
+        return True
+
+    def _c_make(self):
+        """The C step of ``c_step``; None when a subclass replaced ``step`` (the C would no
+        longer be what the block does) or ``_c_supports()`` says no."""
+        owner = next((k for k in type(self).__mro__ if "c_step" in vars(k)), None)
+        if owner is None or type(self).step is not owner.step or not self._c_supports():
+            return None
+        lib, function, struct_type, n_in, n_out = self.c_step
+        return Kernel(lib, function, struct_type(), n_in, n_out)
 
     def _c_attach(self) -> None:
         if self.kernel == "python":
