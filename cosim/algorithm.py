@@ -40,6 +40,7 @@ from operator import itemgetter
 
 from . import kernel_group
 from .errors import ScenarioError, SimulationError
+from .fused import FusedSteps
 from .manipulators import OPERATORS, Event, fire_step, parse_condition, setter_for
 from .outputs import OutputError
 from .recorder import Recorder, Result
@@ -230,6 +231,8 @@ class _Plan:
     bus_names: list
     nan_ok: set
     finite_slots: object
+    c_groups: list         # (rate, member names, first output slot) of each C-kernel group
+    python_blocks: int     # blocks that run in Python (0: every step can run in C, cosim/fused.py)
 
 
 def _compile(system, recorder, events, extra_record) -> _Plan:
@@ -273,9 +276,9 @@ def _compile(system, recorder, events, extra_record) -> _Plan:
                     bus.add(sig, start)
                 in_signals.append(sig)
         if in_vars:
-            write_plan.append((slave, [v.name for v in in_vars],
-                               _reader([bus.ref(s, wire=True) for s in in_signals])))
-    blocks = []
+            refs = [bus.ref(s, wire=True) for s in in_signals]
+            write_plan.append((slave, [v.name for v in in_vars], _reader(refs), refs))
+    blocks, c_groups = [], []
     first_of = {g[0]: g for g in groups}
     in_group = {n for g in groups for n in g}
     slots_of = {name: (a, b) for name, a, b in block_slots}
@@ -284,6 +287,7 @@ def _compile(system, recorder, events, extra_record) -> _Plan:
             g = first_of[name]
             b = slots_of[g[-1]][1]
             step, ext = kernel_group.build(system, bus, g, a, b)
+            c_groups.append((system.rate(name), g, a))
             blocks.append((system.rate(name), step, _getter(ext), a, b, b - a, "+".join(g)))
         elif name not in in_group:
             block = system.blocks[name]
@@ -311,7 +315,8 @@ def _compile(system, recorder, events, extra_record) -> _Plan:
     finite_slots = _getter([i for i, sig in enumerate(bus_names)
                             if sig not in nan_ok and not isinstance(bus.values[i], (str, bytes))])
     return _Plan(bus, columns, read_plan, write_plan, blocks, conds, timed, setters, record,
-                 recorder.decimation if recorder is not None else 0, bus_names, nan_ok, finite_slots)
+                 recorder.decimation if recorder is not None else 0, bus_names, nan_ok, finite_slots,
+                 c_groups, len(system.blocks) - len(in_group))
 
 
 def _start_recorder(system, recorder, plan: _Plan, allow_nonfinite: bool) -> None:
@@ -341,16 +346,17 @@ class _Loop:
         self.system, self.grid, self.n_run, self.info = system, grid, n_run, info
         self.values = plan.bus.values
         self.slot = plan.bus.slot
-        self.reads, self.writes, steppers = [], [], []
-        written = {id(slave): (names, read_in) for slave, names, read_in in plan.write_plan}
+        self.reads, self.writes, steppers, io = [], [], [], []
+        written = {id(slave): (names, read_in, refs) for slave, names, read_in, refs in plan.write_plan}
         for slave, names, a, b in plan.read_plan:
-            in_names, read_in = written.get(id(slave), ([], None))
+            in_names, read_in, refs = written.get(id(slave), ([], None, []))
             get, obuf, put, ibuf, do_step = slave.step_io(names, in_names)
             if names:
                 self.reads.append((get, _puller(obuf), a, b, slave))
             if in_names:
                 self.writes.append((put, _pusher(ibuf, read_in), slave))
             steppers.append((do_step, slave))
+            io.append((slave, get, put, do_step, (a, b), refs))
         self.rejection = None
         if step_rejection_floor:
             # one stepper that steps every FMU with rollback and retry: the loop is unchanged
@@ -366,6 +372,7 @@ class _Loop:
         self.steppers = [(*getattr(do_step, "fast", (_three(do_step), None)), slave, float(k))
                          for k, (do_step, slave) in enumerate(steppers)]
         self.schedule, self.period = _schedule(plan.blocks, n_run)
+        self.fused = None if self.rejection else FusedSteps.of(system, plan, grid, io, watch.heartbeat.c_address())
         self.conditions = plan.conditions
         self.timed = list(plan.timed)
         self.next_timed = self.timed[0][0] if self.timed else -1
@@ -407,6 +414,8 @@ class _Loop:
         Per step: FMU outputs -> time events -> due blocks -> condition events -> record
         -> FMU inputs -> doStep. The last communication point (``n_run``) is read,
         computed and recorded but not stepped from."""
+        if self.fused is not None:
+            return self._run_fused(n, n_end)
         values, reads, writes, steppers = self.values, self.reads, self.writes, self.steppers
         schedule, period, conditions = self.schedule, self.period, self.conditions
         any_fires = _any_fires(conditions)
@@ -482,6 +491,79 @@ class _Loop:
         self.n, self.t = n, t
         return n, stop
 
+
+    def _run_fused(self, n: int, n_end: int) -> tuple[int, bool]:
+        """:meth:`run` with the steps that need no Python in C (cosim/fused.py): runs of
+        whole steps up to the next step that records, fires a time event or is the last;
+        that one is read and computed in C, its events and row here, its doStep in C."""
+        f, values, rows = self.fused, self.values, self.rows
+        record, decimation = self.record, self.decimation
+        g, n_run = self.grid, self.n_run
+        stop, t = False, self.t
+        try:
+            while n < n_end and not stop:
+                m = min(n_end, n_run)
+                if decimation:
+                    m = min(m, -(-n // decimation) * decimation)
+                if self.next_timed >= n:
+                    m = min(m, self.next_timed)
+                if m > n:
+                    status = f.run(n, m)
+                    if status:
+                        n, stop = self._fused_status(status)
+                        continue
+                    n = m
+                    if n == n_end:
+                        break
+                t = g.time(n)
+                status = f.read(n)
+                if status:
+                    self._fused_status(status)
+                if n == self.next_timed:
+                    values[:] = f.to_values()
+                    stop = self._fire_timed(n, t)
+                    f.from_values(values)
+                f.blocks(n)
+                values[:] = f.to_values()
+                if decimation and (n % decimation == 0 or stop):
+                    rows.append((t, *record(values)))
+                if stop or n == n_run:
+                    break
+                status = f.advance(n)
+                n += 1
+                if status:
+                    n, stop = self._fused_status(status)
+        except SimulationError:
+            raise                    # self.n, self.phase: where the C step stopped
+        except BaseException:
+            self.n = n
+            raise
+        finally:
+            values[:] = f.to_values()
+        self.n, self.t = n, t
+        return n, stop
+
+    def _fused_status(self, status: int) -> tuple[int, bool]:
+        """A C step stopped on ``status``: raise as the Python loop would, or -- a doStep's
+        Discard that asks to terminate -- step the remaining FMUs and return ``(n + 1, True)``."""
+        n, phase, k = self.fused.where()
+        t, slave = self.grid.time(n), self.fused.slaves[k]
+        self.phase = phase
+        if phase == "doStep" and status == 2:
+            hn = self.grid.h if n != self.grid.n_short else self.grid.h_last
+            if self.fused.discarded(k)(t, hn) == TERMINATE_REQUESTED:
+                self._terminated(slave, t + hn)
+                for do_step, discarded, other, _k in self.steppers[k + 1:]:
+                    status = do_step(t, hn, 1)
+                    if status == 2 and discarded is not None:
+                        status = discarded(t, hn)
+                    if status != TERMINATE_REQUESTED:
+                        _check(status, "doStep", other, t)
+                self.beat[1] = -1.0
+                return n + 1, True
+        self.n = n
+        _check(status, {"read": "getReal", "write": "setReal"}.get(phase, phase), slave, t)
+        raise AssertionError("unreachable: _check raises for a status > 1")
 
 def simulate(system, stop_time: float, recorder: Recorder | None = None,
              events: list[Event] = (), progress: bool = False, extra_record=(),

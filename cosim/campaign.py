@@ -91,29 +91,37 @@ def _cluster_config() -> dict:
     }
 
 
-def connect(scheduler: str | None = None, workers: int | None = None):
+def connect(scheduler: str | None = None, workers: int | None = None, processes: bool = False):
     """A :class:`distributed.Client`: to ``scheduler`` if given, else to a new local cluster
-    on loopback (``workers`` processes, default the number of cores, one thread each)."""
+    on loopback (``workers`` workers, default the number of cores, one thread each).
+
+    A local cluster's workers are threads of this process unless ``processes``: every run
+    computes in its own supervised child process anyway (the crash isolation), so a worker
+    only waits on that child, and a worker process per core would add its start-up (a
+    Python with dask imported, then its own fork server with the score and plot modules:
+    seconds per campaign) and its event loop's CPU next to the runs. The workers still talk
+    to the scheduler over TCP on loopback, as remote ones do."""
     import dask
     from distributed import Client, LocalCluster
     if scheduler:
         return Client(scheduler)
     with dask.config.set(_cluster_config()):
         cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
-                               processes=True, host="127.0.0.1", dashboard_address=None,
-                               silence_logs=logging.ERROR)
+                               processes=processes, protocol="tcp://", host="127.0.0.1",
+                               dashboard_address=None, silence_logs=logging.ERROR)
         return Client(cluster)
 
 
 def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: int | None = None,
                  progress: bool = True, scheduler: str | None = None, wall_timeout: float | None = None,
                  max_steps: int | None = None, retries: int = 0, client=None,
-                 keep_data: bool = True) -> list[dict]:
+                 keep_data: bool = True, processes: bool = False) -> list[dict]:
     """Run ``scenario`` (a path) once per overrides dict; summaries in input order.
 
     ``scenario`` may also be a list of paths, one per run (a campaign over several stacks).
-    ``workers``: processes of the local cluster (default: cores); ``scheduler``: address of
-    an existing cluster instead; ``client``: an existing :class:`distributed.Client`.
+    ``workers``: workers of the local cluster (default: cores; threads of this process, or
+    processes if ``processes``, see :func:`connect`); ``scheduler``: address of an
+    existing cluster instead; ``client``: an existing :class:`distributed.Client`.
     ``wall_timeout`` [s] / ``max_steps``: limits per run; ``retries``: Dask retries of a
     task whose worker died (0: reported ``crashed`` at once). ``keep_data=False`` deletes a
     good run's data.csv/data.mat after scoring (summaries, scores and figures stay).
@@ -136,7 +144,7 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
             for i, (path, ovr) in enumerate(zip(paths, overrides_list))]
     own = client is None
     if own:
-        client = connect(scheduler, max(1, min(workers or os.cpu_count() or 1, len(jobs) or 1)))
+        client = connect(scheduler, max(1, min(workers or os.cpu_count() or 1, len(jobs) or 1)), processes)
     t0 = time.perf_counter()
     summaries: list = [None] * len(jobs)
     bar = None

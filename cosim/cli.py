@@ -86,7 +86,7 @@ def cmd_campaign(args) -> int:
         summaries = run_campaign(path, [{**base, **r} for r in runs], out_dir=args.out, workers=args.workers,
                                  progress=not args.quiet, scheduler=args.scheduler,
                                  wall_timeout=args.timeout, max_steps=args.max_steps,
-                                 keep_data=not args.drop_data)
+                                 keep_data=not args.drop_data, processes=args.worker_processes)
     except (CosimError, ValueError, OSError) as e:
         print(f"drillcosim: {e}", file=sys.stderr)
         return 1
@@ -293,7 +293,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
     c.add_argument("--sweep", required=True, help="sweep .toml: [[runs]], [grid], [random], [seeds] (docs/faults.md)")
     c.add_argument("--out", help="output folder (default results/<scenario name>_campaign)")
-    c.add_argument("--workers", type=int, help="worker processes of the local cluster (default: cores)")
+    c.add_argument("--workers", type=int, help="workers of the local cluster (default: cores)")
+    c.add_argument("--worker-processes", action="store_true",
+                   help="local workers as processes, not threads (each run has its own child process either way)")
     c.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://10.0.0.5:8786")
     c.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override for every run")
     c.add_argument("--quiet", action="store_true", help="no progress bar")

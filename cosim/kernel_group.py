@@ -1,10 +1,11 @@
 """Blocks with a C step run as groups: one call per group and sample (issue #15).
 
-A block may offer its step in C: an attribute ``c_kernel`` (see
-controllers/kernels/__init__.py, ``Kernel``) whose ``step`` is the block's ``step``. Each
-such block through ctypes costs ~1 us per sample in copies and call overhead; blocks
-due at the same steps, run one after another, cost that once when the master hands
-them to ``c_kernel.group`` together. A plain-Python block, or a kernel block whose
+A block may offer its step in C: an attribute ``c_kernel`` whose ``step`` is the block's
+``step``, with ``address`` (a C function ``void f(void *state, double t, const double *u,
+double *y)``), ``state_address``, ``n_in`` and ``n_out`` (controllers/kernels/__init__.py,
+``Kernel``). Each such block through ctypes costs ~1 us per sample in copies and call
+overhead; blocks due at the same steps, run one after another, cost that once as a
+group (cosim/native/kernel_group.c). A plain-Python block, or a kernel block whose
 ``step`` was replaced (wrapped, patched), runs as before.
 
 :func:`plan` picks the groups and the block order. A block between two group members
@@ -12,6 +13,23 @@ moves ahead of the group when it is connected to none of the members before it: 
 order of every connected pair -- all that decides who reads which value -- stays.
 """
 from __future__ import annotations
+
+import ctypes
+import struct
+
+from .native import NativeUnavailable, library
+
+GROUP_MAX_IN = 32       # kernel_group.c
+_D, _P = ctypes.c_double, ctypes.c_void_p
+
+
+class Member(ctypes.Structure):
+    _fields_ = [("fn", _P), ("state", _P), ("n_in", ctypes.c_long), ("in_at", ctypes.c_long),
+                ("y_off", ctypes.c_long)]
+
+
+class Group(ctypes.Structure):
+    _fields_ = [("n", ctypes.c_long), ("members", _P), ("wiring", _P)]
 
 
 def has_kernel(block) -> bool:
@@ -74,5 +92,39 @@ def build(system, bus, group: list[str], a: int, end: int):
         starts += [float(p.start) for p in system.blocks[name].outputs]
         for i, s, o in r:
             wiring.append((n1 + i - a if a <= i < end else 1 + ext.index(i), s, o))
-    kernel = system.blocks[group[0]].c_kernel
-    return kernel.group(members, wiring, len(ext), starts), ext
+    return _group_step(members, wiring, len(ext), starts), ext
+
+
+def c_group(members: list, wiring: list):
+    """``(Group, keep)``: the C struct of ``members`` = ``(kernel, first wiring row, y
+    offset)`` with ``wiring`` rows ``(buffer index, scale, offset)``; ``keep`` holds the
+    arrays it points into (alive as long as the struct is used)."""
+    if max(k.n_in for k, _a, _y in members) > GROUP_MAX_IN:
+        raise NativeUnavailable(f"kernel group: a member has more than {GROUP_MAX_IN} inputs")
+    mem = (Member * len(members))()
+    for m, (k, at, y_off) in zip(mem, members):
+        m.fn, m.state, m.n_in, m.in_at, m.y_off = k.address, k.state_address, k.n_in, at, y_off
+    w = (_D * max(3 * len(wiring), 1))(*[float(x) for row in wiring for x in row])
+    return Group(len(members), ctypes.addressof(mem), ctypes.addressof(w)), (mem, w, [k for k, _a, _y in members])
+
+
+def _group_step(members: list, wiring: list, n_ext: int, starts: list):
+    """One callable ``step(t, u_ext) -> outputs`` running ``members`` in order in one C
+    call on the buffer ``[t, u_ext..., outputs...]`` (``starts``: the outputs' start values)."""
+    fn = library("kernel_group").kernel_group_step
+    fn.argtypes, fn.restype = None, None
+    g, keep = c_group(members, wiring)
+    n1 = 1 + n_ext
+    buf = (_D * (n1 + len(starts)))()
+    buf[n1:] = starts
+    gref, bref = ctypes.byref(g), ctypes.byref(buf)
+    keep = (g, keep)
+    # in: one struct.pack_into; out: a memoryview's tolist (both ~2-4x faster than slicing
+    # the ctypes array)
+    pack, out = struct.Struct(f"{n1}d").pack_into, memoryview(buf).cast("B").cast("d")[n1:].tolist
+
+    def step(t, u, buf=buf, fn=fn, gref=gref, bref=bref, pack=pack, out=out, keep=keep):
+        pack(buf, 0, t, *u)
+        fn(gref, bref)
+        return out()
+    return step

@@ -67,15 +67,17 @@ def fire_step(time: float, start_time: float, step_size: float) -> int:
     return max(0, math.ceil((time - start_time) / step_size - 1e-9))
 
 
-def setter_for(system, target: str):
+def setter_for(system, target: str, wire: bool = False):
     """How to perform ``target = value`` during the run, after checking that it can be set:
     ``("call", apply)`` with ``apply(value, bus)``, or ``("block_input", target)`` for an
     unconnected block input, which lives on ``bus`` (the master's signal list) and is
     written there by the algorithm. Raises ValueError explaining what can be set.
+    ``wire``: ``target`` names the FMU variable itself, never a plant role of that name
+    (a role may share its name with the variable that plays it: ``spindle_speed``).
     """
-    alias = system.alias(target) if "." in target else None
+    alias = system.alias(target) if "." in target and not wire else None
     if alias is not None:         # a plant role: set the FMU variable behind it, converted
-        kind, apply_raw = setter_for(system, alias[0])
+        kind, apply_raw = setter_for(system, alias[0], wire=True)
         scale, offset = alias[1], alias[2]
         return kind, lambda value, bus: apply_raw((float(value) - offset) / scale, bus)
     inst, name = target.split(".", 1) if "." in target else (target, "")

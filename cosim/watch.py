@@ -45,7 +45,7 @@ class Heartbeat:
 
     def __init__(self, path: str | Path | None = None):
         self.path = Path(path) if path is not None else None
-        self._mm = None
+        self._mm = self._c = None
         if self.path is None:
             self.slots = [0.0] * 8
             return
@@ -63,11 +63,21 @@ class Heartbeat:
             blob = json.dumps(names).encode()[:self.SIZE - self.NAMES_AT - 1]
             self._mm[self.NAMES_AT:self.NAMES_AT + len(blob) + 1] = blob + b"\0"
 
+    def c_address(self) -> int | None:
+        """The slots' address for C that writes them (cosim/fused.py); None without a file."""
+        if self._mm is None:
+            return None
+        import ctypes
+        if self._c is None:
+            self._c = (ctypes.c_double * 8).from_buffer(self._mm)
+        return ctypes.addressof(self._c)
+
     def finishing(self) -> None:
         self.slots[self.STATE] = self.FINISHING
 
     def close(self) -> None:
         if self._mm is not None:
+            self._c = None              # the C view's export, released before the map closes
             self.slots.release()
             self._mm.close()
             self._mm = None

@@ -398,8 +398,10 @@ def main(argv=None) -> int:
     from .foreign import build as foreign
     for n in args.names or list(VARIANTS) + list(foreign.FOREIGN):
         (foreign.build if n in foreign.FOREIGN else build)(n, force=args.force)
-    if not args.names:          # the blocks' compiled per-sample kernels (controllers/kernels)
+    if not args.names:          # the master's C (cosim/native) and the blocks' kernels (controllers/kernels)
         from controllers.kernels import build_all as build_kernels
+        from cosim.native import build_all as build_native
+        build_native(force=args.force)
         build_kernels(force=args.force)
     return 0
 

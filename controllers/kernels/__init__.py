@@ -2,68 +2,32 @@
 
 A kernel is one C file here with the same arithmetic as its block's Python step (the
 Python stays as the readable reference; tests compare the two). :func:`library` builds
-the shared library when it is missing or older than its source -- ``python -m fmus.build``
-(``make fmus``) builds them with the FMUs, a run would otherwise build it on first use --
-and loads it with ctypes. The compiler is ``$CC`` or ``gcc``, as for the FMUs; flags
-``-O2 -ffp-contract=off`` (no fused multiply-adds, so C and Python round alike).
-Why C and not numba: docs/performance.md.
+the shared library when it is missing or older than its source and loads it with ctypes
+(:mod:`cosim.native`: compiler, flags, when it is built). The master runs a block's
+kernel through ``c_kernel`` (:class:`Kernel`): alone, in a group of C blocks, or in whole
+C steps (cosim/kernel_group.py, cosim/fused.py).
 """
 from __future__ import annotations
 
 import ctypes
-import os
-import struct
-import subprocess
-import sys
-import tempfile
 from pathlib import Path
 
+from cosim.native import NativeUnavailable as KernelUnavailable
+from cosim.native import build as _build
+from cosim.native import load
+
 HERE = Path(__file__).resolve().parent
-BUILD_DIR = HERE / "build"
-KERNELS = ("fang_observer", "drive_control", "kernel_group")
-_EXT = ".dll" if sys.platform == "win32" else ".dylib" if sys.platform == "darwin" else ".so"
-_loaded: dict[str, ctypes.CDLL] = {}
-
-
-class KernelUnavailable(RuntimeError):
-    """The kernel could not be built (no compiler, compile error): says why."""
-
-
-def _lib_path(name: str) -> Path:
-    return BUILD_DIR / f"lib{name}{_EXT}"
+KERNELS = ("fang_observer", "drive_control")
 
 
 def build(name: str, force: bool = False, verbose: bool = False) -> Path:
-    """Compile ``<name>.c`` into ``build/lib<name>.so`` when stale (atomically: concurrent
-    builds of campaign workers each write a temporary file and rename it)."""
-    src, lib = HERE / f"{name}.c", _lib_path(name)
-    if not src.exists():
-        raise KernelUnavailable(f"kernel {name}: no source {src}")
-    if not force and lib.exists() and lib.stat().st_mtime_ns >= src.stat().st_mtime_ns:
-        return lib
-    BUILD_DIR.mkdir(exist_ok=True)
-    cc = os.environ.get("CC", "gcc")
-    with tempfile.TemporaryDirectory(dir=BUILD_DIR) as tmp:
-        out = Path(tmp) / lib.name
-        cmd = [cc, "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-std=gnu11", "-Wall", "-Wextra",
-               "-o", str(out), str(src), "-lm"]
-        try:
-            res = subprocess.run(cmd, capture_output=True, text=True)
-        except OSError as e:
-            raise KernelUnavailable(f"kernel {name}: cannot run the C compiler {cc!r}: {e}") from None
-        if res.returncode != 0:
-            raise KernelUnavailable(f"kernel {name}: compiling failed:\n{' '.join(cmd)}\n{res.stderr}")
-        os.replace(out, lib)
-    if verbose:
-        print(f"kernel {name}: built {lib}")
-    return lib
+    """Compile kernel ``name`` (``<name>.c`` here) when stale; see :mod:`cosim.native`."""
+    return _build(HERE / f"{name}.c", force=force, verbose=verbose)
 
 
 def library(name: str) -> ctypes.CDLL:
     """The loaded kernel library ``name`` (built first when needed)."""
-    if name not in _loaded:
-        _loaded[name] = ctypes.CDLL(str(build(name)))
-    return _loaded[name]
+    return load(HERE / f"{name}.c")
 
 
 def build_all(force: bool = False, verbose: bool = True) -> list[Path]:
@@ -78,7 +42,7 @@ class Kernel:
     """One block's per-sample C step on its own state struct.
 
     ``step(t, u)`` runs one sample (it becomes the block's ``step``); for the master's
-    groups (:meth:`group`, cosim/kernel_group.py) ``address`` is the C function
+    groups (cosim/kernel_group.py) ``address`` is the C function
     ``void f(state *, double t, const double *u, double *y)`` and ``state_address`` its state."""
 
     def __init__(self, lib_name: str, fn_name: str, state, n_in: int, n_out: int):
@@ -96,49 +60,6 @@ class Kernel:
         self._u[:len(u)] = u
         fn(s, t, ua, ya)
         return self._y[:]
-
-    @staticmethod
-    def group(members: list, wiring: list, n_ext: int, starts: list):
-        """One callable ``step(t, u_ext) -> outputs`` running ``members`` in order in one C call.
-
-        ``members``: ``(kernel, first wiring row, y offset in the buffer)``; ``wiring``: per
-        member input, ``(buffer index, scale, offset)``; the buffer is ``[t, u_ext...,
-        outputs...]`` and ``starts`` the outputs' start values (see kernel_group.c)."""
-        fn = library("kernel_group").kernel_group_step
-        fn.argtypes, fn.restype = None, None
-        mem = (_Member * len(members))()
-        for m, (k, at, y_off) in zip(mem, members):
-            m.fn, m.state, m.n_in, m.in_at, m.y_off = k.address, k.state_address, k.n_in, at, y_off
-        if max(k.n_in for k, _a, _y in members) > GROUP_MAX_IN:
-            raise KernelUnavailable(f"kernel group: a member has more than {GROUP_MAX_IN} inputs")
-        w = (_D * max(3 * len(wiring), 1))(*[float(x) for row in wiring for x in row])
-        g = _Group(len(members), ctypes.addressof(mem), ctypes.addressof(w))
-        n1 = 1 + n_ext
-        buf = (_D * (n1 + len(starts)))()
-        buf[n1:] = starts
-        gref, bref = ctypes.byref(g), ctypes.byref(buf)
-        keep = (mem, w, g, [k for k, _a, _y in members])      # alive as long as the step
-        # in: one struct.pack_into; out: a memoryview's tolist (both ~2-4x faster than
-        # slicing the ctypes array)
-        pack, out = struct.Struct(f"{n1}d").pack_into, memoryview(buf).cast("B").cast("d")[n1:].tolist
-
-        def step(t, u, buf=buf, fn=fn, gref=gref, bref=bref, pack=pack, out=out, keep=keep):
-            pack(buf, 0, t, *u)
-            fn(gref, bref)
-            return out()
-        return step
-
-
-GROUP_MAX_IN = 32       # kernel_group.c
-
-
-class _Member(ctypes.Structure):
-    _fields_ = [("fn", _P), ("state", _P), ("n_in", ctypes.c_long), ("in_at", ctypes.c_long),
-                ("y_off", ctypes.c_long)]
-
-
-class _Group(ctypes.Structure):
-    _fields_ = [("n", ctypes.c_long), ("members", _P), ("wiring", _P)]
 
 
 class KernelBlock:

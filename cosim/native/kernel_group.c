@@ -1,11 +1,12 @@
 /* Several C-kernel blocks in one call (cosim/kernel_group.py, issue #15).
  *
  * The master would pay one ctypes call (~0.5-1 us with the copies) per block and sample;
- * a group of blocks due at the same steps runs here in one. `buf` holds
- * [t, the group's inputs from the bus..., every member's outputs...]; member j reads its
- * inputs as s * buf[idx] + o (a connection's scale and offset) and writes its outputs
- * into buf at y_off. The outputs stay in buf between calls, so a member reading a later
- * member's output sees the previous sample's value -- as it would on the master's bus.
+ * a group of blocks due at the same steps runs here in one. Member j reads its inputs as
+ * s * buf[idx] + o (a connection's scale and offset) and writes its outputs into buf at
+ * y_off. The outputs stay in buf between calls, so a member reading a later member's
+ * output sees the previous sample's value -- as it would on the master's bus.
+ * `buf` is the group's own [t, the group's inputs from the bus..., every member's outputs...]
+ * (kernel_group_step), or the whole bus of a fused loop (fused_steps.c).
  */
 #define GROUP_MAX_IN 32
 
@@ -23,9 +24,9 @@ typedef struct {
     const double *wiring;         /* rows [idx, scale, offset] */
 } Group;
 
-void kernel_group_step(const Group *g, double *buf)
+void kernel_group_run(const Group *g, double t, double *buf)
 {
-    double t = buf[0], u[GROUP_MAX_IN];
+    double u[GROUP_MAX_IN];
     for (long j = 0; j < g->n; j++) {
         const Member *m = g->members + j;
         const double *w = g->wiring + 3 * m->in_at;
@@ -33,4 +34,9 @@ void kernel_group_step(const Group *g, double *buf)
             u[k] = w[1] == 1.0 && w[2] == 0.0 ? buf[(long)w[0]] : w[1] * buf[(long)w[0]] + w[2];
         m->fn(m->state, t, u, buf + m->y_off);
     }
+}
+
+void kernel_group_step(const Group *g, double *buf)
+{
+    kernel_group_run(g, buf[0], buf);
 }

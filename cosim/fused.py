@@ -1,0 +1,147 @@
+"""Whole steps in C when none of a step's work needs Python (issue #15).
+
+A system whose blocks (if any) all run in C (cosim/kernel_group.py) and whose FMUs are
+FMI 2.0 co-simulation slaves with Real inputs and outputs spends most of a step in the
+Python loop's glue: a ctypes call and a copy for every getReal, setReal, doStep and block group.
+:class:`FusedSteps` runs the same steps in C (cosim/native/fused_steps.c) on a copy of
+the master's bus -- same slots, same connection scales, same block order and rates, same
+heartbeat -- so that the loop (:meth:`cosim.algorithm._Loop.run`) only steps through
+Python where something needs it: a recorded step, a time event, the last step, a failed
+FMU call.
+
+Not fused (the Python loop runs as before): a plain-Python block or a wrapped kernel
+block, condition events (they are tested between a step's blocks and its doStep), step
+rejection, FMI 3.0, non-Real FMU inputs or outputs, ``ENABLED = False``.
+"""
+from __future__ import annotations
+
+import ctypes
+import struct
+
+from . import kernel_group
+from .native import NativeUnavailable, library
+
+ENABLED = True          # False: every step through the Python loop (tests compare the two)
+
+_D, _P, _L = ctypes.c_double, ctypes.c_void_p, ctypes.c_long
+
+
+class _Slave(ctypes.Structure):
+    _fields_ = [("comp", _P), ("get", _P), ("set", _P), ("do_step", _P),
+                ("out_vr", _P), ("n_out", _L), ("out_at", _L),
+                ("in_vr", _P), ("n_in", _L), ("in_at", _L), ("in_buf", _P)]
+
+
+class _Due(ctypes.Structure):
+    _fields_ = [("group", _P), ("every", _L)]
+
+
+class _Fused(ctypes.Structure):
+    _fields_ = [("n_slaves", _L), ("slaves", _P), ("n_groups", _L), ("groups", _P),
+                ("in_wiring", _P), ("bus", _P), ("beat", _P),
+                ("t0", _D), ("h", _D), ("stop_time", _D), ("h_last", _D),
+                ("n_last", _L), ("n_short", _L), ("at_n", _L), ("at_pos", _L)]
+
+
+def _raw_call(call, name: str):
+    """``(function address, args)`` of a bound raw FMI call (cosim.fmi_types._float64_call:
+    a ``functools.partial`` of fmpy's ctypes function), else None."""
+    func = getattr(call, "func", None)
+    if getattr(func, "__name__", None) != name:
+        return None
+    return ctypes.cast(func, _P).value, call.args
+
+
+class FusedSteps:
+    """The C steps of one instantiated run; :meth:`of` says whether the run qualifies."""
+
+    @classmethod
+    def of(cls, system, plan, grid, io, beat_address) -> "FusedSteps | None":
+        """``io``: per slave ``(slave, get, set, do_step, out slots (a, b), input refs)``."""
+        if not ENABLED or plan.conditions or plan.python_blocks:
+            return None
+        if not all(isinstance(v, float) for v in plan.bus.values):
+            return None
+        try:
+            return cls(system, plan, grid, io, beat_address)
+        except (_NotFusable, NativeUnavailable):
+            return None
+
+    def __init__(self, system, plan, grid, io, beat_address):
+        lib = library("fused_steps")
+        for fn in ("fused_read", "fused_advance", "fused_run"):
+            getattr(lib, fn).restype = ctypes.c_int
+        lib.fused_blocks.restype = None
+        self.slaves = [x[0] for x in io]
+        keep = []
+        slaves = (_Slave * len(io))()
+        wiring = []
+        for s, (slave, get, put, do_step, (a, b), refs) in zip(slaves, io):
+            s.comp = slave.fmu.component
+            if b > a:
+                g = _raw_call(get, "fmi2GetReal")
+                if g is None or g[1][2] != b - a:
+                    raise _NotFusable(f"{slave.name}: not one fmi2GetReal of Reals")
+                s.get, (_c, vr, _n, _buf) = g[0], g[1]
+                s.out_vr, s.n_out, s.out_at = ctypes.addressof(vr), b - a, a
+                keep.append(vr)
+            if refs:
+                p = _raw_call(put, "fmi2SetReal")
+                if p is None:
+                    raise _NotFusable(f"{slave.name}: not one fmi2SetReal of Reals")
+                s.set, (_c, vr, _n, buf) = p[0], p[1]
+                s.in_vr, s.n_in, s.in_at, s.in_buf = ctypes.addressof(vr), len(refs), len(wiring), ctypes.addressof(buf)
+                keep.append((vr, buf))
+                wiring += refs
+            fast = getattr(do_step, "fast", None)
+            if fast is None or getattr(fast[0], "func", None) is None:
+                raise _NotFusable(f"{slave.name}: no raw fmi2DoStep")
+            s.do_step = ctypes.cast(fast[0].func, _P).value
+            self._discarded = getattr(self, "_discarded", []) + [fast[1]]
+        w = (_D * max(3 * len(wiring), 1))(*[float(x) for row in wiring for x in row])
+        self.bus = (_D * len(plan.bus.values))(*plan.bus.values)
+        dues = (_Due * len(plan.c_groups))()
+        for d, (rate, names, a) in zip(dues, plan.c_groups):
+            g, k = kernel_group.c_group(*_bus_wiring(system, plan.bus, names, a))
+            keep.append((g, k))
+            d.group, d.every = ctypes.addressof(g), rate
+        self._scratch_beat = (_D * 2)()
+        beat = beat_address if beat_address is not None else ctypes.addressof(self._scratch_beat)
+        self.f = _Fused(len(io), ctypes.addressof(slaves), len(dues), ctypes.addressof(dues),
+                        ctypes.addressof(w), ctypes.addressof(self.bus), beat,
+                        grid.t0, grid.h, grid.stop_time, grid.h_last, grid.n_last, grid.n_short, 0, 0)
+        self._keep = (keep, slaves, w, dues)
+        ref = ctypes.byref(self.f)
+        self.run = lambda n0, n1: lib.fused_run(ref, _L(n0), _L(n1))
+        self.read = lambda n: lib.fused_read(ref, _L(n))
+        self.blocks = lambda n: lib.fused_blocks(ref, _L(n))
+        self.advance = lambda n: lib.fused_advance(ref, _L(n))
+        self.to_values = memoryview(self.bus).cast("B").cast("d").tolist
+        pack = struct.Struct(f"{len(plan.bus.values)}d").pack_into
+        self.from_values = lambda values: pack(self.bus, 0, *values)
+
+    def where(self) -> tuple[int, str, int]:
+        """``(step, phase, slave index)`` where the last call stopped on a status."""
+        S, pos = len(self.slaves), self.f.at_pos
+        return self.f.at_n, ("read", "write", "doStep")[pos // S], pos % S
+
+    def discarded(self, k: int):
+        """The slave's Discard handler (a terminate request or not), as the Python loop calls it."""
+        return self._discarded[k]
+
+
+class _NotFusable(Exception):
+    pass
+
+
+def _bus_wiring(system, bus, names: list[str], a: int) -> tuple[list, list]:
+    """A group's members and wiring in bus slots: inputs read from the bus, outputs
+    written to the members' slots from ``a`` on (as cosim.algorithm allocates them)."""
+    members, wiring = [], []
+    y = a
+    for name in names:
+        block = system.blocks[name]
+        members.append((block.c_kernel, len(wiring), y))
+        wiring += [bus.ref(f"{name}.{p.name}") for p in block.inputs]
+        y += len(block.outputs)
+    return members, wiring

@@ -1,0 +1,117 @@
+/* Whole co-simulation steps in C, for a system whose blocks all run in C (cosim/fused.py).
+ *
+ * The Python loop (cosim/algorithm.py) pays a ctypes call and a copy for every FMU read,
+ * write and doStep and for every block group: ~7 us per step of Keio Fig. 4's two plants
+ * on top of what the FMUs and the kernels compute. When nothing in a step needs Python
+ * (no Python block, no condition event, no time event, not a recorded step), the same
+ * step runs here: FMI 2.0 getReal -> the due kernel groups -> setReal -> doStep, on a C
+ * copy of the master's bus with the master's slots, wiring and order. The Python loop
+ * keeps every step that needs it and syncs the bus around them.
+ *
+ * A status other than OK or Warning ends the call; the caller learns where (at_n, at_pos)
+ * and handles it as the Python loop would (Discard from doStep may be a terminate request).
+ */
+#include <stddef.h>
+#include "kernel_group.c"
+
+typedef int (*fmi2_get_real)(void *, const unsigned *, size_t, double *);
+typedef int (*fmi2_set_real)(void *, const unsigned *, size_t, const double *);
+typedef int (*fmi2_do_step)(void *, double, double, int);
+
+typedef struct {
+    void *comp;
+    fmi2_get_real get;
+    fmi2_set_real set;
+    fmi2_do_step do_step;
+    const unsigned *out_vr;
+    long n_out, out_at;           /* outputs -> bus[out_at .. out_at + n_out) */
+    const unsigned *in_vr;
+    long n_in, in_at;             /* inputs: wiring rows in_at .. in_at + n_in */
+    double *in_buf;
+} Slave;
+
+typedef struct {
+    const Group *group;
+    long every;                   /* due at step n when n % every == 0 */
+} Due;
+
+typedef struct {
+    long n_slaves;
+    Slave *slaves;
+    long n_groups;
+    const Due *groups;
+    const double *in_wiring;      /* rows [bus slot, scale, offset] of every FMU input */
+    double *bus;
+    double *beat;                 /* heartbeat: [0] step n, [1] FMU in doStep (-1: none) */
+    double t0, h, stop_time, h_last;
+    long n_last, n_short;
+    long at_n, at_pos;            /* where a call stopped: step, position (see below) */
+} Fused;
+
+/* positions within a step: 0 .. S-1 read FMU k, S .. 2S-1 write FMU k - S, 2S .. 3S-1 step FMU k - 2S */
+
+static double time_of(const Fused *f, long n)
+{
+    return n < f->n_last ? f->t0 + n * f->h : f->stop_time;
+}
+
+int fused_read(Fused *f, long n)
+{
+    f->beat[0] = (double)n;
+    for (long k = 0; k < f->n_slaves; k++) {
+        const Slave *s = f->slaves + k;
+        if (s->n_out) {
+            int st = s->get(s->comp, s->out_vr, (size_t)s->n_out, f->bus + s->out_at);
+            if (st > 1) { f->at_n = n; f->at_pos = k; return st; }
+        }
+    }
+    return 0;
+}
+
+void fused_blocks(Fused *f, long n)
+{
+    double t = time_of(f, n);
+    for (long j = 0; j < f->n_groups; j++)
+        if (n % f->groups[j].every == 0)
+            kernel_group_run(f->groups[j].group, t, f->bus);
+}
+
+/* write every FMU's inputs, then step every FMU from t_n by h (the last step: h_last) */
+int fused_advance(Fused *f, long n)
+{
+    double t = time_of(f, n), hn = n != f->n_short ? f->h : f->h_last;
+    long S = f->n_slaves;
+    for (long k = 0; k < S; k++) {
+        Slave *s = f->slaves + k;
+        if (!s->n_in)
+            continue;
+        const double *w = f->in_wiring + 3 * s->in_at;
+        for (long i = 0; i < s->n_in; i++, w += 3)
+            s->in_buf[i] = w[1] == 1.0 && w[2] == 0.0 ? f->bus[(long)w[0]] : w[1] * f->bus[(long)w[0]] + w[2];
+        int st = s->set(s->comp, s->in_vr, (size_t)s->n_in, s->in_buf);
+        if (st > 1) { f->at_n = n; f->at_pos = S + k; return st; }
+    }
+    for (long k = 0; k < S; k++) {
+        const Slave *s = f->slaves + k;
+        f->beat[1] = (double)k;
+        int st = s->do_step(s->comp, t, hn, 1);
+        if (st > 1) { f->at_n = n; f->at_pos = 2 * S + k; return st; }
+    }
+    f->beat[1] = -1.0;
+    return 0;
+}
+
+/* steps n0 .. n1 - 1, each whole; 0, or the status that stopped it (at_n, at_pos) */
+int fused_run(Fused *f, long n0, long n1)
+{
+    for (long n = n0; n < n1; n++) {
+        int st = fused_read(f, n);
+        if (st)
+            return st;
+        fused_blocks(f, n);
+        st = fused_advance(f, n);
+        if (st)
+            return st;
+    }
+    return 0;
+}

@@ -1,0 +1,128 @@
+"""Whole steps in C (cosim/fused.py, issue #15): the same run as the Python loop, bit for
+bit, and the same answer when an FMU fails, asks to stop or crashes inside a C step."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import cosim.fused as fused
+from cosim.algorithm import run
+from cosim.errors import SimulationError
+from cosim.manipulators import Event
+from cosim.recorder import Recorder
+from cosim.scenario import load_scenario
+from cosim.supervisor import EXIT_CRASHED, run_supervised
+from cosim.system import System
+
+ROOT = Path(__file__).resolve().parent.parent
+FIG4 = ROOT / "scenarios" / "keio_fig4_composite_force_control.toml"
+
+
+@pytest.fixture
+def fused_used(monkeypatch):
+    """Which path each run took: a list that gets True (C steps) or False (Python loop)."""
+    used = []
+    of = fused.FusedSteps.of.__func__
+
+    def spy(cls, *a, **k):
+        f = of(cls, *a, **k)
+        used.append(f is not None)
+        return f
+    monkeypatch.setattr(fused.FusedSteps, "of", classmethod(spy))
+    return used
+
+
+def _fig4(enabled: bool, monkeypatch, events=(), stop=0.35, decimation=3):
+    monkeypatch.setattr(fused, "ENABLED", enabled)
+    sc = load_scenario(FIG4, {"scenario.stop_time": stop})
+    rec = Recorder(sc.record_signals + ["controller_cf.i_ref", "stage_cf.table_position"], decimation)
+    return run(sc.system, sc.stop_time, rec, list(sc.events) + list(events))
+
+
+def test_two_plant_force_control_is_bit_identical_to_the_python_loop(monkeypatch, fused_used):
+    """Keio Fig. 4 (two stages, five C blocks, a thrust step at layer change (A)): every
+    recorded value of every row equal, with a time event that changes a plant input
+    mid-run and a recording interval that is not a divisor of anything in the scenario."""
+    spindle = [Event(time=0.2003, target="stage.spindle_speed", value=5000.0)]
+    a = _fig4(True, monkeypatch, spindle)
+    b = _fig4(False, monkeypatch, spindle)
+    assert fused_used == [True, False]
+    assert a.summary["status"] == b.summary["status"] == "completed"
+    assert len(a.time) == len(b.time) == 3500 // 3 + 1          # steps 0, 3, ..., 3498
+    assert a.signals == b.signals
+    for c in a.signals:
+        assert np.array_equal(a[c], b[c]), c
+    assert a.summary["events_fired"] == b.summary["events_fired"]
+    assert np.ptp(a["stage.tool_position_true"]) > 1e-4      # the stage moved: not a trivial run
+
+
+def test_stop_time_off_the_grid_takes_the_short_last_step_in_c(monkeypatch):
+    a = _fig4(True, monkeypatch, stop=0.20005, decimation=7)
+    b = _fig4(False, monkeypatch, stop=0.20005, decimation=7)
+    assert a.summary["time_reached"] == b.summary["time_reached"] == 0.20005
+    assert a.summary["steps"] == b.summary["steps"] == 2001
+    for c in a.signals:
+        assert np.array_equal(a[c], b[c]), c
+
+
+def _discarding(discard_fmu) -> System:
+    s = System(step_size=0.01)
+    s.add_fmu("d", discard_fmu, {"discard_above": 0.005, "u": 1.0})     # every 0.01 s step: Discard
+    return s
+
+
+@pytest.fixture(scope="module")
+def discard_fmu(events_fmu):
+    """FMI 2.0 CS FMU (tests/third_party): x' = u, doStep above discard_above -> Discard."""
+    return events_fmu("CS")
+
+
+@pytest.mark.parametrize("enabled", [True, False])
+def test_a_discard_in_a_c_step_fails_as_in_the_python_loop(discard_fmu, monkeypatch, fused_used, enabled):
+    monkeypatch.setattr(fused, "ENABLED", enabled)
+    with pytest.raises(SimulationError, match="doStep returned Discard") as e:
+        run(_discarding(discard_fmu), 1.0, Recorder(["d.x"]))
+    assert fused_used == [enabled]
+    assert e.value.instance == "d" and "discard_above" in e.value.fmu_message
+    assert e.value.time == 0.0
+    assert list(e.value.result["d.x"]) == [0.0]                # the row of t = 0, read before the step
+
+
+SCENARIO = """
+[scenario]
+name = "fused_crash"
+step_size = 1e-3
+stop_time = 3.0
+[fmus.mass]
+path = "{fmu}"
+[fmus.mass.parameters]
+fail_time = 1.0
+u = 1.0
+"""
+
+
+def test_a_crash_inside_a_c_step_names_the_fmu_and_time(tmp_path, fault_fmu):
+    """No block at all: every step runs in C; the heartbeat that C writes still tells the
+    supervisor which FMU crashed and when."""
+    path = tmp_path / "s.toml"
+    path.write_text(SCENARIO.format(fmu=fault_fmu("segfault")))
+    s = run_supervised(path, tmp_path / "out", progress=False)
+    assert s["status"] == "crashed" and s["signal"] == "SIGSEGV"
+    assert s["crashed_instance"] == "mass" and s["phase"] == "doStep"
+    assert s["time_reached"] == pytest.approx(1.0, abs=0.5e-3)
+    from cosim.supervisor import exit_code
+    assert exit_code(s) == EXIT_CRASHED
+
+
+@pytest.fixture(scope="session")
+def fault_fmu(tmp_path_factory):
+    from cosim_helpers import build_mass_fmu
+    built = {}
+
+    def get(fault):
+        if fault not in built:
+            built[fault] = build_mass_fmu(tmp_path_factory.mktemp(f"fmu_{fault}"), 2, fault=fault)
+        return built[fault]
+    return get
