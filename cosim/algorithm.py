@@ -40,7 +40,7 @@ from operator import itemgetter
 
 from . import kernel_group
 from .errors import ScenarioError, SimulationError
-from .fused import FusedSteps
+from .fused import FIRES, FusedSteps
 from .manipulators import OPERATORS, Event, fire_step, parse_condition, setter_for
 from .outputs import OutputError
 from .recorder import Recorder, Result
@@ -232,7 +232,7 @@ class _Plan:
     nan_ok: set
     finite_slots: object
     c_groups: list         # (rate, member names, first output slot) of each C-kernel group
-    python_blocks: int     # blocks that run in Python (0: every step can run in C, cosim/fused.py)
+    python_rates: list     # the rate of each block that runs in Python (cosim/fused.py)
 
 
 def _compile(system, recorder, events, extra_record) -> _Plan:
@@ -316,7 +316,7 @@ def _compile(system, recorder, events, extra_record) -> _Plan:
                             if sig not in nan_ok and not isinstance(bus.values[i], (str, bytes))])
     return _Plan(bus, columns, read_plan, write_plan, blocks, conds, timed, setters, record,
                  recorder.decimation if recorder is not None else 0, bus_names, nan_ok, finite_slots,
-                 c_groups, len(system.blocks) - len(in_group))
+                 c_groups, [system.rate(n) for n in order if n not in in_group])
 
 
 def _start_recorder(system, recorder, plan: _Plan, allow_nonfinite: bool) -> None:
@@ -374,6 +374,7 @@ class _Loop:
         self.schedule, self.period = _schedule(plan.blocks, n_run)
         self.fused = None if self.rejection else FusedSteps.of(system, plan, grid, io, watch.heartbeat.c_address())
         self.conditions = plan.conditions
+        self.any_fires = _any_fires(self.conditions)
         self.timed = list(plan.timed)
         self.next_timed = self.timed[0][0] if self.timed else -1
         self.setters = plan.setters
@@ -397,6 +398,18 @@ class _Loop:
             what(ev.value, self.values)
         return False
 
+    def _fire_conditions(self, t: float) -> bool:
+        """Fire every condition event that holds now, each once; True when one stops the run."""
+        stop = False
+        for c in self.conditions:
+            i, s, o, op, number, ev = c
+            if op(s * self.values[i] + o, number):
+                # fires once; rebinding leaves the list being iterated intact
+                self.conditions = [x for x in self.conditions if x is not c]
+                stop = self._apply(ev, t) or stop
+        self.any_fires = _any_fires(self.conditions)
+        return stop
+
     def _fire_timed(self, n: int, t: float) -> bool:
         stop = False
         while self.timed and self.timed[0][0] == n:
@@ -417,8 +430,7 @@ class _Loop:
         if self.fused is not None:
             return self._run_fused(n, n_end)
         values, reads, writes, steppers = self.values, self.reads, self.writes, self.steppers
-        schedule, period, conditions = self.schedule, self.period, self.conditions
-        any_fires = _any_fires(conditions)
+        schedule, period, conditions, any_fires = self.schedule, self.period, self.conditions, self.any_fires
         record, decimation, rows, beat = self.record, self.decimation, self.rows, self.beat
         g, n_run = self.grid, self.n_run
         t0, h, n_last, stop_time, n_short, h_last = g.t0, g.h, g.n_last, g.stop_time, g.n_short, g.h_last
@@ -449,13 +461,8 @@ class _Loop:
                 # 4. condition events
                 phase = "event"
                 if conditions and any_fires(values):
-                    for c in conditions:
-                        i, s, o, op, number, ev = c
-                        if op(s * values[i] + o, number):
-                            # fires once; rebinding leaves the list being iterated intact
-                            conditions = self.conditions = [x for x in conditions if x is not c]
-                            stop = self._apply(ev, t) or stop
-                    any_fires = _any_fires(conditions)
+                    stop = self._fire_conditions(t) or stop
+                    conditions, any_fires = self.conditions, self.any_fires
                 # 5. record
                 if decimation and (n % decimation == 0 or stop):
                     rows.append((t, *record(values)))
@@ -494,54 +501,90 @@ class _Loop:
 
     def _run_fused(self, n: int, n_end: int) -> tuple[int, bool]:
         """:meth:`run` with the steps that need no Python in C (cosim/fused.py): runs of
-        whole steps up to the next step that records, fires a time event or is the last;
-        that one is read and computed in C, its events and row here, its doStep in C."""
-        f, values, rows = self.fused, self.values, self.rows
-        record, decimation = self.record, self.decimation
-        g, n_run = self.grid, self.n_run
-        stop, t = False, self.t
-        try:
-            while n < n_end and not stop:
-                m = min(n_end, n_run)
-                if decimation:
-                    m = min(m, -(-n // decimation) * decimation)
-                if self.next_timed >= n:
-                    m = min(m, self.next_timed)
-                if m > n:
-                    status = f.run(n, m)
-                    if status:
-                        n, stop = self._fused_status(status)
-                        continue
-                    n = m
-                    if n == n_end:
-                        break
-                t = g.time(n)
-                status = f.read(n)
-                if status:
-                    self._fused_status(status)
-                if n == self.next_timed:
-                    values[:] = f.to_values()
-                    stop = self._fire_timed(n, t)
-                    f.from_values(values)
-                f.blocks(n)
-                values[:] = f.to_values()
-                if decimation and (n % decimation == 0 or stop):
-                    rows.append((t, *record(values)))
-                if stop or n == n_run:
-                    break
-                status = f.advance(n)
-                n += 1
-                if status:
-                    n, stop = self._fused_status(status)
-        except SimulationError:
-            raise                    # self.n, self.phase: where the C step stopped
-        except BaseException:
+        whole C steps up to the next step that runs a Python block, records, fires a time
+        event or is the last, which :meth:`_python_step` takes; and a C step in which a
+        condition event holds is handed over after its blocks."""
+        f, g = self.fused, self.grid
+        stop = False
+        while n < n_end and not stop:
             self.n = n
-            raise
-        finally:
-            values[:] = f.to_values()
-        self.n, self.t = n, t
+            m = min(n_end, self.n_run)
+            if self.decimation:
+                m = min(m, -(-n // self.decimation) * self.decimation)
+            if self.next_timed >= n:
+                m = min(m, self.next_timed)
+            p = f.next_python(n)
+            if p >= 0:
+                m = min(m, p)
+            if m > n:
+                status = f.run(n, m)
+                if status == FIRES:
+                    n, stop = self._python_step(f.where()[0], blocks_done=True)
+                elif status:
+                    n, stop = self._fused_status(status)
+                    self.values[:] = f.to_values()
+                else:
+                    n = m
+                    self.values[:] = f.to_values()      # the bus as the last C step left it
+                    self.t = g.time(n - 1)
+                continue
+            last = n == self.n_run    # the last communication point: read, computed, not stepped
+            n, stop = self._python_step(n)
+            if last:
+                break
+        self.n = n
         return n, stop
+
+    def _python_step(self, n: int, blocks_done: bool = False) -> tuple[int, bool]:
+        """Step ``n`` of a fused run (see :meth:`run`): the FMU reads and the C groups in C,
+        the Python blocks, events and the row here, the doStep in C. ``blocks_done``: a C
+        step stopped after its blocks (a condition holds). Returns ``(n, stop)`` as
+        :meth:`run` (``n`` not advanced past the last point or a stop)."""
+        f, values = self.fused, self.values
+        self.n, self.t = n, t = n, self.grid.time(n)
+        stop = changed = False                    # changed: values newer than the C bus
+        if not blocks_done:
+            self.phase = "read"
+            status = f.read(n)
+            if status:
+                self._fused_status(status)        # raises: a read never asks to terminate
+        values[:] = f.to_values()
+        if not blocks_done:
+            if n == self.next_timed:
+                stop = self._fire_timed(n, t)
+                changed = True
+            self.phase = "block"
+            for step, read_u, a, b, nb, name in self.schedule[n % self.period]:
+                self.block_name = name
+                j = f.group_index.get(name)
+                if j is not None:                 # a C group: on the C bus
+                    if changed:
+                        f.from_values(values)
+                    f.group(j, n)
+                    values[:] = f.to_values()
+                    changed = False
+                    continue
+                y = step(t, read_u(values))
+                if len(y) != nb:
+                    raise _bad_output(name, y, nb, t)
+                values[a:b] = y
+                changed = True
+        self.phase = "event"
+        if self.conditions and self.any_fires(values):
+            stop = self._fire_conditions(t) or stop
+            f.keep_conditions(self.conditions)
+            changed = True
+        if self.decimation and (n % self.decimation == 0 or stop):
+            self.rows.append((t, *self.record(values)))
+        if changed:                               # events' and Python blocks' values, for C
+            f.from_values(values)
+        if stop or n == self.n_run:
+            return n, stop
+        self.phase = "doStep"
+        status = f.advance(n)
+        if status:
+            return self._fused_status(status)
+        return n + 1, False
 
     def _fused_status(self, status: int) -> tuple[int, bool]:
         """A C step stopped on ``status``: raise as the Python loop would, or -- a doStep's

@@ -10,7 +10,8 @@ runs in-process), its task is reported ``crashed`` -- not retried, since the sch
 ``allowed-failures`` is 0 for a local cluster (``retries`` can change that).
 
 By default a :class:`distributed.LocalCluster` on loopback with one single-threaded worker
-process per core; ``scheduler="tcp://host:8786"`` uses an existing cluster (docs/faults.md
+per core, threads of this process (:func:`connect` says why); ``scheduler="tcp://host:8786"``
+uses an existing cluster (docs/faults.md
 tells how to start one). Output: ``campaign.csv`` (one row per run: run, status,
 overrides, scores) and ``campaign.json`` (every summary).
 """

@@ -6,12 +6,14 @@ Python loop's glue: a ctypes call and a copy for every getReal, setReal, doStep 
 :class:`FusedSteps` runs the same steps in C (cosim/native/fused_steps.c) on a copy of
 the master's bus -- same slots, same connection scales, same block order and rates, same
 heartbeat -- so that the loop (:meth:`cosim.algorithm._Loop.run`) only steps through
-Python where something needs it: a recorded step, a time event, the last step, a failed
-FMU call.
+Python where something needs it: a Python block due (a plain-Python or wrapped block at a
+slower rate: a detector, an adaptation), a recorded step, a time event, a condition event
+that holds (C tests the conditions after the step's blocks and hands the step over), the
+last step, a failed FMU call. In such a step the blocks run in their order, each C group
+by itself.
 
-Not fused (the Python loop runs as before): a plain-Python block or a wrapped kernel
-block, condition events (they are tested between a step's blocks and its doStep), step
-rejection, FMI 3.0, non-Real FMU inputs or outputs, ``ENABLED = False``.
+Not fused (the Python loop runs as before): a Python block due at every step, a row
+recorded at every step (both would make every step a Python step), step rejection, FMI 3.0, non-Real FMU inputs or outputs, ``ENABLED = False``.
 """
 from __future__ import annotations
 
@@ -19,11 +21,13 @@ import ctypes
 import struct
 
 from . import kernel_group
+from .manipulators import OPERATORS
 from .native import NativeUnavailable, library
 
 ENABLED = True          # False: every step through the Python loop (tests compare the two)
 
 _D, _P, _L = ctypes.c_double, ctypes.c_void_p, ctypes.c_long
+_OPCODE = {OPERATORS[k]: float(j) for j, k in enumerate((">", ">=", "<", "<=", "==", "!="))}
 
 
 class _Slave(ctypes.Structure):
@@ -38,7 +42,7 @@ class _Due(ctypes.Structure):
 
 class _Fused(ctypes.Structure):
     _fields_ = [("n_slaves", _L), ("slaves", _P), ("n_groups", _L), ("groups", _P),
-                ("in_wiring", _P), ("bus", _P), ("beat", _P),
+                ("in_wiring", _P), ("n_conds", _L), ("conds", _P), ("bus", _P), ("beat", _P),
                 ("t0", _D), ("h", _D), ("stop_time", _D), ("h_last", _D),
                 ("n_last", _L), ("n_short", _L), ("at_n", _L), ("at_pos", _L)]
 
@@ -58,8 +62,8 @@ class FusedSteps:
     @classmethod
     def of(cls, system, plan, grid, io, beat_address) -> "FusedSteps | None":
         """``io``: per slave ``(slave, get, set, do_step, out slots (a, b), input refs)``."""
-        if not ENABLED or plan.conditions or plan.python_blocks:
-            return None
+        if not ENABLED or 1 in plan.python_rates or plan.decimation == 1:
+            return None             # every step would be a Python step, and cost more so
         if not all(isinstance(v, float) for v in plan.bus.values):
             return None
         try:
@@ -71,7 +75,7 @@ class FusedSteps:
         lib = library("fused_steps")
         for fn in ("fused_read", "fused_advance", "fused_run"):
             getattr(lib, fn).restype = ctypes.c_int
-        lib.fused_blocks.restype = None
+        lib.fused_blocks.restype = lib.fused_group.restype = None
         self.slaves = [x[0] for x in io]
         keep = []
         slaves = (_Slave * len(io))()
@@ -101,14 +105,22 @@ class FusedSteps:
         w = (_D * max(3 * len(wiring), 1))(*[float(x) for row in wiring for x in row])
         self.bus = (_D * len(plan.bus.values))(*plan.bus.values)
         dues = (_Due * len(plan.c_groups))()
-        for d, (rate, names, a) in zip(dues, plan.c_groups):
+        self.group_index = {}               # a group's name in the schedule -> its index here
+        for j, (d, (rate, names, a)) in enumerate(zip(dues, plan.c_groups)):
             g, k = kernel_group.c_group(*_bus_wiring(system, plan.bus, names, a))
             keep.append((g, k))
             d.group, d.every = ctypes.addressof(g), rate
+            self.group_index["+".join(names)] = j
+        self.python_rates = sorted(set(plan.python_rates))
+        self.conditions = list(plan.conditions)
+        self._conds = (_D * max(6 * len(self.conditions), 1))(
+            *[float(x) for i, sc, o, op, number, _ev in self.conditions
+              for x in (i, sc, o, _OPCODE[op], number, 1.0)])
         self._scratch_beat = (_D * 2)()
         beat = beat_address if beat_address is not None else ctypes.addressof(self._scratch_beat)
         self.f = _Fused(len(io), ctypes.addressof(slaves), len(dues), ctypes.addressof(dues),
-                        ctypes.addressof(w), ctypes.addressof(self.bus), beat,
+                        ctypes.addressof(w), len(self.conditions), ctypes.addressof(self._conds),
+                        ctypes.addressof(self.bus), beat,
                         grid.t0, grid.h, grid.stop_time, grid.h_last, grid.n_last, grid.n_short, 0, 0)
         self._keep = (keep, slaves, w, dues)
         ref = ctypes.byref(self.f)
@@ -116,9 +128,20 @@ class FusedSteps:
         self.read = lambda n: lib.fused_read(ref, _L(n))
         self.blocks = lambda n: lib.fused_blocks(ref, _L(n))
         self.advance = lambda n: lib.fused_advance(ref, _L(n))
+        self.group = lambda j, n: lib.fused_group(ref, _L(j), _L(n))
         self.to_values = memoryview(self.bus).cast("B").cast("d").tolist
         pack = struct.Struct(f"{len(plan.bus.values)}d").pack_into
         self.from_values = lambda values: pack(self.bus, 0, *values)
+
+    def next_python(self, n: int) -> int:
+        """The first step from ``n`` on at which a Python block is due (-1: none ever)."""
+        return min((-(-n // r) * r for r in self.python_rates), default=-1)
+
+    def keep_conditions(self, active: list) -> None:
+        """Only the conditions in ``active`` (the loop's list: a fired one is gone) are tested."""
+        ids = {id(c) for c in active}
+        for k, c in enumerate(self.conditions):
+            self._conds[6 * k + 5] = 1.0 if id(c) in ids else 0.0
 
     def where(self) -> tuple[int, str, int]:
         """``(step, phase, slave index)`` where the last call stopped on a status."""
@@ -128,6 +151,9 @@ class FusedSteps:
     def discarded(self, k: int):
         """The slave's Discard handler (a terminate request or not), as the Python loop calls it."""
         return self._discarded[k]
+
+
+FIRES = -1          # fused_steps.c: a condition holds after the blocks of step at_n
 
 
 class _NotFusable(Exception):

@@ -37,12 +37,13 @@ def test_campaign_one_crash_five_completed_on_two_local_workers(tmp_path, fault_
 
 
 def test_campaign_cli_with_a_sweep_file(tmp_path, mass_fmu, capsys):
+    """Also on worker processes (the default is worker threads, each run in its child)."""
     path = scenario(tmp_path, mass_fmu, fail=-1, stop=0.05)
     sweep = tmp_path / "sweep.toml"
     sweep.write_text('[grid]\n"fmus.mass.parameters.m" = [1.0, 2.0]\n'
                      '[seeds]\nkey = "fmus.mass.parameters.x0"\nvalues = [0.0, 0.5]\n')
     code = cli.main(["campaign", str(path), "--sweep", str(sweep), "--out", str(tmp_path / "c"),
-                     "--workers", "2", "--quiet"])
+                     "--workers", "2", "--worker-processes", "--quiet"])
     assert code == 0
     assert "4 runs: 4 completed" in capsys.readouterr().out
     rows = list(csv.DictReader(open(tmp_path / "c" / "campaign.csv")))

@@ -67,6 +67,31 @@ def test_stop_time_off_the_grid_takes_the_short_last_step_in_c(monkeypatch):
         assert np.array_equal(a[c], b[c]), c
 
 
+def _fang_hole(enabled: bool, monkeypatch, events):
+    monkeypatch.setattr(fused, "ENABLED", enabled)
+    sc = load_scenario(ROOT / "scenarios" / "fang_table5_hole.toml", {"scenario.stop_time": 2.0})
+    return run(sc.system, sc.stop_time, Recorder(sc.record_signals + ["trajectory.z_ref"], 7),
+               list(sc.events) + list(events))
+
+
+def test_python_blocks_at_slower_rates_and_condition_events(monkeypatch, fused_used):
+    """Fang's hole: a C group every step, three Python blocks at 1/10 and 1/200; a condition
+    that holds inside a run of C steps (C hands the step over after its blocks) turns the
+    plant's current noise off, and a later one stops the run -- every row equal."""
+    events = [Event(when="trajectory.z_ref > 5.0e-4", target="drive.i_noise", value=0.0),
+              Event(when="drive.table_position >= 6.0e-4", action="stop")]
+    a = _fang_hole(True, monkeypatch, events)
+    b = _fang_hole(False, monkeypatch, events)
+    assert fused_used == [True, False]
+    assert a.summary["status"] == b.summary["status"] == "stopped"
+    assert a.summary["events_fired"] == b.summary["events_fired"] and len(a.summary["events_fired"]) == 2
+    assert a.summary["time_reached"] == b.summary["time_reached"]
+    assert 1.2 < a.summary["time_reached"] < 1.3                     # z = 0.6 mm at ~1.25 s
+    assert a.signals == b.signals and len(a.time) == len(b.time)
+    for c in a.signals:
+        assert np.array_equal(a[c], b[c], equal_nan=True), c
+
+
 def _discarding(discard_fmu) -> System:
     s = System(step_size=0.01)
     s.add_fmu("d", discard_fmu, {"discard_above": 0.005, "u": 1.0})     # every 0.01 s step: Discard
@@ -83,7 +108,7 @@ def discard_fmu(events_fmu):
 def test_a_discard_in_a_c_step_fails_as_in_the_python_loop(discard_fmu, monkeypatch, fused_used, enabled):
     monkeypatch.setattr(fused, "ENABLED", enabled)
     with pytest.raises(SimulationError, match="doStep returned Discard") as e:
-        run(_discarding(discard_fmu), 1.0, Recorder(["d.x"]))
+        run(_discarding(discard_fmu), 1.0, Recorder(["d.x"], 2))
     assert fused_used == [enabled]
     assert e.value.instance == "d" and "discard_above" in e.value.fmu_message
     assert e.value.time == 0.0
@@ -100,6 +125,8 @@ path = "{fmu}"
 [fmus.mass.parameters]
 fail_time = 1.0
 u = 1.0
+[record]
+decimation = 5        # not every step: the steps between rows run in C
 """
 
 

@@ -1,12 +1,12 @@
-/* Whole co-simulation steps in C, for a system whose blocks all run in C (cosim/fused.py).
+/* Whole co-simulation steps in C (cosim/fused.py): the steps in which only C blocks run.
  *
  * The Python loop (cosim/algorithm.py) pays a ctypes call and a copy for every FMU read,
  * write and doStep and for every block group: ~7 us per step of Keio Fig. 4's two plants
  * on top of what the FMUs and the kernels compute. When nothing in a step needs Python
- * (no Python block, no condition event, no time event, not a recorded step), the same
- * step runs here: FMI 2.0 getReal -> the due kernel groups -> setReal -> doStep, on a C
- * copy of the master's bus with the master's slots, wiring and order. The Python loop
- * keeps every step that needs it and syncs the bus around them.
+ * (no Python block due, no time event, not a recorded step), the same step runs here:
+ * FMI 2.0 getReal -> the due kernel groups -> setReal -> doStep, on a C copy of the
+ * master's bus with the master's slots, wiring and order. The Python loop keeps every
+ * step that needs it and syncs the bus around them.
  *
  * A status other than OK or Warning ends the call; the caller learns where (at_n, at_pos)
  * and handles it as the Python loop would (Discard from doStep may be a terminate request).
@@ -41,12 +41,17 @@ typedef struct {
     long n_groups;
     const Due *groups;
     const double *in_wiring;      /* rows [bus slot, scale, offset] of every FMU input */
+    long n_conds;
+    double *conds;                /* condition events: rows [slot, scale, offset, op, number, active] */
     double *bus;
     double *beat;                 /* heartbeat: [0] step n, [1] FMU in doStep (-1: none) */
     double t0, h, stop_time, h_last;
     long n_last, n_short;
     long at_n, at_pos;            /* where a call stopped: step, position (see below) */
 } Fused;
+
+/* a step whose condition event holds is left to Python after its blocks: at_pos = FIRES */
+#define FIRES (-1)
 
 /* positions within a step: 0 .. S-1 read FMU k, S .. 2S-1 write FMU k - S, 2S .. 3S-1 step FMU k - 2S */
 
@@ -76,6 +81,12 @@ void fused_blocks(Fused *f, long n)
             kernel_group_run(f->groups[j].group, t, f->bus);
 }
 
+/* one group at step n (a step that also runs Python blocks: the loop keeps their order) */
+void fused_group(Fused *f, long j, long n)
+{
+    kernel_group_run(f->groups[j].group, time_of(f, n), f->bus);
+}
+
 /* write every FMU's inputs, then step every FMU from t_n by h (the last step: h_last) */
 int fused_advance(Fused *f, long n)
 {
@@ -101,7 +112,25 @@ int fused_advance(Fused *f, long n)
     return 0;
 }
 
-/* steps n0 .. n1 - 1, each whole; 0, or the status that stopped it (at_n, at_pos) */
+/* does an active condition hold? (op: 0 >, 1 >=, 2 <, 3 <=, 4 ==, 5 !=; as the Python
+ * loop computes it: scale * value + offset, then the comparison) */
+static int fires(const Fused *f)
+{
+    for (long k = 0; k < f->n_conds; k++) {
+        const double *c = f->conds + 6 * k;
+        if (c[5] == 0.0)
+            continue;
+        double x = c[1] * f->bus[(long)c[0]] + c[2];
+        int op = (int)c[3], hit = op == 0 ? x > c[4] : op == 1 ? x >= c[4] : op == 2 ? x < c[4]
+                                : op == 3 ? x <= c[4] : op == 4 ? x == c[4] : x != c[4];
+        if (hit)
+            return 1;
+    }
+    return 0;
+}
+
+/* steps n0 .. n1 - 1, each whole; 0, or the status that stopped it (at_n, at_pos): an
+ * FMI status, or FIRES after the blocks of a step in which a condition event holds */
 int fused_run(Fused *f, long n0, long n1)
 {
     for (long n = n0; n < n1; n++) {
@@ -109,6 +138,11 @@ int fused_run(Fused *f, long n0, long n1)
         if (st)
             return st;
         fused_blocks(f, n);
+        if (f->n_conds && fires(f)) {
+            f->at_n = n;
+            f->at_pos = FIRES;
+            return FIRES;
+        }
         st = fused_advance(f, n);
         if (st)
             return st;
