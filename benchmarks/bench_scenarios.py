@@ -12,7 +12,9 @@ closed loop), in one process:
   scenario's step size -- fmpy's loaded C functions called through ctypes on preallocated
   arrays: per FMU one ``getReal`` of every output the scenario reads, one ``setReal`` of
   every input it drives (held values), ``doStep``. ``ratio_to_raw`` = run / raw;
-  ``meets_ratio``: at most :data:`TARGET_RATIO`.
+  ``meets_ratio``: at most :data:`TARGET_RATIO`. ``steps_in_c``: the share of steps run
+  wholly in C (cosim/fused.py) -- those can beat the raw ctypes loop, which pays ctypes
+  per FMU call.
 
 The raw loop is timed ``RAW_REPEAT`` times (minimum counts, the machine may be shared);
 each scenario runs in full (a run's cost is not uniform: contact, events), once, or
@@ -154,7 +156,7 @@ def run_one(path: Path) -> dict | None:
             "meets_ratio": us / raw <= TARGET_RATIO,
             "startup_s": round(t_load + t_start, 2), "write_s": round(t_write, 2),
             "meets_10us": us <= TARGET_US, "blocks_rate": blocks,
-            "c_groups": in_c}
+            "c_groups": in_c, "steps_in_c": f"{info.steps_in_c / max(info.steps, 1):.0%}"}
 
 
 def machine() -> dict:

@@ -66,6 +66,7 @@ class RunInfo:
     events_fired: list = field(default_factory=list)
     error: str | None = None
     step_rejection: dict | None = None   # floor, rejected, retried_steps, smallest_step [s]
+    steps_in_c: int = 0              # steps run wholly in C (cosim/fused.py), no Python in them
 
     def as_dict(self) -> dict:
         return {k: v for k, v in self.__dict__.items()
@@ -519,11 +520,13 @@ class _Loop:
             if m > n:
                 status = f.run(n, m)
                 if status == FIRES:
+                    self.info.steps_in_c += f.where()[0] - n
                     n, stop = self._python_step(f.where()[0], blocks_done=True)
                 elif status:
                     n, stop = self._fused_status(status)
                     self.values[:] = f.to_values()
                 else:
+                    self.info.steps_in_c += m - n
                     n = m
                     self.values[:] = f.to_values()      # the bus as the last C step left it
                     self.t = g.time(n - 1)
