@@ -92,10 +92,25 @@ def setter_for(system, target: str, wire: bool = False):
         if name in block.output_names():
             raise ValueError(f"{target} is a block output; set an input or a block setting")
         cur = getattr(block, name, None)
+        if name == "sample_period":
+            raise ValueError(f"{target}: a block's sample period is fixed before the run (the step "
+                             "schedule is compiled from it)")
         if isinstance(cur, (int, float)) and not isinstance(cur, bool) and not name.startswith("_"):
-            def apply(value, _bus, block=block, name=name):
+            state = getattr(getattr(block, "c_kernel", None), "state", None)
+            if state is None:
+                def apply(value, _bus, block=block, name=name):
+                    setattr(block, name, float(value))
+                return ("call", apply)
+            # a block stepping in C reads its settings from its C state, not the Python object
+            if not hasattr(state, name):
+                raise ValueError(f"'{name}' of block '{inst}' ({type(block).__name__}) is compiled into "
+                                 "its C step and cannot change during the run; set it in the scenario's "
+                                 "settings instead")
+
+            def apply_c(value, _bus, block=block, name=name, state=state):
                 setattr(block, name, float(value))
-            return ("call", apply)
+                setattr(state, name, float(value))
+            return ("call", apply_c)
         raise ValueError(f"block '{inst}' ({type(block).__name__}) has no input or numeric setting "
                          f"'{name}' (inputs: {', '.join(block.input_names()) or 'none'})")
     if inst in system.slaves:

@@ -153,3 +153,26 @@ def fault_fmu(tmp_path_factory):
             built[fault] = build_mass_fmu(tmp_path_factory.mktemp(f"fmu_{fault}"), 2, fault=fault)
         return built[fault]
     return get
+
+
+def test_an_event_on_a_setting_of_a_block_stepping_in_c_reaches_its_c_state(monkeypatch):
+    """``controller.Kf = 0.2`` mid-cut: the force controller steps in C, so the event must
+    change its C state too -- the same rows with and without whole C steps, and different
+    from the run without the event from that time on."""
+    ev = [Event(time=1.5, target="controller.Kf", value=0.2)]
+    a = _fig4(True, monkeypatch, ev, stop=2.0)
+    b = _fig4(False, monkeypatch, ev, stop=2.0)
+    ref = _fig4(True, monkeypatch, (), stop=2.0)
+    for c in a.signals:
+        assert np.array_equal(a[c], b[c]), c
+    i_ref, i_ref0 = a["controller.i_ref"], ref["controller.i_ref"]
+    assert np.array_equal(i_ref[a.time < 1.5], i_ref0[a.time < 1.5])
+    assert not np.array_equal(i_ref[a.time > 1.5], i_ref0[a.time > 1.5])
+    assert set(a["controller.mode"][a.time > 1.4]) == {1.0}          # in force control (MODE_FORCE) meanwhile
+
+
+def test_a_sample_period_cannot_change_during_a_run():
+    from cosim.manipulators import setter_for
+    sc = load_scenario(FIG4)
+    with pytest.raises(ValueError, match="sample period is fixed before the run"):
+        setter_for(sc.system, "controller.sample_period")
