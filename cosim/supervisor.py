@@ -116,11 +116,30 @@ def _modules_of(raw: dict) -> list[str]:
 def _context(sc):
     if _can_fork():
         return multiprocessing.get_context("fork"), True
+    return _fork_server(getattr(sc, "modules", [])), False
+
+
+def _fork_server(modules: list[str]):
+    """The forkserver context, its server to preload ``modules`` (when it is not running yet)."""
     ctx = multiprocessing.get_context("forkserver")
     os.environ.setdefault("MPLBACKEND", "Agg")    # the server preloads pyplot: never a display backend
     # imported once in the fork server, so that each run's child does not import them again
-    ctx.set_forkserver_preload(["cosim.runner", "cosim.supervisor", *getattr(sc, "modules", [])])
-    return ctx, False
+    ctx.set_forkserver_preload(["cosim.runner", "cosim.supervisor", *modules])
+    return ctx
+
+
+def start_fork_server(path, overrides=None) -> None:
+    """Start the fork server for runs of scenario ``path`` now, in the background: its
+    imports (~1-2 s: scipy, matplotlib) then overlap whatever the caller does next (a
+    campaign validates its scenarios and starts its cluster meanwhile) instead of
+    delaying the first run."""
+    from multiprocessing import forkserver
+    try:
+        modules = _summary_facts(Path(path), overrides).modules
+    except Exception:  # noqa: BLE001 - a bad scenario is reported by its validation, not here
+        modules = []
+    _fork_server(modules)
+    forkserver.ensure_running()
 
 
 class _OneRun:
