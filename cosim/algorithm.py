@@ -228,6 +228,7 @@ class _Plan:
     timed: list            # (step index, declaration index, event), in firing order
     setters: dict
     record: object         # reader of the recorded columns
+    record_refs: list      # (slot, scale, offset) of each recorded column
     decimation: int
     bus_names: list
     nan_ok: set
@@ -306,7 +307,8 @@ def _compile(system, recorder, events, extra_record) -> _Plan:
                 setters[id(ev)] = setter_for(system, ev.target)
             except ValueError as e:
                 raise ScenarioError(str(e), key="set") from None
-    record = _reader([bus.ref(c) for c in columns])
+    record_refs = [bus.ref(c) for c in columns]
+    record = _reader(record_refs)
     bus_names = [None] * len(bus.values)
     for sig, i in bus.slot.items():
         bus_names[i] = sig
@@ -315,7 +317,7 @@ def _compile(system, recorder, events, extra_record) -> _Plan:
     # numeric slots only: a String / Binary FMU variable cannot be NaN (nor summed)
     finite_slots = _getter([i for i, sig in enumerate(bus_names)
                             if sig not in nan_ok and not isinstance(bus.values[i], (str, bytes))])
-    return _Plan(bus, columns, read_plan, write_plan, blocks, conds, timed, setters, record,
+    return _Plan(bus, columns, read_plan, write_plan, blocks, conds, timed, setters, record, record_refs,
                  recorder.decimation if recorder is not None else 0, bus_names, nan_ok, finite_slots,
                  c_groups, [system.rate(n) for n in order if n not in in_group])
 
@@ -502,16 +504,14 @@ class _Loop:
 
     def _run_fused(self, n: int, n_end: int) -> tuple[int, bool]:
         """:meth:`run` with the steps that need no Python in C (cosim/fused.py): runs of
-        whole C steps up to the next step that runs a Python block, records, fires a time
-        event or is the last, which :meth:`_python_step` takes; and a C step in which a
-        condition event holds is handed over after its blocks."""
+        whole C steps (their rows recorded by the C) up to the next step that runs a Python
+        block, fires a time event or is the last, which :meth:`_python_step` takes; and a
+        C step in which a condition event holds is handed over after its blocks."""
         f, g = self.fused, self.grid
         stop = False
         while n < n_end and not stop:
             self.n = n
-            m = min(n_end, self.n_run)
-            if self.decimation:
-                m = min(m, -(-n // self.decimation) * self.decimation)
+            m = min(n_end, self.n_run, n + f.run_span)
             if self.next_timed >= n:
                 m = min(m, self.next_timed)
             p = f.next_python(n)
@@ -519,6 +519,7 @@ class _Loop:
                 m = min(m, p)
             if m > n:
                 status = f.run(n, m)
+                f.take_rows(self.rows)                  # the C steps' rows, before any other
                 if status == FIRES:
                     self.info.steps_in_c += f.where()[0] - n
                     n, stop = self._python_step(f.where()[0], blocks_done=True)

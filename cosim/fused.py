@@ -7,13 +7,14 @@ Python loop's glue: a ctypes call and a copy for every getReal, setReal, doStep 
 the master's bus -- same slots, same connection scales, same block order and rates, same
 heartbeat -- so that the loop (:meth:`cosim.algorithm._Loop.run`) only steps through
 Python where something needs it: a Python block due (a plain-Python or wrapped block at a
-slower rate: a detector, an adaptation), a recorded step, a time event, a condition event
-that holds (C tests the conditions after the step's blocks and hands the step over), the
-last step, a failed FMU call. In such a step the blocks run in their order, each C group
-by itself.
+slower rate: a detector, an adaptation), a time event, a condition event that holds (C
+tests the conditions after the step's blocks and hands the step over), the last step, a
+failed FMU call. In such a step the blocks run in their order, each C group by itself.
+The C steps record their rows themselves (the recorder's columns, scales and offsets) and
+the loop collects them after each run of C steps.
 
-Not fused (the Python loop runs as before): a Python block due at every step, a row
-recorded at every step (both would make every step a Python step), step rejection, FMI 3.0, non-Real FMU inputs or outputs, ``ENABLED = False``.
+Not fused (the Python loop runs as before): a Python block due at every step (it would
+make every step a Python step), step rejection, FMI 3.0, non-Real FMU inputs or outputs, ``ENABLED = False``.
 """
 from __future__ import annotations
 
@@ -42,7 +43,9 @@ class _Due(ctypes.Structure):
 
 class _Fused(ctypes.Structure):
     _fields_ = [("n_slaves", _L), ("slaves", _P), ("n_groups", _L), ("groups", _P),
-                ("in_wiring", _P), ("n_conds", _L), ("conds", _P), ("bus", _P), ("beat", _P),
+                ("in_wiring", _P), ("n_conds", _L), ("conds", _P),
+                ("rec_every", _L), ("rec_cols", _L), ("rec_wiring", _P), ("rec_buf", _P), ("rec_n", _L),
+                ("bus", _P), ("beat", _P),
                 ("t0", _D), ("h", _D), ("stop_time", _D), ("h_last", _D),
                 ("n_last", _L), ("n_short", _L), ("at_n", _L), ("at_pos", _L)]
 
@@ -62,7 +65,7 @@ class FusedSteps:
     @classmethod
     def of(cls, system, plan, grid, io, beat_address) -> "FusedSteps | None":
         """``io``: per slave ``(slave, get, set, do_step, out slots (a, b), input refs)``."""
-        if not ENABLED or 1 in plan.python_rates or plan.decimation == 1:
+        if not ENABLED or 1 in plan.python_rates:
             return None             # every step would be a Python step, and cost more so
         if not all(isinstance(v, float) for v in plan.bus.values):
             return None
@@ -116,10 +119,19 @@ class FusedSteps:
         self._conds = (_D * max(6 * len(self.conditions), 1))(
             *[float(x) for i, sc, o, op, number, _ev in self.conditions
               for x in (i, sc, o, _OPCODE[op], number, 1.0)])
+        # rows of the C steps: [t, columns...] as the recorder's reader computes them
+        k = len(plan.record_refs)
+        self._rec_wiring = (_D * max(3 * k, 1))(*[float(x) for row in plan.record_refs for x in row])
+        self._rec_buf = (_D * (ROWS * (1 + k)))()
+        self._rec_flat = memoryview(self._rec_buf).cast("B").cast("d")
+        self._rec_width = 1 + k
+        # a run of C steps records at most ROWS rows
+        self.run_span = (ROWS - 1) * plan.decimation + 1 if plan.decimation else 1 << 62
         self._scratch_beat = (_D * 2)()
         beat = beat_address if beat_address is not None else ctypes.addressof(self._scratch_beat)
         self.f = _Fused(len(io), ctypes.addressof(slaves), len(dues), ctypes.addressof(dues),
                         ctypes.addressof(w), len(self.conditions), ctypes.addressof(self._conds),
+                        plan.decimation, k, ctypes.addressof(self._rec_wiring), ctypes.addressof(self._rec_buf), 0,
                         ctypes.addressof(self.bus), beat,
                         grid.t0, grid.h, grid.stop_time, grid.h_last, grid.n_last, grid.n_short, 0, 0)
         self._keep = (keep, slaves, w, dues)
@@ -136,6 +148,14 @@ class FusedSteps:
     def next_python(self, n: int) -> int:
         """The first step from ``n`` on at which a Python block is due (-1: none ever)."""
         return min((-(-n // r) * r for r in self.python_rates), default=-1)
+
+    def take_rows(self, rows: list) -> None:
+        """Append the rows the C steps recorded (as tuples, as the Python loop records them)."""
+        n = self.f.rec_n
+        if n:
+            flat = self._rec_flat[:n * self._rec_width].tolist()
+            rows.extend(zip(*[iter(flat)] * self._rec_width))
+            self.f.rec_n = 0
 
     def keep_conditions(self, active: list) -> None:
         """Only the conditions in ``active`` (the loop's list: a fired one is gone) are tested."""
@@ -154,6 +174,7 @@ class FusedSteps:
 
 
 FIRES = -1          # fused_steps.c: a condition holds after the blocks of step at_n
+ROWS = 1024         # rows a run of C steps may record before the loop collects them
 
 
 class _NotFusable(Exception):

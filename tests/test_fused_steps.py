@@ -176,3 +176,36 @@ def test_a_sample_period_cannot_change_during_a_run():
     sc = load_scenario(FIG4)
     with pytest.raises(ValueError, match="sample period is fixed before the run"):
         setter_for(sc.system, "controller.sample_period")
+
+
+@pytest.fixture(scope="module")
+def mass_fmu(tmp_path_factory):
+    from cosim_helpers import build_mass_fmu
+    return build_mass_fmu(tmp_path_factory.mktemp("fmu2"), 2)
+
+
+@pytest.mark.parametrize("decimation", [1, 4])
+def test_rows_recorded_by_c_steps_are_the_python_loops(mass_fmu, monkeypatch, fused_used, decimation):
+    """A Python source at 1/10 of the steps drives the plant in kN (a connection factor of
+    1000): the other nine steps are C steps, whose rows -- with the connection's scale on
+    the recorded FMU input -- the C records itself."""
+    from cosim.sources import Sine
+
+    def system():
+        s = System(step_size=1e-3)
+        s.add_fmu("mass", mass_fmu, parameters={"m": 2.0})
+        s.add_block("force", Sine(amplitude=0.003, frequency=7.0, unit="kN", sample_period=1e-2))
+        s.connect("force.y", "mass.u")
+        return s
+    out = []
+    for enabled in (True, False):
+        monkeypatch.setattr(fused, "ENABLED", enabled)
+        out.append(run(system(), 0.3037, Recorder(["mass.u", "mass.x", "mass.v", "force.y"], decimation)))
+    a, b = out
+    assert fused_used == [True, False] and a.summary["steps_in_c"] > 0.8 * a.summary["steps"]
+    # points 0 .. 304 (the last, 0.3037 s, after a short step), every decimation-th recorded
+    assert len(a.time) == len(b.time) == len(range(0, 305, decimation)) and a.time[-1] == 0.3037
+    for c in a.signals:
+        assert np.array_equal(a[c], b[c]), c
+    assert np.allclose(a["mass.u"], 1e3 * a["force.y"], rtol=1e-15)   # scaled by the C as by Python
+    assert np.ptp(a["mass.x"]) > 0

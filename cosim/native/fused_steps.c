@@ -6,7 +6,8 @@
  * (no Python block due, no time event, not a recorded step), the same step runs here:
  * FMI 2.0 getReal -> the due kernel groups -> setReal -> doStep, on a C copy of the
  * master's bus with the master's slots, wiring and order. The Python loop keeps every
- * step that needs it and syncs the bus around them.
+ * step that needs it and syncs the bus around them. The rows of the C steps go into
+ * rec_buf, as the recorder's reader would compute them; the caller collects them.
  *
  * A status other than OK or Warning ends the call; the caller learns where (at_n, at_pos)
  * and handles it as the Python loop would (Discard from doStep may be a terminate request).
@@ -43,6 +44,10 @@ typedef struct {
     const double *in_wiring;      /* rows [bus slot, scale, offset] of every FMU input */
     long n_conds;
     double *conds;                /* condition events: rows [slot, scale, offset, op, number, active] */
+    long rec_every, rec_cols;     /* a row every rec_every steps (0: none) of rec_cols values */
+    const double *rec_wiring;     /* rows [bus slot, scale, offset] of the recorded columns */
+    double *rec_buf;              /* rows [t, values...] recorded by C steps ... */
+    long rec_n;                   /* ... this many (the caller takes them and sets 0) */
     double *bus;
     double *beat;                 /* heartbeat: [0] step n, [1] FMU in doStep (-1: none) */
     double t0, h, stop_time, h_last;
@@ -129,8 +134,9 @@ static int fires(const Fused *f)
     return 0;
 }
 
-/* steps n0 .. n1 - 1, each whole; 0, or the status that stopped it (at_n, at_pos): an
- * FMI status, or FIRES after the blocks of a step in which a condition event holds */
+/* steps n0 .. n1 - 1, each whole (its row into rec_buf: room for them is the caller's);
+ * 0, or the status that stopped it (at_n, at_pos): an FMI status, or FIRES after the
+ * blocks of a step in which a condition event holds (its row not recorded) */
 int fused_run(Fused *f, long n0, long n1)
 {
     for (long n = n0; n < n1; n++) {
@@ -142,6 +148,13 @@ int fused_run(Fused *f, long n0, long n1)
             f->at_n = n;
             f->at_pos = FIRES;
             return FIRES;
+        }
+        if (f->rec_every && n % f->rec_every == 0) {
+            double *row = f->rec_buf + f->rec_n++ * (1 + f->rec_cols);
+            const double *w = f->rec_wiring;
+            row[0] = time_of(f, n);
+            for (long k = 1; k <= f->rec_cols; k++, w += 3)
+                row[k] = w[1] == 1.0 && w[2] == 0.0 ? f->bus[(long)w[0]] : w[1] * f->bus[(long)w[0]] + w[2];
         }
         st = fused_advance(f, n);
         if (st)
