@@ -375,7 +375,7 @@ class _Loop:
         self.steppers = [(*getattr(do_step, "fast", (_three(do_step), None)), slave, float(k))
                          for k, (do_step, slave) in enumerate(steppers)]
         self.schedule, self.period = _schedule(plan.blocks, n_run)
-        self.fused = None if self.rejection else FusedSteps.of(system, plan, grid, io, watch.heartbeat.c_address())
+        self.fused = None if self.rejection else FusedSteps.of(system, plan, grid, io, watch.heartbeat)
         self.conditions = plan.conditions
         self.any_fires = _any_fires(self.conditions)
         self.timed = list(plan.timed)
@@ -525,17 +525,17 @@ class _Loop:
                     n, stop = self._python_step(f.where()[0], blocks_done=True)
                 elif status:
                     n, stop = self._fused_status(status)
-                    self.values[:] = f.to_values()
                 else:
                     self.info.steps_in_c += m - n
                     n = m
-                    self.values[:] = f.to_values()      # the bus as the last C step left it
                     self.t = g.time(n - 1)
                 continue
             last = n == self.n_run    # the last communication point: read, computed, not stepped
             n, stop = self._python_step(n)
             if last:
                 break
+        # the bus as the last step left it (a Python step leaves the C bus equal to it)
+        self.values[:] = f.to_values()
         self.n = n
         return n, stop
 

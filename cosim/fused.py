@@ -63,23 +63,24 @@ class FusedSteps:
     """The C steps of one instantiated run; :meth:`of` says whether the run qualifies."""
 
     @classmethod
-    def of(cls, system, plan, grid, io, beat_address) -> "FusedSteps | None":
+    def of(cls, system, plan, grid, io, heartbeat) -> "FusedSteps | None":
         """``io``: per slave ``(slave, get, set, do_step, out slots (a, b), input refs)``."""
         if not ENABLED or 1 in plan.python_rates:
             return None             # every step would be a Python step, and cost more so
         if not all(isinstance(v, float) for v in plan.bus.values):
             return None
         try:
-            return cls(system, plan, grid, io, beat_address)
+            return cls(system, plan, grid, io, heartbeat)
         except (_NotFusable, NativeUnavailable):
             return None
 
-    def __init__(self, system, plan, grid, io, beat_address):
+    def __init__(self, system, plan, grid, io, heartbeat):
         lib = library("fused_steps")
         for fn in ("fused_read", "fused_advance", "fused_run"):
             getattr(lib, fn).restype = ctypes.c_int
-        lib.fused_blocks.restype = lib.fused_group.restype = None
+        lib.fused_group.restype = None
         self.slaves = [x[0] for x in io]
+        self._discarded = []          # per slave: its Discard handler (a terminate request?)
         keep = []
         slaves = (_Slave * len(io))()
         wiring = []
@@ -104,7 +105,7 @@ class FusedSteps:
             if fast is None or getattr(fast[0], "func", None) is None:
                 raise _NotFusable(f"{slave.name}: no raw fmi2DoStep")
             s.do_step = ctypes.cast(fast[0].func, _P).value
-            self._discarded = getattr(self, "_discarded", []) + [fast[1]]
+            self._discarded.append(fast[1])
         w = (_D * max(3 * len(wiring), 1))(*[float(x) for row in wiring for x in row])
         self.bus = (_D * len(plan.bus.values))(*plan.bus.values)
         dues = (_Due * len(plan.c_groups))()
@@ -128,7 +129,8 @@ class FusedSteps:
         # a run of C steps records at most ROWS rows
         self.run_span = (ROWS - 1) * plan.decimation + 1 if plan.decimation else 1 << 62
         self._scratch_beat = (_D * 2)()
-        beat = beat_address if beat_address is not None else ctypes.addressof(self._scratch_beat)
+        beat = heartbeat.c_address()          # the supervisor's mmap, else a scratch pair
+        beat = beat if beat is not None else ctypes.addressof(self._scratch_beat)
         self.f = _Fused(len(io), ctypes.addressof(slaves), len(dues), ctypes.addressof(dues),
                         ctypes.addressof(w), len(self.conditions), ctypes.addressof(self._conds),
                         plan.decimation, k, ctypes.addressof(self._rec_wiring), ctypes.addressof(self._rec_buf), 0,
@@ -138,7 +140,6 @@ class FusedSteps:
         ref = ctypes.byref(self.f)
         self.run = lambda n0, n1: lib.fused_run(ref, _L(n0), _L(n1))
         self.read = lambda n: lib.fused_read(ref, _L(n))
-        self.blocks = lambda n: lib.fused_blocks(ref, _L(n))
         self.advance = lambda n: lib.fused_advance(ref, _L(n))
         self.group = lambda j, n: lib.fused_group(ref, _L(j), _L(n))
         self.to_values = memoryview(self.bus).cast("B").cast("d").tolist

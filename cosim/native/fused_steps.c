@@ -78,7 +78,7 @@ int fused_read(Fused *f, long n)
     return 0;
 }
 
-void fused_blocks(Fused *f, long n)
+static void fused_blocks(Fused *f, long n)
 {
     double t = time_of(f, n);
     for (long j = 0; j < f->n_groups; j++)
