@@ -112,7 +112,8 @@ class _KernelState(ctypes.Structure):
 
     _fields_ = [("Phi", _D * 9), ("Bu", _D * 3), ("By", _D * 3), ("Bg", _D * 3),
                 *((n, _D) for n in ("fdecay", "fgain", "avel", "kf", "Ts", "K_Tn", "y_theta", "sx",
-                                    "coulomb", "viscous", "stribeck", "v_stribeck", "v_eps", "offset")),
+                                    "coulomb", "viscous", "stribeck", "v_stribeck", "v_eps", "offset",
+                                    "stribeck_exponent")),
                 ("ripple", _D * (3 * MAX_RIPPLE)), ("f_orb_setting", _D),
                 *((n, ctypes.c_int) for n in ("n_ripple", "use_theta", "meas_theta", "k_theta",
                                               "k_orbital", "first")),
@@ -219,10 +220,6 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         fr = self.friction
         if kernel == "python":
             return None
-        if getattr(fr, "stribeck_exponent", 2.0) != 2.0 and fr.stribeck:   # the C friction is Gaussian
-            if kernel == "c":
-                raise ValueError("AdaptiveThrustObserver: the C kernel's Stribeck curve has exponent 2")
-            return None
         if len(fr.ripple) > MAX_RIPPLE:
             if kernel == "c":
                 raise ValueError(f"AdaptiveThrustObserver: the C kernel holds {MAX_RIPPLE} tau_ripple rows")
@@ -239,6 +236,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         k.K_Tn, k.y_theta, k.sx, k.kf = self.nominal.K_Tn, self._y_theta, self.sx, self._kf
         k.coulomb, k.viscous, k.stribeck = fr.coulomb, fr.viscous, fr.stribeck
         k.v_stribeck, k.v_eps, k.offset = fr.v_stribeck, fr.v_eps, self.tau_offset
+        k.stribeck_exponent = getattr(fr, "stribeck_exponent", 2.0)
         k.n_ripple = len(fr.ripple)
         for j, row in enumerate(fr.ripple):
             k.ripple[3 * j:3 * j + 3] = [float(v) for v in row]

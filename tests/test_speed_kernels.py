@@ -2,12 +2,14 @@
 
 * the Fang observer's C kernel against its Python reference step, sample by sample, in
   every port configuration (motor-angle / scale measurement, orbital speed as a setting or
-  an input, Stribeck friction, several ripple rows, a changed sample period, a reset);
+  an input, Stribeck friction of any exponent, several ripple rows, a changed sample
+  period, a reset);
 * the master's block schedule table and generated readers of scaled signals.
 """
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -36,6 +38,9 @@ CASES = [
     dict(orbital_speed_input=True, tau_coulomb=0.05, D_viscous=0.01,
          tau_ripple=[[6, 0.008, 0.0], [12, 0.001, 0.002]], w_eps=1e-2),
     dict(measurement="x", orbital_speed_rpm=90.0, sample_period=5e-4),
+    # a commissioned drive whose Stribeck curve has exponent 1.5 (the foreign ball screw's fit)
+    dict(commissioning_file=str(Path(__file__).resolve().parents[1] / "scenarios" / "commissioning"
+                                / "foreign_ballscrew.json")),
 ]
 
 

@@ -16,7 +16,7 @@ typedef struct {
     /* constants: discretised observer (row-major Phi), forgetting, friction */
     double Phi[9], Bu[3], By[3], Bg[3];
     double fdecay, fgain, avel, kf, Ts, K_Tn, y_theta, sx;
-    double coulomb, viscous, stribeck, v_stribeck, v_eps, offset;
+    double coulomb, viscous, stribeck, v_stribeck, v_eps, offset, stribeck_exponent;
     double ripple[3 * FANG_MAX_RIPPLE];   /* rows [k, a_sin, a_cos] */
     double f_orb_setting;                 /* Hz, < 0: from the input */
     int n_ripple, use_theta, meas_theta;
@@ -30,10 +30,8 @@ static double friction(const FangObserver *o, double v)
 {
     double s = v > o->v_eps ? 1.0 : (v < -o->v_eps ? -1.0 : v / o->v_eps);
     double f = o->coulomb * s + o->viscous * v;
-    if (o->stribeck != 0.0) {
-        double r = v / o->v_stribeck;
-        f += o->stribeck * s * exp(-(r * r));
-    }
+    if (o->stribeck != 0.0)      /* pow, as Python's ** calls it: the same double for any exponent */
+        f += o->stribeck * s * exp(-pow(fabs(v) / o->v_stribeck, o->stribeck_exponent));
     return f;
 }
 
