@@ -591,14 +591,18 @@ class _Loop:
         return n + 1, False
 
     def _fused_status(self, status: int) -> tuple[int, bool]:
-        """A C step stopped on ``status``: raise as the Python loop would, or -- a doStep's
-        Discard that asks to terminate -- step the remaining FMUs and return ``(n + 1, True)``."""
+        """A C step stopped on ``status``: raise as the Python loop would, or -- an FMU that
+        asks to terminate in its doStep -- step the remaining FMUs and return ``(n + 1, True)``."""
         n, phase, k = self.fused.where()
         t, slave = self.grid.time(n), self.fused.slaves[k]
         self.phase = phase
-        if phase == "doStep" and status == 2:
+        if phase == "doStep" and status in (2, TERMINATE_REQUESTED):
             hn = self.grid.h if n != self.grid.n_short else self.grid.h_last
-            if self.fused.discarded(k)(t, hn) == TERMINATE_REQUESTED:
+            if status == TERMINATE_REQUESTED:          # FMI 3.0: terminateSimulation
+                self.fused.terminated(k, t, hn)
+            elif self.fused.discarded(k) is not None:  # FMI 2.0: Discard, then fmi2Terminated?
+                status = self.fused.discarded(k)(t, hn)
+            if status == TERMINATE_REQUESTED:
                 self._terminated(slave, t + hn)
                 for do_step, discarded, other, _k in self.steppers[k + 1:]:
                     status = do_step(t, hn, 1)

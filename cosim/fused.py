@@ -1,7 +1,7 @@
 """Whole steps in C when none of a step's work needs Python (issue #15).
 
 A system whose blocks (if any) all run in C (cosim/kernel_group.py) and whose FMUs are
-FMI 2.0 co-simulation slaves with Real inputs and outputs spends most of a step in the
+FMI 2.0 or 3.0 co-simulation slaves with Real / Float64 inputs and outputs spends most of a step in the
 Python loop's glue: a ctypes call and a copy for every getReal, setReal, doStep and block group.
 :class:`FusedSteps` runs the same steps in C (cosim/native/fused_steps.c) on a copy of
 the master's bus -- same slots, same connection scales, same block order and rates, same
@@ -14,7 +14,8 @@ The C steps record their rows themselves (the recorder's columns, scales and off
 the loop collects them after each run of C steps.
 
 Not fused (the Python loop runs as before): a Python block due at every step (it would
-make every step a Python step), step rejection, FMI 3.0, non-Real FMU inputs or outputs, ``ENABLED = False``.
+make every step a Python step), step rejection, a model-exchange FMU, FMU inputs or outputs
+other than Real / Float64, ``ENABLED = False``.
 """
 from __future__ import annotations
 
@@ -34,7 +35,8 @@ _OPCODE = {OPERATORS[k]: float(j) for j, k in enumerate((">", ">=", "<", "<=", "
 class _Slave(ctypes.Structure):
     _fields_ = [("comp", _P), ("get", _P), ("set", _P), ("do_step", _P),
                 ("out_vr", _P), ("n_out", _L), ("out_at", _L),
-                ("in_vr", _P), ("n_in", _L), ("in_at", _L), ("in_buf", _P)]
+                ("in_vr", _P), ("n_in", _L), ("in_at", _L), ("in_buf", _P),
+                ("fmi3", _L), ("n_out_vr", _L), ("n_in_vr", _L)]
 
 
 class _Due(ctypes.Structure):
@@ -47,7 +49,8 @@ class _Fused(ctypes.Structure):
                 ("rec_every", _L), ("rec_cols", _L), ("rec_wiring", _P), ("rec_buf", _P), ("rec_n", _L),
                 ("bus", _P), ("beat", _P),
                 ("t0", _D), ("h", _D), ("stop_time", _D), ("h_last", _D),
-                ("n_last", _L), ("n_short", _L), ("at_n", _L), ("at_pos", _L)]
+                ("n_last", _L), ("n_short", _L), ("at_n", _L), ("at_pos", _L),
+                ("term_last", _D), ("term_early", _L)]
 
 
 def _raw_call(call, name: str):
@@ -86,26 +89,29 @@ class FusedSteps:
         wiring = []
         for s, (slave, get, put, do_step, (a, b), refs) in zip(slaves, io):
             s.comp = slave.fmu.component
+            s.fmi3 = fmi3 = slave.model.is_fmi3
+            kind = "Float64" if fmi3 else "Real"
             if b > a:
-                g = _raw_call(get, "fmi2GetReal")
-                if g is None or g[1][2] != b - a:
-                    raise _NotFusable(f"{slave.name}: not one fmi2GetReal of Reals")
-                s.get, (_c, vr, _n, _buf) = g[0], g[1]
-                s.out_vr, s.n_out, s.out_at = ctypes.addressof(vr), b - a, a
+                g = _raw_call(get, f"fmi{3 if fmi3 else 2}Get{kind}")
+                if g is None or g[1][-1 if fmi3 else 2] != b - a:
+                    raise _NotFusable(f"{slave.name}: not one Get{kind} of {kind}s")
+                s.get, vr = g[0], g[1][1]
+                s.out_vr, s.n_out, s.out_at, s.n_out_vr = ctypes.addressof(vr), b - a, a, g[1][2]
                 keep.append(vr)
             if refs:
-                p = _raw_call(put, "fmi2SetReal")
+                p = _raw_call(put, f"fmi{3 if fmi3 else 2}Set{kind}")
                 if p is None:
-                    raise _NotFusable(f"{slave.name}: not one fmi2SetReal of Reals")
-                s.set, (_c, vr, _n, buf) = p[0], p[1]
+                    raise _NotFusable(f"{slave.name}: not one Set{kind} of {kind}s")
+                s.set, (vr, buf) = p[0], p[1][1:4:2]
                 s.in_vr, s.n_in, s.in_at, s.in_buf = ctypes.addressof(vr), len(refs), len(wiring), ctypes.addressof(buf)
+                s.n_in_vr = p[1][2]
                 keep.append((vr, buf))
                 wiring += refs
-            fast = getattr(do_step, "fast", None)
-            if fast is None or getattr(fast[0], "func", None) is None:
-                raise _NotFusable(f"{slave.name}: no raw fmi2DoStep")
-            s.do_step = ctypes.cast(fast[0].func, _P).value
-            self._discarded.append(fast[1])
+            raw = getattr(do_step, "raw", None) if fmi3 else getattr(getattr(do_step, "fast", (None,))[0], "func", None)
+            if raw is None:
+                raise _NotFusable(f"{slave.name}: no raw doStep")
+            s.do_step = ctypes.cast(raw, _P).value
+            self._discarded.append(None if fmi3 else do_step.fast[1])
         w = (_D * max(3 * len(wiring), 1))(*[float(x) for row in wiring for x in row])
         self.bus = (_D * len(plan.bus.values))(*plan.bus.values)
         dues = (_Due * len(plan.c_groups))()
@@ -170,8 +176,13 @@ class FusedSteps:
         return self.f.at_n, ("read", "write", "doStep")[pos // S], pos % S
 
     def discarded(self, k: int):
-        """The slave's Discard handler (a terminate request or not), as the Python loop calls it."""
+        """The FMI 2.0 slave's Discard handler (a terminate request or not), as the Python
+        loop calls it; None for FMI 3.0 (a Discard is a Discard)."""
         return self._discarded[k]
+
+    def terminated(self, k: int, t: float, h: float) -> None:
+        """An FMI 3.0 slave asked to terminate in the C step from ``t``: where it ended."""
+        self.slaves[k].terminated_at = self.f.term_last if self.f.term_early else t + h
 
 
 FIRES = -1          # fused_steps.c: a condition holds after the blocks of step at_n

@@ -395,6 +395,7 @@ class FMUSlave:
                     self.terminated_at = last.value if flags[2].value else t + h
                     return TERMINATE_REQUESTED
                 return status
+            do_step.raw = raw_step      # whole C steps (cosim/fused.py) call it with the same flags
         else:
             raw_step = funcs["fmi2DoStep"]
             get_bool_status = funcs["fmi2GetBooleanStatus"]

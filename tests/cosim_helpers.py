@@ -201,6 +201,11 @@ fmi3Status fmi3SetBoolean(fmi3Instance c, const fmi3ValueReference vr[], size_t 
 fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean noSet,
         fmi3Boolean* event, fmi3Boolean* terminate, fmi3Boolean* early, fmi3Float64* last) {
     *event = fmi3False; *terminate = fmi3False; *early = fmi3False;
+#ifdef TERMINATE_AT_FAIL
+    if (((Inst*)c)->r[VR_FAIL] >= 0 && t >= ((Inst*)c)->r[VR_FAIL] - 1e-12) {
+        *terminate = fmi3True; *early = fmi3True; *last = t; return fmi3OK;   /* ends the run, at t */
+    }
+#endif
     if (model_step(c, t, h)) { *last = t; return fmi3Error; }
     *last = t + h; return fmi3OK;
 }
@@ -286,7 +291,8 @@ FAULTS = {"segfault": "*(volatile int *)0 = 1", "abort": "abort()", "exit": "exi
 def build_mass_fmu(out_dir: str | os.PathLike, fmi_version: int = 2, fault: str | None = None) -> Path:
     """Build ``Mass2.fmu`` (FMI 2.0 CS) or ``Mass3.fmu`` (FMI 3.0 CS) into ``out_dir``;
     ``fault`` (a key of :data:`FAULTS`): doStep at t >= fail_time crashes, hangs or makes
-    the velocity NaN (and goes on) instead of returning Error."""
+    the velocity NaN (and goes on) instead of returning Error; ``"terminate"`` (FMI 3.0):
+    it asks to terminate the simulation there (terminateSimulation, earlyReturn at t)."""
     out_dir = Path(out_dir)
     identifier = f"Mass{fmi_version}"
     work = out_dir / f"{identifier}_build"
@@ -304,7 +310,8 @@ def build_mass_fmu(out_dir: str | os.PathLike, fmi_version: int = 2, fault: str 
     lib_dir = work / "binaries" / platform_dir
     lib_dir.mkdir(parents=True, exist_ok=True)
     lib = lib_dir / f"{identifier}{fmpy.sharedLibraryExtension}"
-    defines = [f"-DFAULT={FAULTS[fault]}"] if fault else []
+    defines = (["-DTERMINATE_AT_FAIL"] if fault == "terminate"      # FMI 3.0: asks to end the run
+               else [f"-DFAULT={FAULTS[fault]}"] if fault else [])
     subprocess.run(["gcc", "-shared", "-fPIC", "-O1", "-w", *defines, f"-I{HEADERS}", "-o", str(lib),
                     str(work / "model.c"), str(work / "stubs.c")], check=True, capture_output=True, text=True)
     guid = "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, identifier)) + "}"

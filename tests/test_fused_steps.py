@@ -209,3 +209,31 @@ def test_rows_recorded_by_c_steps_are_the_python_loops(mass_fmu, monkeypatch, fu
         assert np.array_equal(a[c], b[c]), c
     assert np.allclose(a["mass.u"], 1e3 * a["force.y"], rtol=1e-15)   # scaled by the C as by Python
     assert np.ptp(a["mass.x"]) > 0
+
+
+@pytest.mark.parametrize("fault", [None, "terminate"])
+def test_fmi3_plant_in_c_steps_and_its_terminate_request(tmp_path_factory, monkeypatch, fused_used, fault):
+    """An FMI 3.0 FMU (fmi3GetFloat64 / SetFloat64 / DoStep from C): the same rows; and one
+    that sets terminateSimulation in a C step ends the run there, as in the Python loop."""
+    from cosim_helpers import build_mass_fmu
+    fmu = build_mass_fmu(tmp_path_factory.mktemp("fmu3"), 3, fault=fault)
+
+    def system():
+        s = System(step_size=1e-3)
+        s.add_fmu("mass", fmu, parameters={"m": 2.0, "u": 0.5, "fail_time": 0.0421 if fault else -1.0})
+        return s
+    out = []
+    for enabled in (True, False):
+        monkeypatch.setattr(fused, "ENABLED", enabled)
+        out.append(run(system(), 0.1, Recorder(["mass.x", "mass.v"], 4)))
+    a, b = out
+    assert fused_used == [True, False]
+    for c in a.signals:
+        assert np.array_equal(a[c], b[c]), c
+    for key in ("status", "time_reached", "steps", "stop_reason"):
+        assert a.summary[key] == b.summary[key], key
+    if fault:
+        assert a.summary["status"] == "stopped" and "terminate" in a.summary["stop_reason"]
+        assert a.summary["time_reached"] == pytest.approx(0.043)      # the step from 0.043 asked
+    else:
+        assert a.summary["status"] == "completed" and a.summary["steps_in_c"] > 90

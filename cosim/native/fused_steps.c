@@ -12,23 +12,28 @@
  * A status other than OK or Warning ends the call; the caller learns where (at_n, at_pos)
  * and handles it as the Python loop would (Discard from doStep may be a terminate request).
  */
+#include <stdbool.h>
 #include <stddef.h>
 #include "kernel_group.c"
 
 typedef int (*fmi2_get_real)(void *, const unsigned *, size_t, double *);
 typedef int (*fmi2_set_real)(void *, const unsigned *, size_t, const double *);
 typedef int (*fmi2_do_step)(void *, double, double, int);
+typedef int (*fmi3_get_float64)(void *, const unsigned *, size_t, double *, size_t);
+typedef int (*fmi3_set_float64)(void *, const unsigned *, size_t, const double *, size_t);
+typedef int (*fmi3_do_step)(void *, double, double, bool, bool *, bool *, bool *, double *);
+
+#define TERMINATES 100            /* cosim/slave.py TERMINATE_REQUESTED: the FMU asks to end the run */
 
 typedef struct {
     void *comp;
-    fmi2_get_real get;
-    fmi2_set_real set;
-    fmi2_do_step do_step;
+    void *get, *set, *do_step;    /* FMI 2.0 or 3.0 functions (fmi3) */
     const unsigned *out_vr;
     long n_out, out_at;           /* outputs -> bus[out_at .. out_at + n_out) */
     const unsigned *in_vr;
     long n_in, in_at;             /* inputs: wiring rows in_at .. in_at + n_in */
     double *in_buf;
+    long fmi3, n_out_vr, n_in_vr; /* FMI 3.0: value references may be fewer than values (arrays) */
 } Slave;
 
 typedef struct {
@@ -53,6 +58,8 @@ typedef struct {
     double t0, h, stop_time, h_last;
     long n_last, n_short;
     long at_n, at_pos;            /* where a call stopped: step, position (see below) */
+    double term_last;             /* FMI 3.0 terminate request: lastSuccessfulTime, if early */
+    long term_early;
 } Fused;
 
 /* a step whose condition event holds is left to Python after its blocks: at_pos = FIRES */
@@ -71,7 +78,9 @@ int fused_read(Fused *f, long n)
     for (long k = 0; k < f->n_slaves; k++) {
         const Slave *s = f->slaves + k;
         if (s->n_out) {
-            int st = s->get(s->comp, s->out_vr, (size_t)s->n_out, f->bus + s->out_at);
+            int st = s->fmi3 ? ((fmi3_get_float64)s->get)(s->comp, s->out_vr, (size_t)s->n_out_vr,
+                                                           f->bus + s->out_at, (size_t)s->n_out)
+                             : ((fmi2_get_real)s->get)(s->comp, s->out_vr, (size_t)s->n_out, f->bus + s->out_at);
             if (st > 1) { f->at_n = n; f->at_pos = k; return st; }
         }
     }
@@ -104,13 +113,27 @@ int fused_advance(Fused *f, long n)
         const double *w = f->in_wiring + 3 * s->in_at;
         for (long i = 0; i < s->n_in; i++, w += 3)
             s->in_buf[i] = w[1] == 1.0 && w[2] == 0.0 ? f->bus[(long)w[0]] : w[1] * f->bus[(long)w[0]] + w[2];
-        int st = s->set(s->comp, s->in_vr, (size_t)s->n_in, s->in_buf);
+        int st = s->fmi3 ? ((fmi3_set_float64)s->set)(s->comp, s->in_vr, (size_t)s->n_in_vr, s->in_buf,
+                                                       (size_t)s->n_in)
+                         : ((fmi2_set_real)s->set)(s->comp, s->in_vr, (size_t)s->n_in, s->in_buf);
         if (st > 1) { f->at_n = n; f->at_pos = S + k; return st; }
     }
     for (long k = 0; k < S; k++) {
         const Slave *s = f->slaves + k;
         f->beat[1] = (double)k;
-        int st = s->do_step(s->comp, t, hn, 1);
+        int st;
+        if (s->fmi3) {
+            bool event = false, terminate = false, early = false;
+            double last = t;
+            st = ((fmi3_do_step)s->do_step)(s->comp, t, hn, true, &event, &terminate, &early, &last);
+            if (terminate && st < 2) {
+                f->term_early = early;
+                f->term_last = last;
+                st = TERMINATES;
+            }
+        } else {
+            st = ((fmi2_do_step)s->do_step)(s->comp, t, hn, 1);
+        }
         if (st > 1) { f->at_n = n; f->at_pos = 2 * S + k; return st; }
     }
     f->beat[1] = -1.0;
