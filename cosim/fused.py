@@ -83,66 +83,38 @@ class FusedSteps:
             getattr(lib, fn).restype = ctypes.c_int
         lib.fused_group.restype = None
         self.slaves = [x[0] for x in io]
-        self._discarded = []          # per slave: its Discard handler (a terminate request?)
-        keep = []
-        slaves = (_Slave * len(io))()
-        wiring = []
-        for s, (slave, get, put, do_step, (a, b), refs) in zip(slaves, io):
-            s.comp = slave.fmu.component
-            s.fmi3 = fmi3 = slave.model.is_fmi3
-            kind = "Float64" if fmi3 else "Real"
-            if b > a:
-                g = _raw_call(get, f"fmi{3 if fmi3 else 2}Get{kind}")
-                if g is None or g[1][-1 if fmi3 else 2] != b - a:
-                    raise _NotFusable(f"{slave.name}: not one Get{kind} of {kind}s")
-                s.get, vr = g[0], g[1][1]
-                s.out_vr, s.n_out, s.out_at, s.n_out_vr = ctypes.addressof(vr), b - a, a, g[1][2]
-                keep.append(vr)
-            if refs:
-                p = _raw_call(put, f"fmi{3 if fmi3 else 2}Set{kind}")
-                if p is None:
-                    raise _NotFusable(f"{slave.name}: not one Set{kind} of {kind}s")
-                s.set, (vr, buf) = p[0], p[1][1:4:2]
-                s.in_vr, s.n_in, s.in_at, s.in_buf = ctypes.addressof(vr), len(refs), len(wiring), ctypes.addressof(buf)
-                s.n_in_vr = p[1][2]
-                keep.append((vr, buf))
-                wiring += refs
-            raw = getattr(do_step, "raw", None) if fmi3 else getattr(getattr(do_step, "fast", (None,))[0], "func", None)
-            if raw is None:
-                raise _NotFusable(f"{slave.name}: no raw doStep")
-            s.do_step = ctypes.cast(raw, _P).value
-            self._discarded.append(None if fmi3 else do_step.fast[1])
-        w = (_D * max(3 * len(wiring), 1))(*[float(x) for row in wiring for x in row])
-        self.bus = (_D * len(plan.bus.values))(*plan.bus.values)
+        self._discarded = []          # per slave: its FMI 2.0 Discard handler (a terminate request?)
+        self._keep = []               # every ctypes array the C structs point into
+        slaves, wiring = self._c_slaves(io)
+        w = self._doubles([x for row in wiring for x in row])
+        self.bus = self._doubles(plan.bus.values)
         dues = (_Due * len(plan.c_groups))()
-        self.group_index = {}               # a group's name in the schedule -> its index here
+        self.group_index = {}         # a group's name in the schedule -> its index here
         for j, (d, (rate, names, a)) in enumerate(zip(dues, plan.c_groups)):
             g, k = kernel_group.c_group(*_bus_wiring(system, plan.bus, names, a))
-            keep.append((g, k))
+            self._keep.append((g, k))
             d.group, d.every = ctypes.addressof(g), rate
             self.group_index["+".join(names)] = j
         self.python_rates = sorted(set(plan.python_rates))
         self.conditions = list(plan.conditions)
-        self._conds = (_D * max(6 * len(self.conditions), 1))(
-            *[float(x) for i, sc, o, op, number, _ev in self.conditions
-              for x in (i, sc, o, _OPCODE[op], number, 1.0)])
-        # rows of the C steps: [t, columns...] as the recorder's reader computes them
+        self._conds = self._doubles([x for i, sc, o, op, number, _ev in self.conditions
+                                     for x in (i, sc, o, _OPCODE[op], number, 1.0)])
+        # rows of the C steps: [t, columns...] as the recorder's reader computes them; a run
+        # of C steps records at most ROWS rows
         k = len(plan.record_refs)
-        self._rec_wiring = (_D * max(3 * k, 1))(*[float(x) for row in plan.record_refs for x in row])
+        rec_wiring = self._doubles([x for row in plan.record_refs for x in row])
         self._rec_buf = (_D * (ROWS * (1 + k)))()
-        self._rec_flat = memoryview(self._rec_buf).cast("B").cast("d")
-        self._rec_width = 1 + k
-        # a run of C steps records at most ROWS rows
+        self._rec_flat, self._rec_width = memoryview(self._rec_buf).cast("B").cast("d"), 1 + k
         self.run_span = (ROWS - 1) * plan.decimation + 1 if plan.decimation else 1 << 62
         self._scratch_beat = (_D * 2)()
         beat = heartbeat.c_address()          # the supervisor's mmap, else a scratch pair
         beat = beat if beat is not None else ctypes.addressof(self._scratch_beat)
         self.f = _Fused(len(io), ctypes.addressof(slaves), len(dues), ctypes.addressof(dues),
                         ctypes.addressof(w), len(self.conditions), ctypes.addressof(self._conds),
-                        plan.decimation, k, ctypes.addressof(self._rec_wiring), ctypes.addressof(self._rec_buf), 0,
+                        plan.decimation, k, ctypes.addressof(rec_wiring), ctypes.addressof(self._rec_buf), 0,
                         ctypes.addressof(self.bus), beat,
                         grid.t0, grid.h, grid.stop_time, grid.h_last, grid.n_last, grid.n_short, 0, 0)
-        self._keep = (keep, slaves, w, dues)
+        self._keep += [slaves, dues]
         ref = ctypes.byref(self.f)
         self.run = lambda n0, n1: lib.fused_run(ref, _L(n0), _L(n1))
         self.read = lambda n: lib.fused_read(ref, _L(n))
@@ -151,6 +123,45 @@ class FusedSteps:
         self.to_values = memoryview(self.bus).cast("B").cast("d").tolist
         pack = struct.Struct(f"{len(plan.bus.values)}d").pack_into
         self.from_values = lambda values: pack(self.bus, 0, *values)
+
+    def _doubles(self, values: list):
+        """A C array of ``values`` kept alive with this object (never empty)."""
+        arr = (_D * max(len(values), 1))(*[float(x) for x in values])
+        self._keep.append(arr)
+        return arr
+
+    def _c_slaves(self, io):
+        """The ``Slave`` structs (the FMI calls the Python path has bound, by address) and the
+        wiring rows of every FMU input; raises :class:`_NotFusable` for what C cannot call."""
+        slaves, wiring = (_Slave * len(io))(), []
+        for s, (slave, get, put, do_step, (a, b), refs) in zip(slaves, io):
+            fmi3 = slave.model.is_fmi3
+            s.comp, s.fmi3 = slave.fmu.component, fmi3
+            kind = "fmi3{}Float64" if fmi3 else "fmi2{}Real"
+            if b > a:
+                g = _raw_call(get, kind.format("Get"))       # args: comp, vrs, n_vr, buf[, n_values]
+                if g is None or g[1][-1 if fmi3 else 2] != b - a:
+                    raise _NotFusable(f"{slave.name}: its outputs are not read by one {kind.format('Get')}")
+                s.get, (_c, vr, s.n_out_vr, _buf) = g[0], g[1][:4]
+                s.out_vr, s.n_out, s.out_at = ctypes.addressof(vr), b - a, a
+                self._keep.append(vr)
+            if refs:
+                p = _raw_call(put, kind.format("Set"))
+                if p is None:
+                    raise _NotFusable(f"{slave.name}: its inputs are not written by one {kind.format('Set')}")
+                s.set, (_c, vr, s.n_in_vr, buf) = p[0], p[1][:4]
+                s.in_vr, s.in_buf, s.n_in, s.in_at = ctypes.addressof(vr), ctypes.addressof(buf), len(refs), len(wiring)
+                self._keep.append((vr, buf))
+                wiring += refs
+            if fmi3:
+                raw = getattr(do_step, "raw", None)
+            else:
+                raw = getattr(getattr(do_step, "fast", (None,))[0], "func", None)
+            if raw is None:
+                raise _NotFusable(f"{slave.name}: no raw doStep (a model-exchange slave?)")
+            s.do_step = ctypes.cast(raw, _P).value
+            self._discarded.append(None if fmi3 else do_step.fast[1])
+        return slaves, wiring
 
     def next_python(self, n: int) -> int:
         """The first step from ``n`` on at which a Python block is due (-1: none ever)."""
