@@ -15,6 +15,7 @@ from cosim.recorder import Recorder
 from cosim.scenario import load_scenario
 from cosim.supervisor import EXIT_CRASHED, run_supervised
 from cosim.system import System
+from test_faults_run import fault_fmu  # noqa: F401 - the fixture of the faulty test FMUs
 
 ROOT = Path(__file__).resolve().parent.parent
 FIG4 = ROOT / "scenarios" / "keio_fig4_composite_force_control.toml"
@@ -141,18 +142,6 @@ def test_a_crash_inside_a_c_step_names_the_fmu_and_time(tmp_path, fault_fmu):
     assert s["time_reached"] == pytest.approx(1.0, abs=0.5e-3)
     from cosim.supervisor import exit_code
     assert exit_code(s) == EXIT_CRASHED
-
-
-@pytest.fixture(scope="session")
-def fault_fmu(tmp_path_factory):
-    from cosim_helpers import build_mass_fmu
-    built = {}
-
-    def get(fault):
-        if fault not in built:
-            built[fault] = build_mass_fmu(tmp_path_factory.mktemp(f"fmu_{fault}"), 2, fault=fault)
-        return built[fault]
-    return get
 
 
 def test_an_event_on_a_setting_of_a_block_stepping_in_c_reaches_its_c_state(monkeypatch):
