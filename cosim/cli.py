@@ -49,6 +49,8 @@ def cmd_run(args) -> int:
         what = s.get("error") or s.get("stop_reason") or ""
         at = f" at t = {s['time_reached']:g} s" if s.get("time_reached") is not None else ""
         print(f"drillcosim: run {s.get('status')}{at}: {what}", file=sys.stderr)
+        for f in s.get("scores_failed", []):      # a completed run whose scores failed (exit code 5)
+            print(f"drillcosim: score '{f['score']}' FAILED: {f['reason']}", file=sys.stderr)
         print(f"{'partial results' if s.get('rows_recorded') else 'csv'}: {out / 'data.csv'}", file=sys.stderr)
         print(f"summary: {out / 'summary.json'}", file=sys.stderr)
         return code

@@ -81,6 +81,16 @@ def _base_summary(sc: Scenario, out: Path) -> dict:
             "overrides": sc.overrides, "out_dir": str(out)}
 
 
+def block_load_warnings(sc: Scenario, echo: bool = True) -> list[str]:
+    """What the blocks found questionable when they were built (``load_warnings``: e.g. a
+    pinned gain that leaves less than the commissioned margin), named by block; printed to
+    stderr before the run starts."""
+    found = [f"{name}: {w}" for name, b in sc.system.blocks.items() for w in getattr(b, "load_warnings", ())]
+    for w in found if echo else ():
+        print(f"drillcosim: warning: {w}", file=sys.stderr)
+    return found
+
+
 def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
                   handle_signals: bool = True, started: float | None = None) -> Result:
     """:func:`run_scenario` on a claimed (locked, cleared) folder ``out``; ``started``: the
@@ -88,6 +98,9 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
     t_run = time.perf_counter()
     recorder = Recorder(sc.record_signals, sc.decimation, out)
     summary = _base_summary(sc, out)
+    load_warnings = block_load_warnings(sc)
+    if load_warnings:
+        summary["warnings"] = load_warnings
     signals = watch.signals_handled() if handle_signals else nullcontext()
     try:
         with signals:
@@ -139,6 +152,9 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
             summary.update(status="incomplete", error=scores.get("status_reason", "incomplete"))
     summary["files"] = {"csv": str(out / "data.csv"), "mat": str(out / "data.mat"),
                         "png": sorted(str(f) for f in out.glob("*.png"))}   # earlier PNGs were removed
+    summary["scores_passed"], failed = scores_verdict(summary["scores"], [name for *_, name in sc.scores])
+    if failed:
+        summary["scores_failed"] = failed
     if problems:
         summary["errors"] = problems
     _write_summary(out, summary)
@@ -146,6 +162,30 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
         raise CosimError("the run finished but scoring/plotting failed (see summary.json): "
                          + "; ".join(problems))
     return result
+
+
+def scores_verdict(scores: dict, expected=()) -> tuple[bool, list[dict]]:
+    """Did every score pass? A score fails when it says ``passed: false`` or finds a
+    ``limit_cycle`` (an oscillating loop never passes, whatever else it scores); a score
+    named in ``expected`` that is missing (its function raised) fails too. Returns (all
+    passed, the failed ones as ``{"score": name, "reason": ...}``)."""
+    failed = [{"score": name, "reason": _failure_reason(sc)} for name, sc in scores.items()
+              if isinstance(sc, dict) and (sc.get("passed") is False or sc.get("limit_cycle") is True)]
+    failed += [{"score": name, "reason": "the score function raised (summary.json: errors)"}
+               for name in expected if name not in scores]
+    return not failed, failed
+
+
+def _failure_reason(sc: dict) -> str:
+    """What a failed score says about itself: its ``failure`` or ``warning``, else its pass
+    rule; a limit cycle first, with its amplitude [N] and frequency [Hz]."""
+    rule = (sc.get("definitions") or {}).get("passed") if isinstance(sc.get("definitions"), dict) else None
+    reason = sc.get("failure") or sc.get("warning") or (f"outside its pass rule ({rule})" if rule else "passed: false")
+    if sc.get("limit_cycle") is True:
+        amp, f = sc.get("oscillation_amplitude_N"), sc.get("oscillation_frequency_Hz")
+        reason = (f"limit cycle ({amp:.3g} N at {f:.0f} Hz); " if amp is not None and f is not None
+                  else "limit cycle; ") + reason
+    return reason
 
 
 def _score_and_plot(sc: Scenario, result: Result, out: Path, summary: dict, echo: bool = True) -> list[str]:
@@ -201,4 +241,4 @@ def _write_summary(out: Path, summary: dict) -> None:
         print(f"drillcosim: {e}", file=sys.stderr)
 
 
-__all__ = ["run_scenario", "run_in_folder", "RunEnded"]
+__all__ = ["run_scenario", "run_in_folder", "RunEnded", "scores_verdict"]

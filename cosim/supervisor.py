@@ -40,6 +40,7 @@ from .runner import RunEnded, _base_summary, default_out_dir, load, run_in_folde
 from .watch import Heartbeat, RunWatch, exit_code_for
 
 EXIT_FAILED, EXIT_TIMEOUT, EXIT_CRASHED = 1, 3, 4
+EXIT_SCORES_FAILED = 5      # the run completed, a score failed (summary.json: scores_passed false)
 GRACE_S = 5.0        # s a child gets to stop by itself (finish its chunk, write data.mat)
 POLL_S = 0.05        # s between looks at the child
 
@@ -48,7 +49,7 @@ def exit_code(summary: dict) -> int:
     """The CLI's exit code of a run's summary (docs/faults.md)."""
     status = summary.get("status")
     if status in ("completed", "stopped"):
-        return 0
+        return EXIT_SCORES_FAILED if summary.get("scores_passed") is False else 0
     if status == "interrupted":
         return exit_code_for(summary.get("signal_number") or signal.SIGINT)
     return {"timeout": EXIT_TIMEOUT, "crashed": EXIT_CRASHED}.get(status, EXIT_FAILED)
@@ -349,4 +350,4 @@ def run_payload(p: dict) -> int:
     return code
 
 
-__all__ = ["run_supervised", "exit_code", "EXIT_CRASHED", "EXIT_TIMEOUT", "EXIT_FAILED"]
+__all__ = ["run_supervised", "exit_code", "EXIT_CRASHED", "EXIT_TIMEOUT", "EXIT_FAILED", "EXIT_SCORES_FAILED"]
