@@ -321,10 +321,14 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
     if kind == "linear_stage":
         from analysis.contact_identification import contact_and_margin
         contact_and_margin(doc, target, target_path, out, contact_stiffness, contact_damping)
+        from analysis.contact_identification import _target_gains
+        from analysis.force_margin import commission_gains
+        commission_gains(doc, _target_gains(target_path))      # Kf, g_thrust for the stated margin
     write_json_atomic(out / "commissioning.json", _repo_relative(doc))
     report_figure(res, fm, target, out)
     summary = {"commissioning_file": str(out / "commissioning.json"), "kind": kind, "nominal": nominal,
-               "friction_model": fm.info.get("selection"), "contact": doc["contact"], "warnings": warnings}
+               "friction_model": fm.info.get("selection"), "contact": doc["contact"],
+               "force_loop_gains": doc.get("force_loop_gains"), "warnings": warnings}
     write_json_atomic(out / "summary.json", summary)
     if print_table:
         print(report_table(doc))
@@ -384,6 +388,8 @@ def report_table(doc: dict) -> str:
         rows.append(("calibration residual", f"{c.get('residual_rms_N', float('nan')):.3g}", "", "N"))
     from analysis.contact_identification import contact_rows
     rows += contact_rows(doc)
+    from analysis.force_margin import gains_rows
+    rows += gains_rows(doc)
     if doc.get("force_loop"):
         m = doc["force_loop"]
         rows += [("force loop gain margin", f"{m['gain_margin_db']:.3g}", "", "dB"),

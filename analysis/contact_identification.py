@@ -349,7 +349,7 @@ def contact_and_margin(doc: dict, target: dict, target_path, out: Path, contact_
     """``doc["contact"]`` (given, or the contact experiment's) and ``doc["force_loop"]`` (the
     margin at the target's gains, :func:`analysis.force_margin.margin_verdict`); warnings go to
     ``doc["warnings"]``. A contact that could not be identified leaves no margin, and says so."""
-    from analysis.force_margin import loop_from_commissioning, margin_verdict, process_slope
+    from analysis.force_margin import commissioned_loop, margin_verdict
 
     warnings = doc["warnings"]
     if contact_stiffness:
@@ -362,9 +362,7 @@ def contact_and_margin(doc: dict, target: dict, target_path, out: Path, contact_
         warnings.append("force loop: no margin computed (no trustworthy contact estimate); state the contact with "
                         "--contact-stiffness/--contact-damping or repeat the contact experiment")
         return
-    feed = c.get("working_point", {}).get("feed", 1e-3)
-    Kc_v = None if c.get("process_slope") else process_slope(50.0, feed)      # given contact: linear law at 50 N
-    loop = loop_from_commissioning(doc, feed=feed, Kc_v=Kc_v, **_target_gains(target_path))
+    loop = commissioned_loop(doc, _target_gains(target_path))      # the model of the run's margin score
     m = margin_verdict(loop)
     sd = c.get("confidence", {}).get("relative_std", {}).get("damping")
     if sd:       # the margin at the low end of the damping estimate (1 sigma): less damping, less margin

@@ -246,42 +246,205 @@ def loop_from_commissioning(doc: dict, *, feed: float, contact_stiffness: float 
                      **{k: float(v) for k, v in vals.items()}, **gains)
 
 
+DEFAULT_FEED = 1e-3            # m/s: the feed when neither the run nor a contact experiment gives one
+REQUIRED_GAIN_MARGIN_DB = 6.0  # dB: what commissioning tunes for and what the margin score warns below
+# where the gains start (the data sheet of the force loop): Keio Table 2
+DATASHEET_GAINS = {"Kf": 0.45, "g_thrust": 1200.0, "g_dob": 1200.0, "g_vel": 2000.0}
+G_THRUST_GRID = (300.0, 450.0, 600.0, 800.0, 1000.0, 1200.0, 1600.0, 2200.0, 3000.0)   # rad/s
+# tuned this far above the required margin: the run's working point is not the contact
+# experiment's (on the foreign stage a 0.3 % higher feed moves the Stribeck slope and costs 0.23 dB)
+TUNE_GUARD_DB = 0.5
+KF_MIN = 0.1                   # slower than this (pole g_dob Kf/(1 + Kf) = 110 rad/s, 9 ms) is no force control
+
+
+def working_feed(doc: dict, feed: float | None = None) -> float:
+    """The feed [m/s] of the force loop's working point: ``feed`` when given (the run's),
+    else the contact experiment's working point in ``doc``, else ``DEFAULT_FEED``."""
+    if feed is not None:
+        return float(feed)
+    return float(((doc.get("contact") or {}).get("working_point") or {}).get("feed") or DEFAULT_FEED)
+
+
+def commissioned_loop(doc: dict, gains: dict, *, feed: float | None = None, F_cmd: float = 50.0,
+                      process_exponent: float | None = None, contact_stiffness: float | None = None,
+                      contact_damping: float | None = None) -> ForceLoop:
+    """THE force loop of a commissioned stage: the one model behind the commissioning report's
+    margin, the gains it tunes and the run's ``force_loop_margin`` score.
+
+    ``doc``: commissioning.json as a dict (mass, force constant, friction, current lag,
+    contact); ``gains``: Kf, g_thrust, g_dob, g_vel (missing ones: Keio Table 2). The working
+    point is the *actual* feed [m/s]: ``feed`` as measured in the run, else the contact
+    experiment's working point, else ``DEFAULT_FEED``; the friction slope is taken there (inside
+    a Stribeck curve it changes by its whole value between 0.8 and 1 mm/s). The process slope
+    ``dF/dv`` [N s/m]: ``process_exponent F_cmd / feed`` when an exponent is stated, else the
+    contact experiment's, else the linear law ``F_cmd / feed``."""
+    contact = doc.get("contact") or {}
+    feed = working_feed(doc, feed)
+    if process_exponent is not None:
+        Kc_v = process_slope(F_cmd, feed, process_exponent)
+    elif contact.get("process_slope"):
+        Kc_v = None                    # the contact experiment's, from the file
+    else:
+        Kc_v = process_slope(F_cmd, feed)
+    g = {**DATASHEET_GAINS, **{k: float(v) for k, v in gains.items() if k in DATASHEET_GAINS and v is not None}}
+    return loop_from_commissioning(doc, feed=float(feed), contact_stiffness=contact_stiffness,
+                                   contact_damping=contact_damping, Kc_v=Kc_v, **g)
+
+
+def kf_limit(loop: ForceLoop, gain_margin_db: float = REQUIRED_GAIN_MARGIN_DB, Kf_hi: float = 8.0,
+             rtol: float = 0.005) -> float | None:
+    """The largest ``Kf`` up to ``Kf_hi`` whose loop is stable with at least
+    ``gain_margin_db``; None when not even ``KF_MIN / 4`` is (bisection: the margin falls as
+    ``Kf`` rises, the observer and DOB paths of the loop do not depend on it)."""
+    def ok(K):
+        m = margins(dataclasses.replace(loop, Kf=K), n_freq=1500)
+        return m["stable"] and m["gain_margin_db"] >= gain_margin_db
+    lo, hi = KF_MIN / 4, Kf_hi
+    if not ok(lo):
+        return None
+    if ok(hi):
+        return hi
+    while hi - lo > rtol * lo:
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    return lo
+
+
+def tune_gains(doc: dict, datasheet: dict | None = None, *, gain_margin_db: float = REQUIRED_GAIN_MARGIN_DB,
+               **loop_kw) -> dict:
+    """The ``force_loop_gains`` entry of a commissioning file: Kf and g_thrust that leave
+    ``gain_margin_db`` on this plant, starting from ``datasheet`` (default Keio Table 2).
+
+    The data sheet's gains stay when they leave the margin; otherwise Kf is lowered to the
+    largest that does, at the data sheet's g_thrust (the observer's bandwidth is what Keio
+    Fig. 3 monitoring is judged on, so it is the last thing to give up); only when that Kf
+    falls below ``KF_MIN`` is the g_thrust of ``G_THRUST_GRID`` (not above the data sheet's)
+    with the largest such Kf taken. ``Kf_max_by_g_thrust`` keeps the whole table, for the
+    blocks' check of pinned gains at load. ``loop_kw``: :func:`commissioned_loop`'s."""
+    ds = {**DATASHEET_GAINS, **(datasheet or {})}
+    base = commissioned_loop(doc, ds, **loop_kw)
+    grid = sorted({*G_THRUST_GRID, ds["g_thrust"]})
+    table = [[g, kf_limit(dataclasses.replace(base, g_thrust=g), gain_margin_db + TUNE_GUARD_DB)] for g in grid]
+    limit = dict((g, k) for g, k in table)
+    g_best, K_best = ds["g_thrust"], min(ds["Kf"], limit[ds["g_thrust"]] or 0.0)
+    if K_best < KF_MIN:
+        cand = [(min(ds["Kf"], k), g) for g, k in table if k and g <= ds["g_thrust"]]
+        K_best, g_best = max(cand) if cand else (0.0, ds["g_thrust"])
+    entry = {"required_gain_margin_db": gain_margin_db, "tuned_for_gain_margin_db": gain_margin_db + TUNE_GUARD_DB,
+             "datasheet": {"Kf": ds["Kf"], "g_thrust": ds["g_thrust"], "source": "Keio Table 2 unless the target sets them"},
+             "Kf_max_by_g_thrust": table,
+             "working_point": {"feed": working_feed(doc, loop_kw.get("feed")), "friction_slope": base.friction_slope,
+                               "process_slope": base.Kc_v},
+             "g_dob": ds["g_dob"], "g_vel": ds["g_vel"]}
+    if K_best < KF_MIN:
+        entry.update(found=False, Kf=None, g_thrust=None,
+                     message=f"no Kf >= {KF_MIN} with g_thrust <= {ds['g_thrust']:g} rad/s leaves {gain_margin_db} dB "
+                             "on this plant: the blocks keep the data sheet's gains; lower the contact's stiffness "
+                             "or raise its damping (docs/commissioning.md)")
+        return entry
+    m = margins(dataclasses.replace(base, Kf=K_best, g_thrust=g_best), n_freq=1500)
+    entry.update(found=True, Kf=float(K_best), g_thrust=float(g_best), gain_margin_db=m["gain_margin_db"],
+                 gain_margin_frequency_Hz=m["gain_margin_frequency_Hz"], phase_margin_deg=m["phase_margin_deg"],
+                 changed=bool(K_best != ds["Kf"] or g_best != ds["g_thrust"]))
+    return entry
+
+
+def commission_gains(doc: dict, target_gains: dict) -> None:
+    """Commissioning's step for the force loop: ``doc["force_loop_gains"]`` (:func:`tune_gains`
+    from the target scenario's gains, Keio Table 2 where it sets none) when the file has a
+    trustworthy contact, else None; a note or warning goes to ``doc["warnings"]``."""
+    c = doc.get("contact") or {}
+    if "stiffness" not in c or not (c.get("confidence") or {}).get("ok", True):
+        doc["force_loop_gains"] = None
+        doc["warnings"].append("force loop gains: not tuned (no trustworthy contact); the blocks use the "
+                               "scenario's or Keio Table 2's gains, whose margin on this plant is unknown")
+        return
+    g = tune_gains(doc, target_gains)
+    doc["force_loop_gains"] = g
+    if not g["found"]:
+        doc["warnings"].append(f"force loop gains: {g['message']}")
+    elif g["changed"]:
+        doc["warnings"].append(
+            f"force loop gains: the data sheet's Kf {g['datasheet']['Kf']:g}, g_thrust {g['datasheet']['g_thrust']:g} "
+            f"rad/s leave less than {g['required_gain_margin_db']:g} dB on this plant; commissioning chose Kf "
+            f"{g['Kf']:.3g}, g_thrust {g['g_thrust']:g} rad/s ({g['gain_margin_db']:.1f} dB)")
+
+
+def gains_rows(doc: dict) -> list[tuple[str, str, str, str]]:
+    """Report-table rows (quantity, value, data sheet, unit) of the tuned gains."""
+    g = doc.get("force_loop_gains")
+    if not g or not g.get("found"):
+        return [("force loop gains", "not tuned", "", "")] if "force_loop_gains" in doc else []
+    ds = g["datasheet"]
+    return [("Kf (tuned)", f"{g['Kf']:.4g}", f"{ds['Kf']:g}", "1"),
+            ("g_thrust (tuned)", f"{g['g_thrust']:.5g}", f"{ds['g_thrust']:g}", "rad/s"),
+            ("gain margin at tuned gains", f"{g['gain_margin_db']:.3g}", f">= {g['required_gain_margin_db']:g}", "dB")]
+
+
+def run_feed(result, controller: str = "controller", settle: float = 0.2) -> float | None:
+    """The feed [m/s] the run cut at: median of the controller's ``v_hat`` in force mode from
+    ``settle`` s after contact on; None when not recorded or never in force mode."""
+    if f"{controller}.v_hat" not in result or f"{controller}.mode" not in result:
+        return None
+    t, mode = result.time, result[f"{controller}.mode"]
+    on = mode == 1
+    if not on.any():
+        return None
+    steady = on & (t >= t[np.argmax(on)] + settle)
+    v = result[f"{controller}.v_hat"][steady if steady.sum() >= 10 else on]
+    return float(np.median(v)) if np.median(v) > 0 else None
+
+
+def _run_gains(result, raw: dict, controller: str, observer: str, doc: dict) -> dict:
+    """The gains the run's blocks ran with: read off the block instances (which resolved
+    the commissioning file's ``force_loop_gains`` and the scenario's pins), else the
+    scenario's settings over the file's gains."""
+    blocks = getattr(getattr(result, "system", None), "blocks", {}) or {}
+    c, o = blocks.get(controller), blocks.get(observer)
+    if c is not None and hasattr(c, "Kf") and o is not None and hasattr(o, "nominal"):
+        return {"Kf": c.Kf, "g_dob": c.core.g_dob, "g_vel": c.core.g_vel, "g_thrust": o.nominal.g_thrust}
+    cs = (raw.get("blocks", {}).get(controller, {}) or {}).get("settings") or {}
+    os_ = (raw.get("blocks", {}).get(observer, {}) or {}).get("settings") or {}
+    filed = {k: v for k, v in (doc.get("force_loop_gains") or {}).items() if k in ("Kf", "g_thrust") and v}
+    return {**filed, **{k: cs[k] for k in ("Kf", "g_dob", "g_vel") if k in cs},
+            **({"g_thrust": os_["g_thrust"]} if "g_thrust" in os_ else {})}
+
+
 def force_loop_margin(result, commissioning_file: str | None = None, contact_stiffness: float | None = None,
-                      contact_damping: float | None = None, feed: float = 1e-3, controller: str = "controller",
+                      contact_damping: float | None = None, feed: float | None = None, controller: str = "controller",
                       observer: str = "observer", process_exponent: float | None = None,
-                      min_gain_margin_db: float = 6.0, print_table: bool = True) -> dict:
-    """``[[scores]]`` function: the margin of the run's force loop at its working point.
+                      min_gain_margin_db: float = REQUIRED_GAIN_MARGIN_DB, print_table: bool = True) -> dict:
+    """``[[scores]]`` function: the margin of the run's force loop at its working point, by
+    :func:`commissioned_loop` -- the model of the commissioning report.
 
     The plant's nominal set, friction, current lag and (when not stated here) the
-    contact come from ``commissioning_file`` (default: the one the controller reads); ``Kf``, ``g_dob``, ``g_vel`` and the command
-    from the controller's settings, ``g_thrust`` from the observer's (the run's scenario);
-    ``contact_stiffness`` [N/m], ``contact_damping`` [N s/m] and the working feed ``feed``
-    [m/s] may be stated; ``process_exponent`` (``F ~ v^exponent``) states the process slope
-    as ``exponent F_cmd / feed`` instead of the contact experiment's. Below
-    ``min_gain_margin_db`` (or unstable) the score carries a ``warning`` -- in summary.json
-    with the run."""
+    contact come from ``commissioning_file`` (default: the one the controller reads); the
+    gains are those the run's blocks used (:func:`_run_gains`), the command the controller's
+    ``F_cmd``; the feed is the one the run cut at (:func:`run_feed`) unless ``feed`` [m/s] is
+    stated. ``contact_stiffness`` [N/m], ``contact_damping`` [N s/m] may be stated;
+    ``process_exponent`` (``F ~ v^exponent``) states the process slope as ``exponent F_cmd /
+    feed`` instead of the contact experiment's. Below ``min_gain_margin_db`` the score
+    carries a ``warning``; a loop predicted unstable fails (``passed: false``)."""
     from analysis.calibration import _scenario_raw
     from controllers.calibration import load_commissioning
 
     raw = _scenario_raw(result)
-    blocks = raw.get("blocks", {})
-    cs = blocks.get(controller, {}).get("settings") or {}
-    os_ = blocks.get(observer, {}).get("settings") or {}
+    cs = (raw.get("blocks", {}).get(controller, {}) or {}).get("settings") or {}
     commissioning_file = commissioning_file or cs.get("commissioning_file")
     if not commissioning_file:
         raise ValueError(f"force_loop_margin: no commissioning_file given and block '{controller}' "
                          "has no commissioning_file setting")
     load_commissioning(commissioning_file, "linear_stage")       # refuses a wrong file with its reason
     doc = json.loads(Path(commissioning_file).read_text())
-    F_cmd = float(cs.get("F_cmd", 50.0))
-    Kc_v = process_slope(F_cmd, feed, process_exponent) if process_exponent is not None else None
-    if Kc_v is None and not (doc.get("contact") or {}).get("process_slope"):
-        Kc_v = process_slope(F_cmd, feed)         # no experiment: a linear law F ~ v
-    loop = loop_from_commissioning(doc, feed=feed, contact_stiffness=contact_stiffness,
-                                   contact_damping=contact_damping, Kc_v=Kc_v, Kf=float(cs.get("Kf", 0.45)),
-                                   g_thrust=float(os_.get("g_thrust", 1200.0)), g_dob=float(cs.get("g_dob", 1200.0)),
-                                   g_vel=float(cs.get("g_vel", 2000.0)))
-    return margin_verdict(loop, min_gain_margin_db, print_table)
+    measured = run_feed(result, controller) if feed is None else None
+    loop = commissioned_loop(doc, _run_gains(result, raw, controller, observer, doc),
+                             feed=feed if feed is not None else measured, F_cmd=float(cs.get("F_cmd", 50.0)),
+                             process_exponent=process_exponent, contact_stiffness=contact_stiffness,
+                             contact_damping=contact_damping)
+    m = margin_verdict(loop, min_gain_margin_db, print_table)
+    m["working_feed"] = {"value": working_feed(doc, feed if feed is not None else measured),
+                         "source": "stated" if feed is not None else ("run" if measured else "commissioning file")}
+    return m
 
 
 def margin_verdict(loop: ForceLoop, min_gain_margin_db: float = 6.0, print_table: bool = False) -> dict:
@@ -289,10 +452,16 @@ def margin_verdict(loop: ForceLoop, min_gain_margin_db: float = 6.0, print_table
     suggestion when it is unstable or its gain margin is below ``min_gain_margin_db``."""
     m = margins(loop, n_freq=1500)
     m.pop("poles")
+    m["required_gain_margin_db"] = min_gain_margin_db
+    m["passed"] = m["stable"]          # below the margin warns; a loop predicted unstable fails
+    if not m["stable"]:
+        m["failure"] = f"force loop predicted unstable (spectral radius {m['spectral_radius']:.4f})"
     if not m["stable"] or m["gain_margin_db"] < min_gain_margin_db:
-        t = tune(loop, gain_margin_db=min_gain_margin_db)
+        K = kf_limit(loop, min_gain_margin_db)
+        t = ({"Kf": K, "g_thrust": loop.g_thrust, "found": True} if K is not None and K >= KF_MIN
+             else tune(loop, gain_margin_db=min_gain_margin_db))
         m["warning"] = (f"force loop: {'unstable' if not m['stable'] else 'gain margin %.1f dB' % m['gain_margin_db']}"
-                        f" (< {min_gain_margin_db} dB) with Kf {loop.Kf}, g_thrust {loop.g_thrust} rad/s at "
+                        f" (< {min_gain_margin_db} dB) with Kf {loop.Kf:.4g}, g_thrust {loop.g_thrust:.4g} rad/s at "
                         f"k {loop.contact_stiffness:g} N/m, d {loop.contact_damping:g} N s/m, process slope "
                         f"{loop.Kc_v:g} N s/m; "
                         + (f"Kf {t['Kf']:.3g} with g_thrust {t['g_thrust']:.4g} rad/s leaves it" if t["found"]

@@ -91,7 +91,10 @@ error of a static force.
 ``commissioning_file`` (commissioning.json of ``drillcosim commission``): its nominal mass,
 force constant and gravity compensation replace ``mass_nominal``,
 ``force_constant_nominal`` and ``F_bias`` -- the set the cutting-force observer reads from
-the same file, so the two never disagree.
+the same file, so the two never disagree. ``Kf`` comes from its ``force_loop_gains`` (tuned
+for the stated gain margin on that plant, :mod:`controllers.loop_gains`) unless the
+scenario pins it; a pinned Kf that leaves less than the margin at the commissioned
+g_thrust is a load warning (``load_warnings``, in summary.json).
 
 With ``force_control = false`` the block never leaves ``mode`` 0 -- the same stack at
 the trajectory's constant feed, for the side-by-side comparison.
@@ -104,6 +107,7 @@ from typing import Sequence
 from cosim.block import Block, Port
 from controllers.calibration import load_calibration, load_commissioning
 from controllers.kernels import KernelBlock
+from controllers.loop_gains import TABLE2_KF, commissioned_gains, pinned_gain_warning
 from controllers.kernels import structs
 from controllers.position_control import (CORE_PORTS, ENCODER_PORT, TRAJECTORY_PORTS, RobustAcceleration,
                                           pd_feedforward)
@@ -126,7 +130,8 @@ class ThrustForceController(KernelBlock, Block):
     """Position control on approach / retract, P thrust-force control while cutting.
 
     Settings (SI; defaults = Keio Table 2)
-        Kp [1/s] 25, Kv [1/s] 100, Kf [1] 0.45 (force-servo gain: a_cmd = Kf*error/M_n),
+        Kp [1/s] 25, Kv [1/s] 100, Kf [1] (force-servo gain: a_cmd = Kf*error/M_n; default the
+        commissioning file's tuned Kf, without one Table 2's 0.45),
         mass_nominal [kg] 3.95,
         force_constant_nominal [N/A] 24.0, calibration_file [path] (thrust_calibration.json:
         its Kt_n_cal replaces force_constant_nominal), g_dob [rad/s] 1200, g_vel [rad/s] 2000,
@@ -165,7 +170,7 @@ class ThrustForceController(KernelBlock, Block):
     )
     direct_feedthrough = True
 
-    def __init__(self, Kp: float = 25.0, Kv: float = 100.0, Kf: float = 0.45,
+    def __init__(self, Kp: float = 25.0, Kv: float = 100.0, Kf: float | None = None,
                  mass_nominal: float = 3.95, force_constant_nominal: float = 24.0,
                  g_dob: float = 1200.0, g_vel: float = 2000.0, i_max: float = 10.0,
                  F_bias: float = 0.0, F_cmd: float = 50.0, force_control: bool = True,
@@ -177,11 +182,14 @@ class ThrustForceController(KernelBlock, Block):
                  sample_period: float = 0.0, calibration_file: str | None = None,
                  commissioning_file: str | None = None):
         super().__init__(sample_period)
+        self.load_warnings: list[str] = []
         if commissioning_file:
             nom = load_commissioning(commissioning_file, "linear_stage")["nominal"]
             mass_nominal, force_constant_nominal, F_bias = nom["mass"], nom["force_constant"], nom["gravity_comp"]
+            Kf = self._commissioned_kf(commissioning_file, Kf, force_control)
         elif calibration_file:
             force_constant_nominal = load_calibration(calibration_file).Kt_n_cal
+        Kf = TABLE2_KF if Kf is None else Kf
         for name, val in (("Kp", Kp), ("Kv", Kv), ("Kf", Kf), ("v_retract", v_retract),
                           ("a_retract", a_retract), ("v_max", v_max), ("tau_switch", tau_switch)):
             if not val > 0:
@@ -204,6 +212,19 @@ class ThrustForceController(KernelBlock, Block):
             Port("F_thrust_hat", "N", "cutting-force observer estimate"),
         )
         self.reset(0.0)
+
+    def _commissioned_kf(self, path, Kf: float | None, force_control: bool) -> float | None:
+        """Kf from the file's tuned gains unless pinned; a pinned Kf is checked against them
+        (at the commissioned g_thrust: the observer's is its own block's)."""
+        gains = commissioned_gains(path)
+        if gains is None:
+            return Kf
+        if Kf is None:
+            return float(gains["Kf"])
+        warn = pinned_gain_warning(gains, float(Kf), float(gains["g_thrust"]), "Kf", path) if force_control else None
+        if warn:
+            self.load_warnings.append(warn)
+        return Kf
 
     def reset(self, t0: float) -> None:
         self.core.reset()

@@ -47,7 +47,8 @@ friction file's ``force_constant_nominal`` or else the ``Kt_n`` setting -- are s
 ``Kt_n_cal`` over that constant), ``commissioning_file`` (commissioning.json of ``drillcosim commission``: when given, its
 nominal mass, force constant, gravity compensation and friction model replace ``M_n``,
 ``Kt_n``, ``F_grav_comp``, the friction settings and both files above -- the same set the
-force controller reads), ``i_ref_timing``, ``sample_period`` [s] (> 0).
+force controller reads; its tuned ``force_loop_gains`` give ``g_thrust`` unless the scenario
+pins it, :mod:`controllers.loop_gains`), ``i_ref_timing``, ``sample_period`` [s] (> 0).
 
 Timing of ``i_ref``: the motion seen between the previous and this encoder sample was
 produced by the current reference applied over that interval. This block declares no
@@ -65,6 +66,7 @@ from cosim.block import Port
 from controllers.calibration import load_calibration, load_commissioning, rescale_friction
 from controllers.friction import FrictionModel, make_friction, resolve_path
 from controllers.kernels import KernelBlock
+from controllers.loop_gains import commissioned_g_thrust
 from controllers.kernels import structs
 from controllers.nominal_models import DiscretisedBlock, KeioNominal, keio_model, zoh
 
@@ -78,7 +80,7 @@ class CuttingForceObserver(KernelBlock, DiscretisedBlock):
     direct_feedthrough = False
 
     def __init__(self, M_n: float = KeioNominal.M_n, Kt_n: float = KeioNominal.Kt_n,
-                 g_thrust: float = KeioNominal.g_thrust, F_grav_comp: float | None = None,
+                 g_thrust: float | None = None, F_grav_comp: float | None = None,
                  F_coulomb: float | None = None, b_viscous: float | None = None,
                  F_stribeck: float | None = None, v_stribeck: float | None = None,
                  F_ripple=None, v_eps: float = 1e-5, v_stick: float = 5e-5,
@@ -86,9 +88,12 @@ class CuttingForceObserver(KernelBlock, DiscretisedBlock):
                  i_ref_timing: str = "held", sample_period: float = KeioNominal.sample_period,
                  commissioning_file: str | None = None):
         super().__init__(sample_period)
+        self.load_warnings: list[str] = []
         if commissioning_file:
             com = load_commissioning(commissioning_file, "linear_stage")
             M_n, Kt_n = com["nominal"]["mass"], com["nominal"]["force_constant"]
+            g_thrust = commissioned_g_thrust(commissioning_file, g_thrust, self.load_warnings)
+        g_thrust = KeioNominal.g_thrust if g_thrust is None else g_thrust
         self.nominal = KeioNominal(M_n=float(M_n), Kt_n=float(Kt_n), g_thrust=float(g_thrust))
         if g_thrust <= 0:
             raise ValueError(f"CuttingForceObserver: g_thrust must be > 0 rad/s, got {g_thrust}")
