@@ -146,7 +146,8 @@ def margins(L: ForceLoop, n_freq: int = 4000) -> dict:
     w = np.logspace(math.log10(2 * math.pi * 1.0), math.log10(math.pi / L.Ts * 0.999), n_freq)
     zs = np.exp(1j * w * L.Ts)
     n = A.shape[0]
-    Lw = np.array([-(C @ np.linalg.solve(zz * np.eye(n) - A, B) + D)[0, 0] for zz in zs])
+    X = np.linalg.solve(zs[:, None, None] * np.eye(n) - A, np.broadcast_to(B, (len(zs), *B.shape)))   # all at once
+    Lw = -(np.einsum("ij,fjk->fik", C, X)[:, 0, 0] + D[0, 0])
     ph = np.unwrap(np.angle(Lw))
     mag = np.abs(Lw)
     gm, f_gm = math.inf, None
@@ -313,23 +314,25 @@ def kf_limit(loop: ForceLoop, gain_margin_db: float = REQUIRED_GAIN_MARGIN_DB, K
 def tune_gains(doc: dict, datasheet: dict | None = None, *, gain_margin_db: float = REQUIRED_GAIN_MARGIN_DB,
                **loop_kw) -> dict:
     """The ``force_loop_gains`` entry of a commissioning file: Kf and g_thrust that leave
-    ``gain_margin_db`` on this plant, starting from ``datasheet`` (default Keio Table 2).
+    ``gain_margin_db`` (+ ``TUNE_GUARD_DB``) on this plant, starting from ``datasheet``
+    (default Keio Table 2).
 
     The data sheet's gains stay when they leave the margin; otherwise Kf is lowered to the
     largest that does, at the data sheet's g_thrust (the observer's bandwidth is what Keio
     Fig. 3 monitoring is judged on, so it is the last thing to give up); only when that Kf
     falls below ``KF_MIN`` is the g_thrust of ``G_THRUST_GRID`` (not above the data sheet's)
-    with the largest such Kf taken. ``Kf_max_by_g_thrust`` keeps the whole table, for the
-    blocks' check of pinned gains at load. ``loop_kw``: :func:`commissioned_loop`'s."""
+    with the largest such Kf taken. ``Kf_max_by_g_thrust``: the largest Kf that leaves
+    ``gain_margin_db`` itself at each g_thrust, for the blocks' check of pinned gains at load.
+    ``loop_kw``: :func:`commissioned_loop`'s."""
     ds = {**DATASHEET_GAINS, **(datasheet or {})}
     base = commissioned_loop(doc, ds, **loop_kw)
     grid = sorted({*G_THRUST_GRID, ds["g_thrust"]})
-    table = [[g, kf_limit(dataclasses.replace(base, g_thrust=g), gain_margin_db + TUNE_GUARD_DB)] for g in grid]
-    limit = dict((g, k) for g, k in table)
-    g_best, K_best = ds["g_thrust"], min(ds["Kf"], limit[ds["g_thrust"]] or 0.0)
-    if K_best < KF_MIN:
-        cand = [(min(ds["Kf"], k), g) for g, k in table if k and g <= ds["g_thrust"]]
-        K_best, g_best = max(cand) if cand else (0.0, ds["g_thrust"])
+    table = [[g, kf_limit(dataclasses.replace(base, g_thrust=g), gain_margin_db)] for g in grid]
+    g_best = ds["g_thrust"]
+    if (dict(table)[g_best] or 0.0) < KF_MIN:
+        cand = [(k, g) for g, k in table if k and g <= ds["g_thrust"]]
+        g_best = max(cand)[1] if cand else g_best
+    K_best = min(ds["Kf"], kf_limit(dataclasses.replace(base, g_thrust=g_best), gain_margin_db + TUNE_GUARD_DB) or 0.0)
     entry = {"required_gain_margin_db": gain_margin_db, "tuned_for_gain_margin_db": gain_margin_db + TUNE_GUARD_DB,
              "datasheet": {"Kf": ds["Kf"], "g_thrust": ds["g_thrust"], "source": "Keio Table 2 unless the target sets them"},
              "Kf_max_by_g_thrust": table,

@@ -57,10 +57,11 @@ def pinned_gain_warning(gains: dict, Kf: float, g_thrust: float, pinned: str, so
     limit = kf_max_at(gains, g_thrust)
     if limit is None or Kf <= limit * (1 + 1e-9):
         return None
-    return (f"pinned {pinned} leaves less than the {gains.get('required_gain_margin_db', 6.0):g} dB gain margin "
-            f"commissioning tuned for ({source}): Kf {Kf:g} at g_thrust {g_thrust:g} rad/s, where at most Kf "
-            f"{limit:.3g} keeps it; commissioning chose Kf {gains['Kf']:.3g}, g_thrust {gains['g_thrust']:g} rad/s "
-            f"(remove the pin to use them)")
+    required = gains.get("required_gain_margin_db", 6.0)
+    tuned = gains.get("tuned_for_gain_margin_db", required)
+    return (f"pinned {pinned} leaves less than the {required:g} dB gain margin: Kf {Kf:g} at g_thrust {g_thrust:g} "
+            f"rad/s, where at most Kf {limit:.3g} keeps the {tuned:g} dB commissioning tuned for ({source}); "
+            f"commissioning chose Kf {gains['Kf']:.3g}, g_thrust {gains['g_thrust']:g} rad/s (remove the pin to use them)")
 
 
 def commissioned_g_thrust(path, g_thrust: float | None, warnings: list) -> float | None:

@@ -51,7 +51,8 @@ def cmd_run(args) -> int:
         print(f"drillcosim: run {s.get('status')}{at}: {what}", file=sys.stderr)
         for f in s.get("scores_failed", []):      # a completed run whose scores failed (exit code 5)
             print(f"drillcosim: score '{f['score']}' FAILED: {f['reason']}", file=sys.stderr)
-        print(f"{'partial results' if s.get('rows_recorded') else 'csv'}: {out / 'data.csv'}", file=sys.stderr)
+        partial = s.get("rows_recorded") and s.get("status") not in ("completed", "stopped")
+        print(f"{'partial results' if partial else 'csv'}: {out / 'data.csv'}", file=sys.stderr)
         print(f"summary: {out / 'summary.json'}", file=sys.stderr)
         return code
     if not args.quiet:

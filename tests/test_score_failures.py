@@ -1,0 +1,89 @@
+"""A failed score is not success (issue 20, item 4): scores_passed, scores_failed and exit code 5.
+
+The plant run: Keio Fig. 7 on the project stage with Kf pinned at 3.0, past the force loop's
+stability boundary (predicted critical Kf 2.07 from the commissioning file; docs/commissioning.md
+"One margin"): the loop limit-cycles at ~540 Hz with ~2 N on the true thrust, while the mean
+error stays inside 1 %. Shortened to 1.2 s (contact at ~0.3 s, 0.7 s of steady force control).
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from cosim.runner import scores_verdict
+from cosim.supervisor import EXIT_CRASHED, EXIT_FAILED, EXIT_SCORES_FAILED, EXIT_TIMEOUT, exit_code
+
+ROOT = Path(__file__).resolve().parent.parent
+FIG7 = ROOT / "scenarios" / "keio_fig7_aluminium_force_control.toml"
+
+
+def test_a_limit_cycle_fails_even_when_passed_says_otherwise():
+    ok, failed = scores_verdict({"a": {"passed": True}, "b": {"passed": True, "limit_cycle": True,
+                                                              "oscillation_amplitude_N": 6.9,
+                                                              "oscillation_frequency_Hz": 428.0}})
+    assert not ok and [f["score"] for f in failed] == ["b"]
+    assert "limit cycle (6.9 N at 428 Hz)" in failed[0]["reason"]
+
+
+def test_scores_without_a_verdict_pass_and_a_missing_score_fails():
+    assert scores_verdict({"report_only": {"rms_N": 1.0}, "c": {"passed": None}}) == (True, [])
+    ok, failed = scores_verdict({"a": {"passed": True}}, expected=["a", "raised"])
+    assert not ok and failed[0]["score"] == "raised"
+    ok, failed = scores_verdict({"m": {"passed": False, "failure": "force loop predicted unstable"}})
+    assert failed == [{"score": "m", "reason": "force loop predicted unstable"}]
+
+
+def test_exit_codes_are_distinct():
+    codes = {exit_code({"status": "completed", "scores_passed": True}),
+             exit_code({"status": "completed", "scores_passed": False}),
+             exit_code({"status": "failed"}), exit_code({"status": "timeout"}), exit_code({"status": "crashed"}),
+             exit_code({"status": "interrupted", "signal_number": 2}),
+             exit_code({"status": "interrupted", "signal_number": 15})}
+    assert codes == {0, EXIT_SCORES_FAILED, EXIT_FAILED, EXIT_TIMEOUT, EXIT_CRASHED, 130, 143}
+    assert exit_code({"status": "stopped", "scores_passed": False}) == EXIT_SCORES_FAILED
+    assert exit_code({"status": "completed"}) == 0          # a summary from before scores_passed existed
+
+
+def _run(tmp_path, **overrides):
+    from cosim.runner import run_scenario
+    r = run_scenario(FIG7, out_dir=tmp_path, progress=False, handle_signals=False,
+                     overrides={"scenario.stop_time": 1.2, **overrides})
+    return r.summary
+
+
+def test_limit_cycling_run_fails_its_scores(tmp_path):
+    """CI version of the CLI test below: in this process, 3 s."""
+    s = _run(tmp_path, **{"blocks.controller.settings.Kf": 3.0})
+    assert s["status"] == "completed" and s["scores_passed"] is False and exit_code(s) == EXIT_SCORES_FAILED
+    fc = s["scores"]["force_control"]
+    assert fc["limit_cycle"] and fc["oscillation_amplitude_N"] > 1.0 and fc["passed"] is False
+    assert abs(fc["worst_mean_error_pct"]) < 1.0            # the averages alone would have passed
+    assert any(f["score"] == "force_control" and "limit cycle" in f["reason"] for f in s["scores_failed"])
+    # the pinned Kf was flagged when the blocks were built: 3.0 is far past what keeps 6 dB here
+    assert any("pinned Kf leaves less than the 6 dB gain margin" in w for w in s["warnings"])
+    # and the margin score, at the run's own gains and feed, predicts the instability
+    m = s["scores"]["force_loop_margin"]
+    assert not m["stable"] and m["passed"] is False
+
+
+def test_shipped_fig7_passes(tmp_path):
+    s = _run(tmp_path)
+    assert s["scores_passed"] is True and "scores_failed" not in s and "warnings" not in s
+    assert exit_code(s) == 0
+
+
+@pytest.mark.long
+def test_limit_cycling_run_exits_nonzero_from_the_cli(tmp_path):
+    out = tmp_path / "cycle"
+    r = subprocess.run([sys.executable, "-m", "cosim.cli", "run", str(FIG7), "--out", str(out), "--quiet",
+                        "--set", "blocks.controller.settings.Kf=3.0", "--set", "scenario.stop_time=1.2"],
+                       cwd=ROOT, capture_output=True, text=True, timeout=300)
+    s = json.loads((out / "summary.json").read_text())
+    assert r.returncode == EXIT_SCORES_FAILED, r.stderr
+    assert s["scores_passed"] is False
+    assert "score 'force_control' FAILED: limit cycle" in r.stderr
+    assert "warning: controller: pinned Kf" in r.stderr
