@@ -12,6 +12,40 @@ except ModuleNotFoundError:       # Python 3.10
     import tomli as tomllib
 
 
+_INT64 = (-2**63, 2**63 - 1)     # TOML's integers are 64-bit (toml.io: "Integer")
+
+
+def _toml_value(option: str, name: str, value: str):
+    """VALUE of ``option NAME=VALUE`` as a TOML value (3, 0.5, true, "text", [1, 2]), else the
+    text itself; a value TOML cannot hold (a 5 000-digit integer, more than 64 bits) is a
+    :class:`SystemExit` naming the option and key, never a foreign traceback."""
+    try:
+        v = tomllib.loads(f"v = {value}")["v"]
+    except tomllib.TOMLDecodeError:
+        return value
+    except ValueError as e:        # tomllib's int(): "Exceeds the limit (4300 digits) ..."
+        raise SystemExit(f"drillcosim: {option} {name}: cannot read the value {_shorten(value)}: {e}; "
+                         f"expected a TOML value (a number within 64 bits, true/false, \"text\", [...])") from None
+    if _too_big(v):
+        raise SystemExit(f"drillcosim: {option} {name}: the integer {_shorten(value)} does not fit "
+                         f"TOML's 64 bits ({_INT64[0]} .. {_INT64[1]})")
+    return v
+
+
+def _too_big(v) -> bool:
+    if isinstance(v, int) and not isinstance(v, bool):
+        return not _INT64[0] <= v <= _INT64[1]
+    if isinstance(v, list):
+        return any(_too_big(x) for x in v)
+    if isinstance(v, dict):
+        return any(_too_big(x) for x in v.values())
+    return False
+
+
+def _shorten(text: str, keep: int = 24) -> str:
+    return text if len(text) <= 2 * keep else f"{text[:keep]}...{text[-keep:]} ({len(text)} characters)"
+
+
 def _parse_set(items: list[str]) -> dict:
     """``KEY=VALUE`` pairs; VALUE is read as a TOML value (3, 0.5, true, "text"), else a string."""
     out = {}
@@ -19,10 +53,7 @@ def _parse_set(items: list[str]) -> dict:
         key, sep, value = item.partition("=")
         if not sep or not key:
             raise SystemExit(f"--set expects KEY=VALUE, got {item!r}")
-        try:
-            out[key.strip()] = tomllib.loads(f"v = {value}")["v"]
-        except tomllib.TOMLDecodeError:
-            out[key.strip()] = value
+        out[key.strip()] = _toml_value("--set", key.strip(), value)
     return out
 
 
@@ -186,10 +217,7 @@ def _start_values(items: list[str]) -> dict:
         name, sep, value = item.partition("=")
         if not sep or not name:
             raise SystemExit(f"drillcosim: --start-values expects NAME=VALUE, got {item!r}")
-        try:
-            out[name.strip()] = tomllib.loads(f"v = {value}")["v"]
-        except tomllib.TOMLDecodeError:
-            out[name.strip()] = value
+        out[name.strip()] = _toml_value("--start-values", name.strip(), value)
     return out
 
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from .algorithm import simulate
 from .errors import CosimError, SimulationError
-from .outputs import OutputError, claim, jsonable, write_json_atomic
+from .outputs import OutputError, claim, jsonable, write_summary
 from .plots import plot_groups
 from .recorder import Recorder, Result
 from .scenario import Scenario, load_scenario
@@ -196,7 +196,7 @@ def _finish_quietly(recorder: Recorder, summary: dict) -> Result:
 
 def _write_summary(out: Path, summary: dict) -> None:
     try:
-        write_json_atomic(out / "summary.json", summary)
+        write_summary(out / "summary.json", summary)
     except OutputError as e:       # nothing more can be saved; say so instead of a traceback
         print(f"drillcosim: {e}", file=sys.stderr)
 
