@@ -107,17 +107,21 @@ def _run_in_process(path, **opts) -> dict:
 
 
 def cmd_campaign(args) -> int:
-    from .campaign import run_campaign
+    from .campaign import CampaignStopped, run_campaign
     from .errors import CosimError
     from .sweep import load_sweep
     path = _scenario_path(args.scenario)
+    stopped = None
     try:
         runs = load_sweep(args.sweep)
         base = _parse_set(args.set)
         summaries = run_campaign(path, [{**base, **r} for r in runs], out_dir=args.out, workers=args.workers,
                                  progress=not args.quiet, scheduler=args.scheduler,
                                  wall_timeout=args.timeout, max_steps=args.max_steps,
-                                 keep_data=not args.drop_data, processes=args.worker_processes)
+                                 keep_data=not args.drop_data, processes=args.worker_processes,
+                                 resume=args.resume)
+    except CampaignStopped as e:
+        stopped, summaries = e, e.summaries
     except (CosimError, ValueError, OSError) as e:
         print(f"drillcosim: {e}", file=sys.stderr)
         return 1
@@ -125,13 +129,18 @@ def cmd_campaign(args) -> int:
     for s in summaries:
         counts[s["status"]] = counts.get(s["status"], 0) + 1
     out = Path(summaries[0]["out_dir"]).parent if summaries else Path(args.out or ".")
-    print(f"{len(summaries)} runs: " + ", ".join(f"{n} {k}" for k, n in sorted(counts.items())))
+    reused = sum(bool(s.get("reused")) for s in summaries)
+    print(f"{len(summaries)} runs: " + ", ".join(f"{n} {k}" for k, n in sorted(counts.items()))
+          + (f" ({reused} kept from the earlier campaign)" if reused else ""))
     for s in summaries:
-        if s["status"] not in ("completed", "stopped"):
+        if s["status"] not in ("completed", "stopped", "cancelled"):
             print(f"  run {s['run']:03d} {s['status']}: {s.get('error') or s.get('stop_reason', '')} "
                   f"(overrides {s['overrides']})", file=sys.stderr)
     print(f"csv: {out / 'campaign.csv'}")
     print(f"json: {out / 'campaign.json'}")
+    if stopped is not None:
+        print(f"drillcosim: {stopped}", file=sys.stderr)
+        return 128 + int(stopped.signum)
     return 0 if set(counts) <= {"completed", "stopped"} else 1
 
 
@@ -327,6 +336,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://10.0.0.5:8786")
     c.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override for every run")
     c.add_argument("--quiet", action="store_true", help="no progress bar")
+    c.add_argument("--resume", action="store_true",
+                   help="complete the campaign in --out: keep its finished runs, run the interrupted, crashed "
+                        "and missing ones again (a folder holding a campaign is refused without it)")
     c.add_argument("--drop-data", action="store_true",
                    help="delete data.csv/data.mat of each good run once scored (summaries, scores and figures "
                         "stay; a run that failed or crashed keeps its data)")

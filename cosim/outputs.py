@@ -180,6 +180,27 @@ class FolderLock:
         self.release()
 
 
+def wait_unlocked(out: Path, timeout: float) -> bool:
+    """Wait until no run holds the folder ``out`` (its flock is free); False after ``timeout`` s."""
+    import fcntl
+    try:
+        fd = os.open(out / LOCK_NAME, os.O_RDONLY)
+    except OSError:
+        return True                   # no lock file: no run ever claimed it
+    t_end = time.monotonic() + timeout
+    try:
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+                return True
+            except BlockingIOError:
+                if time.monotonic() > t_end:
+                    return False
+                time.sleep(0.05)
+    finally:
+        os.close(fd)                  # drops the shared lock at once
+
+
 def claim(out: Path) -> FolderLock:
     """Create ``out``, lock it, mark a dead run found there, remove an earlier run's results
     and write the ``running`` summary; :class:`OutputError` if not possible."""

@@ -97,7 +97,8 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
     except (SimulationError, OutputError) as e:
         watch.heartbeat.finishing()
         result = _finish_quietly(recorder, summary)
-        summary.update(status="failed", stop_time=sc.stop_time, time_reached=getattr(e, "time", None),
+        summary.update(status="failed", cause="output" if isinstance(e, OutputError) else "simulation",
+                       stop_time=sc.stop_time, time_reached=getattr(e, "time", None),
                        error=str(e), failed_instance=getattr(e, "instance", None),
                        fmu_message=getattr(e, "fmu_message", None), rows_recorded=len(result.time))
         if getattr(e, "signal", None):
