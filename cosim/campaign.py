@@ -117,9 +117,12 @@ def connect(scheduler: str | None = None, workers: int | None = None, processes:
     if scheduler:
         return Client(scheduler)
     with dask.config.set(_cluster_config()):
+        # no dashboard; the scheduler's HTTP server (health, metrics) on a free loopback port:
+        # its default, 8787, warns "Port 8787 is already in use" beside any other cluster
         cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
                                processes=processes, protocol="tcp://", host="127.0.0.1",
-                               dashboard_address=None, silence_logs=logging.ERROR)
+                               dashboard_address=None, silence_logs=logging.ERROR,
+                               scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
         return Client(cluster)
 
 
@@ -323,13 +326,13 @@ _LOCAL_STOPS: dict[str, list[int]] = {}     # stop requests of the drivers in th
 
 class _StopRequest:
     """SIGINT / SIGTERM on the driver, made known to its runs: to a worker thread of this
-    process directly, to a remote worker through a Dask ``Variable`` of the same name."""
+    process directly, to a worker elsewhere through the scheduler's metadata under the same
+    name (a non-blocking read, unlike a Dask ``Variable`` whose empty ``get`` logs an error)."""
 
     def __init__(self):
         import uuid
         self.name = f"drillcosim-stop-{uuid.uuid4().hex}"
         self.signals: list[int] = []
-        self._variable = None
         _LOCAL_STOPS[self.name] = self.signals
 
     @property
@@ -342,9 +345,7 @@ class _StopRequest:
     def publish(self, client) -> None:
         """Tell the remote workers (after the handler: no Dask call inside a signal handler)."""
         try:
-            from distributed import Variable
-            self._variable = Variable(self.name, client=client)
-            self._variable.set(int(self.signum))
+            client.set_metadata([self.name], int(self.signum))
         except Exception:  # noqa: BLE001 - the cluster is gone: its runs are gone with it
             pass
 
@@ -363,11 +364,6 @@ class _StopRequest:
 
     def clear(self) -> None:
         _LOCAL_STOPS.pop(self.name, None)
-        if self._variable is not None:
-            try:
-                self._variable.delete()
-            except Exception:  # noqa: BLE001 - the cluster may be gone already
-                pass
 
 
 def _stop_check(name: str | None):
@@ -384,9 +380,9 @@ def _stop_check(name: str | None):
         if state["signum"] is None and now >= state["next"]:
             state["next"] = now + STOP_POLL_S
             try:
-                from distributed import Variable
-                state["signum"] = int(Variable(name).get(timeout=0.05))
-            except Exception:  # noqa: BLE001 - not set (a timeout), or the scheduler is unreachable
+                from distributed import get_client
+                state["signum"] = get_client().get_metadata([name], default=None)
+            except Exception:  # noqa: BLE001 - not in a task, or the scheduler is unreachable
                 pass
         return state["signum"]
     return remote
