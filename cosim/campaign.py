@@ -43,47 +43,105 @@ GOOD = ("completed", "stopped")
 
 
 def _one_run(path: str, out_dir: str, overrides: dict, index: int, wall_timeout=None, max_steps=None,
-             keep_data: bool = True, stop_name: str | None = None) -> dict:
+             keep_data: bool = True, stop_name: str | None = None, gather: bool = False) -> dict:
     """A Dask task: one supervised run; never raises (its summary says what happened).
     ``keep_data=False``: a good run's data files are deleted once it is scored (its summary,
     scores and figures stay); a run that went wrong keeps them, they are the evidence.
-    ``stop_name``: the campaign's stop request (:class:`_StopRequest`)."""
-    from .errors import SimulationError
-    from .runner import RunEnded, run_scenario
-    from .supervisor import run_supervised
-    out = Path(out_dir)
+    ``stop_name``: the campaign's stop request (:class:`_StopRequest`). ``gather``: run in
+    this worker's own working folder and send the run's files back with the summary (a
+    worker on another machine, no shared file system); the driver writes them to ``out_dir``."""
     stop = _stop_check(stop_name)
     if stop is not None and stop():
         return {"status": "cancelled", "stop_reason": "the campaign was stopped before this run started",
                 "run": index, "overrides": overrides, "out_dir": out_dir}
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        log = out / "log.txt"
-        log.write_text("")
-        if multiprocessing.current_process().daemon:
-            # a worker started with daemon = True may not have children: run here (a crash then
-            # takes the worker down, and the scheduler reports it: KilledWorker -> crashed)
-            import contextlib
-            with open(log, "a") as f, contextlib.redirect_stdout(f), contextlib.redirect_stderr(f):
-                try:
-                    summary = dict(run_scenario(path, out, overrides, progress=False, wall_timeout=wall_timeout,
-                                                max_steps=max_steps, handle_signals=False).summary)
-                except (SimulationError, RunEnded) as e:
-                    summary = dict(e.result.summary) if e.result is not None else {"status": "failed",
-                                                                                   "error": str(e)}
-        else:
-            from .run_server import server_for_this_thread
-            summary = run_supervised(path, out, overrides, progress=False, wall_timeout=wall_timeout,
-                                     max_steps=max_steps, log_file=log, server=server_for_this_thread(),
-                                     stop=stop)
-    except (CosimError, OSError) as e:
-        summary = {"status": "failed", "error": f"{type(e).__name__}: {e}", "cause": "campaign"}
-    summary.update(run=index, overrides=overrides, out_dir=out_dir)
+    worker = _this_worker()
+    out = _worker_folder(worker, stop_name, index) if gather else Path(out_dir)
+    summary = _run_here(path, out, overrides, wall_timeout, max_steps, stop)
+    summary.update(run=index, overrides=overrides, out_dir=str(out))
+    if worker is not None:
+        summary["worker"] = worker.address
     if not keep_data and summary.get("status") in GOOD:
         for name in DATA_FILES:
             (out / name).unlink(missing_ok=True)
         summary["data_removed"] = list(DATA_FILES)
+    if gather:
+        summary[GATHERED] = _pack(out)
     return summary
+
+
+GATHERED = "gathered_files"      # a gathered run's files (name -> bytes), taken out by the driver
+
+
+def _run_here(path: str, out: Path, overrides: dict, wall_timeout, max_steps, stop) -> dict:
+    from .errors import SimulationError
+    from .runner import RunEnded, run_scenario
+    from .supervisor import run_supervised
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        log = out / "log.txt"
+        log.write_text("")
+        if not multiprocessing.current_process().daemon:
+            from .run_server import server_for_this_thread
+            return run_supervised(path, out, overrides, progress=False, wall_timeout=wall_timeout,
+                                  max_steps=max_steps, log_file=log, server=server_for_this_thread(), stop=stop)
+        # a worker started with daemon = True may not have children: run here (a crash then
+        # takes the worker down, and the scheduler reports it: KilledWorker -> crashed)
+        import contextlib
+        with open(log, "a") as f, contextlib.redirect_stdout(f), contextlib.redirect_stderr(f):
+            try:
+                return dict(run_scenario(path, out, overrides, progress=False, wall_timeout=wall_timeout,
+                                         max_steps=max_steps, handle_signals=False).summary)
+            except (SimulationError, RunEnded) as e:
+                return dict(e.result.summary) if e.result is not None else {"status": "failed", "error": str(e)}
+    except (CosimError, OSError) as e:
+        return {"status": "failed", "error": f"{type(e).__name__}: {e}", "cause": "campaign"}
+
+
+def _this_worker():
+    try:
+        from distributed import get_worker
+        return get_worker()
+    except (ImportError, ValueError):       # not inside a Dask task
+        return None
+
+
+def _worker_folder(worker, campaign_id: str | None, index: int) -> Path:
+    """A gathered run's folder on its worker: under the worker's ``--local-directory``."""
+    import tempfile
+    import uuid
+    base = Path(worker.local_directory) if worker is not None else Path(tempfile.gettempdir())
+    return base / "drillcosim-runs" / (campaign_id or uuid.uuid4().hex) / f"run_{index:03d}"
+
+
+def _pack(out: Path) -> dict[str, bytes]:
+    """The run's files, read for the trip back to the driver; the worker's copy is removed."""
+    import shutil
+    from .outputs import HEARTBEAT_NAME, LOCK_NAME
+    files = {f.name: f.read_bytes() for f in sorted(out.iterdir())
+             if f.is_file() and f.name not in (LOCK_NAME, HEARTBEAT_NAME)}
+    shutil.rmtree(out, ignore_errors=True)
+    return files
+
+
+def _unpack(s: dict, folder: Path) -> dict:
+    """A gathered run's files into the driver's ``folder``; its summary's paths made the driver's."""
+    files = s.pop(GATHERED)
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, blob in files.items():
+        (folder / name).write_bytes(blob)
+    remote = s.get("out_dir") or ""
+    s["worker_out_dir"] = remote
+
+    def here(p):
+        if isinstance(p, str) and remote and p.startswith(remote):
+            return str(folder) + p[len(remote):]
+        return [here(x) for x in p] if isinstance(p, list) else p
+    s["files"] = {k: here(v) for k, v in (s.get("files") or {}).items()}
+    s["out_dir"] = str(folder)
+    if "summary.json" in files:
+        from .outputs import write_summary
+        write_summary(folder / "summary.json", s)
+    return s
 
 
 def _cluster_config() -> dict:
@@ -138,7 +196,8 @@ class CampaignStopped(CosimError):
 def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: int | None = None,
                  progress: bool = True, scheduler: str | None = None, wall_timeout: float | None = None,
                  max_steps: int | None = None, retries: int = 0, client=None,
-                 keep_data: bool = True, processes: bool = False, resume: bool = False) -> list[dict]:
+                 keep_data: bool = True, processes: bool = False, resume: bool = False,
+                 gather: bool = False) -> list[dict]:
     """Run ``scenario`` (a path) once per overrides dict; summaries in input order.
 
     ``scenario`` may also be a list of paths, one per run (a campaign over several stacks).
@@ -151,6 +210,8 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
     ``resume``: complete the campaign in ``out_dir`` (:func:`plan_resume`); without it a
     folder that holds a campaign is refused. SIGINT / SIGTERM (main thread) stop the
     campaign cleanly: :class:`CampaignStopped` once campaign.csv/json are written.
+    ``gather``: each run in its worker's own folder, its files sent back to ``out_dir``
+    (workers on machines that do not share ``out_dir``'s file system).
     """
     from .outputs import FolderLock
     from .scenario import load_scenario
@@ -176,7 +237,7 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
         opts = dict(workers=workers, scheduler=scheduler, client=client, processes=processes,
                     retries=retries, progress=progress)
         t0 = time.perf_counter()
-        summaries, signum = _run_jobs(todo, len(jobs), (wall_timeout, max_steps, keep_data), opts)
+        summaries, signum = _run_jobs(todo, len(jobs), (wall_timeout, max_steps, keep_data), opts, gather)
         for i, s in reused.items():
             summaries[i] = {**s, "reused": True}
         for s in summaries:
@@ -229,7 +290,7 @@ def plan_resume(out: Path, jobs: list, resume: bool) -> dict[int, dict]:
     return kept
 
 
-def _run_jobs(todo: list, n_runs: int, limits: tuple, opts: dict) -> tuple[list, int | None]:
+def _run_jobs(todo: list, n_runs: int, limits: tuple, opts: dict, gather: bool = False) -> tuple[list, int | None]:
     """Run ``todo`` on Dask; (summaries of all ``n_runs``, None for the runs not in ``todo``;
     the signal that stopped the campaign, or None)."""
     summaries: list = [None] * n_runs
@@ -247,8 +308,8 @@ def _run_jobs(todo: list, n_runs: int, limits: tuple, opts: dict) -> tuple[list,
         bar = tqdm(total=n_runs, initial=n_runs - len(todo), unit="run", desc="campaign", file=sys.stderr)
     try:
         with stop.installed():
-            futures = {client.submit(_one_run, *job, *limits, stop.name, key=f"drillcosim-run-{job[3]:03d}-"
-                                     f"{os.getpid()}-{stop.name[-8:]}", pure=False, retries=opts["retries"]): job
+            futures = {client.submit(_one_run, *job, *limits, stop.name, gather, pure=False, retries=opts["retries"],
+                                     key=f"drillcosim-run-{job[3]:03d}-{os.getpid()}-{stop.name[-8:]}"): job
                        for job in todo}
             _collect(futures, summaries, stop, bar)
             if stop.signum is not None:
@@ -290,6 +351,8 @@ def _collect(futures: dict, summaries: list, stop: "_StopRequest", bar) -> None:
 
 
 def _place(summaries: list, job: tuple, s: dict) -> None:
+    if GATHERED in s:
+        s = _unpack(s, Path(job[1]))
     s.setdefault("run", job[3])
     s.setdefault("overrides", job[2])
     s.setdefault("out_dir", job[1])

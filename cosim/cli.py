@@ -119,7 +119,7 @@ def cmd_campaign(args) -> int:
                                  progress=not args.quiet, scheduler=args.scheduler,
                                  wall_timeout=args.timeout, max_steps=args.max_steps,
                                  keep_data=not args.drop_data, processes=args.worker_processes,
-                                 resume=args.resume)
+                                 resume=args.resume, gather=args.gather)
     except CampaignStopped as e:
         stopped, summaries = e, e.summaries
     except (CosimError, ValueError, OSError) as e:
@@ -334,6 +334,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--worker-processes", action="store_true",
                    help="local workers as processes, not threads (each run has its own child process either way)")
     c.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://10.0.0.5:8786")
+    c.add_argument("--gather", action="store_true",
+                   help="run each run in its worker's own folder and send its files back into --out (workers "
+                        "on machines that do not share --out's file system)")
     c.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override for every run")
     c.add_argument("--quiet", action="store_true", help="no progress bar")
     c.add_argument("--resume", action="store_true",
