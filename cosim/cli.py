@@ -12,6 +12,40 @@ except ModuleNotFoundError:       # Python 3.10
     import tomli as tomllib
 
 
+_INT64 = (-2**63, 2**63 - 1)     # TOML's integers are 64-bit (toml.io: "Integer")
+
+
+def _toml_value(option: str, name: str, value: str):
+    """VALUE of ``option NAME=VALUE`` as a TOML value (3, 0.5, true, "text", [1, 2]), else the
+    text itself; a value TOML cannot hold (a 5 000-digit integer, more than 64 bits) is a
+    :class:`SystemExit` naming the option and key, never a foreign traceback."""
+    try:
+        v = tomllib.loads(f"v = {value}")["v"]
+    except tomllib.TOMLDecodeError:
+        return value
+    except ValueError as e:        # tomllib's int(): "Exceeds the limit (4300 digits) ..."
+        raise SystemExit(f"drillcosim: {option} {name}: cannot read the value {_shorten(value)}: {e}; "
+                         f"expected a TOML value (a number within 64 bits, true/false, \"text\", [...])") from None
+    if _too_big(v):
+        raise SystemExit(f"drillcosim: {option} {name}: the integer {_shorten(value)} does not fit "
+                         f"TOML's 64 bits ({_INT64[0]} .. {_INT64[1]})")
+    return v
+
+
+def _too_big(v) -> bool:
+    if isinstance(v, int) and not isinstance(v, bool):
+        return not _INT64[0] <= v <= _INT64[1]
+    if isinstance(v, list):
+        return any(_too_big(x) for x in v)
+    if isinstance(v, dict):
+        return any(_too_big(x) for x in v.values())
+    return False
+
+
+def _shorten(text: str, keep: int = 24) -> str:
+    return text if len(text) <= 2 * keep else f"{text[:keep]}...{text[-keep:]} ({len(text)} characters)"
+
+
 def _parse_set(items: list[str]) -> dict:
     """``KEY=VALUE`` pairs; VALUE is read as a TOML value (3, 0.5, true, "text"), else a string."""
     out = {}
@@ -19,10 +53,7 @@ def _parse_set(items: list[str]) -> dict:
         key, sep, value = item.partition("=")
         if not sep or not key:
             raise SystemExit(f"--set expects KEY=VALUE, got {item!r}")
-        try:
-            out[key.strip()] = tomllib.loads(f"v = {value}")["v"]
-        except tomllib.TOMLDecodeError:
-            out[key.strip()] = value
+        out[key.strip()] = _toml_value("--set", key.strip(), value)
     return out
 
 
@@ -79,17 +110,21 @@ def _run_in_process(path, **opts) -> dict:
 
 
 def cmd_campaign(args) -> int:
-    from .campaign import run_campaign
+    from .campaign import CampaignStopped, run_campaign
     from .errors import CosimError
     from .sweep import load_sweep
     path = _scenario_path(args.scenario)
+    stopped = None
     try:
         runs = load_sweep(args.sweep)
         base = _parse_set(args.set)
         summaries = run_campaign(path, [{**base, **r} for r in runs], out_dir=args.out, workers=args.workers,
                                  progress=not args.quiet, scheduler=args.scheduler,
                                  wall_timeout=args.timeout, max_steps=args.max_steps,
-                                 keep_data=not args.drop_data, processes=args.worker_processes)
+                                 keep_data=not args.drop_data, processes=args.worker_processes,
+                                 resume=args.resume, gather=args.gather)
+    except CampaignStopped as e:
+        stopped, summaries = e, e.summaries
     except (CosimError, ValueError, OSError) as e:
         print(f"drillcosim: {e}", file=sys.stderr)
         return 1
@@ -97,13 +132,18 @@ def cmd_campaign(args) -> int:
     for s in summaries:
         counts[s["status"]] = counts.get(s["status"], 0) + 1
     out = Path(summaries[0]["out_dir"]).parent if summaries else Path(args.out or ".")
-    print(f"{len(summaries)} runs: " + ", ".join(f"{n} {k}" for k, n in sorted(counts.items())))
+    reused = sum(bool(s.get("reused")) for s in summaries)
+    print(f"{len(summaries)} runs: " + ", ".join(f"{n} {k}" for k, n in sorted(counts.items()))
+          + (f" ({reused} kept from the earlier campaign)" if reused else ""))
     for s in summaries:
-        if s["status"] not in ("completed", "stopped"):
+        if s["status"] not in ("completed", "stopped", "cancelled"):
             print(f"  run {s['run']:03d} {s['status']}: {s.get('error') or s.get('stop_reason', '')} "
                   f"(overrides {s['overrides']})", file=sys.stderr)
     print(f"csv: {out / 'campaign.csv'}")
     print(f"json: {out / 'campaign.json'}")
+    if stopped is not None:
+        print(f"drillcosim: {stopped}", file=sys.stderr)
+        return 128 + int(stopped.signum)
     return 0 if set(counts) <= {"completed", "stopped"} else 1
 
 
@@ -189,10 +229,7 @@ def _start_values(items: list[str]) -> dict:
         name, sep, value = item.partition("=")
         if not sep or not name:
             raise SystemExit(f"drillcosim: --start-values expects NAME=VALUE, got {item!r}")
-        try:
-            out[name.strip()] = tomllib.loads(f"v = {value}")["v"]
-        except tomllib.TOMLDecodeError:
-            out[name.strip()] = value
+        out[name.strip()] = _toml_value("--start-values", name.strip(), value)
     return out
 
 
@@ -300,8 +337,14 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--worker-processes", action="store_true",
                    help="local workers as processes, not threads (each run has its own child process either way)")
     c.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://10.0.0.5:8786")
+    c.add_argument("--gather", action="store_true",
+                   help="run each run in its worker's own folder and send its files back into --out (workers "
+                        "on machines that do not share --out's file system)")
     c.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override for every run")
     c.add_argument("--quiet", action="store_true", help="no progress bar")
+    c.add_argument("--resume", action="store_true",
+                   help="complete the campaign in --out: keep its finished runs, run the interrupted, crashed "
+                        "and missing ones again (a folder holding a campaign is refused without it)")
     c.add_argument("--drop-data", action="store_true",
                    help="delete data.csv/data.mat of each good run once scored (summaries, scores and figures "
                         "stay; a run that failed or crashed keeps its data)")

@@ -12,6 +12,7 @@ starts a new child.
 """
 from __future__ import annotations
 
+import os
 import threading
 from multiprocessing.connection import Connection
 
@@ -26,10 +27,11 @@ def server_for_this_thread() -> "RunServer":
     return server
 
 
-def _serve(conn: Connection) -> None:
+def _serve(conn: Connection, watched: tuple) -> None:
     """The child: run each payload it is sent, answer with the run's exit code; end when
-    the parent closes the pipe."""
-    from .supervisor import run_payload
+    the parent closes the pipe, and die with the process it serves (``watched``: pid, start)."""
+    from .supervisor import die_with_parent, run_payload
+    die_with_parent(watched)
     while True:
         try:
             payload = conn.recv()
@@ -51,7 +53,9 @@ class RunServer:
             self.close()
             parent, child = ctx.Pipe()
             # daemonic: ended with the worker, never waited for at its exit
-            self.proc = ctx.Process(target=_serve, args=(child,), name="drillcosim-runs", daemon=True)
+            from .outputs import process_start
+            me = (os.getpid(), process_start(os.getpid()))
+            self.proc = ctx.Process(target=_serve, args=(child, me), name="drillcosim-runs", daemon=True)
             self.proc.start()
             child.close()
             self.conn = parent

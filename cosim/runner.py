@@ -19,7 +19,7 @@ from pathlib import Path
 
 from .algorithm import simulate
 from .errors import CosimError, SimulationError
-from .outputs import OutputError, claim, jsonable, write_json_atomic
+from .outputs import OutputError, claim, jsonable, write_summary
 from .plots import plot_groups
 from .recorder import Recorder, Result
 from .scenario import Scenario, load_scenario
@@ -110,7 +110,8 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
     except (SimulationError, OutputError) as e:
         watch.heartbeat.finishing()
         result = _finish_quietly(recorder, summary)
-        summary.update(status="failed", stop_time=sc.stop_time, time_reached=getattr(e, "time", None),
+        summary.update(status="failed", cause="output" if isinstance(e, OutputError) else "simulation",
+                       stop_time=sc.stop_time, time_reached=getattr(e, "time", None),
                        error=str(e), failed_instance=getattr(e, "instance", None),
                        fmu_message=getattr(e, "fmu_message", None), rows_recorded=len(result.time))
         if getattr(e, "signal", None):
@@ -236,7 +237,7 @@ def _finish_quietly(recorder: Recorder, summary: dict) -> Result:
 
 def _write_summary(out: Path, summary: dict) -> None:
     try:
-        write_json_atomic(out / "summary.json", summary)
+        write_summary(out / "summary.json", summary)
     except OutputError as e:       # nothing more can be saved; say so instead of a traceback
         print(f"drillcosim: {e}", file=sys.stderr)
 

@@ -15,7 +15,12 @@ itself:
 * SIGINT / SIGTERM reach the child, which stops at the end of its chunk; a child stuck in
   C is killed after ``grace`` seconds and the parent writes the ``interrupted`` summary;
   likewise for the wall-clock timeout (status ``timeout``);
-* the FMUs are unpacked into a temporary folder the parent removes, so nothing leaks.
+* the FMUs are unpacked into a temporary folder the parent removes, so nothing leaks;
+* the child never outlives the parent: it asks the kernel for SIGKILL when its parent
+  dies (``prctl(PR_SET_PDEATHSIG)``, checked against the race of a parent that died
+  before the call) and watches the supervising process itself when its parent is the fork
+  server. The lock file names the child, so the next run into the folder can tell an
+  orphan and take the folder over (:mod:`cosim.outputs`).
 
 The child is forked when this process has a single thread (the CLI: the loaded scenario
 is inherited, nothing is loaded twice); in a threaded process (a Dask worker) it comes from
@@ -35,7 +40,8 @@ import time
 from pathlib import Path
 
 from .errors import CosimError, SimulationError
-from .outputs import HEARTBEAT_NAME, TRACEBACK_NAME, OutputError, claim, write_json_atomic
+from .outputs import (HEARTBEAT_NAME, TRACEBACK_NAME, OutputError, alive, claim, process_start, repair_csv,
+                      write_summary)
 from .runner import RunEnded, _base_summary, default_out_dir, load, run_in_folder
 from .watch import Heartbeat, RunWatch, exit_code_for
 
@@ -57,7 +63,7 @@ def exit_code(summary: dict) -> int:
 
 def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progress: bool = True,
                    wall_timeout: float | None = None, max_steps: int | None = None,
-                   grace: float = GRACE_S, log_file=None, server=None) -> dict:
+                   grace: float = GRACE_S, log_file=None, server=None, stop=None) -> dict:
     """Run ``scenario`` in a child process; return its summary (also in summary.json).
 
     Raises only for what happens before the run (:class:`cosim.errors.ScenarioError`,
@@ -65,7 +71,9 @@ def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progre
     ``stopped``, ``failed``, ``interrupted``, ``timeout``, ``crashed`` -- is a summary.
     ``log_file``: the child's stdout and stderr (C-level output too) go there. ``server``: a
     :class:`cosim.run_server.RunServer` whose warm child runs it (a campaign's worker), when
-    this process is threaded; else a child of its own.
+    this process is threaded; else a child of its own. ``stop``: a callable polled while the
+    run goes, returning a signal number when the run must stop as if it had received that
+    signal (a campaign's driver was interrupted), else None.
     """
     RunWatch(wall_timeout, max_steps)             # checks the limits before anything starts
     # forked: load here, the child inherits it; else the child loads and this process reads
@@ -73,10 +81,12 @@ def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progre
     sc = load(scenario, overrides) if _can_fork() or not isinstance(scenario, (str, Path)) \
         else _summary_facts(Path(scenario), overrides)
     out = Path(out_dir) if out_dir is not None else default_out_dir(sc)
-    with claim(out):
+    with claim(out) as lock:
+        write_summary(out / "summary.json", {"status": "running", "pid": os.getpid(), **_base_summary(sc, out)})
         tmp = tempfile.mkdtemp(prefix="drillcosim-")
         try:
-            return _supervise(sc, out, progress, wall_timeout, max_steps, grace, tmp, log_file, server)
+            return _supervise(sc, out, progress, wall_timeout, max_steps, grace, tmp, log_file, server, lock,
+                              stop)
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
             (out / HEARTBEAT_NAME).unlink(missing_ok=True)
@@ -163,9 +173,10 @@ class _OneRun:
         self.proc.join()
 
 
-def _supervise(sc, out: Path, progress, wall_timeout, max_steps, grace, tmp, log_file, server=None) -> dict:
+def _supervise(sc, out: Path, progress, wall_timeout, max_steps, grace, tmp, log_file, server=None,
+               lock=None, stop=None) -> dict:
     ctx, forked = _context(sc)
-    payload = {"scenario": sc if forked else None, "path": str(sc.path) if sc.path else None,
+    payload = {"parent": (os.getpid(), process_start(os.getpid())), "scenario": sc if forked else None, "path": str(sc.path) if sc.path else None,
                "overrides": sc.overrides, "out": str(out), "progress": progress, "tmp": tmp,
                "wall_timeout": wall_timeout, "max_steps": max_steps,
                "log_file": str(log_file) if log_file else None}
@@ -192,6 +203,8 @@ def _supervise(sc, out: Path, progress, wall_timeout, max_steps, grace, tmp, log
         job = server.submit(ctx, payload)
     else:
         job = _OneRun(ctx, payload, f"drillcosim-{sc.name}")
+    if lock is not None:
+        lock.note_child(job.pid)
     t_start = time.monotonic()
     killed_for = None            # ("timeout" | "interrupted", reason) when the parent had to kill
     try:
@@ -200,6 +213,10 @@ def _supervise(sc, out: Path, progress, wall_timeout, max_steps, grace, tmp, log
         t_signal = None
         while not job.wait(POLL_S):
             now = time.monotonic()
+            if stop is not None and not received:
+                asked = stop()                # a campaign being stopped: as if this run got the signal
+                if asked:
+                    forward(asked, None)
             beat = Heartbeat.read(out / HEARTBEAT_NAME) or {}
             if beat.get("finishing") and len(received) < 2:
                 continue                      # writing data.mat: never killed for being slow
@@ -226,12 +243,14 @@ def _outcome(sc, out: Path, exitcode: int, killed_for, received: list[int]) -> d
     sfile = out / "summary.json"
     if killed_for is None and sfile.exists():
         try:
-            return json.loads(sfile.read_text())
+            done = json.loads(sfile.read_text())
         except ValueError:
-            pass
+            done = {}
+        if done.get("status") not in (None, "running"):      # "running": the child died first
+            return done
     summary = _base_summary(sc, out)
     beat = Heartbeat.read(out / HEARTBEAT_NAME) or {}
-    rows, t_last = _repair_csv(out / "data.csv")
+    rows, t_last = repair_csv(out / "data.csv")
     summary.update(stop_time=sc.stop_time, time_reached=beat.get("time"), rows_recorded=rows,
                    last_row_time=t_last)
     if killed_for is not None:
@@ -253,27 +272,8 @@ def _outcome(sc, out: Path, exitcode: int, killed_for, received: list[int]) -> d
     if tb.exists() and tb.stat().st_size:
         summary["traceback"] = tb.read_text(errors="replace")[:4000]   # innermost frames first
     summary["files"] = {"csv": str(out / "data.csv"), "mat": _mat_from_csv(out, summary), "png": []}
-    write_json_atomic(sfile, summary)
+    write_summary(sfile, summary)
     return summary
-
-
-def _repair_csv(path: Path) -> tuple[int, float | None]:
-    """Cut a row torn by the crash; (complete data rows, time of the last one [s])."""
-    try:
-        with open(path, "rb+") as f:
-            data = f.read()
-            end = data.rfind(b"\n") + 1
-            if end < len(data):
-                f.truncate(end)
-    except OSError:
-        return 0, None
-    lines = data[:end].splitlines()
-    if len(lines) < 2:
-        return 0, None
-    try:
-        return len(lines) - 1, float(lines[-1].split(b",", 1)[0])
-    except ValueError:
-        return len(lines) - 1, None
 
 
 def _mat_from_csv(out: Path, summary: dict) -> str | None:
@@ -292,6 +292,7 @@ def _child(p: dict) -> None:
     """The child of one run: run, exit with the status's code (never returns)."""
     code = EXIT_FAILED
     try:
+        die_with_parent(p["parent"])
         code = run_payload(p)
     finally:
         try:
@@ -299,6 +300,35 @@ def _child(p: dict) -> None:
             sys.stderr.flush()
         finally:
             os._exit(code)
+
+
+PR_SET_PDEATHSIG = 1     # <linux/prctl.h>
+WATCH_S = 0.25           # s between a served child's looks at the process it works for
+
+
+def die_with_parent(watched: tuple[int, int | None]) -> None:
+    """Make this child end with the process that supervises it, however that ends (kill -9
+    too). The kernel sends SIGKILL when the parent dies (Linux ``PR_SET_PDEATHSIG``; a
+    parent already gone before the call is caught by ``getppid``). When the parent is not
+    the supervisor (a fork server's child), a daemon thread also watches ``watched``
+    (pid, start time) and kills this process once it is gone."""
+    pid, _start = watched
+    if sys.platform.startswith("linux"):
+        import ctypes
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):
+            pass                       # no prctl: the watch below still ends an orphan
+    if os.getppid() == pid:
+        return                         # forked by the supervisor itself: the kernel's signal suffices
+    if not alive(*watched):
+        os._exit(EXIT_FAILED)
+
+    def watch() -> None:
+        while alive(*watched):
+            time.sleep(WATCH_S)
+        os.kill(os.getpid(), signal.SIGKILL)
+    threading.Thread(target=watch, name="drillcosim-parent-watch", daemon=True).start()
 
 
 def run_payload(p: dict) -> int:
@@ -335,7 +365,7 @@ def run_payload(p: dict) -> int:
         import traceback
         traceback.print_exc()
         try:
-            write_json_atomic(out / "summary.json", {
+            write_summary(out / "summary.json", {
                 "status": "interrupted" if isinstance(e, KeyboardInterrupt) else "failed",
                 "error": f"{type(e).__name__}: {e}", "out_dir": str(out)})
         except OutputError:
