@@ -194,39 +194,70 @@ def _start_values(items: list[str]) -> dict:
 
 
 def cmd_simulate(args) -> int:
-    """A bare FMU, as ``fmpy simulate`` / ``cosim run-single``: every output recorded."""
-    from fmpy import read_model_description
+    """A bare FMU, as ``fmpy simulate`` / ``cosim run-single``: every output recorded;
+    ``--input-file`` plays a CSV into its inputs (:mod:`cosim.input_file`)."""
     from .algorithm import simulate
     from .errors import CosimError
-    from .model_exchange import create_slave
-    from .recorder import Recorder
-    from .slave import resolve_fmu_path
-    from .system import System
     try:
-        path = resolve_fmu_path(args.fmu, Path.cwd())
-        de = read_model_description(str(path), validate=False).defaultExperiment
-        start = args.start_time if args.start_time is not None else float(de.startTime or 0) if de else 0.0
-        stop = args.stop_time if args.stop_time is not None else float(de.stopTime or 1) if de and de.stopTime else 1.0
-        step = args.step_size or (float(de.stepSize) if de and de.stepSize else (stop - start) / 500)
-        opts = {"solver": args.solver} if args.solver else {}
-        slave = create_slave("fmu", path, _start_values(args.start_values), interface=args.interface, **opts)
-        system = System(step_size=step, start_time=start)
-        name = slave.model.model_description.modelName or path.stem
-        system.add_fmu(_identifier(name), slave)
-        out = Path(args.output) if args.output else Path(f"{path.stem}_out.csv")
-        recorder = Recorder(["*"], out_dir=out.parent, csv_name=out.name)
+        system, path, stop, out, inputs = _simulate_system(args)
+    except (CosimError, OSError) as e:
+        print(f"drillcosim: {e}", file=sys.stderr)
+        return 1
+    except Exception as e:     # not a zip, bad XML, ...: as `info` says it
+        print(f"drillcosim: cannot read the FMU {args.fmu}: {type(e).__name__}: {e}", file=sys.stderr)
+        return 1
+    from .recorder import Recorder
+    recorder = Recorder(["*", *inputs], out_dir=out.parent, csv_name=out.name)
+    try:
         info = simulate(system, stop, recorder, progress=not args.quiet)
     except CosimError as e:
         print(f"drillcosim: {e}", file=sys.stderr)
         return 1
     finally:
-        if "recorder" in locals():
-            recorder.finish(write_mat=False)
+        recorder.finish(write_mat=False)
     if not args.quiet:
         print(f"{path.name}: {info.status} at t = {info.time_reached:g} s ({info.stop_reason}), "
-              f"{info.steps} steps of {step:g} s")
+              f"{info.steps} steps of {system.step_size:g} s")
     print(f"csv: {out}")
     return 0
+
+
+def _simulate_system(args):
+    """``(system, fmu path, stop time, output CSV, recorded input signals)`` of ``simulate``."""
+    from fmpy import read_model_description
+    from .errors import ScenarioError
+    from .model_exchange import create_slave
+    from .slave import resolve_fmu_path
+    from .system import System
+    path = resolve_fmu_path(args.fmu, Path.cwd())
+    de = read_model_description(str(path), validate=False).defaultExperiment
+    start = args.start_time if args.start_time is not None else float(de.startTime or 0) if de else 0.0
+    stop = args.stop_time if args.stop_time is not None else float(de.stopTime or 1) if de and de.stopTime else 1.0
+    step = args.step_size or (float(de.stepSize) if de and de.stepSize else (stop - start) / 500)
+    opts = {"solver": args.solver} if args.solver else {}
+    slave = create_slave("fmu", path, _start_values(args.start_values), interface=args.interface, **opts)
+    system = System(step_size=step, start_time=start)
+    name = _identifier(slave.model.model_description.modelName or path.stem)
+    system.add_fmu(name, slave)
+    out = Path(args.output) if args.output else Path(f"{path.stem}_out.csv")
+    if not args.input_file:
+        return system, path, stop, out, []
+    from .input_file import InputFile, check_span, connect_columns
+    try:
+        block = InputFile(args.input_file, args.interpolation, into=name)
+    except ScenarioError:
+        raise                  # names the file already
+    except ValueError as e:
+        raise ScenarioError(str(e), args.input_file) from None
+    system.add_block("input", block)
+    try:
+        connect_columns(system, "input", block)
+    except ScenarioError as e:
+        raise ScenarioError(e.detail) from None        # names the file and the column
+    gap = check_span(block, start, stop, step)
+    if gap:
+        raise ScenarioError(gap, args.input_file)
+    return system, path, stop, out, [f"input.{p.name}" for p in block.outputs]
 
 
 def _identifier(name: str) -> str:
@@ -320,6 +351,11 @@ def build_parser() -> argparse.ArgumentParser:
     sm.add_argument("--interface", choices=["CS", "ME"], type=str.upper,
                     help="co-simulation or Model Exchange (default: CS when the FMU offers it)")
     sm.add_argument("--solver", choices=["rk4", "cvode"], help="Model Exchange solver (default cvode)")
+    sm.add_argument("--input-file", metavar="CSV", help="play a CSV into the FMU's inputs, as fmpy simulate "
+                    "--input-file: first column time [s], the others named after inputs; units from "
+                    "'name [unit]' or <name>.columns.json; recorded as input.<name>")
+    sm.add_argument("--interpolation", choices=["linear", "hold"], default="linear",
+                    help="between the input file's rows: linear (default, as FMPy) or hold (zero-order)")
     sm.add_argument("--quiet", action="store_true", help="no progress bar, only the CSV path")
     sm.set_defaults(func=cmd_simulate)
     i = sub.add_parser("info", help="FMI version, kind, variables of an FMU (path or built-in name)")
