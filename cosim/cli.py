@@ -1,4 +1,4 @@
-"""``drillcosim`` command line: run, campaign, simulate, list, info, plot, validate, conformance."""
+"""``drillcosim`` command line: run, campaign, replay, simulate, list, info, plot, validate, conformance."""
 from __future__ import annotations
 
 import argparse
@@ -102,6 +102,33 @@ def cmd_campaign(args) -> int:
     print(f"csv: {out / 'campaign.csv'}")
     print(f"json: {out / 'campaign.json'}")
     return 0 if set(counts) <= {"completed", "stopped"} else 1
+
+
+def cmd_replay(args) -> int:
+    """A scenario's blocks and scores on a recording instead of its plant (:mod:`cosim.replay`)."""
+    from .errors import CosimError
+    from .outputs import write_json_atomic
+    from .replay import replay_scenario
+    from .runner import run_scenario
+    try:
+        sc, info = replay_scenario(_scenario_path(args.scenario), args.measurement, args.mapping,
+                                   _parse_set(args.set))
+        out = Path(args.out) if args.out else Path("results") / f"{sc.name}_replay"
+        result = run_scenario(sc, out_dir=out, progress=not args.quiet)
+    except (CosimError, ValueError, OSError) as e:
+        print(f"drillcosim: {e}", file=sys.stderr)
+        return 1
+    result.summary["replay"] = info
+    write_json_atomic(out / "summary.json", result.summary)
+    if not args.quiet:
+        s = result.summary
+        print(f"{s['scenario']} replayed on {Path(args.measurement).name}: t = {s['time_reached']:g} s, "
+              f"{s['steps']} steps, {s['wall_time_s']:.2f} s wall")
+        for what in info["dropped"]:
+            print(f"  not replayed: {what}")
+    print(f"csv: {out / 'data.csv'}")
+    print(f"summary: {out / 'summary.json'}")
+    return 0
 
 
 def cmd_list(args) -> int:
@@ -335,6 +362,17 @@ def build_parser() -> argparse.ArgumentParser:
                         "stay; a run that failed or crashed keeps its data)")
     _add_limits(c)
     c.set_defaults(func=cmd_campaign)
+    rp = sub.add_parser("replay", help="run a scenario's observers, detector and controllers on a recording "
+                                       "(CSV) instead of its plant FMU; scores where the recording allows")
+    rp.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
+    rp.add_argument("--measurement", required=True, metavar="CSV", help="the recording: first column time [s], "
+                    "columns <plant>.<role> (e.g. stage.table_position [m]); .csv or .csv.gz")
+    rp.add_argument("--mapping", metavar="TOML", help="which column is which plant signal, with units "
+                    "([columns] table_position = { column = \"z\", unit = \"mm\" })")
+    rp.add_argument("--out", help="output folder (default results/<scenario name>_replay)")
+    rp.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override a scenario key")
+    rp.add_argument("--quiet", action="store_true", help="no progress bar, only the paths")
+    rp.set_defaults(func=cmd_replay)
     li = sub.add_parser("list", help="list the scenarios with their description")
     li.add_argument("--dir", help="folder of scenario files (default scenarios/)")
     li.set_defaults(func=cmd_list)

@@ -25,6 +25,7 @@ error before the run, never a silent hold.
 from __future__ import annotations
 
 import csv
+import gzip
 import json
 import math
 import re
@@ -49,13 +50,20 @@ class InputTable:
     names: list[str]
     columns: list[np.ndarray]
     units: dict = field(default_factory=dict)      # name -> unit or None
+    comments: list = field(default_factory=list)   # the leading "#" lines: what the file says it is
 
     def column(self, name: str) -> np.ndarray:
         return self.columns[self.names.index(name)]
 
 
+def _sidecar(path: Path) -> Path:
+    """``data.csv`` -> ``data.columns.json`` (``data.csv.gz`` too)."""
+    base = path.with_suffix("") if path.suffix == ".gz" else path
+    return base.with_suffix(".columns.json")
+
+
 def _sidecar_units(path: Path) -> dict:
-    side = path.with_suffix(".columns.json")
+    side = _sidecar(path)
     if not side.exists():
         return {}
     try:
@@ -67,10 +75,22 @@ def _sidecar_units(path: Path) -> dict:
     return {k: v.get("unit") for k, v in meta.items() if isinstance(v, dict)}
 
 
-def _header(path: Path) -> tuple[list[str], dict]:
+def _open(path: Path):
+    """Text of a ``.csv`` or ``.csv.gz`` (a recording compresses ~4x)."""
+    return gzip.open(path, "rt", encoding="utf-8", newline="") if path.suffix == ".gz" else \
+        open(path, newline="", encoding="utf-8")
+
+
+def _header(path: Path) -> tuple[list[str], dict, list[str]]:
+    """Column names, their units and the leading ``#`` comment lines (what the file says it is)."""
+    comments = []
     try:
-        with open(path, newline="", encoding="utf-8") as f:
-            first = next(csv.reader(f), None)
+        with _open(path) as f:
+            line = f.readline()
+            while line.startswith("#"):
+                comments.append(line[1:].strip())
+                line = f.readline()
+        first = next(csv.reader([line]), None)
     except (OSError, UnicodeDecodeError) as e:
         raise ScenarioError(f"cannot read the input file: {e}", str(path)) from None
     if not first or len(first) < 2:
@@ -86,19 +106,20 @@ def _header(path: Path) -> tuple[list[str], dict]:
             raise ScenarioError(f"column '{name}' appears twice in the header", str(path))
         listed = side.get(name)
         if unit and listed and unit != listed:
-            raise ScenarioError(f"column '{name}': the header says [{unit}], {path.with_suffix('.columns.json').name}"
+            raise ScenarioError(f"column '{name}': the header says [{unit}], {_sidecar(path).name}"
                                 f" says '{listed}'; make them agree", str(path))
         names.append(name)
         units[name] = unit or listed or None
-    return names, units
+    return names, units, comments
 
 
 def read_input_csv(path) -> InputTable:
     """Read and check an input CSV (module docstring); errors name the file, line and column."""
     path = Path(path)
-    names, units = _header(path)
-    try:
-        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float, encoding="utf-8")
+    names, units, comments = _header(path)
+    try:      # "#" lines are comments, as for fmpy.util.read_csv (numpy.genfromtxt)
+        data = np.loadtxt(path, delimiter=",", skiprows=len(comments) + 1, ndmin=2, dtype=float,
+                          encoding="utf-8")
     except ValueError as e:
         raise ScenarioError(f"expected numbers in every row after the header: {e}", str(path)) from None
     if data.shape[0] == 0:
@@ -118,7 +139,18 @@ def read_input_csv(path) -> InputTable:
         raise ScenarioError(f"time goes backwards on data row {r + 1} (line {r + 2}): {float(time[r])!r} s after "
                             f"{float(time[r - 1])!r} s; expected non-decreasing time", str(path))
     return InputTable(path, time, names[1:], [data[:, k] for k in range(1, len(names))],
-                      {n: units[n] for n in names[1:]})
+                      {n: units[n] for n in names[1:]}, comments)
+
+
+def coverage_gap(time, t_first: float, t_last: float) -> str | None:
+    """Why a file with rows at ``time`` [s] does not cover ``[t_first, t_last]``, or None."""
+    t0, t1 = float(time[0]), float(time[-1])
+    if t_first < t0 - TIME_TOL_S:
+        return f"the file starts at {t0!r} s, after the first time it is played, {t_first!r} s"
+    if t_last > t1 + TIME_TOL_S:
+        return (f"the file ends at {t1!r} s, before the last time it is played, {t_last!r} s "
+                "(the last communication point before the stop time); expected a file that covers the run")
+    return None
 
 
 class Player:
@@ -135,13 +167,7 @@ class Player:
 
     def covers(self, t_first: float, t_last: float) -> str | None:
         """Why the file does not cover ``[t_first, t_last]`` [s], or None when it does."""
-        t0, t1 = self.times[0], self.times[-1]
-        if t_first < t0 - TIME_TOL_S:
-            return f"the file starts at {t0!r} s, after the first time it is played, {t_first!r} s"
-        if t_last > t1 + TIME_TOL_S:
-            return (f"the file ends at {t1!r} s, before the last time it is played, {t_last!r} s "
-                    "(the last communication point before the stop time); expected a file that covers the run")
-        return None
+        return coverage_gap(self.table.time, t_first, t_last)
 
     def at(self, t: float) -> tuple:
         ts, i = self.times, self._i
