@@ -295,7 +295,8 @@ def _identifier(name: str) -> str:
 
 def cmd_conformance(args) -> int:
     from .conformance import main as conformance_main
-    return conformance_main(["--no-write"] if args.no_write else [])
+    return conformance_main((["--no-write"] if args.no_write else [])
+                            + (["--reference-fmus", args.reference_fmus] if args.reference_fmus else []))
 
 
 def cmd_commission(args) -> int:
@@ -423,6 +424,9 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("conformance", help="run the Modelica Reference-FMUs against fmpy and rewrite "
                                            "the table in docs/conformance.md")
     c.add_argument("--no-write", action="store_true", help="print the table only")
+    c.add_argument("--reference-fmus", metavar="PATH", help="the Reference-FMUs-*.tar.gz source archive or its "
+                   "folder (default: $DRILLCOSIM_REFERENCE_FMUS, else reference-fmus/ or shared/reference-fmus/ "
+                   "in or above the checkout or the working directory)")
     c.set_defaults(func=cmd_conformance)
     return p
 
