@@ -299,6 +299,7 @@ def fang_fig7(result, out_dir, plant: str = "drive", observer: str = "observer",
                 a.plot(t[w], result[f"{observer}.F_ripple_hat"][w], lw=1.0, label="ripple estimate")
                 a.set_title(f"layer {L}: AC part (zoom)")
                 a.set_xlabel("time [s]")
+                a.set_ylabel("AC thrust [N]")
                 a.legend(fontsize=7)
             save_figure(fig, out_dir, file.replace(".png", "_ac_zoom.png"))
     return path

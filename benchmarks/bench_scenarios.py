@@ -129,10 +129,17 @@ def _timed(path: Path, sc=None):
 
 
 def run_one(path: Path) -> dict | None:
+    """The row of one scenario; a scenario that does not load is a row with its error (the
+    other scenarios are still measured, as `drillcosim list` still lists them)."""
+    from cosim.errors import CosimError
     from cosim.runner import load
 
     t0 = time.perf_counter()
-    sc = load(path)
+    try:
+        sc = load(path)
+    except (CosimError, OSError) as e:
+        print(f"bench: {path.name} skipped: {e}", file=sys.stderr, flush=True)
+        return {"scenario": path.stem, "error": str(e)}
     t_load = time.perf_counter() - t0
     if not closed_loop(sc.system):
         return None

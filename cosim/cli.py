@@ -1,4 +1,4 @@
-"""``drillcosim`` command line: run, campaign, simulate, list, info, plot, validate, conformance."""
+"""``drillcosim`` command line: run, campaign, replay, simulate, list, info, plot, validate, conformance."""
 from __future__ import annotations
 
 import argparse
@@ -147,6 +147,33 @@ def cmd_campaign(args) -> int:
     return 0 if set(counts) <= {"completed", "stopped"} else 1
 
 
+def cmd_replay(args) -> int:
+    """A scenario's blocks and scores on a recording instead of its plant (:mod:`cosim.replay`)."""
+    from .errors import CosimError
+    from .outputs import write_json_atomic
+    from .replay import replay_scenario
+    from .runner import run_scenario
+    try:
+        sc, info = replay_scenario(_scenario_path(args.scenario), args.measurement, args.mapping,
+                                   _parse_set(args.set))
+        out = Path(args.out) if args.out else Path("results") / f"{sc.name}_replay"
+        result = run_scenario(sc, out_dir=out, progress=not args.quiet)
+    except (CosimError, ValueError, OSError) as e:
+        print(f"drillcosim: {e}", file=sys.stderr)
+        return 1
+    result.summary["replay"] = info
+    write_json_atomic(out / "summary.json", result.summary)
+    if not args.quiet:
+        s = result.summary
+        print(f"{s['scenario']} replayed on {Path(args.measurement).name}: t = {s['time_reached']:g} s, "
+              f"{s['steps']} steps, {s['wall_time_s']:.2f} s wall")
+        for what in info["dropped"]:
+            print(f"  not replayed: {what}")
+    print(f"csv: {out / 'data.csv'}")
+    print(f"summary: {out / 'summary.json'}")
+    return 0
+
+
 def cmd_list(args) -> int:
     from .scenario import describe
     d = Path(args.dir) if args.dir else scenario_dir()
@@ -234,39 +261,70 @@ def _start_values(items: list[str]) -> dict:
 
 
 def cmd_simulate(args) -> int:
-    """A bare FMU, as ``fmpy simulate`` / ``cosim run-single``: every output recorded."""
-    from fmpy import read_model_description
+    """A bare FMU, as ``fmpy simulate`` / ``cosim run-single``: every output recorded;
+    ``--input-file`` plays a CSV into its inputs (:mod:`cosim.input_file`)."""
     from .algorithm import simulate
     from .errors import CosimError
-    from .model_exchange import create_slave
-    from .recorder import Recorder
-    from .slave import resolve_fmu_path
-    from .system import System
     try:
-        path = resolve_fmu_path(args.fmu, Path.cwd())
-        de = read_model_description(str(path), validate=False).defaultExperiment
-        start = args.start_time if args.start_time is not None else float(de.startTime or 0) if de else 0.0
-        stop = args.stop_time if args.stop_time is not None else float(de.stopTime or 1) if de and de.stopTime else 1.0
-        step = args.step_size or (float(de.stepSize) if de and de.stepSize else (stop - start) / 500)
-        opts = {"solver": args.solver} if args.solver else {}
-        slave = create_slave("fmu", path, _start_values(args.start_values), interface=args.interface, **opts)
-        system = System(step_size=step, start_time=start)
-        name = slave.model.model_description.modelName or path.stem
-        system.add_fmu(_identifier(name), slave)
-        out = Path(args.output) if args.output else Path(f"{path.stem}_out.csv")
-        recorder = Recorder(["*"], out_dir=out.parent, csv_name=out.name)
+        system, path, stop, out, inputs = _simulate_system(args)
+    except (CosimError, OSError) as e:
+        print(f"drillcosim: {e}", file=sys.stderr)
+        return 1
+    except Exception as e:     # not a zip, bad XML, ...: as `info` says it
+        print(f"drillcosim: cannot read the FMU {args.fmu}: {type(e).__name__}: {e}", file=sys.stderr)
+        return 1
+    from .recorder import Recorder
+    recorder = Recorder(["*", *inputs], out_dir=out.parent, csv_name=out.name)
+    try:
         info = simulate(system, stop, recorder, progress=not args.quiet)
     except CosimError as e:
         print(f"drillcosim: {e}", file=sys.stderr)
         return 1
     finally:
-        if "recorder" in locals():
-            recorder.finish(write_mat=False)
+        recorder.finish(write_mat=False)
     if not args.quiet:
         print(f"{path.name}: {info.status} at t = {info.time_reached:g} s ({info.stop_reason}), "
-              f"{info.steps} steps of {step:g} s")
+              f"{info.steps} steps of {system.step_size:g} s")
     print(f"csv: {out}")
     return 0
+
+
+def _simulate_system(args):
+    """``(system, fmu path, stop time, output CSV, recorded input signals)`` of ``simulate``."""
+    from fmpy import read_model_description
+    from .errors import ScenarioError
+    from .model_exchange import create_slave
+    from .slave import resolve_fmu_path
+    from .system import System
+    path = resolve_fmu_path(args.fmu, Path.cwd())
+    de = read_model_description(str(path), validate=False).defaultExperiment
+    start = args.start_time if args.start_time is not None else float(de.startTime or 0) if de else 0.0
+    stop = args.stop_time if args.stop_time is not None else float(de.stopTime or 1) if de and de.stopTime else 1.0
+    step = args.step_size or (float(de.stepSize) if de and de.stepSize else (stop - start) / 500)
+    opts = {"solver": args.solver} if args.solver else {}
+    slave = create_slave("fmu", path, _start_values(args.start_values), interface=args.interface, **opts)
+    system = System(step_size=step, start_time=start)
+    name = _identifier(slave.model.model_description.modelName or path.stem)
+    system.add_fmu(name, slave)
+    out = Path(args.output) if args.output else Path(f"{path.stem}_out.csv")
+    if not args.input_file:
+        return system, path, stop, out, []
+    from .input_file import InputFile, check_span, connect_columns
+    try:
+        block = InputFile(args.input_file, args.interpolation, into=name)
+    except ScenarioError:
+        raise                  # names the file already
+    except ValueError as e:
+        raise ScenarioError(str(e), args.input_file) from None
+    system.add_block("input", block)
+    try:
+        connect_columns(system, "input", block)
+    except ScenarioError as e:
+        raise ScenarioError(e.detail) from None        # names the file and the column
+    gap = check_span(block, start, stop, step)
+    if gap:
+        raise ScenarioError(gap, args.input_file)
+    return system, path, stop, out, [f"input.{p.name}" for p in block.outputs]
 
 
 def _identifier(name: str) -> str:
@@ -277,7 +335,8 @@ def _identifier(name: str) -> str:
 
 def cmd_conformance(args) -> int:
     from .conformance import main as conformance_main
-    return conformance_main(["--no-write"] if args.no_write else [])
+    return conformance_main((["--no-write"] if args.no_write else [])
+                            + (["--reference-fmus", args.reference_fmus] if args.reference_fmus else []))
 
 
 def cmd_commission(args) -> int:
@@ -350,6 +409,17 @@ def build_parser() -> argparse.ArgumentParser:
                         "stay; a run that failed or crashed keeps its data)")
     _add_limits(c)
     c.set_defaults(func=cmd_campaign)
+    rp = sub.add_parser("replay", help="run a scenario's observers, detector and controllers on a recording "
+                                       "(CSV) instead of its plant FMU; scores where the recording allows")
+    rp.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
+    rp.add_argument("--measurement", required=True, metavar="CSV", help="the recording: first column time [s], "
+                    "columns <plant>.<role> (e.g. stage.table_position [m]); .csv or .csv.gz")
+    rp.add_argument("--mapping", metavar="TOML", help="which column is which plant signal, with units "
+                    "([columns] table_position = { column = \"z\", unit = \"mm\" })")
+    rp.add_argument("--out", help="output folder (default results/<scenario name>_replay)")
+    rp.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override a scenario key")
+    rp.add_argument("--quiet", action="store_true", help="no progress bar, only the paths")
+    rp.set_defaults(func=cmd_replay)
     li = sub.add_parser("list", help="list the scenarios with their description")
     li.add_argument("--dir", help="folder of scenario files (default scenarios/)")
     li.set_defaults(func=cmd_list)
@@ -366,6 +436,11 @@ def build_parser() -> argparse.ArgumentParser:
     sm.add_argument("--interface", choices=["CS", "ME"], type=str.upper,
                     help="co-simulation or Model Exchange (default: CS when the FMU offers it)")
     sm.add_argument("--solver", choices=["rk4", "cvode"], help="Model Exchange solver (default cvode)")
+    sm.add_argument("--input-file", metavar="CSV", help="play a CSV into the FMU's inputs, as fmpy simulate "
+                    "--input-file: first column time [s], the others named after inputs; units from "
+                    "'name [unit]' or <name>.columns.json; recorded as input.<name>")
+    sm.add_argument("--interpolation", choices=["linear", "hold"], default="linear",
+                    help="between the input file's rows: linear (default, as FMPy) or hold (zero-order)")
     sm.add_argument("--quiet", action="store_true", help="no progress bar, only the CSV path")
     sm.set_defaults(func=cmd_simulate)
     i = sub.add_parser("info", help="FMI version, kind, variables of an FMU (path or built-in name)")
@@ -395,6 +470,9 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("conformance", help="run the Modelica Reference-FMUs against fmpy and rewrite "
                                            "the table in docs/conformance.md")
     c.add_argument("--no-write", action="store_true", help="print the table only")
+    c.add_argument("--reference-fmus", metavar="PATH", help="the Reference-FMUs-*.tar.gz source archive or its "
+                   "folder (default: $DRILLCOSIM_REFERENCE_FMUS, else reference-fmus/ or shared/reference-fmus/ "
+                   "in or above the checkout or the working directory)")
     c.set_defaults(func=cmd_conformance)
     return p
 

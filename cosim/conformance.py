@@ -6,8 +6,9 @@ with rk4 and cvode -- and compares every numeric output with ``fmpy.simulate_fmu
 the same grid. ``python -m cosim.conformance`` (or ``drillcosim conformance``)
 regenerates the table in docs/conformance.md; tests/test_conformance.py asserts it.
 
-Where the archive is found: ``$DRILLCOSIM_REFERENCE_FMUS`` (the .tar.gz or its folder),
-``<repo>/../shared/reference-fmus``, ``/work/shared/reference-fmus``. Builds are cached
+Where the archive is found (:func:`search_paths`): ``--reference-fmus PATH``,
+``$DRILLCOSIM_REFERENCE_FMUS`` (the .tar.gz or its folder), else ``reference-fmus/`` or
+``shared/reference-fmus/`` in or above the checkout or the working directory. Builds are cached
 in ``fmus/build/reference/<archive hash>/`` (with the archive's LICENSE.txt), so the
 build happens once per archive, not per run.
 """
@@ -36,13 +37,28 @@ BEGIN, END = "<!-- conformance table: begin -->", "<!-- conformance table: end -
 
 
 # -- source and build ---------------------------------------------------------------------
-def find_archive() -> Path | None:
-    """The Reference-FMUs source archive, or None (see module docstring for where)."""
-    candidates = []
+def search_paths(explicit: str | Path | None = None) -> list[Path]:
+    """Where the archive is looked for, in order: ``explicit`` (``--reference-fmus``),
+    ``$DRILLCOSIM_REFERENCE_FMUS``, then ``reference-fmus/`` and ``shared/reference-fmus/``
+    in the checkout (or installed package) folder, the working directory and each of their
+    parents -- a shared folder beside a set of checkouts is found from any of them, with no
+    machine's path written here."""
+    out = [Path(explicit)] if explicit else []
     if os.environ.get(ENV):
-        candidates.append(Path(os.environ[ENV]))
-    candidates += [REPO.parent / "shared" / "reference-fmus", Path("/work/shared/reference-fmus")]
-    for c in candidates:
+        out.append(Path(os.environ[ENV]))
+    seen = set()
+    for start in (REPO, Path.cwd()):
+        for d in (start, *start.parents):
+            for c in (d / "reference-fmus", d / "shared" / "reference-fmus"):
+                if c not in seen:
+                    seen.add(c)
+                    out.append(c)
+    return out
+
+
+def find_archive(explicit: str | Path | None = None) -> Path | None:
+    """The Reference-FMUs source archive, or None (where: :func:`search_paths`)."""
+    for c in search_paths(explicit):
         if c.is_file():
             return c
         hits = sorted(c.glob(ARCHIVE_GLOB)) if c.is_dir() else []
@@ -51,22 +67,28 @@ def find_archive() -> Path | None:
     return None
 
 
-def why_unavailable() -> str | None:
+def why_unavailable(explicit: str | Path | None = None) -> str | None:
     """Why the Reference-FMUs cannot be built here, or None."""
-    if find_archive() is None:
-        return (f"Reference-FMUs source archive ({ARCHIVE_GLOB}) not found: set ${ENV} or put it in "
-                f"{REPO.parent / 'shared' / 'reference-fmus'}")
+    if explicit and not Path(explicit).exists():
+        return f"--reference-fmus {explicit}: no such file or folder (expected {ARCHIVE_GLOB} or its folder)"
+    if find_archive(explicit) is None:
+        places = search_paths(explicit)
+        return (f"Reference-FMUs source archive ({ARCHIVE_GLOB}) not found in {places[0]}, {places[1]}, ... "
+                f"({len(places)} places: reference-fmus/ and shared/reference-fmus/ in the checkout, the "
+                f"working directory and their parents): pass --reference-fmus PATH or set ${ENV}")
     for tool in ("cmake", "cc"):
         if shutil.which(tool) is None and not (tool == "cc" and shutil.which("gcc")):
             return f"'{tool}' is not on PATH (needed to build the Reference-FMUs)"
     return None
 
 
-def build(jobs: int = 2, quiet: bool = True) -> dict[tuple[int, str], Path]:
-    """Build (or reuse) the Reference-FMUs: ``{(fmi_version, model): fmu path}``."""
-    archive = find_archive()
-    if archive is None:
-        raise FileNotFoundError(why_unavailable())
+def build(jobs: int = 2, quiet: bool = True, archive: str | Path | None = None) -> dict[tuple[int, str], Path]:
+    """Build (or reuse) the Reference-FMUs: ``{(fmi_version, model): fmu path}``;
+    ``archive``: the archive or its folder (default: :func:`find_archive`)."""
+    found = find_archive(archive)
+    if found is None:
+        raise FileNotFoundError(why_unavailable(archive))
+    archive = found
     digest = hashlib.sha256(archive.read_bytes()).hexdigest()[:12]
     root = CACHE / digest
     src = root / "src"
@@ -289,12 +311,15 @@ def main(argv=None) -> int:
                                 description="Run the Reference-FMUs through the master, compare with fmpy, "
                                             "and rewrite the table in docs/conformance.md")
     p.add_argument("--no-write", action="store_true", help="print the table only")
+    p.add_argument("--reference-fmus", metavar="PATH", help=f"the {ARCHIVE_GLOB} archive or its folder "
+                   f"(default: ${ENV}, else reference-fmus/ or shared/reference-fmus/ in or above the checkout "
+                   "or the working directory)")
     args = p.parse_args(argv)
-    why = why_unavailable()
+    why = why_unavailable(args.reference_fmus)
     if why:
         print(f"conformance: {why}", file=sys.stderr)
         return 1
-    rows = run_all(build())
+    rows = run_all(build(archive=args.reference_fmus))
     print(table(rows))
     if not args.no_write:
         write_doc(rows)

@@ -280,6 +280,8 @@ class Recorder:
         result = Result(cols[0], self.columns, cols[1:], self.units, self.out_dir, types=self.types)
         if write_mat and self.out_dir is not None:
             write_mat_file(result, self.out_dir / "data.mat")
+            from .modelica_mat import write_modelica_mat      # OMEdit, DyMat, buildingspy read this one
+            write_modelica_mat(result, self.out_dir / "data_res.mat")
         return result
 
 

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import AlgebraicLoopError, CosimError, ScenarioError
+from .input_file import InputFile, check_span, connect_columns
 from .manipulators import Event, parse_condition, setter_for
 from .model_exchange import SOLVERS, create_slave, load_any_model
 from .paths import PATH_SETTING, resolve, scenario_path
@@ -319,6 +320,7 @@ def _construct_block(cls, name: str, spec: dict, c: _Checker):
         if not takes:
             raise c.error(f"{key}.sample_period", f"{cls.__name__}() takes no sample_period argument")
         settings["sample_period"] = float(spec["sample_period"])
+    _check_setting_types(cls, key, settings, c)
     try:
         return cls(**settings)
     except TypeError as e:
@@ -330,6 +332,43 @@ def _construct_block(cls, name: str, spec: dict, c: _Checker):
     except Exception as e:     # an assertion of the block's own checks, ...: still the settings' fault
         raise c.error(f"{key}.settings", f"{cls.__name__}(**settings) failed: {type(e).__name__}: "
                                          f"{e}") from None
+
+
+def _check_setting_types(cls, key: str, settings: dict, c: _Checker) -> None:
+    """A setting whose parameter defaults to a number or a bool must be one: ``Kf = "abc"``
+    (an unquoted --set value that is no TOML number) is named here, before the block's own
+    code compares a string with a number."""
+    try:
+        params = inspect.signature(cls).parameters
+    except (TypeError, ValueError):        # a builtin or C class: nothing to compare with
+        return
+    for name, value in settings.items():
+        default = params[name].default if name in params else inspect.Parameter.empty
+        if isinstance(default, bool):
+            ok, want = isinstance(value, bool), "true or false"
+        elif isinstance(default, (int, float)):
+            ok, want = isinstance(value, (int, float)) and not isinstance(value, bool), "a number"
+        else:
+            continue
+        if not ok:
+            raise c.error(f"{key}.settings.{name}", f"expected {want} (the default of {cls.__name__}'s "
+                                                     f"{name} is {default!r}), got {_show(value)}")
+
+
+def _wire_input_files(system: System, stop_time: float, c: _Checker) -> None:
+    """Input-file blocks (:class:`cosim.input_file.InputFile`): the file covers the run, and
+    with ``into`` each column is connected to the input it names."""
+    for name, block in system.blocks.items():
+        if not isinstance(block, InputFile):
+            continue
+        gap = check_span(block, system.start_time, stop_time, system.step_size)
+        if gap:
+            raise c.error(f"blocks.{name}.settings.input_file", f"{block.table.path}: {gap}")
+        if block.into:
+            try:
+                connect_columns(system, name, block)
+            except ScenarioError as e:
+                raise c.error(f"blocks.{name}.{e.key}", e.detail) from None
 
 
 def _fmu_error_key(spec: dict, opts: dict, message: str) -> str:
@@ -467,6 +506,7 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
         except ScenarioError as e:
             raise c.error(f"{key}.{e.key}" if e.key else key, e.detail) from None
 
+    _wire_input_files(system, float(sc["stop_time"]), c)
     for i, spec in enumerate(raw.get("connections", [])):
         try:
             system.connect(spec["from"], spec["to"], spec.get("scale"), spec.get("offset"))
@@ -669,11 +709,11 @@ def _override_path(key: str) -> str:
 
 
 def _check_override_targets(raw: dict, overrides: dict | None, file: str) -> None:
-    """An override below ``fmus.<x>`` needs that FMU, unless the overrides create it whole
-    (with its ``path`` or ``plant``): a typo in the instance name is named as such, not as
-    a missing key of a new table."""
+    """An override below ``fmus.<x>`` / ``blocks.<x>`` needs that FMU / block, unless the
+    overrides create it whole (with its ``path`` or ``plant`` / its ``class``): a typo in
+    the instance name is named as such, not as a missing key of a new table."""
     keys = [_override_path(k) for k in overrides or {}]
-    for section, needs in (("fmus", ("path", "plant")),):
+    for section, needs in (("fmus", ("path", "plant")), ("blocks", ("class",))):
         have = raw.get(section) if isinstance(raw.get(section), dict) else {}
         for k in keys:
             parts = k.split(".")

@@ -1,6 +1,9 @@
 """Signal sources for scenarios: blocks with no inputs and one output ``y``.
 
-Each takes ``unit`` (the unit of ``y``, so that the connection's unit check can pass)
+``InputFile`` plays the columns of a CSV (a drive trace, a recorded run) with hold or
+linear interpolation: :mod:`cosim.input_file`.
+
+Each other source takes ``unit`` (the unit of ``y``, so that the connection's unit check can pass)
 and ``sample_period`` [s]. A source's output depends on time only, so none is direct
 feed-through. Settings are plain attributes: an event may change them
 (``set = "command.value"``).
@@ -11,6 +14,7 @@ import bisect
 import math
 
 from .block import Block, Port
+from .input_file import InputFile  # noqa: F401  (a source too: ``class = "cosim.sources:InputFile"``)
 
 
 class _Source(Block):
