@@ -36,7 +36,6 @@ import numpy as np
 NAN = float("nan")
 ENTRY, INTERFACE, EXIT = "entry", "interface", "exit"
 MIN_SEGMENT = 3           # samples: a line through fewer points has no residual to judge it by
-STEEP_SHARE = 0.3         # a segment that carries this share of the largest change is part of a transition
 AIR_SHARE = 0.5           # a level below this share of its neighbours' plateaus (above air) is air (a gap)
 
 
@@ -151,23 +150,6 @@ class Fit:
         return max(0.5 * float(hi - lo), step)
 
 
-def _steepest(fit: Fit, sign: float, lo: int = 0, hi: int | None = None) -> int:
-    """The segment in lo..hi-1 whose thrust changes most in the direction ``sign``."""
-    hi = len(fit.lines) if hi is None else hi
-    return max(range(lo, hi), key=lambda s: sign * fit.change(s))
-
-
-def _meet(fit: Fit, s: int, a: float, b: float, lo: float, hi: float) -> float:
-    """Position [m] where line s meets the line F = a + b x, kept within [lo, hi]: the
-    corner of a ramp against the level it leaves or reaches. The steepest segment's line,
-    not the segment bound, so that a ramp rounded at its ends by the observer's lag, or a
-    tail of ringing after the exit, does not move the corner."""
-    a1, b1 = fit.lines[s]
-    if b1 == b:
-        return NAN
-    return float(min(max((a - a1) / (b1 - b), lo), hi))
-
-
 def _gap(fit: Fit, air: float) -> tuple[int, int] | None:
     """(first, last) segment at the air level between two cut plateaus, or None."""
     m = len(fit.lines)
@@ -180,50 +162,124 @@ def _gap(fit: Fit, air: float) -> tuple[int, int] | None:
     return (inside[0], inside[-1]) if inside else None
 
 
-def _onset(fit: Fit, sign: float) -> tuple[float, float]:
-    """A ramp leaving the plateau before it: the steepest segment's line against the
-    line of the segment before the ramp (the ramp may be split by the fit)."""
-    s = _steepest(fit, sign)
-    a = s
-    while a > 0 and sign * fit.change(a - 1) >= STEEP_SHARE * sign * fit.change(s):
-        a -= 1
-    if a == 0:
-        return NAN, NAN
-    x0, x1 = fit.x[fit.bounds[a - 1]], fit.x[fit.bounds[s + 1] - 1]
-    return _meet(fit, s, *fit.lines[a - 1], x0, x1), fit.corner_uncertainty(a)
+# ---------------------------------------------------------------- ramp templates
+# The thrust's shape where the cut front crosses a face, for drives the project was not
+# built on: a ramp linear in the engaged length (the project's drive) or a smoothstep (a
+# rounded cutting edge); a push-out falling linearly (a plate thinning out) or
+# quadratically (ligament yield) with the remaining thickness, or at once (a layer that
+# breaks off). The lengths are estimated, not assumed: a grid of them is fitted.
+ENGAGE_LENGTHS = np.geomspace(0.01e-3, 0.6e-3, 25)      # m, ratio 1.19
+PUSH_OUT_LENGTHS = np.geomspace(0.005e-3, 1.0e-3, 30)   # m, ratio 1.2
+COARSE_STEP = 10e-6                                     # m, positions tried for a face first,
+GRID_STEP = 1e-6                                        # m, then around the best of them
 
 
-def locate(kind: str, x, F, *, air: float = 0.0, sign: float = 1.0, segments: int | None = None):
+def _smoothstep(u):
+    u = np.clip(u, 0.0, 1.0)
+    return u * u * (3.0 - 2.0 * u)
+
+
+ENGAGE_SHAPES = (lambda u: np.clip(u, 0.0, 1.0), _smoothstep)
+PUSH_OUT_SHAPES = (lambda r: np.clip(r, 0.0, 1.0), lambda r: np.clip(r, 0.0, 1.0) ** 2)
+
+
+def _lstsq_batch(cols, F):
+    """Residual sum of squares of F against the columns, for a batch of designs: each
+    column has shape (G, n); returns (G,). A column that vanishes (a face outside the
+    samples) only drops out of the fit."""
+    C = np.stack(cols, axis=1)                            # (G, k, n)
+    M = C @ C.transpose(0, 2, 1)                          # (G, k, k)
+    r = C @ F                                             # (G, k)
+    M += np.eye(len(cols)) * (1e-9 * np.trace(M, axis1=1, axis2=2) + 1e-30)[:, None, None]
+    coef = np.linalg.solve(M, r[..., None])[..., 0]
+    return float(F @ F) - np.einsum("gk,gk->g", coef, r)
+
+
+def _best_face(lo, hi, sse_of, lengths, shapes, n: int):
+    """The face position in [lo, hi] minimising the residual over every length and shape
+    (a coarse grid of positions and lengths, then a fine one around its best), and the
+    half-width of the positions whose best fit is worse by less than one residual
+    variance (at least one grid step)."""
+    def best_on(positions, lengths_):
+        best, arg = np.full(positions.size, np.inf), np.zeros(positions.size)
+        for L in lengths_:
+            for shape in shapes:
+                c = sse_of(positions[:, None], L, shape)
+                arg = np.where(c < best, L, arg)
+                best = np.minimum(best, c)
+        return best, arg
+
+    coarse = np.arange(lo, hi + 0.5 * COARSE_STEP, COARSE_STEP)
+    bc, Lc = best_on(coarse, lengths)
+    i = int(np.argmin(bc))
+    ratio = lengths[1] / lengths[0]
+    fine = np.arange(max(lo, coarse[i] - 2 * COARSE_STEP), min(hi, coarse[i] + 2 * COARSE_STEP) + 0.5 * GRID_STEP,
+                     GRID_STEP)
+    bf, _ = best_on(fine, Lc[i] * np.geomspace(1.0 / ratio, ratio, 9))
+    xf = float(fine[int(np.argmin(bf))])
+    var = bf.min() / max(n - 4, 1)
+    ok = np.concatenate((coarse[bc <= bf.min() + var], fine[bf <= bf.min() + var]))
+    return xf, max(0.5 * float(ok.max() - ok.min()), GRID_STEP)
+
+
+def onset_face(x, F, lo: float, hi: float) -> tuple[float, float]:
+    """Position [m] in [lo, hi] where the thrust leaves a level (with a trend) for a ramp
+    of fitted length and shape, and its uncertainty [m]."""
+    def sse(x0, L, shape):
+        d = (x[None, :] - x0) / L
+        return _lstsq_batch([np.ones_like(d), d, shape(d)], F)
+
+    return _best_face(lo, hi, sse, ENGAGE_LENGTHS, ENGAGE_SHAPES, x.size)
+
+
+def free_face(x, F, lo: float, hi: float, air: float) -> tuple[float, float]:
+    """Position [m] in [lo, hi] where a layer pushed out ahead of the tool runs out: its
+    thrust (a level with a trend) falls to the air level over a fitted length and law
+    and stays there; and its uncertainty [m]."""
+    Fa = F - air
+
+    def sse(xb, L, shape):
+        r = (xb - x[None, :]) / L
+        g = shape(r)
+        return _lstsq_batch([g, r * g], Fa)
+
+    return _best_face(lo, hi, sse, PUSH_OUT_LENGTHS, PUSH_OUT_SHAPES, x.size)
+
+
+def locate(kind: str, x, F, *, air: float = 0.0, sign: float = 1.0, x_trig: float | None = None):
     """Located position [m] of an event and its uncertainty [m] from the samples around
     its trigger: table positions ``x`` [m] (increasing along the feed), observed thrust
     ``F`` [N]. ``kind``: "entry", "interface" or "exit"; ``air`` [N]: the observed thrust
     with the tool in air (before the entry); ``sign``: +1 when the next layer cuts
-    harder (an interface whose thrust rises), -1 softer. (NaN, NaN) when there are too
-    few samples for the fit."""
+    harder (an interface whose thrust rises), -1 softer (kept for the record: a fitted
+    ramp has either sign); ``x_trig`` [m]: where the detector fired (an onset lies
+    before it; default the window's middle). (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
     x, F = np.asarray(x, float), np.asarray(F, float)
     ok = np.isfinite(x) & np.isfinite(F)
     x, F = x[ok], F[ok]
-    m = segments or (3 if kind == ENTRY else 5)
-    if x.size < m * MIN_SEGMENT * 2:
+    if x.size < 5 * MIN_SEGMENT * 2:
         return NAN, NAN
-    fit = Fit(x, F, m)
     x0, x1 = float(x[0]), float(x[-1])
+    xt = 0.5 * (x0 + x1) if x_trig is None else float(x_trig)
     if kind == ENTRY:
-        return _onset(fit, +1.0)
-    if kind == EXIT:       # the last layer thins out: its fall reaches the air level at the face
-        s = _steepest(fit, -1.0)
-        return _meet(fit, s, air, 0.0, x0, x1), fit.corner_uncertainty(min(s + 1, m - 1))
+        return onset_face(x, F, x0, min(xt, x1))
+    if kind == EXIT:
+        return free_face(x, F, x0, x1, air)
+    fit = Fit(x, F, 5)
     gap = _gap(fit, air)
     if gap is None:
-        return _onset(fit, sign)
-    # the upper layer's fall reaches air at its free face, the lower one's rise leaves it
+        return onset_face(x, F, x0, min(xt, x1))
+    # the upper layer runs out at its free face, the lower one's rise leaves the air level
     # at its face: the middle of the two is inside the gap whatever its width
-    fall, rise = _steepest(fit, -1.0, 0, gap[0] + 1), _steepest(fit, +1.0, gap[1], m)
-    lo, hi = _meet(fit, fall, air, 0.0, x0, x1), _meet(fit, rise, air, 0.0, x0, x1)
-    return 0.5 * (lo + hi), 0.5 * abs(hi - lo) + max(fit.corner_uncertainty(max(fall, 1)),
-                                                     fit.corner_uncertainty(max(rise, 1)))
+    mid = 0.5 * (fit.x[fit.bounds[gap[0]]] + fit.x[fit.bounds[gap[1] + 1] - 1])
+    up, down = x <= mid, x >= mid
+    if up.sum() < 2 * MIN_SEGMENT or down.sum() < 2 * MIN_SEGMENT:
+        return NAN, NAN
+    lo, dlo = free_face(x[up], F[up], x0, mid, air)
+    hi, dhi = onset_face(x[down], F[down], mid, x1)
+    return 0.5 * (lo + hi), 0.5 * abs(hi - lo) + max(dlo, dhi)
 
 
 def time_at(t, x, x_loc: float) -> float:
