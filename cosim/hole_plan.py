@@ -157,8 +157,8 @@ class HolePlan:
         """Each layer, at its thinnest, must hold what the detector needs in it (errors
         name the layer): its regression window at the layer's feed after the engagement
         (``window_s`` [s]: the detector re-arms once its window lies on the new level),
-        ORBITS_PER_LAYER orbits (the observer tells the ripple from the level), and the
-        localisation windows reaching into it (after the event above: locate_margin, plus
+        ORBITS_PER_LAYER orbits (the observer tells the ripple from the level), and each
+        localisation window reaching into it (after the event above: locate_margin, plus
         gap_tolerance after an interface; before the exit: push_out + locate_margin)."""
         n = len(self.layers)
         for k, layer in enumerate(self.layers):
@@ -177,11 +177,13 @@ class HolePlan:
                                  f"{p['orbital_speed']:g} rpm is too slow for layer {k + 1} ({mat}, {1e3 * thin:.2f} mm "
                                  f"at its thinnest): {orbits:.2f} orbits in it, the observer needs "
                                  f"{ORBITS_PER_LAYER:g} to tell its orbital ripple from its thrust")
-            loc = self.locate_margin + (self.gap_tolerance if k > 0 else 0.0) \
-                + (self.push_out + self.locate_margin if k == n - 1 else 0.0)
+            # the window after the event above it, the exit's before it (each is clipped at
+            # the event before it, so only a window longer than the layer is wrong)
+            loc = max(self.locate_margin + (self.gap_tolerance if k > 0 else 0.0),
+                      self.push_out + self.locate_margin if k == n - 1 else 0.0)
             if thin < loc:
                 raise self.error(f"{where}.thickness", f"{mat} layer {k + 1} is {1e3 * thin:.2f} mm at its thinnest, "
-                                 f"shorter than the localisation windows that reach into it ({1e3 * loc:.2f} mm: "
+                                 f"shorter than a localisation window that reaches into it ({1e3 * loc:.2f} mm: "
                                  f"hole.locate_margin, hole.gap_tolerance, hole.push_out)")
 
     # ------------------------------------------------------------------ derived

@@ -57,11 +57,11 @@ def test_plan_more_than_four_layers_and_missing_process():
      "hole.layers[0].thickness", "regression window"),
     # Ti: 3.95 mm at 9 mm/min is 26 s, at 3 rpm 1.3 orbits
     ({"hole.process.ti.orbital_speed": 3.0}, "hole.process.ti.orbital_speed", "orbits"),
-    # a 1.2 mm push-out: 0.3 + 0.5 (gap) + 1.5 mm of windows in a Ti layer of 1.8 mm
-    ({"hole.push_out": 1.2e-3, "hole.layers": [
+    # a 1.6 mm push-out: 1.9 mm of window before the exit in a Ti layer of 1.8 mm
+    ({"hole.push_out": 1.6e-3, "hole.layers": [
         {"material": "cfrp", "thickness": 5.0e-3, "tolerance": 0.6e-3},
         {"material": "ti", "thickness": 2.0e-3, "tolerance": 0.2e-3}]},
-     "hole.layers[1].thickness", "localisation windows"),
+     "hole.layers[1].thickness", "localisation window"),
 ])
 def test_plan_layer_too_thin_for_the_detector_names_the_layer(overrides, where, words):
     """Issue 23: a layer the detector cannot work in at the plan's process is refused at
