@@ -316,15 +316,29 @@ _DET = ("t_entry", "t_interface1", "t_interface2", "t_interface3", "t_exit", "t_
         "t_exit_thinning", "fail", "fail_code", "flag", "t_fail", "x_fail")
 
 
+_LOC = tuple(f"{q}_{ev}_loc" for ev in ("entry", "interface1", "interface2", "interface3", "exit")
+             for q in ("t", "dx", "tknown"))
+
+
+def _event_dz(t, x_tool, xa, xb, td):
+    """Depth error [m] of a detection at time td against the event between the tool-tip
+    positions xa and xb (a gap: anywhere between the faces is exact, else to the nearer)."""
+    x_det = interp_at(t, x_tool, td)
+    return x_det - xa if not x_det > xa else max(x_det - xb, 0.0) if math.isfinite(xb) else x_det - xa
+
+
 @needs("{plant}.tool_position_true", "{plant}.layer_index", *(f"{{detector}}.{n}" for n in _DET),
-       "{adapt}.failsafe", "{adapt}.t_failsafe")
+       *(f"{{detector}}.{n}" for n in _LOC), "{adapt}.failsafe", "{adapt}.t_failsafe")
 def score_stack(result, plant="drive", detector="detector", adapt="adapt", materials=("cfrp", "ti"),
                 plan_windows=None, match_tolerance=1.0e-3, fail_action="hold"):
     """Score of one hole of a hole plan (appended by :mod:`cosim.hole_plan`).
 
     Per event (entry, interface1.., exit; ``events`` names the materials on both sides):
-    true and detected time and the depth error ``<event>_dz_mm`` (tool-tip travel between
-    the true and the detected time; negative = early). A detection more than
+    true, trigger and located time; the depth error of the *located* position
+    ``<event>_dz_mm`` (tool-tip travel between the true time and the time the encoder
+    passed the located position; negative = early; NaN when the event was not located)
+    and of the trigger ``<event>_trigger_dz_mm``; the located position's uncertainty and
+    how long after the trigger it was known (``events``). A detection more than
     ``match_tolerance`` [m] from its true event is a *false* event and its true event
     *missed*; an event the tool passed but the detector did not report is missed; a flag
     before the tool touched the stack is false. ``missed_events`` / ``false_events``:
@@ -348,10 +362,17 @@ def score_stack(result, plant="drive", detector="detector", adapt="adapt", mater
         # inside a gap (between the two faces) counts as exact: the tool is between materials
         xa, xb, x_det = interp_at(t, x_tool, ta), interp_at(t, x_tool, tb), interp_at(t, x_tool, td)
         tt = ta if math.isfinite(ta) else tb
-        dz = x_det - xa if not x_det > xa else max(x_det - xb, 0.0) if math.isfinite(xb) else x_det - xa
+        dz = _event_dz(t, x_tool, xa, xb, td)
+        t_loc = last_value(result[f"{detector}.t_{name}_loc"])
         events[name] = {"between": label, "t_true_s": [ta, tb], "t_det_s": td,
-                        "x_true_mm": [1e3 * xa, 1e3 * xb], "x_det_mm": 1e3 * x_det}
-        out[f"{name}_dz_mm"] = 1e3 * dz
+                        "x_true_mm": [1e3 * xa, 1e3 * xb], "x_det_mm": 1e3 * x_det,
+                        "t_loc_s": t_loc, "x_loc_mm": 1e3 * interp_at(t, x_tool, t_loc),
+                        "loc_uncertainty_mm": 1e3 * last_value(result[f"{detector}.dx_{name}_loc"]),
+                        "loc_known_after_s": last_value(result[f"{detector}.tknown_{name}_loc"]) - td}
+        # the located position is the event's position (process record); the trigger's
+        # is when the adaptation acted
+        out[f"{name}_dz_mm"] = 1e3 * _event_dz(t, x_tool, xa, xb, t_loc)
+        out[f"{name}_trigger_dz_mm"] = 1e3 * dz
         if math.isfinite(td) and not (math.isfinite(dz) and abs(dz) <= match_tolerance):
             false.append(name)
             if math.isfinite(tt):

@@ -20,6 +20,18 @@ entry, interfaces and exit, the counts of missed / false events and of false fai
 against the bars (0 / 0 / 0; entry <= 0.094 mm, every interface <= 0.073 mm, exit <= 0.2 mm).
 
     python -m analysis.stack_montecarlo --holes 200 --workers 2     # the table + figure in docs/
+
+``--draw wide`` (issue 23) draws the plan itself too, on a plant of ``--plant`` (the
+project's ball-screw drive, or the foreign one of fmus/foreign): 1-4 layers of any of
+CFRP / Ti / Al with no equal neighbours, nominal 1-8 mm (tolerance 15 %, true thickness
+within it), gaps to 1 mm, per material a feed of 5-24 mm/min, a spindle speed giving
+3-15 um/rev and an orbit of 0.5-5 Hz, wear 0-80 holes; on the project's drive also its
+engagement length (0.05-0.35 mm) and exit push-out (0.1-0.5 mm). A plan the hole plan
+refuses at load (a layer too thin for the detector at its feed, too few orbits) is
+redrawn and counted (``refused``). Located errors (``<event>_dz_mm``) and the trigger's
+(``<event>_trigger_dz_mm``) are summarised per plant, event and the materials around it:
+worst, 95th percentile and mean (bias), against issue 23's bars (entry 0.05, every
+interface 0.03, exit 0.1 mm; bias within +-0.01 mm).
 """
 from __future__ import annotations
 
@@ -39,6 +51,13 @@ TYPES = ("cfrp_ti", "ti_cfrp", "cfrp_al", "cfrp_ti_cfrp", "cfrp_al_ti")
 MATERIAL_CODE = {"cfrp": 1, "ti": 2, "al": 3}
 BARS_MM = {"entry": 0.094, "interface": 0.073, "exit": 0.2}
 PLANT_PARAMETERS = "fmus.drive.plant_parameters."
+WIDE_BARS_MM = {"entry": 0.05, "interface": 0.03, "exit": 0.1}
+WIDE_BIAS_MM = 0.01
+WIDE = {"layers": (1, 4), "nominal_mm": (1.0, 8.0), "tolerance": 0.15, "gap_mm": (0.0, 1.0),
+        "feed_mm_min": (5.0, 24.0), "fpr_um": (3.0, 15.0), "orbit_hz": (0.5, 5.0), "wear_holes": (0, 80),
+        "engage_mm": (0.05, 0.35), "exit_thinning_mm": (0.1, 0.5)}
+PLANTS = {"project": "cfrp_ti.toml", "foreign_ballscrew": "foreign_cfrp_ti.toml"}
+PLANT_OPTIONS = {"project": ("engage_length", "exit_thinning")}    # FMU parameters drawn (SI)
 RANGES = {"thickness": 0.10, "gap_m": (0.0, 0.5e-3), "feed_mm_min": (6.0, 24.0), "orbit_hz": (1.0, 4.0),
           "wear_holes": (0, 40)}
 
@@ -73,13 +92,88 @@ def draw_hole(stack_type: str, rng: np.random.Generator, feed_range=RANGES["feed
     return ov
 
 
+def _wide_plan(rng: np.random.Generator) -> tuple[list, dict, list]:
+    """A drawn hole plan: its layers, its process per material, the true gaps [m]."""
+    n = int(rng.integers(WIDE["layers"][0], WIDE["layers"][1] + 1))
+    mats = [str(rng.choice(list(MATERIAL_CODE)))]
+    while len(mats) < n:
+        mats.append(str(rng.choice([m for m in MATERIAL_CODE if m != mats[-1]])))
+    layers = []
+    for m in mats:
+        nominal = 1e-3 * rng.uniform(*WIDE["nominal_mm"])
+        layers.append({"material": m, "thickness": nominal, "tolerance": WIDE["tolerance"] * nominal})
+    process = {}
+    for m in dict.fromkeys(mats):
+        feed = rng.uniform(*WIDE["feed_mm_min"])                                # mm/min
+        fpr = 1e-3 * rng.uniform(*WIDE["fpr_um"])                               # mm/rev
+        process[m] = {"feed_rate": feed / 6e4, "spindle_speed": feed / fpr,
+                      "orbital_speed": 60.0 * rng.uniform(*WIDE["orbit_hz"])}
+    gaps = [0.0] + [1e-3 * rng.uniform(*WIDE["gap_mm"]) for _ in mats[1:]]
+    return layers, process, gaps
+
+
+def plan_refusal(base_plan: dict, layers: list, process: dict) -> str | None:
+    """Why the hole plan refuses this drawn plan at load, or None (the same checks as the
+    scenario loader: cosim.hole_plan)."""
+    from cosim.hole_plan import DETECTOR_DT, DETECTOR_N, HolePlan
+
+    class Refused(Exception):
+        pass
+
+    hole = {**base_plan, "layers": layers, "gap_tolerance": 1e-3 * WIDE["gap_mm"][1],
+            "process": {**base_plan["process"], **process}}
+    try:
+        HolePlan(hole, lambda key, msg: Refused(f"{key}: {msg}")).check_windows(DETECTOR_N * DETECTOR_DT)
+    except Refused as e:
+        return str(e)
+    return None
+
+
+def draw_wide(rng: np.random.Generator, plant: str = "project") -> tuple[str, dict, int]:
+    """One hole of the wide draw: (stack type "cfrp/ti/..", overrides, plans refused before it)."""
+    base = plan_of(PLANTS[plant].removesuffix(".toml"))
+    refused = 0
+    while True:
+        layers, process, gaps = _wide_plan(rng)
+        if plan_refusal(base, layers, process) is None:
+            break
+        refused += 1
+    ov = {"hole.layers": layers, "hole.gap_tolerance": 1e-3 * WIDE["gap_mm"][1],
+          "fmus.drive.plant_parameters.n_layers": len(layers),
+          "fmus.drive.plant_parameters.wear_holes": int(rng.integers(WIDE["wear_holes"][0], WIDE["wear_holes"][1] + 1)),
+          "fmus.drive.plant_parameters.seed": int(rng.integers(1, 2 ** 31 - 1))}
+    for m, proc in process.items():
+        ov.update({f"hole.process.{m}.{k}": v for k, v in proc.items()})
+    for k, (layer, gap) in enumerate(zip(layers, gaps), start=1):
+        p = PLANT_PARAMETERS + f"layer{k}_"
+        ov[p + "material"] = MATERIAL_CODE[layer["material"]]
+        ov[p + "thickness"] = float(layer["thickness"] * (1.0 + rng.uniform(-WIDE["tolerance"], WIDE["tolerance"])))
+        ov[p + "gap"] = float(gap)
+    for name in PLANT_OPTIONS.get(plant, ()):
+        lo, hi = WIDE["engage_mm" if name == "engage_length" else "exit_thinning_mm"]
+        ov[f"fmus.drive.parameters.{name}"] = 1e-3 * rng.uniform(lo, hi)
+    return "/".join(L["material"] for L in layers), ov, refused
+
+
+def draw_wide_campaign(n: int, seed: int = 23, plant: str = "project") -> tuple[list, int]:
+    """n holes of the wide draw on one plant: (jobs, plans refused and redrawn)."""
+    rng = np.random.default_rng(seed)
+    jobs, refused = [], 0
+    for i in range(n):
+        stack, ov, r = draw_wide(rng, plant)
+        jobs.append((i, stack, ov))
+        refused += r
+    return jobs, refused
+
+
 def row_of(hole: int, stack_type: str, summary: dict) -> dict:
     """One hole's row from its run's summary: status, overrides and the ``score_stack``
     numbers (a run that failed or crashed is a row too, never a silent gap)."""
     sc = (summary.get("scores") or {}).get("score_stack") or {}
     row = {"hole": hole, "type": stack_type, "status": summary.get("status"),
            "overrides": summary.get("overrides"),
-           **{k: v for k, v in sc.items() if not isinstance(v, (dict, list))}}
+           **{k: v for k, v in sc.items() if not isinstance(v, (dict, list))},
+           "between": {name: ev.get("between") for name, ev in (sc.get("events") or {}).items()}}
     if summary.get("status") not in ("completed", "stopped", "incomplete"):
         row["error"] = summary.get("error") or summary.get("stop_reason", "")
     return row
@@ -90,12 +184,14 @@ def draw_campaign(n: int, seed: int = 12, types=TYPES, feed_range=RANGES["feed_m
     return [(i, types[i % len(types)], draw_hole(types[i % len(types)], rng, feed_range)) for i in range(n)]
 
 
-def run_campaign(jobs, workers: int = 2, progress: bool = True, out_dir=None, scheduler: str | None = None) -> list[dict]:
+def run_campaign(jobs, workers: int = 2, progress: bool = True, out_dir=None, scheduler: str | None = None,
+                 base: Path | None = None) -> list[dict]:
     """Run the drawn holes as one campaign (:func:`cosim.campaign.run_campaign`: Dask, each
     hole supervised, a crash is a ``crashed`` row); only summaries, scores and figures are
-    kept of good holes (``out_dir``, default a temporary folder)."""
+    kept of good holes (``out_dir``, default a temporary folder). ``base``: the scenario
+    of every hole (the wide draw's plant), else each hole's stack type's plan."""
     from cosim.campaign import run_campaign as campaign
-    scenarios = [STACKS / f"{stack_type}.toml" for _i, stack_type, _ov in jobs]
+    scenarios = [base or STACKS / f"{stack_type}.toml" for _i, stack_type, _ov in jobs]
     with tempfile.TemporaryDirectory(prefix="stack_mc_") as tmp:
         summaries = campaign(scenarios, [ov for _i, _t, ov in jobs], out_dir=out_dir or tmp, workers=workers,
                              progress=progress, scheduler=scheduler, keep_data=False)
@@ -131,6 +227,104 @@ def summarize(rows: list[dict]) -> dict:
                                and all(not g[f"{k}_worst_mm"] > b for k, b in BARS_MM.items()))
         out[t] = g
     return out
+
+
+def _event_errors(rows: list[dict]):
+    """(kind, between, located dz [mm], trigger dz [mm]) of every event of every hole."""
+    for r in rows:
+        for name, between in (r.get("between") or {}).items():
+            kind = "interface" if name.startswith("interface") else name
+            yield kind, between, r.get(f"{name}_dz_mm", math.nan), r.get(f"{name}_trigger_dz_mm", math.nan)
+
+
+def _stats(v: list[float]) -> dict:
+    a = np.asarray([x for x in v if isinstance(x, (int, float)) and math.isfinite(x)], float)
+    if a.size == 0:
+        return {"n": 0, "worst": math.nan, "p95": math.nan, "bias": math.nan}
+    return {"n": int(a.size), "worst": float(np.max(np.abs(a))), "p95": float(np.percentile(np.abs(a), 95)),
+            "bias": float(np.mean(a))}
+
+
+def summarize_wide(rows: list[dict], refused: int = 0) -> dict:
+    """The wide draw on one plant: counts (holes, refused plans, missed / false events,
+    false fails, unfinished holes, events not located) and, per event kind and per the
+    materials around it, the located error's worst / p95 |dz| and mean (bias) [mm] and
+    the trigger's worst / mean, against issue 23's bars."""
+    ev = list(_event_errors(rows))
+    out = {"holes": len(rows), "refused": refused, "refused_share": refused / max(len(rows) + refused, 1),
+           "missed": int(sum(r.get("missed_events", 0) for r in rows)),
+           "false": int(sum(r.get("false_events", 0) for r in rows)),
+           "false_fails": int(sum(r.get("false_fail", 0) for r in rows)),
+           "not_completed": int(sum(r.get("status") not in ("completed", "stopped") for r in rows)),
+           "not_located": int(sum(1 for _k, _b, d, t in ev if math.isfinite(t) and not math.isfinite(d)))}
+    groups = {}
+    for kind, between, dz, trig in ev:
+        for key in (f"{kind} (all)", f"{kind} {between}"):
+            g = groups.setdefault(key, {"kind": kind, "located": [], "trigger": []})
+            g["located"].append(dz)
+            g["trigger"].append(trig)
+    out["events"] = {}
+    for key in sorted(groups, key=lambda k: (list(WIDE_BARS_MM).index(groups[k]["kind"]), "(all)" not in k, k)):
+        g = groups[key]
+        loc, trig = _stats(g["located"]), _stats(g["trigger"])
+        bar = WIDE_BARS_MM[g["kind"]]
+        out["events"][key] = {**{f"located_{k}": v for k, v in loc.items()},
+                              **{f"trigger_{k}": v for k, v in trig.items() if k != "n"},
+                              "meets_bars": bool(loc["n"] and loc["worst"] <= bar and abs(loc["bias"]) <= WIDE_BIAS_MM)}
+    out["meets_bars"] = bool(out["missed"] == 0 and out["false"] == 0 and out["false_fails"] == 0
+                             and out["not_completed"] == 0 and out["not_located"] == 0
+                             and all(g["meets_bars"] for g in out["events"].values()))
+    return out
+
+
+def table_wide_markdown(summaries: dict) -> str:
+    """One block per plant: its counts, then a row per event group."""
+    f = lambda v: "-" if not (isinstance(v, (int, float)) and math.isfinite(v)) else f"{v:+.3f}"  # noqa: E731
+    a = lambda v: "-" if not (isinstance(v, (int, float)) and math.isfinite(v)) else f"{v:.3f}"  # noqa: E731
+    out = []
+    for plant, s in summaries.items():
+        out.append(f"**{plant}**: {s['holes']} holes ({s['refused']} plans refused at load and redrawn, "
+                   f"{100 * s['refused_share']:.1f} %); missed {s['missed']}, false {s['false']}, false fails "
+                   f"{s['false_fails']}, not completed {s['not_completed']}, events not located {s['not_located']}\n")
+        out.append("| event | n | located worst / p95 [mm] | located bias [mm] | trigger worst [mm] | trigger bias [mm] "
+                   "| bars |\n|---|---|---|---|---|---|---|")
+        for key, g in s["events"].items():
+            out.append(f"| {key} | {g['located_n']} | {a(g['located_worst'])} / {a(g['located_p95'])} "
+                       f"| {f(g['located_bias'])} | {a(g['trigger_worst'])} | {f(g['trigger_bias'])} "
+                       f"| {'met' if g['meets_bars'] else 'NOT met'} |")
+        out.append("")
+    return "\n".join(out) + "\n"
+
+
+def figure_wide(rows_by_plant: dict, path: Path) -> None:
+    """Located (dots) and trigger (crosses) errors per event kind, one row per plant."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    plants = list(rows_by_plant)
+    fig, axes = plt.subplots(len(plants), 3, figsize=(13, 3.2 * len(plants)), squeeze=False)
+    for i, plant in enumerate(plants):
+        ev = list(_event_errors(rows_by_plant[plant]))
+        for ax, kind in zip(axes[i], WIDE_BARS_MM):
+            labels = sorted({b for k, b, _d, _t in ev if k == kind})
+            for j, lab in enumerate(labels):
+                d = [(dz, tr) for k, b, dz, tr in ev if k == kind and b == lab]
+                jit = np.random.default_rng(j).uniform(-0.15, 0.15, len(d))
+                ax.scatter([v[0] for v in d], j + jit, s=12, label="located" if j == 0 else None)
+                ax.scatter([v[1] for v in d], j + jit, s=12, marker="x", color="0.6",
+                           label="trigger" if j == 0 else None)
+            for sgn in (-1, 1):
+                ax.axvline(sgn * WIDE_BARS_MM[kind], color="r", lw=1, ls="--")
+            ax.set_yticks(range(len(labels)), labels)
+            ax.set_title(f"{plant}: {kind} (bar +-{WIDE_BARS_MM[kind]} mm)")
+            ax.set_xlim(-0.3, 0.3)
+            ax.grid(alpha=0.3)
+        axes[i][0].legend(loc="lower left")
+    for ax in axes[-1]:
+        ax.set_xlabel("depth error [mm] (negative = early)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
 
 
 def table_markdown(summary: dict) -> str:
@@ -190,8 +384,14 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="results/stack_montecarlo", help="rows.json, summary.json and runs/ go here")
     ap.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (default: a local cluster)")
     ap.add_argument("--docs", action="store_true", help="rewrite the table and figure of docs/stacks.md")
+    ap.add_argument("--draw", choices=("plans", "wide"), default="plans",
+                    help="plans: around the shipped plans (issue 12); wide: the plans drawn too (issue 23)")
+    ap.add_argument("--plant", action="append", choices=tuple(PLANTS),
+                    help="plant(s) of the wide draw, --holes each (default: every one)")
     a = ap.parse_args(argv)
     out = Path(a.out)
+    if a.draw == "wide":
+        return main_wide(a, out)
     rows = run_campaign(draw_campaign(a.holes, a.seed), a.workers, out_dir=out / "runs", scheduler=a.scheduler)
     summary = summarize(rows)
     (out / "rows.json").write_text(json.dumps(rows, indent=1, default=str))
@@ -201,6 +401,45 @@ def main(argv=None) -> int:
         write_docs(rows, summary, ROOT / "docs" / "stacks.md", ROOT / "docs" / "img" / "stack_montecarlo.png",
                    f"python -m analysis.stack_montecarlo --holes {a.holes} --workers {a.workers} --seed {a.seed} --docs")
     return 0 if summary["all"]["meets_bars"] else 1
+
+
+def main_wide(a, out: Path) -> int:
+    """The wide draw (issue 23) on each plant: rows, summary, table; --docs writes the
+    generated block of docs/stacks.md that belongs to it."""
+    summaries, rows_by_plant = {}, {}
+    for plant in a.plant or list(PLANTS):
+        jobs, refused = draw_wide_campaign(a.holes, a.seed, plant)
+        rows = run_campaign(jobs, a.workers, out_dir=out / plant / "runs", scheduler=a.scheduler,
+                            base=STACKS / PLANTS[plant])
+        rows_by_plant[plant] = rows
+        summaries[plant] = summarize_wide(rows, refused)
+        (out / plant).mkdir(parents=True, exist_ok=True)
+        (out / plant / "rows.json").write_text(json.dumps(rows, indent=1, default=str))
+    (out / "summary_wide.json").write_text(json.dumps(summaries, indent=1))
+    table = table_wide_markdown(summaries)
+    print(table)
+    if a.docs:
+        plants = " ".join(f"--plant {p}" for p in summaries)
+        command = (f"python -m analysis.stack_montecarlo --draw wide {plants} --holes {a.holes} "
+                   f"--workers {a.workers} --seed {a.seed} --docs")
+        img = ROOT / "docs" / "img" / "stack_montecarlo_wide.png"
+        figure_wide(rows_by_plant, img)
+        replace_block(ROOT / "docs" / "stacks.md", "stack-montecarlo-wide",
+                      f"Generated by `{command}`.\n\n{table}\n![wide Monte Carlo](img/{img.name})")
+    return 0 if all(s["meets_bars"] for s in summaries.values()) else 1
+
+
+def replace_block(doc: Path, marker: str, body: str) -> None:
+    """Replace the text between ``<!-- marker:begin -->`` and ``<!-- marker:end -->``
+    (appended when absent)."""
+    text = doc.read_text()
+    begin, end = f"<!-- {marker}:begin -->", f"<!-- {marker}:end -->"
+    block = f"{begin}\n{body}\n{end}"
+    if begin in text and end in text:
+        text = text[:text.index(begin)] + block + text[text.index(end) + len(end):]
+    else:
+        text += "\n" + block + "\n"
+    doc.write_text(text)
 
 
 if __name__ == "__main__":

@@ -95,6 +95,7 @@ from typing import Sequence
 
 import numpy as np
 
+from controllers.event_locator import locate, time_at
 from cosim.block import Block, Port
 
 NAN = float("nan")
@@ -104,6 +105,12 @@ MAX_LAYERS = 4   # what the project's plants model (docs/plants.md)
 MAX_INTERFACES = MAX_LAYERS - 1
 
 N_MAX = 2000     # samples of the regression window (40 s at dt = 0.02 s)
+HISTORY = 4096   # samples kept for the localisation (82 s at dt = 0.02 s: 1.6 mm windows at 1.2 mm/min)
+LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
+LOC_QUANTITIES = (("x", "m", "located encoder position"),
+                  ("t", "s", "time the encoder passed the located position"),
+                  ("dx", "m", "uncertainty (+-) of the located position"),
+                  ("tknown", "s", "time the located position became known"))
 
 
 def regression_weights(n: int) -> np.ndarray:
@@ -160,6 +167,8 @@ _OUTPUTS = (
     Port("x_fail", "m", "encoder position when the fail indicator was set", NAN),
     Port("thd", "N", "threshold of the armed test on |F~| (NaN when none is armed)", NAN),
     Port("n_layers", "1", "layers of the nominal stack the detector expects"),
+    *(Port(f"{q}_{ev}_loc", u, f"{what} of the {ev} (NaN until its localisation window is complete)", NAN)
+      for ev in LOC_EVENTS for q, u, what in LOC_QUANTITIES),
 )
 
 
@@ -203,6 +212,10 @@ class InterfaceDetector(Block):
         fail_disarms: bool = False,
         thd_noise_factor: float = 0.0,
         step_signs: Sequence[float] | None = None,
+        localise: bool = True,
+        locate_margin: float = 0.3e-3,
+        push_out: float = 0.5e-3,
+        observer_delay: float = 0.0,
     ):
         """Settings (SI units).
 
@@ -258,6 +271,22 @@ class InterfaceDetector(Block):
             length the detector cannot know, and its onset is no interface.
         step_signs: per interface, +1 when the next layer cuts harder (thrust rises), -1
             softer; default from ``kc`` when given, else +1 (Fang's CFRP over Ti).
+
+        Localisation (``controllers.event_locator``; docs/stacks.md): after each event
+        the samples around it are fitted by straight-line segments against the encoder
+        position, which gives the event's position without the regression's lag
+        (outputs ``x_/t_/dx_/tknown_<event>_loc``); the flag, and so the adaptation,
+        still change at the trigger.
+        localise: False switches it off (outputs stay NaN).
+        locate_margin [m]: travel on either side of an entry or a layer change that
+            holds the change and a stretch of the level on its other side (the tool's
+            engagement, the observer's settling); the located position is known once the
+            encoder is this far past the trigger (interfaces: ``max_gap`` further).
+        push_out [m]: longest stretch over which the last layer's thrust falls before
+            the exit (the plant's push-out; 0.4 mm on the project's drive): the exit's
+            window reaches this far above the trigger.
+        observer_delay [s]: the observed thrust's delay behind the tool (observer and
+            sampling); the fit pairs each force sample with the encoder this much earlier.
         """
         super().__init__(sample_period)
         if self.sample_period <= 0:
@@ -324,8 +353,28 @@ class InterfaceDetector(Block):
             self.rearm_level = 0.5 * self.thd_min if rearm_level is None else float(rearm_level)
         else:
             self.rearm_level = float(min(thd1, thd2, -thd3) if rearm_level is None else rearm_level)
+        self.localise = bool(localise)
+        for name, v in (("locate_margin", locate_margin), ("push_out", push_out)):
+            if not v > 0.0:
+                raise ValueError(f"InterfaceDetector: {name} must be > 0 m, got {v!r}")
+        if not observer_delay >= 0.0:
+            raise ValueError(f"InterfaceDetector: observer_delay must be >= 0 s, got {observer_delay!r}")
+        self.locate_margin, self.push_out = float(locate_margin), float(push_out)
+        self.observer_delay = float(observer_delay)
         self.windows = self._windows()
         self.reset(0.0)
+
+    def loc_window(self, k: int) -> tuple[float, float]:
+        """Travel [m] (before, after) the trigger of event k (0 entry, 1..n-1 interface
+        k, n exit) whose samples the localisation fits: an interface may have a gap of up
+        to max_gap on either side of its trigger (the upper layer's push-out fires it, or
+        the lower layer's rise), the exit's fall may start push_out above it."""
+        m = self.locate_margin
+        if k == 0:
+            return m, m
+        if k == self.n:
+            return self.push_out + m, m
+        return self.max_gap + m, self.max_gap + m
 
     # ------------------------------------------------------------------ windows
     def _windows(self):
@@ -369,6 +418,12 @@ class InterfaceDetector(Block):
         self.F_err = NAN
         self.F_level = NAN          # observed plateau level (last quiet F^)
         self.thd = NAN
+        # localisation: the last HISTORY samples (ring), the events waiting for their window
+        self.h_t, self.h_x, self.h_F = (np.full(HISTORY, NAN) for _ in range(3))
+        self.h_n = 0                # samples written since the reset
+        self.pending = []           # (event index, x at trigger, index of the trigger sample)
+        self.F_air = NAN            # observed thrust in air (the entry's level before contact)
+        self.loc = {ev: [NAN] * len(LOC_QUANTITIES) for ev in LOC_EVENTS}
 
     def _set_fail(self, code: int, t: float, x: float) -> None:
         if not self.fail:
@@ -384,6 +439,8 @@ class InterfaceDetector(Block):
         self.armed = False
         self.quiet = 0
         self.t_last, self.x_last = t, x
+        if self.localise:
+            self.pending.append((k, x, self.h_n))
         if self.windows is not None and x < self.windows[k][0]:
             self._set_fail(k + 1, t, x)  # found before its window opens
 
@@ -429,6 +486,9 @@ class InterfaceDetector(Block):
             # keep the window and the state, only watch the windows
             self._check_windows(t, x)
             return self._outputs()
+        i = self.h_n % HISTORY
+        self.h_t[i], self.h_x[i], self.h_F[i] = t, x, F
+        self.h_n += 1
         if self.n_buf >= self.N_min:
             F_pred = float(self.W[self.n_buf] @ self.buf[:self.n_buf])
             e = F - F_pred
@@ -468,8 +528,46 @@ class InterfaceDetector(Block):
         else:
             self.buf[:-1] = self.buf[1:]
             self.buf[-1] = F
+        if self.pending:
+            self._locate_due(t, x)
         self._check_windows(t, x)
         return self._outputs()
+
+    # ------------------------------------------------------------------ localisation
+    def _history(self):
+        """(t, x, F) of the kept samples, oldest first."""
+        n = min(self.h_n, HISTORY)
+        idx = (self.h_n - n + np.arange(n)) % HISTORY
+        return self.h_t[idx], self.h_x[idx], self.h_F[idx]
+
+    def _locate_due(self, t: float, x: float) -> None:
+        """Locate every pending event whose window after the trigger is complete (or
+        whose samples the ring is about to drop)."""
+        for item in list(self.pending):
+            k, x_trig, i_trig = item
+            before, after = self.loc_window(k)
+            if x < x_trig + after and self.h_n - i_trig < HISTORY // 2:
+                continue
+            self.pending.remove(item)
+            self._locate(k, x_trig, before, after, t)
+
+    def _locate(self, k: int, x_trig: float, before: float, after: float, t_now: float) -> None:
+        ht, hx, hF = self._history()
+        lo = x_trig - before
+        if k > 0 and math.isfinite(self.x_ev[k - 1]):    # not into the previous event's change
+            lo = max(lo, self.x_ev[k - 1] + self.locate_margin)
+        # each force sample against where the tool was when the observer saw it
+        xs = np.interp(ht - self.observer_delay, ht, hx) if self.observer_delay > 0 else hx
+        sel = (xs >= lo) & (xs <= x_trig + after)
+        name = LOC_EVENTS[0] if k == 0 else LOC_EVENTS[-1] if k == self.n else f"interface{k}"
+        kind = "entry" if k == 0 else "exit" if k == self.n else "interface"
+        air = self.F_air if math.isfinite(self.F_air) else 0.0
+        sign = self.step_signs[k - 1] if kind == "interface" else 1.0
+        x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, sign=sign, x_trig=x_trig)
+        if k == 0 and math.isfinite(x_loc):
+            in_air = sel & (xs < x_loc - 0.5 * self.locate_margin)
+            self.F_air = float(np.mean(hF[in_air])) if in_air.any() else NAN
+        self.loc[name] = [x_loc, time_at(ht, hx, x_loc), dx, t_now]
 
     def _exit_tests(self, t, x, F, F_pred, e):
         if not self.drop:
@@ -519,4 +617,5 @@ class InterfaceDetector(Block):
             self.F_ref,
             *t_if, *x_if,
             self.t_fail, self.x_fail, self.thd, float(self.n),
+            *(v for ev in LOC_EVENTS for v in self.loc[ev]),
         )

@@ -42,7 +42,15 @@ OBSERVER_SETTLE_ORBITS = 6.0
 
 HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "approach", "breakthrough",
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
-             "match_tolerance"}
+             "match_tolerance", "locate_margin", "push_out"}
+# Localisation (controllers/event_locator.py): travel on either side of an event that holds its
+# change and a stretch of level (engagement up to ~0.35 mm on the drives measured), and the
+# longest push-out of a last layer (0.4 mm on the project's drive)
+LOCATE_MARGIN = 0.3e-3
+PUSH_OUT = 0.5e-3
+# the observer must see this many orbits in a layer to tell its ripple from its level
+ORBITS_PER_LAYER = 2.0
+DETECTOR_DT, DETECTOR_N = 0.02, 150     # InterfaceDetector defaults (Table 4's dt, its window)
 LAYER_KEYS = {"material", "thickness", "tolerance"}
 
 
@@ -72,6 +80,8 @@ class HolePlan:
         self.breakthrough = self._number(hole, "breakthrough", 0.3e-3, positive=True)
         self.stop_margin = self._number(hole, "stop_margin", 5.0, positive=True)
         self.match_tolerance = self._number(hole, "match_tolerance", 1.0e-3, positive=True)
+        self.locate_margin = self._number(hole, "locate_margin", LOCATE_MARGIN, positive=True)
+        self.push_out = self._number(hole, "push_out", PUSH_OUT, positive=True)
         self.fail_action = hole.get("fail_action", "hold")
         if self.fail_action not in FAIL_ACTIONS:
             raise error("hole.fail_action", f"expected one of {FAIL_ACTIONS}, got {self.fail_action!r}")
@@ -143,6 +153,39 @@ class HolePlan:
                 raise self.error(f"hole.process.{mat}", f"unknown material {mat!r} (expected one of: {', '.join(MATERIALS)})")
         return out
 
+    def check_windows(self, window_s: float) -> None:
+        """Each layer, at its thinnest, must hold what the detector needs in it (errors
+        name the layer): its regression window at the layer's feed after the engagement
+        (``window_s`` [s]: the detector re-arms once its window lies on the new level),
+        ORBITS_PER_LAYER orbits (the observer tells the ripple from the level), and each
+        localisation window reaching into it (after the event above: locate_margin, plus
+        gap_tolerance after an interface; before the exit: push_out + locate_margin)."""
+        n = len(self.layers)
+        for k, layer in enumerate(self.layers):
+            where, mat = f"hole.layers[{k}]", layer["material"]
+            p = self.process[mat]
+            thin = layer["thickness"] - layer["tolerance"]
+            need = window_s * p["feed_rate"] + self.locate_margin
+            if thin < need:
+                raise self.error(f"{where}.thickness", f"{mat} layer {k + 1} is {1e3 * thin:.2f} mm at its thinnest, "
+                                 f"shorter than the detector needs at its feed: the regression window {window_s:g} s x "
+                                 f"{6e4 * p['feed_rate']:.1f} mm/min + {1e3 * self.locate_margin:.2f} mm of engagement "
+                                 f"= {1e3 * need:.2f} mm (slower hole.process.{mat}.feed_rate, or a shorter window)")
+            orbits = thin / p["feed_rate"] * p["orbital_speed"] / 60.0
+            if orbits < ORBITS_PER_LAYER:
+                raise self.error(f"hole.process.{mat}.orbital_speed",
+                                 f"{p['orbital_speed']:g} rpm is too slow for layer {k + 1} ({mat}, {1e3 * thin:.2f} mm "
+                                 f"at its thinnest): {orbits:.2f} orbits in it, the observer needs "
+                                 f"{ORBITS_PER_LAYER:g} to tell its orbital ripple from its thrust")
+            # the window after the event above it, the exit's before it (each is clipped at
+            # the event before it, so only a window longer than the layer is wrong)
+            loc = max(self.locate_margin + (self.gap_tolerance if k > 0 else 0.0),
+                      self.push_out + self.locate_margin if k == n - 1 else 0.0)
+            if thin < loc:
+                raise self.error(f"{where}.thickness", f"{mat} layer {k + 1} is {1e3 * thin:.2f} mm at its thinnest, "
+                                 f"shorter than a localisation window that reaches into it ({1e3 * loc:.2f} mm: "
+                                 f"hole.locate_margin, hole.gap_tolerance, hole.push_out)")
+
     # ------------------------------------------------------------------ derived
     def layer_process(self, k: int) -> dict:
         return self.process[self.layers[k]["material"]]
@@ -210,6 +253,8 @@ class HolePlan:
             "exit_criterion": "thinning",
             "tolerance": DETECTOR_TOLERANCE,
             "fail_disarms": True,
+            "locate_margin": self.locate_margin,
+            "push_out": self.push_out,
         }
 
     def stages(self) -> list[dict]:
@@ -266,6 +311,9 @@ def expand(raw: dict, error, origin: str = "[hole]") -> dict:
             raise error(f"hole.{role}" if role in hole else "hole",
                         f"the plan drives block '{plan.names[role]}' ({role}), which the scenario does not have")
     tname, dname, aname = (plan.names[r] for r in ("trajectory", "detector", "adapt"))
+    dblock = blocks[dname] if isinstance(blocks[dname], dict) else {}
+    dt, N = dblock.get("sample_period", DETECTOR_DT), (dblock.get("settings") or {}).get("N", DETECTOR_N)
+    plan.check_windows(float(N) * float(dt) if _num(dt) and _num(N) else DETECTOR_N * DETECTOR_DT)
     tset = blocks[tname].get("settings", {})
     traj = plan.trajectory(tset)
     for k, v in traj.items():

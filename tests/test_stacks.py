@@ -49,6 +49,29 @@ def test_plan_more_than_four_layers_and_missing_process():
     assert e.value.key == "hole.process.al" and "no process" in e.value.detail
 
 
+@pytest.mark.parametrize("overrides, where, words", [
+    # CFRP at 24 mm/min: 3 s of regression window is 1.2 mm, + 0.3 mm engagement > 1.1 mm
+    ({"hole.process.cfrp.feed_rate": 4e-4, "hole.layers": [
+        {"material": "cfrp", "thickness": 1.2e-3, "tolerance": 0.1e-3},
+        {"material": "ti", "thickness": 4.5e-3, "tolerance": 0.55e-3}]},
+     "hole.layers[0].thickness", "regression window"),
+    # Ti: 3.95 mm at 9 mm/min is 26 s, at 3 rpm 1.3 orbits
+    ({"hole.process.ti.orbital_speed": 3.0}, "hole.process.ti.orbital_speed", "orbits"),
+    # a 1.6 mm push-out: 1.9 mm of window before the exit in a Ti layer of 1.8 mm
+    ({"hole.push_out": 1.6e-3, "hole.layers": [
+        {"material": "cfrp", "thickness": 5.0e-3, "tolerance": 0.6e-3},
+        {"material": "ti", "thickness": 2.0e-3, "tolerance": 0.2e-3}]},
+     "hole.layers[1].thickness", "localisation window"),
+])
+def test_plan_layer_too_thin_for_the_detector_names_the_layer(overrides, where, words):
+    """Issue 23: a layer the detector cannot work in at the plan's process is refused at
+    load, naming the file and the layer (or the process key to change)."""
+    with pytest.raises(ScenarioError) as e:
+        load_scenario(CFRP_TI, overrides=overrides)
+    assert e.value.key == where and words in e.value.detail, e.value.detail
+    assert e.value.file.endswith("cfrp_ti.toml")
+
+
 def test_plan_derived_key_written_elsewhere_is_an_error():
     with pytest.raises(ScenarioError) as e:
         load_scenario(CFRP_TI, overrides={"blocks.trajectory.settings.z_end": 0.02})

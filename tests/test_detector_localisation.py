@@ -1,0 +1,107 @@
+"""Localisation after detection (issue 23): the segmented fit of controllers.event_locator
+on exact piecewise-linear profiles, and the detector's located positions on Fig.-3-shaped
+synthetic holes (no FMU). Tolerances: the trigger of the moving regression is
+0.025-0.06 mm late on these holes; the located position must come within 0.01 mm on a
+noise-free profile (the fit's corners are exact there, up to the sample grid) and within
+0.02 mm (5 samples of travel at 12 mm/min) with the observer's noise, ripple and lag."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from analysis.detector_scoring import SyntheticHole, run_block_on_trace
+from controllers.event_locator import locate, segment, time_at
+from controllers.interface_detector import InterfaceDetector
+
+MM = 1e-3
+
+
+def profile(x, corners, levels):
+    """Piecewise-linear thrust through (corners[i], levels[i]), flat outside."""
+    return np.interp(x, corners, levels)
+
+
+def test_segment_finds_the_corners_of_a_ramp():
+    x = np.linspace(0.0, 1.0 * MM, 101)
+    F = profile(x, [0.3 * MM, 0.4 * MM], [0.0, 100.0])
+    starts = segment(x, F, 3)
+    assert starts[0] == 0
+    assert abs(x[starts[1]] - 0.3 * MM) <= 0.011 * MM and abs(x[starts[2]] - 0.4 * MM) <= 0.011 * MM
+
+
+@pytest.mark.parametrize("kind,corners,levels,true", [
+    ("entry", [0.3, 0.4], [0.0, 120.0], 0.3),                       # air -> CFRP
+    ("interface", [0.5, 0.6], [120.0, 500.0], 0.5),                 # CFRP -> Ti, no gap
+    ("interface", [0.5, 0.6], [500.0, 120.0], 0.5),                 # Ti -> CFRP, no gap
+    ("interface", [0.5, 0.6], [150.0, 20.0], 0.5),                  # CFRP -> Al: a low, not air, level
+    ("exit", [0.2, 0.6], [700.0, 0.0], 0.6),                        # last layer thins out
+])
+def test_locate_noise_free_profiles(kind, corners, levels, true):
+    x = np.arange(0.0, 1.2 * MM, 0.004 * MM)      # 0.02 s samples at 12 mm/min
+    F = profile(x, [c * MM for c in corners], levels)
+    sign = math.copysign(1.0, levels[-1] - levels[0])
+    x_loc, dx = locate(kind, x, F, sign=sign)
+    assert abs(x_loc - true * MM) <= 0.01 * MM
+    assert 0.0 < dx <= 0.01 * MM
+
+
+def test_locate_gap_lands_between_the_faces():
+    x = np.arange(0.0, 1.6 * MM, 0.004 * MM)
+    # CFRP thins out over 0.1 mm to its free face at 0.6, a 0.2 mm gap, Ti from 0.8
+    F = profile(x, [0.5 * MM, 0.6 * MM, 0.8 * MM, 0.9 * MM], [150.0, 0.0, 0.0, 500.0])
+    x_loc, dx = locate("interface", x, F, sign=+1.0)
+    assert 0.6 * MM <= x_loc <= 0.8 * MM
+    assert dx >= 0.1 * MM - 0.01 * MM           # the whole gap is the interface
+
+
+def test_locate_rejects_unknown_kind_and_short_windows():
+    x = np.linspace(0.0, 1.0 * MM, 50)
+    with pytest.raises(ValueError, match="kind"):
+        locate("middle", x, x)
+    assert all(math.isnan(v) for v in locate("entry", x[:5], x[:5]))
+
+
+def test_time_at_interpolates_the_encoder():
+    t = np.array([0.0, 1.0, 2.0])
+    x = np.array([0.0, 1.0, 1.5])
+    assert time_at(t, x, 1.25) == pytest.approx(1.5)
+    assert math.isnan(time_at(t, x, 2.0))
+
+
+def _run(hole: SyntheticHole, **settings):
+    t, x, _, Fo = hole.trace()
+    kw = dict(surface=hole.surface, thicknesses=(hole.t1, hole.t2), max_gap=0.3 * MM, exit_criterion="thinning")
+    kw.update(settings)
+    det = InterfaceDetector(**kw)
+    ts, out = run_block_on_trace(det, t, [Fo, x])
+    return {n: float(out[-1, i]) for i, n in enumerate(det.output_names())}
+
+
+@pytest.mark.parametrize("seed,F_cfrp,F_ti", [(1, 83.5, 277.0), (2, 203.8, 714.0)])   # Table 3 holes 1, 24
+def test_detector_locates_closer_than_it_triggers(seed, F_cfrp, F_ti):
+    h = SyntheticHole(F_cfrp=F_cfrp, F_ti=F_ti, gap=0.0, lag=0.005, seed=seed)
+    out = _run(h)
+    b = h.boundaries
+    assert out["x_entry"] - b[0] >= 0.02 * MM          # the trigger's lag this localisation removes
+    for ev, true in (("entry", b[0]), ("interface1", b[1]), ("exit", b[2])):
+        assert abs(out[f"x_{ev}_loc"] - true) <= 0.02 * MM, ev
+        assert out[f"dx_{ev}_loc"] <= 0.02 * MM
+        # known once the window after the trigger is complete, never before the trigger
+        assert out[f"tknown_{ev}_loc"] > out[f"t_{ev}_loc"]
+    assert out["t_entry_loc"] < out["t_entry"]
+
+
+def test_detector_locates_a_gap_between_its_faces():
+    h = SyntheticHole(gap=0.2 * MM, lag=0.005, seed=4)
+    out = _run(h)
+    top, bottom = h.surface + h.t1, h.surface + h.t1 + h.gap
+    assert top - 0.01 * MM <= out["x_interface1_loc"] <= bottom + 0.01 * MM
+
+
+def test_localise_off_leaves_the_outputs_nan():
+    out = _run(SyntheticHole(seed=5), localise=False)
+    assert math.isfinite(out["x_entry"]) and math.isnan(out["x_entry_loc"])
+    with pytest.raises(ValueError, match="locate_margin"):
+        InterfaceDetector(locate_margin=0.0)
