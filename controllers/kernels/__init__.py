@@ -17,7 +17,7 @@ from cosim.native import build as _build
 from cosim.native import load
 
 HERE = Path(__file__).resolve().parent
-KERNELS = ("fang_observer", "drive_control")
+KERNELS = ("fang_observer", "drive_control", "adaptation")
 
 
 def build(name: str, force: bool = False, verbose: bool = False) -> Path:
