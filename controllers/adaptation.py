@@ -170,6 +170,12 @@ class CuttingParameterAdaptation(KernelBlock, Block):
         self._c_attach()
 
     c_step = ("adaptation", "adaptation_step", _AdaptationState, 2, 9)   # kernels/adaptation.c
+    c_parameters = {
+        "n_stages": ("1", "stages in use (the fail-safe set last)"), "ramp_time": ("s", "raised-cosine blend"),
+        "sample_period": ("s", "hold interval (0: the spacing of calls)"),
+        "fail_index": ("1", "stage taken on a fail (-1: none)"), "latch": ("1", "fail-safe: 0 none, 1 hold, 2 retract"),
+        "flag": ("1", "detector flag from which each stage is in force"),
+        "param": ("", "per stage: feed rate m/s, spindle speed rpm, orbital speed rpm")}
 
     def _c_supports(self) -> bool:
         return len(self.stages) <= MAX_STAGES
@@ -260,6 +266,7 @@ class OneStepDelay(KernelBlock, Block):
         self._c_attach()
 
     c_step = ("adaptation", "one_step_delay_step", _DelayState, 1, 1)   # kernels/adaptation.c
+    c_parameters = {}       # 'initial' is the held value's start: state
 
     def _c_fill(self, c) -> None:
         c.held = self._held
