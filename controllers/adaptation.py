@@ -44,19 +44,43 @@ the target, 0-based in ``stages``), ``t_switch`` [s] (time the current stage was
 entered; NaN before the first switch) and ``ramp`` (0..1, progress of the blend).
 ``self.log`` keeps (t, stage name, feed_rate, spindle_speed, orbital_speed) of
 every switch for the Python API.
+
+Both blocks also step in C (``controllers/kernels/adaptation.c``, issue #21), operation
+for operation as the Python steps here, which stay the reference
+(tests/test_adaptation_kernel.py); so the adaptation runs in the master's C groups and
+whole C steps, and is exported as an FMU (``drillcosim export-fmu``). The C step keeps
+the first 64 switches for ``log`` (a hole has two or three).
 """
 from __future__ import annotations
 
+import ctypes
 import math
 from typing import Sequence
 
 from cosim.block import Block, Port
+from controllers.kernels import KernelBlock
+from controllers.kernels.structs import fill
 
 PARAMS = ("feed_rate", "spindle_speed", "orbital_speed")
 FAIL_ACTIONS = ("none", "stage", "hold", "retract")
+MAX_STAGES = 16        # stages incl. the fail-safe set the C step holds (adaptation.c)
+MAX_LOG = 64           # switches the C step keeps for ``log`` (adaptation.c)
+_D = ctypes.c_double
 
 
-class CuttingParameterAdaptation(Block):
+class _AdaptationState(ctypes.Structure):
+    """Mirror of ``Adaptation`` in kernels/adaptation.c, field for field."""
+    _fields_ = [(n, _D) for n in "n_stages ramp_time sample_period fail_index latch".split()] + [
+        ("flag", _D * MAX_STAGES), ("param", _D * (3 * MAX_STAGES)), ("index", _D), ("value", _D * 3),
+        ("start", _D * 3)] + [(n, _D) for n in "t_switch has_t_prev t_prev failsafe t_failsafe settled".split()] + [
+        ("out", _D * 9), ("n_log", _D), ("log_t", _D * MAX_LOG), ("log_index", _D * MAX_LOG)]
+
+
+class _DelayState(ctypes.Structure):
+    _fields_ = [("held", _D)]
+
+
+class CuttingParameterAdaptation(KernelBlock, Block):
     inputs = (
         Port("flag", "1", "detector tool position indicator (0, 1, 2, 3)"),
         Port("fail", "1", "detector fail indicator (1 = switch to fail_stage when set)"),
@@ -138,11 +162,48 @@ class CuttingParameterAdaptation(Block):
         self.value = [s0[p] for p in PARAMS]      # in force now
         self.start = list(self.value)             # blend start values
         self.t_switch = math.nan
-        self.log = [(float(t0), s0["name"], *self.value)]
+        self._log = [(float(t0), s0["name"], *self.value)]
         self._t_prev = None
         self.failsafe = 0
         self.t_failsafe = math.nan
         self._settled = None      # the outputs once a ramp has ended (no switch since): held as they are
+        self._c_attach()
+
+    c_step = ("adaptation", "adaptation_step", _AdaptationState, 2, 9)   # kernels/adaptation.c
+    c_parameters = {
+        "n_stages": ("1", "stages in use (the fail-safe set last)"), "ramp_time": ("s", "raised-cosine blend"),
+        "sample_period": ("s", "hold interval (0: the spacing of calls)"),
+        "fail_index": ("1", "stage taken on a fail (-1: none)"), "latch": ("1", "fail-safe: 0 none, 1 hold, 2 retract"),
+        "flag": ("1", "detector flag from which each stage is in force"),
+        "param": ("", "per stage: feed rate m/s, spindle speed rpm, orbital speed rpm")}
+
+    def _c_supports(self) -> bool:
+        return len(self.stages) <= MAX_STAGES
+
+    def _c_fill(self, c) -> None:
+        latch = {"hold": 1, "retract": 2}.get(self.fail_action, 0)
+        fill(c, n_stages=len(self.stages), ramp_time=self.ramp_time, sample_period=self.sample_period,
+             fail_index=-1 if self.fail_index is None else self.fail_index, latch=latch, index=self.index,
+             t_switch=self.t_switch, has_t_prev=self._t_prev is not None, t_prev=self._t_prev,
+             failsafe=self.failsafe, t_failsafe=self.t_failsafe, settled=self._settled is not None, n_log=0)
+        for i, st in enumerate(self.stages):
+            c.flag[i] = st["flag"]
+            c.param[3 * i:3 * i + 3] = [st[p] for p in PARAMS]
+        c.value[:] = self.value
+        c.start[:] = self.start
+        c.out[:] = self._settled if self._settled is not None else [0.0] * 9
+        self._log_t0 = self._log[0]
+
+    @property
+    def log(self) -> list[tuple]:
+        """(t, stage name, feed_rate, spindle_speed, orbital_speed) of the start and of every
+        switch (from the C state when the C step runs: its first MAX_LOG switches)."""
+        c = self.c_kernel
+        if c is None:
+            return self._log
+        st = c.state
+        rows = [(st.log_t[j], self.stages[int(st.log_index[j])]) for j in range(min(int(st.n_log), MAX_LOG))]
+        return [self._log_t0, *((t, s["name"], *(s[p] for p in PARAMS)) for t, s in rows)]
 
     def step(self, t, u):
         if not self.failsafe and float(u[1]) >= 0.5 and self.fail_action in ("hold", "retract"):
@@ -159,7 +220,7 @@ class CuttingParameterAdaptation(Block):
             self.index = idx
             self.t_switch = float(t)
             st = self.stages[idx]
-            self.log.append((float(t), st["name"], *(st[p] for p in PARAMS)))
+            self._log.append((float(t), st["name"], *(st[p] for p in PARAMS)))
         target = [self.stages[self.index][p] for p in PARAMS]
         # hold interval of these outputs: the sample period, or the spacing of the
         # calls when the block runs every communication step
@@ -180,7 +241,7 @@ class CuttingParameterAdaptation(Block):
         return out
 
 
-class OneStepDelay(Block):
+class OneStepDelay(KernelBlock, Block):
     """``y(t_k) = u(t_{k-1})``: a signal one sample late (``initial`` before the first).
 
     Not direct feed-through, so it closes a loop of feed-through blocks: the commanded
@@ -202,6 +263,13 @@ class OneStepDelay(Block):
 
     def reset(self, t0: float) -> None:
         self._held = self.initial
+        self._c_attach()
+
+    c_step = ("adaptation", "one_step_delay_step", _DelayState, 1, 1)   # kernels/adaptation.c
+    c_parameters = {}       # 'initial' is the held value's start: state
+
+    def _c_fill(self, c) -> None:
+        c.held = self._held
 
     def step(self, t, u):
         y, self._held = self._held, float(u[0])

@@ -241,6 +241,11 @@ class ThrustForceController(KernelBlock, Block):
         self._c_attach()
 
     c_step = ("drive_control", "force_control_step", structs.Force, 6, 10)   # kernels/drive_control.c
+    c_parameters = {
+        "Kp": "1/s2", "Kv": "1/s", "Kf": "1", "force_control": "1", "F_contact": "N", "t_confirm": "s",
+        "z_contact_min": "m", "exit_min_depth": "m", "F_exit_ratio": "1", "t_exit_confirm": "s", "z_limit": "m",
+        "z_retract": "m", "v_retract": "m/s", "a_retract": "m/s2", "v_max": "m/s", "tau_switch": "s",
+        **structs.nested("core", structs.ROBUST_PARAMETERS)}
 
     def _c_supports(self) -> bool:
         return type(self.core) is RobustAcceleration

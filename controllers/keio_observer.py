@@ -149,6 +149,12 @@ class CuttingForceObserver(KernelBlock, DiscretisedBlock):
         self._c_attach()
 
     c_step = ("drive_control", "keio_observer_step", structs.KeioObserver, 2, 3)   # kernels/drive_control.c
+    c_parameters = {
+        "Kt_n": ("N/A", "nominal force constant"), "M_n": ("kg", "nominal mass"),
+        "F_grav_comp": ("N", "gravity compensation"), "a": ("1", "observer pole exp(-g_thrust Ts)"),
+        "b": ("1", "1 - a"), "Ts": ("s", "sample period"), "v_stick": ("m/s", "standstill band"),
+        "F_static": ("N", "largest static friction"), "held": ("1", "1: i_ref_timing 'held'"),
+        "has_ripple": ("1", "1: position ripple in use"), **structs.nested("fr", structs.FRICTION_PARAMETERS)}
 
     def _c_supports(self) -> bool:
         return type(self.friction) is FrictionModel and len(self.friction.ripple) <= structs.MAX_RIPPLE

@@ -124,6 +124,8 @@ class FeedTrajectory(KernelBlock, Block):
         self._c_attach()
 
     c_step = ("drive_control", "trajectory_step", structs.Trajectory, 2, 4)   # kernels/drive_control.c
+    c_parameters = {"z_start": "m", "z_approach_end": "m", "v_approach": "m/s", "feed_rate": "m/s", "z_end": "m",
+                    "v_retract": "m/s", "a_max": "m/s2", "t_start": "s", "dt": "s"}
 
     def _c_supports(self) -> bool:
         return len(self.inputs) == 2

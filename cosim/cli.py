@@ -1,4 +1,5 @@
-"""``drillcosim`` command line: run, campaign, replay, simulate, list, info, plot, validate, conformance."""
+"""``drillcosim`` command line: run, campaign, replay, simulate, list, info, plot, validate, conformance,
+export-fmu, export-ssp."""
 from __future__ import annotations
 
 import argparse
@@ -354,6 +355,25 @@ def cmd_commission(args) -> int:
     return 1 if doc["warnings"] and args.strict else 0
 
 
+def cmd_export_fmu(args) -> int:
+    from .errors import CosimError
+    from .export_fmu import ExportError, export_blocks
+    from .scenario import load_scenario
+    try:
+        sc = load_scenario(_scenario_path(args.scenario), _parse_set(args.set))
+        done = export_blocks(sc, args.blocks, args.out, args.fmi)
+    except (ExportError, CosimError) as e:
+        print(f"drillcosim export-fmu: {e}", file=sys.stderr)
+        return 2
+    for ex, path in done:
+        n = {c: sum(v.causality == c for v in ex.variables) for c in ("input", "output", "parameter")}
+        print(f"{path}: FMI {args.fmi}.0 co-simulation, {n['input']} inputs, {n['output']} outputs, "
+              f"{n['parameter']} parameters, fixed step {ex.sample_period:g} s")
+        for key, file in ex.baked_files:
+            print(f"  {key} = {file}: read now, its values are the start values")
+    return 0
+
+
 def _add_limits(p) -> None:
     p.add_argument("--timeout", type=float, metavar="SECONDS",
                    help="wall-clock limit of a run; then status 'timeout' (a run stuck in an FMU is killed)")
@@ -467,6 +487,14 @@ def build_parser() -> argparse.ArgumentParser:
     cm.add_argument("--contact-damping", type=float, metavar="N*s/m", help="contact damping for the margin")
     cm.add_argument("--strict", action="store_true", help="exit 1 when the report has warnings")
     cm.set_defaults(func=cmd_commission)
+    ex = sub.add_parser("export-fmu", help="export blocks with a C step as FMI 3.0 (or 2.0) co-simulation FMUs "
+                        "(docs/export.md)")
+    ex.add_argument("scenario", help="scenario .toml (or its name in scenarios/): the settings of the blocks")
+    ex.add_argument("blocks", nargs="+", metavar="BLOCK", help="block names in the scenario")
+    ex.add_argument("--out", required=True, help="folder for the .fmu files (one per block, named after it)")
+    ex.add_argument("--fmi", type=int, choices=(2, 3), default=3, help="FMI version (default 3)")
+    ex.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override a scenario key first")
+    ex.set_defaults(func=cmd_export_fmu)
     c = sub.add_parser("conformance", help="run the Modelica Reference-FMUs against fmpy and rewrite "
                                            "the table in docs/conformance.md")
     c.add_argument("--no-write", action="store_true", help="print the table only")

@@ -767,6 +767,9 @@ def load_scenario(path, overrides: dict | None = None) -> Scenario:
     """Load and fully validate a scenario file (a path, or a name in ``scenarios/``);
     ``overrides`` are dotted keys set first."""
     path = scenario_path(path)
+    if path.suffix.lower() in (".ssp", ".ssd"):    # an SSP package from another tool (cosim/ssp/reader.py)
+        from .ssp.reader import load_ssp
+        return load_ssp(path, overrides)
     origins = Origins()
     raw = load_raw(path, overrides, origins)
     scenario = build(raw, str(path), path.parent.resolve(), path.stem, origins)

@@ -17,7 +17,7 @@ from cosim.native import build as _build
 from cosim.native import load
 
 HERE = Path(__file__).resolve().parent
-KERNELS = ("fang_observer", "drive_control")
+KERNELS = ("fang_observer", "drive_control", "adaptation")
 
 
 def build(name: str, force: bool = False, verbose: bool = False) -> Path:
@@ -48,6 +48,7 @@ class Kernel:
     def __init__(self, lib_name: str, fn_name: str, state, n_in: int, n_out: int):
         fn = getattr(library(lib_name), fn_name)
         fn.argtypes, fn.restype = [_P, _D, _P, _P], None
+        self.source, self.function = HERE / f"{lib_name}.c", fn_name   # for export-fmu (cosim/export_fmu.py)
         self.state = state
         self.n_in, self.n_out = n_in, n_out
         self.address = ctypes.cast(fn, _P).value
@@ -75,6 +76,13 @@ class KernelBlock:
     kernel = "auto"
     c_kernel = None
     c_step: tuple | None = None
+    # for ``drillcosim export-fmu`` (cosim/export_fmu.py): the struct fields that are the
+    # block's constants (field or array name -> unit, or (unit, description)); they become
+    # the FMU's parameters, every other field is state. Settings the block reads from a
+    # file *during the run* (none of the shipped blocks: their files are read by the
+    # constructor) cannot go into an FMU, which has no file at run time.
+    c_parameters: dict = {}
+    runtime_file_settings: tuple = ()
 
     def _c_supports(self) -> bool:
         return True

@@ -77,3 +77,24 @@ def fill_friction(f: Friction, model) -> bool:
     for j, row in enumerate(model.ripple):
         f.ripple[3 * j:3 * j + 3] = [float(v) for v in row]
     return True
+
+
+# the constants of the nested structs, for KernelBlock.c_parameters (export-fmu)
+FRICTION_PARAMETERS = {
+    "coulomb": ("N", "Coulomb friction"), "viscous": ("N.s/m", "viscous friction"),
+    "stribeck": ("N", "Stribeck excess over Coulomb"), "v_stribeck": ("m/s", "Stribeck velocity"),
+    "exponent": ("1", "Stribeck exponent"), "v_eps": ("m/s", "velocity of the smoothed sign"),
+    "n_ripple": ("1", "rows of the position ripple in use"),
+    "ripple": ("", "position ripple rows [wavenumber 1/m, sine N, cosine N]"),
+}
+ROBUST_PARAMETERS = {
+    "M": ("kg", "nominal mass"), "Kt": ("N/A", "nominal force constant"),
+    "g_dob": ("rad/s", "disturbance-observer bandwidth"), "g_vel": ("rad/s", "velocity filter bandwidth"),
+    "i_max": ("A", "current limit"), "F_bias": ("N", "known static force in +z"),
+    "dt0": ("s", "sample period used before two samples were seen"),
+}
+
+
+def nested(prefix: str, table: dict) -> dict:
+    """``table`` with its names under ``prefix.`` (a nested struct's fields)."""
+    return {f"{prefix}.{k}": v for k, v in table.items()}

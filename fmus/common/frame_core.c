@@ -143,6 +143,12 @@ static const VarInfo *find_var(FrameInstance *inst, const VarInfo *table, size_t
     return &table[vr - base - 1];
 }
 
+/* An FMU exported from a drillcosim block (cosim/export_fmu.py) passes NaN ("not yet",
+ * e.g. a detection time) through its inputs as the block does; the plants refuse it. */
+#ifndef FRAME_NONFINITE_INPUTS
+#define FRAME_NONFINITE_INPUTS 0
+#endif
+
 #define VALUE_PTR(inst, v, T) ((T *)((char *)(inst)->data + (v)->offset))
 
 int frame_get_real(FrameInstance *inst, const unsigned int vr[], size_t nvr, double value[],
@@ -211,7 +217,7 @@ int frame_set_real(FrameInstance *inst, const unsigned int vr[], size_t nvr, con
     for (i = 0; i < nvr; i++) {
         const VarInfo *v = find_var(inst, MODEL_INFO.reals, MODEL_INFO.n_reals, vr[i], 0, fn);
         if (!v || !settable(inst, v, fn)) goto fail;
-        if (!isfinite(value[i])) {
+        if (!isfinite(value[i]) && !(FRAME_NONFINITE_INPUTS && v->causality == CAUS_INPUT)) {
             FRAME_ERR(inst, "%s: %s = %g is not a finite number", fn, v->name, value[i]);
             goto fail;
         }
