@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -126,10 +127,52 @@ def fit_thrust_constant(levels: list[dict], Kt_n_reference: float, unit: str = "
     res = y - (gain * x + c)
     for v, r in zip(levels, res):
         v["residual_N"] = float(r)
+    sxx = float(np.sum((x - x.mean()) ** 2))
+    s2 = float(res @ res) / (len(x) - 2) if len(x) > 2 else math.nan
+    gain_std = math.sqrt(s2 / sxx) if sxx > 0 else math.inf
     return {"Kt_n_cal": float(gain * Kt_n_reference), "unit": unit,
-            "Kt_n_reference": float(Kt_n_reference), "gain": float(gain), "intercept_N": float(c),
+            "Kt_n_cal_std": float(gain_std * Kt_n_reference), "Kt_n_reference": float(Kt_n_reference),
+            "gain": float(gain), "gain_std": float(gain_std), "intercept_N": float(c),
+            "intercept_std_N": float(math.sqrt(s2 * (1.0 / len(x) + x.mean() ** 2 / sxx))) if sxx > 0 else math.inf,
             "residual_rms_N": float(np.sqrt(np.mean(res ** 2))),
-            "residual_max_N": float(np.abs(res).max()), "model": MODEL, "levels": levels}
+            "residual_max_N": float(np.abs(res).max()), "model": MODEL, "levels": levels,
+            "check": held_out_levels(x, y)}
+
+
+LEVEL_LIMIT = ("each level predicted by the fit on the other levels within 1 % of its thrust + 0.1 N; "
+               "the levels span at least 25 % of the largest")
+MIN_LEVEL_SPAN = 0.25
+
+
+def held_out_levels(x: np.ndarray, y: np.ndarray) -> dict:
+    """The constant checked on levels it was not fitted on: each level left out in turn and
+    predicted by the gain and intercept of the others (needs three levels); levels too close
+    together to separate gain and intercept fail (the span below ``MIN_LEVEL_SPAN`` of the largest)."""
+    out = {"method": "leave one level out", "limit": LEVEL_LIMIT, "errors_N": [], "passed": False}
+    span = float(np.ptp(x)) / max(float(np.max(np.abs(x))), 1e-12)
+    out["level_span"] = span
+    if span < MIN_LEVEL_SPAN:
+        out["reason"] = (f"reference levels too close to fit a constant: they span {100 * span:.0f} % of the largest "
+                         f"(< {100 * MIN_LEVEL_SPAN:.0f} %); command levels further apart")
+        return out
+    if len(x) < 3:
+        out["reason"] = f"{len(x)} levels: no level left to check the constant on (three or more needed)"
+        return out
+    worst = 0.0
+    for j in range(len(x)):
+        keep = np.arange(len(x)) != j
+        (g, c), *_ = np.linalg.lstsq(np.column_stack([x[keep], np.ones(keep.sum())]), y[keep], rcond=None)
+        err = float(y[j] - (g * x[j] + c))
+        out["errors_N"].append(err)
+        worst = max(worst, abs(err) / (0.01 * abs(y[j]) + 0.1))
+    out["worst_ratio_to_limit"] = worst
+    out["passed"] = bool(worst <= 1.0)
+    if not out["passed"]:
+        out["reason"] = ("a level left out is not predicted by the others (errors " +
+                         ", ".join(f"{e:+.2f}" for e in out["errors_N"]) + " N): the thrust is not proportional to the "
+                         "current over the levels (saturation or ripple of the force constant, a compliance, or an "
+                         "offset that changes with the level)")
+    return out
 
 
 def _scenario_raw(result) -> dict:

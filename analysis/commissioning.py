@@ -35,12 +35,12 @@ import numpy as np
 
 from analysis.identification import IdentificationError, identify_inertia, select_friction_model
 from analysis.plotting import pyplot, save_figure
-from controllers.calibration import DATASHEET_DEFAULT, DATASHEET_SETTINGS
+from controllers.calibration import COMMISSIONING_FORMAT, DATASHEET_DEFAULT, DATASHEET_SETTINGS
 from cosim.outputs import write_json_atomic
 
 ROOT = Path(__file__).resolve().parent.parent
 TEMPLATES = ROOT / "scenarios" / "commissioning"
-FORMAT = "drillcosim.commissioning/1"
+FORMAT = COMMISSIONING_FORMAT
 REQUIRED_ROLES = {"ball_screw": ("i_ref", "i_meas", "motor_angle"),
                   "linear_stage": ("i_ref", "table_position")}
 MAX_RESIDUAL_RATIO = 3.0          # residual RMS / in-segment noise above this: warning
@@ -296,7 +296,7 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
     mass_key = "mass" if kind == "linear_stage" else "inertia"
     mass = inertia["value"] if inertia.get("ok") else ds[mass_key]
     cal = thrust_calibration(target, raw_friction, mass, out)
-    kt = ds["force_constant"]
+    kt, scale = ds["force_constant"], 1.0
     if cal is not None:
         from controllers.calibration import rescale_friction
         scale = cal["Kt_n_cal"] / ds["force_constant"]
@@ -309,10 +309,12 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
                         "thrust_dyn is needed); the data-sheet value is used")
     nominal = {"kind": kind, mass_key: mass, "force_constant": kt, "force_constant_datasheet": ds["force_constant"],
                f"{mass_key}_datasheet": ds[mass_key]}
+    travel = _travel(res, kind)
     if kind == "ball_screw":
         nominal.update(pitch=ds["pitch"], eta=ds["eta"])
-    else:
-        nominal["gravity_comp"] = -fm.offset          # net gravity along +z, as the observer wants it
+    else:   # net gravity along +z, as the observer wants it, where the air cut started
+        from analysis.identification import position_force
+        nominal["gravity_comp"] = -fm.offset - float(position_force(fm, travel[0]))
     doc = {"format": FORMAT, "plant": str(target["binding_path"]), "target": str(Path(target_path).resolve()),
            "nominal": nominal, "friction": fm.to_dict(), "calibration": cal, "inertia_fit": inertia,
            "contact": None, "force_loop": None, "warnings": warnings}
@@ -324,12 +326,27 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
         from analysis.contact_identification import _target_gains
         from analysis.force_margin import commission_gains
         commission_gains(doc, _target_gains(target_path))      # Kf, g_thrust for the stated margin
-    write_json_atomic(out / "commissioning.json", _repo_relative(doc))
+    return _finish(doc, res, fm, target, out, scale, travel, print_table)
+
+
+def _travel(result, kind: str) -> tuple[float, float]:
+    """Start and far end of the air cut's travel [position unit of the friction model]."""
+    p = result["drive.motor_angle" if kind == "ball_screw" else "drive.table_position"]
+    return float(p[0]), float(p[np.argmax(np.abs(p - p[0]))])
+
+
+def _finish(doc, res, fm, target, out: Path, scale, travel, print_table) -> dict:
+    """Spreads and checks (``identified``, ``unverified``), then the file, figure, summary, report."""
+    from analysis.commissioning_checks import identified_entries
+    doc["identified"], doc["unverified"] = identified_entries(doc, fm, scale, tuple(sorted(travel)))
+    for q, why in doc["unverified"].items():
+        doc["warnings"].append(f"UNVERIFIED {q}: {why}")
+    write_json_atomic(out / "commissioning.json", _file_relative(doc, out))
     report_figure(res, fm, target, out)
-    summary = {"commissioning_file": str(out / "commissioning.json"), "kind": kind, "nominal": nominal,
-               "friction_model": fm.info.get("selection"), "contact": doc["contact"],
-               "force_loop_gains": doc.get("force_loop_gains"), "warnings": warnings}
-    write_json_atomic(out / "summary.json", summary)
+    summary = {"commissioning_file": "commissioning.json", "kind": doc["nominal"]["kind"],
+               "nominal": doc["nominal"], "friction_model": fm.info.get("selection"), "contact": doc["contact"],
+               "unverified": doc["unverified"], "warnings": doc["warnings"]}
+    write_json_atomic(out / "summary.json", _file_relative(summary, out))
     if print_table:
         print(report_table(doc))
     return doc
@@ -351,52 +368,84 @@ def without_calibration(doc: dict) -> dict:
     return {**doc, "nominal": nom, "friction": fm.to_dict(), "calibration": None}
 
 
-def _repo_relative(obj):
-    """Paths inside the repository written relative to its root (a commissioning file is
-    committed and read from other checkouts); others as they are."""
+def _file_relative(obj, base: Path):
+    """Every absolute path under the file's folder or in the repository written relative to
+    the file's folder ``base`` (a commissioning file is committed and read from other
+    checkouts and folders), also inside messages."""
+    import os
     if isinstance(obj, dict):
-        return {k: _repo_relative(v) for k, v in obj.items()}
+        return {k: _file_relative(v, base) for k, v in obj.items()}
     if isinstance(obj, list):
-        return [_repo_relative(v) for v in obj]
-    if isinstance(obj, str) and obj.startswith(str(ROOT) + "/"):
-        return obj[len(str(ROOT)) + 1:]
+        return [_file_relative(v, base) for v in obj]
+    if isinstance(obj, str):
+        obj = obj.replace(str(base) + "/", "")
+        if str(ROOT) + "/" in obj:
+            obj = obj.replace(str(ROOT) + "/", os.path.relpath(ROOT, base) + "/")
     return obj
 
 
 # --------------------------------------------------------------------------- report
+def _sd(e: dict | None, key: str | None = None) -> str:
+    """'+-x' of an ``identified`` entry (or of one parameter of the friction entry)."""
+    if not e:
+        return ""
+    v = e["value"][key] if key else e
+    return f"+-{v['std']:.3g}" if v.get("std") == v.get("std") and v.get("std") is not None else ""
+
+
 def report_table(doc: dict) -> str:
-    fr, nom = doc["friction"], doc["nominal"]
+    """The printed report: value, 1-sigma spread, data sheet and the check's verdict per
+    quantity (a rejected term is not printed: no placeholder reads like a fitted value)."""
+    fr, nom, ident = doc["friction"], doc["nominal"], doc.get("identified") or {}
     eu, vu = fr["effort_unit"], fr["velocity_unit"]
     mk = "mass" if "mass" in nom else "inertia"
-    mu = "kg" if mk == "mass" else "kg m2"
+    st = lambda q: (ident.get(q) or {}).get("status", "")   # noqa: E731
     info = fr.get("info", {})
-    rows = [("quantity", "value", "data sheet", "unit"),
-            (mk, f"{nom[mk]:.5g}", f"{nom[mk + '_datasheet']:.5g}", mu),
-            ("force constant", f"{nom['force_constant']:.5g}", f"{nom['force_constant_datasheet']:.5g}",
-             "N/A" if mk == "mass" else "N m/A"),
-            ("coulomb", f"{fr['coulomb']:.5g}", "", eu), ("viscous", f"{fr['viscous']:.5g}", "", f"{eu} s/{vu.split('/')[0]}"),
-            ("stribeck excess", f"{fr['stribeck']:.5g}", "", eu), ("stribeck velocity", f"{fr['v_stribeck']:.5g}", "", vu),
-            ("stribeck exponent", f"{fr['stribeck_exponent']:.3g}", "", "1"), ("offset", f"{fr['offset']:.5g}", "", eu)]
-    for k, a, b in fr["ripple"]:
-        per = f"{k:.4g}/rev" if fr["position_unit"] == "rad" else f"pitch {2 * math.pi / k * 1e3:.4g} mm"
-        rows.append((f"ripple {per}", f"{math.hypot(a, b):.4g}", "", eu))
-    rows += [("residual rms", f"{info.get('rms_residual', float('nan')):.4g}", "", eu),
-             ("noise rms (in segments)", f"{info.get('noise_rms', float('nan')):.4g}", "", eu),
-             ("condition number", f"{info.get('condition_number', float('nan')):.3g}", "", "1")]
+    fi = ident.get("friction")
+    rows = [("quantity", "value", "1 sigma", "data sheet", "unit", "check"),
+            (mk, f"{nom[mk]:.5g}", _sd(ident.get(mk)), f"{nom[mk + '_datasheet']:.5g}",
+             "kg" if mk == "mass" else "kg m2", st(mk)),
+            ("force constant", f"{nom['force_constant']:.5g}", _sd(ident.get("force_constant")),
+             f"{nom['force_constant_datasheet']:.5g}", "N/A" if mk == "mass" else "N m/A", st("force_constant")),
+            ("coulomb", f"{fr['coulomb']:.5g}", _sd(fi, "coulomb"), "", eu, st("friction")),
+            ("viscous", f"{fr['viscous']:.5g}", _sd(fi, "viscous"), "", f"{eu} s/{vu.split('/')[0]}", "")]
+    if fr["stribeck"]:
+        rows += [("stribeck excess", f"{fr['stribeck']:.5g}", _sd(fi, "stribeck"), "", eu, ""),
+                 ("stribeck velocity", f"{fr['v_stribeck']:.5g}", _sd(fi, "v_stribeck"), "", vu, ""),
+                 ("stribeck exponent", f"{fr['stribeck_exponent']:.3g}", "", "", "1", "")]
+    else:
+        rows.append(("stribeck", "not supported by the data", "", "", "", ""))
+    rows.append(("offset", f"{fr['offset']:.5g}", _sd(fi, "offset"), "", eu, ""))
+    if "gravity_comp" in nom:
+        rows.append(("gravity comp", f"{nom['gravity_comp']:.5g}", _sd(ident.get("gravity_comp")), "", "N",
+                     st("gravity_comp")))
+    if info.get("position_force"):
+        rows.append(("position force (poly)", " ".join(f"{c:.4g}" for c in info["position_force"]["coefficients"]),
+                     "", "", eu, ""))
+    terms = (ident.get("ripple") or {}).get("value") or [{"k": k} for k, _, _ in fr["ripple"]]
+    for (k, a, b), t in zip(fr["ripple"], terms):
+        per = f"{k:.4g}/rev" if fr["position_unit"] == "rad" else \
+            f"pitch {2 * math.pi / k * 1e3:.4g} mm" + (f" +-{t['wavelength_std'] * 1e3:.2g}" if "wavelength_std" in t else "")
+        rows.append((f"ripple {per}", f"{math.hypot(a, b):.4g}", "", "", eu, st("ripple")))
+    rows += [("residual rms", f"{info.get('rms_residual', float('nan')):.4g}", "", "", eu, ""),
+             ("noise rms (in segments)", f"{info.get('noise_rms', float('nan')):.4g}", "", "", eu, ""),
+             ("condition number", f"{info.get('condition_number', float('nan')):.3g}", "", "", "1", "")]
     if doc.get("calibration"):
         c = doc["calibration"]
-        rows.append(("calibration residual", f"{c.get('residual_rms_N', float('nan')):.3g}", "", "N"))
+        rows += [("calibration residual", f"{c.get('residual_rms_N', float('nan')):.3g}", "", "", "N", ""),
+                 ("calibration intercept (not applied)", f"{c.get('intercept_N', float('nan')):+.3g}",
+                  f"+-{c.get('intercept_std_N', float('nan')):.2g}", "", "N", "")]
     from analysis.contact_identification import contact_rows
-    rows += contact_rows(doc)
     from analysis.force_margin import gains_rows
-    rows += gains_rows(doc)
+    rows += [(q, v, sd, "", u, "") for q, v, sd, u in contact_rows(doc)]
+    rows += [(q, v, "", ds, u, "") for q, v, ds, u in gains_rows(doc)]
     if doc.get("force_loop"):
         m = doc["force_loop"]
-        rows += [("force loop gain margin", f"{m['gain_margin_db']:.3g}", "", "dB"),
-                 ("force loop phase margin", f"{m['phase_margin_deg']:.3g}", "", "deg")]
-    w = [max(len(r[i]) for r in rows) for i in range(4)]
+        rows += [("force loop gain margin", f"{m['gain_margin_db']:.3g}", "", "", "dB", ""),
+                 ("force loop phase margin", f"{m['phase_margin_deg']:.3g}", "", "", "deg", "")]
+    w = [max(len(r[i]) for r in rows) for i in range(6)]
     lines = [f"commissioning of {Path(doc['plant']).name}"]
-    lines += ["  " + "  ".join(r[i].ljust(w[i]) for i in range(4)) for r in rows]
+    lines += ["  " + "  ".join(r[i].ljust(w[i]) for i in range(6)).rstrip() for r in rows]
     lines += [f"  model selection: {s['model']} cv_rms {s['cv_rms']:.4g}" + ("" if s.get("kept", True) else " (rejected)")
               for s in info.get("selection", [])]
     lines += [f"  WARNING: {x}" for x in doc["warnings"]]

@@ -90,6 +90,12 @@ class _Rows:
         self.p = p[idx]
         self.y = e[idx]
         self.n_segments = len(segs)
+        # position-dependent force (a spring, a gravity compensator that changes with the
+        # stroke): a polynomial of this degree in the position scaled to [-1, 1] over the
+        # travel the segments cover; 0 = none (model selection raises it when supported)
+        self.pos_deg = 0
+        self.pos_center = float(0.5 * (self.p.max() + self.p.min()))
+        self.pos_half = float(max(0.5 * (self.p.max() - self.p.min()), 1e-12))
         if not (np.any(self.v > 0) and np.any(self.v < 0)):
             raise IdentificationError("friction identification: needs constant-velocity segments in both directions")
         if len(set(np.round(np.abs(self.seg_v), 12))) < 2:
@@ -109,7 +115,12 @@ class _Rows:
 
     def base(self, fit_offset=True):
         cols = [np.sign(self.v), self.v] + ([np.ones_like(self.v)] if fit_offset else [])
-        return cols, ["coulomb", "viscous"] + (["offset"] if fit_offset else [])
+        names = ["coulomb", "viscous"] + (["offset"] if fit_offset else [])
+        x = (self.p - self.pos_center) / self.pos_half
+        for d in range(1, self.pos_deg + 1):
+            cols.append(x ** d)
+            names.append(f"pos{d}")
+        return cols, names
 
 
 def stribeck_column(v, vs, exponent=2.0):
@@ -191,7 +202,7 @@ def _columns(rows: _Rows, fit_offset, vs, exponent, ks):
 def _ripple_part(coef, names, cols) -> np.ndarray:
     part = np.zeros(len(cols[0]))
     for a, name, col in zip(coef, names, cols):
-        if name.startswith(("sin", "cos")):
+        if name.startswith(("sin", "cos", "pos")):
             part = part + a * col
     return part
 
@@ -208,7 +219,12 @@ def _fit(rows: _Rows, fit_offset, vs, exponent, ks, units) -> FrictionModel:
     n = len(rows.y)
     rms = math.sqrt(rss / n)
     no_ripple = rows.y - _ripple_part(coef, names, cols)
-    fm.info = {"n_segments": rows.n_segments, "n_samples": int(n), "rms_residual": rms,
+    if rows.pos_deg:
+        fm.info["position_force"] = {
+            "model": "sum_d coefficients[d-1] * ((p - center) / half_span)^d [effort unit]",
+            "center": rows.pos_center, "half_span": rows.pos_half,
+            "coefficients": [c[f"pos{d}"] for d in range(1, rows.pos_deg + 1)]}
+    fm.info.update({"n_segments": rows.n_segments, "n_samples": int(n), "rms_residual": rms,
                "cv_rms": cv_rms(cols, rows.y, rows.fold) if len(set(rows.fold)) == 2 else math.nan,
                "noise_rms": rows.noise_rms, "residual_ratio": rms / rows.noise_rms if rows.noise_rms > 0 else math.inf,
                "condition_number": condition_number(Phi), "bic": bic(rss, n, n_par), "n_parameters": n_par,
@@ -217,7 +233,7 @@ def _fit(rows: _Rows, fit_offset, vs, exponent, ks, units) -> FrictionModel:
                "segment_mean_effort_without_ripple": [float(np.mean(no_ripple[rows.seg_id == j]))
                                                       for j in range(rows.n_segments)],
                "segment_residual_rms": [float(np.sqrt(np.mean(resid[rows.seg_id == j] ** 2)))
-                                        for j in range(rows.n_segments)]}
+                                        for j in range(rows.n_segments)]})
     return fm
 
 
@@ -340,6 +356,7 @@ def select_friction_model(time, position, effort, v_ref, *, fit_offset: bool = T
     use_stribeck = better(m1, m0) and m1.stribeck > 0
     best = m1 if use_stribeck else m0
     log[-1]["kept"] = use_stribeck
+    best = _select_position_force(rows, scan, best, fit_offset, use_stribeck, units, better, log)
     # harmonics from the spectrum of the residual
     ks, continuous = harmonic_candidates(rows.p, position_unit, k_max_rev, lambda_min)
     chosen: list[float] = []
@@ -369,14 +386,25 @@ def select_friction_model(time, position, effort, v_ref, *, fit_offset: bool = T
             break
         chosen.append(k)
         best = cand
+    if chosen:      # with the ripple in place, the position term again by the same criterion
+        rows.pos_deg = scan.pos_deg = 0
+        vs_c, ex_c = (best.v_stribeck, best.stribeck_exponent) if use_stribeck else (None, 2.0)
+        best = _select_position_force(rows, scan, _fit(rows, fit_offset, vs_c, ex_c, chosen, units), fit_offset,
+                                      use_stribeck, units, better, log, ks=chosen)
     if continuous and chosen:
         chosen = _refine_families(scan, fit_offset, best.v_stribeck if use_stribeck else None,
                                   best.stribeck_exponent, chosen, 4 * (ks[1] - ks[0]))
     if chosen:
         vs0, ex0 = fit_stribeck(scan, fit_offset, chosen, stribeck_exponents) if use_stribeck else (None, 2.0)
+        if continuous:
+            chosen = _newton_refine(rows, fit_offset, vs0, ex0, chosen)
         best = _fit(rows, fit_offset, vs0, ex0, chosen, units)
     best.info["selection"] = log
     best.info["criterion"] = CRITERION
+    best.info["holdout"] = holdout_check(rows, best, fit_offset)
+    best.info["std"] = friction_spreads(rows, best, fit_offset, search_decimation, stribeck_exponents)
+    best.info["harmonics"] = harmonic_checks(rows, best, fit_offset, search_decimation)
+    best.info["whiteness"] = whiteness(rows, best, fit_offset, k_max_rev, lambda_min, search_decimation)
     warnings = []
     if best.info["condition_number"] > max_condition:
         raise IdentificationError(
@@ -384,6 +412,38 @@ def select_friction_model(time, position, effort, v_ref, *, fit_offset: bool = T
             f"{best.info['condition_number']:.3g} > {max_condition:.3g}): the air cut does not separate the terms "
             f"(too few speeds, or a travel too short for the ripple); add speeds or travel")
     best.info["warnings"] = warnings
+    return best
+
+
+def _newton_refine(rows: _Rows, fit_offset, vs, ex, ks, steps: int = 2) -> list[float]:
+    """Each wavenumber by Newton steps on the residual sum of squares of *all* samples (the
+    refinement before ran on the decimated scan): the least-squares wavelength, not a grid's."""
+    ks = list(ks)
+    for j in range(len(ks)):
+        for _ in range(steps):
+            h = 1e-4 * ks[j]
+            r0, rp, rm = (_rss_with(rows, fit_offset, vs, ex, ks, j, ks[j] + d)[0] for d in (0.0, h, -h))
+            curv = (rp - 2 * r0 + rm) / h ** 2
+            if curv <= 0:
+                break
+            ks[j] -= float(np.clip((rp - rm) / (2 * h) / curv, -10 * h, 10 * h))
+    return ks
+
+
+def _select_position_force(rows, scan, best, fit_offset, use_stribeck, units, better, log, max_degree=2, ks=()):
+    """Raise the degree of the position-dependent force (spring, stroke-dependent gravity)
+    while the criterion supports it; ``rows.pos_deg`` (and the scan's) is left at the kept degree."""
+    vs, ex = (best.v_stribeck, best.stribeck_exponent) if use_stribeck else (None, 2.0)
+    for deg in range(1, max_degree + 1):
+        rows.pos_deg = scan.pos_deg = deg
+        cand = _fit(rows, fit_offset, vs, ex, list(ks), units)
+        kept = better(cand, best)
+        log.append({"model": f"+position force (degree {deg})" + (" with the harmonics" if ks else ""), "cv_rms": cand.info["cv_rms"],
+                    "bic": cand.info["bic"], "rms": cand.info["rms_residual"], "kept": kept})
+        if not kept:
+            rows.pos_deg = scan.pos_deg = deg - 1
+            break
+        best = cand
     return best
 
 
@@ -397,18 +457,41 @@ def friction_effort(fm: FrictionModel, v, p) -> np.ndarray:
         f = f + fm.stribeck * s * np.exp(-(np.abs(v) / fm.v_stribeck) ** fm.stribeck_exponent)
     for k, a_s, a_c in fm.ripple:
         f = f + a_s * np.sin(k * np.asarray(p)) + a_c * np.cos(k * np.asarray(p))
-    return f
+    return f + position_force(fm, p)
+
+
+def position_force(fm: FrictionModel, p) -> np.ndarray:
+    """The identified position-dependent effort (spring, stroke-dependent gravity) at the
+    positions ``p`` [position unit]; zeros when the model has none."""
+    pf = fm.info.get("position_force")
+    p = np.asarray(p, float)
+    if not pf:
+        return np.zeros_like(p)
+    x = (p - pf["center"]) / pf["half_span"]
+    return sum(c * x ** (d + 1) for d, c in enumerate(pf["coefficients"]))
+
+
+INERTIA_REL_LIMIT = 0.03          # ramps of different accelerations give one inertia within this
+
+
+def _ls_ratio(x, y):
+    J = float(x @ y / (x @ x))
+    r = y - J * x
+    return J, float(np.sqrt((r @ r) / max(len(x) - 1, 1) / (x @ x))), float(np.sqrt(np.mean(r ** 2)))
 
 
 def identify_inertia(time, position, effort, fm: FrictionModel, a_ref, *, window: float = 0.01,
                      min_rel_accel: float = 0.3) -> dict:
     """Moving mass [kg] (or inertia [kg m2]) from the ramps of an air cut: on the samples
-    where the commanded acceleration is at least ``min_rel_accel`` of its maximum,
-    ``effort - friction(v) - ripple(p) - offset = J a`` by least squares. Position and
-    effort are smoothed by the same centred moving average (``window`` s, applied twice),
-    so that the filter cancels from the ratio; ``v`` and ``a`` are central differences of
-    the smoothed position. Returns ``value``, its standard error ``std`` and ``ok``
-    (relative standard error below 5 %, enough samples)."""
+    where the commanded acceleration is at least ``min_rel_accel`` of its ramp's level,
+    ``effort - friction(v) - ripple(p) - position force(p) - offset = J a`` by least squares.
+    Position and effort are smoothed by the same centred moving average (``window`` s,
+    applied twice), so that the filter cancels from the ratio; ``v`` and ``a`` are central
+    differences of the smoothed position. The ramps are grouped by their acceleration: the
+    value is the fit on all, the check that each group alone gives it within
+    ``INERTIA_REL_LIMIT`` (a compliance, an unmodelled force or a current limit shows as an
+    inertia that depends on the acceleration). Returns ``value``, ``std`` (the larger of the
+    standard error and the groups' spread), ``groups``, ``check`` and ``ok`` (std below 5 %)."""
     from analysis.signal_tools import centred_mean
     t = np.asarray(time, float)
     dt = float(np.median(np.diff(t)))
@@ -418,30 +501,186 @@ def identify_inertia(time, position, effort, fm: FrictionModel, a_ref, *, window
     # friction and ripple are taken off the raw effort, at a lightly smoothed velocity (1 ms):
     # friction is nonlinear, smoothing first would blur it across the ramps
     v_raw = np.gradient(sm(pos, max(1, int(round(1e-3 / dt)))), dt)
-    y = np.asarray(effort, float) - friction_effort(fm, v_raw, pos)
-    y = sm(y, n)
-    p = sm(pos, n)
-    v = np.gradient(p, dt)
+    y = sm(np.asarray(effort, float) - friction_effort(fm, v_raw, pos), n)
+    v = np.gradient(sm(pos, n), dt)
     a = np.gradient(v, dt)
-    ar = np.asarray(a_ref, float)
-    amax = float(np.max(np.abs(ar))) if len(ar) else 0.0
+    ar = np.abs(np.asarray(a_ref, float))
     speeds = np.abs(fm.info.get("segment_velocity", [0.0]))
-    sel = (np.abs(ar) >= min_rel_accel * amax) & (np.abs(v_raw) > 0.5 * float(np.min(speeds)))
-    sel[: 2 * n] = False
-    sel[-2 * n:] = False
-    out = {"n_samples": int(sel.sum()), "warnings": []}
-    if amax == 0 or sel.sum() < 20:
-        out.update(ok=False, value=math.nan, std=math.nan)
+    moving = np.abs(v_raw) > 0.5 * float(np.min(speeds))
+    # only samples whose whole smoothing support moves: near standstill the friction model
+    # (one sign, no sticking) is wrong, and the filter would carry that error into the ramp
+    moving = np.convolve(~moving, np.ones(4 * n + 1), mode="same") == 0
+    moving[: 2 * n] = False
+    moving[-2 * n:] = False
+    levels = sorted({float(x) for x in np.round(ar[ar > 0], 9)})
+    # a level with too few samples (a ramp shorter than the smoothing) joins no group
+    groups = [(lv, moving & (np.abs(ar - lv) <= 1e-6 * lv)) for lv in levels]
+    groups = [(lv, s) for lv, s in groups if s.sum() >= 20]
+    out = {"n_samples": 0, "warnings": [], "groups": []}
+    if not groups:
+        out.update(ok=False, value=math.nan, std=math.nan, check={"passed": False, "reason": "no ramps"})
         out["warnings"].append("inertia: the air cut has too few acceleration samples; the data-sheet value is used")
         return out
-    y = y[sel]
-    x = a[sel]
-    J = float(x @ y / (x @ x))
-    r = y - J * x
-    std = float(np.sqrt((r @ r) / max(len(x) - 1, 1) / (x @ x)))
+    amax = max(lv for lv, _ in groups)
+    sel = moving & (ar >= min_rel_accel * min(lv for lv, _ in groups))
+    J, std, rres = _ls_ratio(a[sel], y[sel])
+    for lv, s in groups:
+        Jg, sg, _ = _ls_ratio(a[s], y[s])
+        out["groups"].append({"acceleration": lv, "value": Jg, "std": sg, "n_samples": int(s.sum())})
+    spread = (max(g["value"] for g in out["groups"]) - min(g["value"] for g in out["groups"])) / 2
+    dev = max(abs(g["value"] - J) for g in out["groups"]) / abs(J) if J else math.inf
+    check = {"method": "the ramps of each acceleration fitted alone", "limit_rel": INERTIA_REL_LIMIT,
+             "max_rel_deviation": dev, "passed": bool(len(groups) >= 2 and dev <= INERTIA_REL_LIMIT)}
+    if len(groups) < 2:
+        check["reason"] = (f"ramps of one acceleration only ({amax:g}): no second experiment to check the inertia "
+                           "against; give the air cut's a_max one value per segment")
+    elif not check["passed"]:
+        check["reason"] = ("ramps of different accelerations give different inertias (" + ", ".join(
+            f"{g['value']:.4g} at {g['acceleration']:g}" for g in out["groups"]) +
+            f"; {100 * dev:.1f} % > {100 * INERTIA_REL_LIMIT:g} %): a compliance, a force the friction model "
+            "misses or a current limit")
+    std = max(std, spread)
     ok = J > 0 and std < 0.05 * J
-    out.update(value=J, std=std, ok=bool(ok), residual_rms=float(np.sqrt(np.mean(r ** 2))))
+    out.update(value=J, std=std, ok=bool(ok), residual_rms=rres, n_samples=int(sel.sum()), check=check)
     if not ok:
         out["warnings"].append(f"inertia: fit {J:.4g} +- {std:.2g} is not reliable (relative error > 5 % or <= 0); "
                                f"the data-sheet value is used")
+    return out
+
+
+# --------------------------------------------------------------------------- checks of the fit
+HOLDOUT_LIMIT = ("a held-back segment's mean effort predicted within 3 x its standard error "
+                 "plus 2 % of the Coulomb level")
+WAVELENGTH_REL_LIMIT = 0.02       # the two folds' wavelengths of one ripple term agree within this
+AMPLITUDE_REL_LIMIT = 0.25        # ... and their amplitudes within this (+ 3 sigma)
+WHITENESS_FALSE_ALARM = 0.01      # of the residual's periodogram peak test
+
+
+def _structure(fm: FrictionModel):
+    vs = fm.v_stribeck if fm.stribeck else None
+    return vs, fm.stribeck_exponent, [k for k, _, _ in fm.ripple]
+
+
+def holdout_check(rows: _Rows, fm: FrictionModel, fit_offset=True) -> dict:
+    """Friction predicted on held-back segments: the chosen structure fitted on one fold
+    (pairs of segments), each segment of the other fold predicted by its mean effort."""
+    vs, ex, ks = _structure(fm)
+    Phi = np.column_stack(_columns(rows, fit_offset, vs, ex, ks)[0])
+    errs, limits = [], []
+    scale = abs(fm.coulomb) + abs(fm.stribeck)
+    for f in (0, 1):
+        tr = rows.fold != f
+        coef = np.linalg.lstsq(Phi[tr], rows.y[tr], rcond=None)[0]
+        for j in np.unique(rows.seg_id[~tr]):
+            s = rows.seg_id == j
+            errs.append(float(np.mean(rows.y[s] - Phi[s] @ coef)))
+            # the segment mean's own noise: residual RMS over sqrt of ~10 samples per correlation
+            limits.append(3 * fm.info["rms_residual"] / math.sqrt(max(s.sum() / 10.0, 1.0)) + 0.02 * scale)
+    worst = int(np.argmax(np.abs(errs) / np.array(limits)))
+    return {"limit": HOLDOUT_LIMIT, "segment_error": errs, "segment_limit": limits,
+            "worst_segment": worst + 1, "worst_error": errs[worst], "worst_limit": limits[worst],
+            "passed": bool(abs(errs[worst]) <= limits[worst])}
+
+
+def _rss_with(rows, fit_offset, vs, ex, ks, j, kj, sel=None):
+    trial = list(ks)
+    trial[j] = kj
+    cols, _ = _columns(rows, fit_offset, vs, ex, trial)
+    Phi, y = np.column_stack(cols), rows.y
+    if sel is not None:
+        Phi, y = Phi[sel], y[sel]
+    coef = np.linalg.lstsq(Phi, y, rcond=None)[0]
+    r = y - Phi @ coef
+    return float(r @ r), coef
+
+
+def harmonic_checks(rows: _Rows, fm: FrictionModel, fit_offset=True, decimation: int = 10) -> list[dict]:
+    """Per ripple term: wavenumber, its 1-sigma spread (curvature of the residual sum of
+    squares, ``var k = 2 sigma^2 / RSS''``; 0 for a harmonic of a revolution, an integer by
+    construction), and the check: refitted on each fold alone (continuous axis: its
+    wavenumber refined there too), wavelength and amplitude must agree."""
+    vs, ex, ks = _structure(fm)
+    continuous = fm.position_unit != "rad"
+    sigma2 = fm.info["rms_residual"] ** 2
+    out = []
+    scan = rows.subset(max(1, decimation))
+    for j, (k, a, b) in enumerate(fm.ripple):
+        entry = {"k": k, "amplitude": math.hypot(a, b), "k_std": 0.0}
+        if continuous:
+            h = 1e-4 * k
+            r0, rp, rm = (_rss_with(rows, fit_offset, vs, ex, ks, j, k + d)[0] for d in (0.0, h, -h))
+            curv = (rp - 2 * r0 + rm) / h ** 2
+            entry["k_std"] = math.sqrt(2 * sigma2 / curv) if curv > 0 else math.inf
+        folds = []
+        for f in (0, 1):
+            sel = scan.fold == f
+            kf = k
+            if continuous:
+                kf = float(minimize_scalar(lambda kk: _rss_with(scan, fit_offset, vs, ex, ks, j, kk, sel)[0],
+                                           bounds=(0.97 * k, 1.03 * k), method="bounded",
+                                           options={"xatol": 1e-5 * k}).x)
+            coef = _rss_with(scan, fit_offset, vs, ex, ks, j, kf, sel)[1]
+            n0 = len(coef) - 2 * len(ks)
+            folds.append({"k": kf, "amplitude": float(math.hypot(coef[n0 + 2 * j], coef[n0 + 2 * j + 1])),
+                          "n": int(sel.sum())})
+        amp_sigma = math.sqrt(2 * sigma2 / min(f["n"] for f in folds) * decimation / 10.0)
+        dl = abs(folds[0]["k"] - folds[1]["k"]) / k
+        da = abs(folds[0]["amplitude"] - folds[1]["amplitude"])
+        entry.update(folds=folds, wavelength_fold_difference=dl, amplitude_fold_difference=da,
+                     passed=bool(dl <= WAVELENGTH_REL_LIMIT
+                                 and da <= AMPLITUDE_REL_LIMIT * entry["amplitude"] + 3 * amp_sigma))
+        out.append(entry)
+    return out
+
+
+def whiteness(rows: _Rows, fm: FrictionModel, fit_offset=True, k_max_rev: int = 24, lambda_min: float = 1e-3,
+              decimation: int = 10) -> dict:
+    """Is a periodic term left in the residual? The residual's least-squares periodogram
+    over the drive position: for noise without such a term its power at a wavenumber is
+    ~ exponential, so the peak over ``M`` independent wavenumbers exceeds
+    ``ln(M / false_alarm)`` times the mean power (estimated robustly: median / ln 2) with
+    probability ``false_alarm``."""
+    vs, ex, ks = _structure(fm)
+    cols, _ = _columns(rows, fit_offset, vs, ex, ks)
+    r = _lstsq(cols, rows.y)[2]
+    grid, continuous = harmonic_candidates(rows.p, fm.position_unit, k_max_rev, lambda_min)
+    if not len(grid):
+        return {"white": True, "note": "travel too short for a periodogram"}
+    sel = slice(None, None, max(1, decimation))
+    power = periodogram(rows.p[sel], r[sel], grid) ** 2
+    m_indep = max(len(grid) / (4.0 if continuous else 1.0), 2.0)
+    mean = float(np.median(power)) / math.log(2)
+    j = int(np.argmax(power))
+    stat = float(power[j] / mean) if mean > 0 else math.inf
+    thr = math.log(m_indep / WHITENESS_FALSE_ALARM)
+    return {"white": bool(stat <= thr), "peak_to_mean_power": stat, "threshold": thr,
+            "false_alarm": WHITENESS_FALSE_ALARM, "peak_k": float(grid[j]),
+            "peak_amplitude": float(math.sqrt(power[j]))}
+
+
+def friction_spreads(rows: _Rows, fm: FrictionModel, fit_offset=True, decimation: int = 10,
+                     exponents=(1.0, 1.5, 2.0)) -> dict:
+    """1-sigma spread of each friction parameter [its unit]: the larger of the least-squares
+    standard error (which takes the noise as white) and half the difference of the two folds'
+    estimates (a split of the segments: it sees correlated noise and segment-to-segment
+    effects). The Stribeck velocity is refitted on each fold."""
+    vs, ex, ks = _structure(fm)
+    cols, names = _columns(rows, fit_offset, vs, ex, ks)
+    Phi = np.column_stack(cols)
+    sigma2 = fm.info["rms_residual"] ** 2
+    ls = np.sqrt(np.diag(sigma2 * np.linalg.pinv(Phi.T @ Phi)))
+    folds = [np.linalg.lstsq(Phi[rows.fold == f], rows.y[rows.fold == f], rcond=None)[0] for f in (0, 1)]
+    out = {n: float(max(s, abs(a - b) / 2)) for n, s, a, b in zip(names, ls, *folds)
+           if not n.startswith(("sin", "cos"))}
+    if vs:
+        scan = rows.subset(max(1, decimation))
+        v_f = []
+        for f in (0, 1):
+            sub = object.__new__(_Rows)
+            sub.__dict__.update(scan.__dict__)
+            sel = scan.fold == f
+            sub.v, sub.p, sub.y, sub.fold, sub.seg_id = scan.v[sel], scan.p[sel], scan.y[sel], scan.fold[sel], \
+                scan.seg_id[sel]
+            v_f.append(fit_stribeck(sub, fit_offset, ks, (ex,))[0])
+        out["v_stribeck"] = float(abs(v_f[0] - v_f[1]) / 2)
     return out

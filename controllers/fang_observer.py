@@ -135,11 +135,11 @@ class AdaptiveThrustObserver(DiscretisedBlock):
                  tau_offset: float | None = None, tau_ripple=None, w_eps: float = 1e-3,
                  g_fric_vel: float = 50.0,
                  friction_file: str | None = None, kernel: str = "auto", sample_period: float = 1e-4,
-                 commissioning_file: str | None = None):
+                 commissioning_file: str | None = None, accept_unverified=()):
         super().__init__(sample_period)
         com = None
         if commissioning_file:      # one nominal set per drive: it replaces the data-sheet settings
-            com = load_commissioning(commissioning_file, "ball_screw")
+            com = load_commissioning(commissioning_file, "ball_screw", accept_unverified)
             J_en, K_Tn, K_pitch, eta = (com["nominal"][k] for k in ("inertia", "force_constant", "pitch", "eta"))
         self.nominal = FangNominal(J_en=float(J_en), K_Tn=float(K_Tn), K_pitch=float(K_pitch), eta=float(eta))
         if position_unit not in _UNITS:

@@ -180,11 +180,11 @@ class ThrustForceController(KernelBlock, Block):
                  z_retract: float = 0.0, v_retract: float = 0.005, a_retract: float = 0.05,
                  v_max: float = math.inf, tau_switch: float = 0.01, dt: float = 1e-4,
                  sample_period: float = 0.0, calibration_file: str | None = None,
-                 commissioning_file: str | None = None):
+                 commissioning_file: str | None = None, accept_unverified=()):
         super().__init__(sample_period)
         self.load_warnings: list[str] = []
         if commissioning_file:
-            nom = load_commissioning(commissioning_file, "linear_stage")["nominal"]
+            nom = load_commissioning(commissioning_file, "linear_stage", accept_unverified)["nominal"]
             mass_nominal, force_constant_nominal, F_bias = nom["mass"], nom["force_constant"], nom["gravity_comp"]
             Kf = self._commissioned_kf(commissioning_file, Kf, force_control)
         elif calibration_file:

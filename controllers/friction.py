@@ -180,7 +180,8 @@ class VelocitySegments(KernelBlock, Block):
     """Reference for an air-cutting identification run: constant-velocity segments.
 
     For each entry of ``velocities`` [m/s] (feed coordinate, sign = direction): ramp at
-    ``a_max`` [m/s2] to that velocity, hold it for ``hold`` [s] (one value or one per
+    ``a_max`` [m/s2] (one value or one per segment: the inertia fit checks itself on ramps of
+    another acceleration) to that velocity, hold it for ``hold`` [s] (one value or one per
     segment), ramp back to rest, wait ``pause`` [s]. Starts at ``z_start`` [m] after
     ``t_start`` [s]. Outputs ``z_ref`` [m], ``v_ref`` [m/s], ``a_ref`` [m/s2] (exact
     piecewise-constant-acceleration profile, evaluated analytically at ``t``) and
@@ -200,14 +201,17 @@ class VelocitySegments(KernelBlock, Block):
         super().__init__(sample_period)
         vel = [float(v) for v in velocities]
         holds = [float(hold)] * len(vel) if np.isscalar(hold) else [float(h) for h in hold]
-        if not vel or len(holds) != len(vel) or any(h <= 0 for h in holds) or not a_max > 0:
-            raise ValueError("VelocitySegments: need velocities, hold > 0 (one or one per segment), a_max > 0")
+        accs = [float(a_max)] * len(vel) if np.isscalar(a_max) else [float(a) for a in a_max]
+        if not vel or len(holds) != len(vel) or any(h <= 0 for h in holds) or len(accs) != len(vel) \
+                or not all(a > 0 for a in accs):
+            raise ValueError("VelocitySegments: need velocities, hold > 0 and a_max > 0 [m/s2] (each one value or "
+                             f"one per segment), got {len(vel)} velocities, hold {hold!r}, a_max {a_max!r}")
         # phases: (t0, duration, a, v0, z0, segment)
         ph = []
         t, z = float(t_start), float(z_start)
-        for k, (v, h) in enumerate(zip(vel, holds), start=1):
-            tr = abs(v) / a_max
-            a = math.copysign(a_max, v)
+        for k, (v, h, acc_k) in enumerate(zip(vel, holds, accs), start=1):
+            tr = abs(v) / acc_k
+            a = math.copysign(acc_k, v)
             for dur, acc, v0, seg in ((tr, a, 0.0, 0), (h, 0.0, v, k), (tr, -a, v, 0)):
                 ph.append((t, dur, acc, v0, z, seg))
                 z += v0 * dur + 0.5 * acc * dur * dur

@@ -86,11 +86,11 @@ class CuttingForceObserver(KernelBlock, DiscretisedBlock):
                  F_ripple=None, v_eps: float = 1e-5, v_stick: float = 5e-5,
                  friction_file: str | None = None, calibration_file: str | None = None,
                  i_ref_timing: str = "held", sample_period: float = KeioNominal.sample_period,
-                 commissioning_file: str | None = None):
+                 commissioning_file: str | None = None, accept_unverified=()):
         super().__init__(sample_period)
         self.load_warnings: list[str] = []
         if commissioning_file:
-            com = load_commissioning(commissioning_file, "linear_stage")
+            com = load_commissioning(commissioning_file, "linear_stage", accept_unverified)
             M_n, Kt_n = com["nominal"]["mass"], com["nominal"]["force_constant"]
             g_thrust = commissioned_g_thrust(commissioning_file, g_thrust, self.load_warnings)
         g_thrust = KeioNominal.g_thrust if g_thrust is None else g_thrust

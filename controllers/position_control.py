@@ -201,11 +201,12 @@ class PositionController(KernelBlock, Block):
     def __init__(self, Kp: float = 25.0, Kv: float = 100.0, mass_nominal: float = 3.95,
                  force_constant_nominal: float = 24.0, g_dob: float = 1200.0,
                  g_vel: float = 2000.0, i_max: float = 10.0, F_bias: float = 0.0,
-                 dt: float = 1e-4, sample_period: float = 0.0, commissioning_file: str | None = None):
+                 dt: float = 1e-4, sample_period: float = 0.0, commissioning_file: str | None = None,
+                 accept_unverified=()):
         super().__init__(sample_period)
         if commissioning_file:      # the drive's one nominal set (docs/commissioning.md)
             from controllers.calibration import load_commissioning
-            nom = load_commissioning(commissioning_file, "linear_stage")["nominal"]
+            nom = load_commissioning(commissioning_file, "linear_stage", accept_unverified)["nominal"]
             mass_nominal, force_constant_nominal, F_bias = nom["mass"], nom["force_constant"], nom["gravity_comp"]
         if not Kp > 0 or not Kv > 0:
             raise ValueError(f"PositionController: Kp and Kv must be > 0 1/s, got {Kp!r}, {Kv!r}")
@@ -272,10 +273,10 @@ class BallScrewPositionController(PositionController):
     """
 
     def __init__(self, J_en: float = 0.0003, K_Tn: float = 1.10, K_pitch: float = 0.637e-3,
-                 eta: float = 0.95, commissioning_file: str | None = None, **kw):
+                 eta: float = 0.95, commissioning_file: str | None = None, accept_unverified=(), **kw):
         if commissioning_file:
             from controllers.calibration import load_commissioning
-            nom = load_commissioning(commissioning_file, "ball_screw")["nominal"]
+            nom = load_commissioning(commissioning_file, "ball_screw", accept_unverified)["nominal"]
             J_en, K_Tn, K_pitch, eta = (nom[k] for k in ("inertia", "force_constant", "pitch", "eta"))
         kw["mass_nominal"], kw["force_constant_nominal"] = ball_screw_linear(J_en, K_Tn, K_pitch)
         super().__init__(**kw)

@@ -208,7 +208,8 @@ def test_scenario_gains_without_margin_warn_in_the_summary(tmp_path):
     """force_loop_margin (a [[scores]] function) reads Kf / g_thrust from the run's scenario
     and warns, with a tuned suggestion, when the gain margin is below the stated 6 dB."""
     from analysis.force_margin import force_loop_margin
-    com = {"format": "drillcosim.commissioning/1",
+    from controllers.calibration import COMMISSIONING_FORMAT
+    com = {"format": COMMISSIONING_FORMAT,
            "nominal": {"kind": "linear_stage", "mass": 4.3, "force_constant": 24.6, "gravity_comp": 4.2},
            "friction": FrictionModel(coulomb=6.0, viscous=45.0, stribeck=3.5, v_stribeck=3e-3,
                                      stribeck_exponent=1.5).to_dict()}

@@ -45,8 +45,10 @@ def test_shipped_scenarios_read_one_commissioning_file_per_drive(path):
         assert not NOMINAL_KEYS & set(st), (path.name, name, sorted(NOMINAL_KEYS & set(st)))
         seen.add(st["commissioning_file"])
     assert len(seen) == 1, (path.name, seen)            # one set per drive
-    doc = json.loads(Path(seen.pop()).read_text())
-    assert (ROOT / doc["plant"]).resolve() in plant, (path.name, doc["plant"])    # the plant it commissions
+    seen_file = seen.pop()
+    doc = json.loads(Path(seen_file).read_text())
+    # the plant it commissions (paths in the file are relative to the file)
+    assert (Path(seen_file).parent / doc["plant"]).resolve() in plant, (path.name, doc["plant"])
     assert doc["calibration"] is not None
     # a force loop, where the contact experiment ran, is stable at the gains it was commissioned
     # with; a margin below 6 dB is a warning (the foreign stage's 3.3 dB at Kf 0.45), not a failure

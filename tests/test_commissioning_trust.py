@@ -1,0 +1,187 @@
+"""Commissioning you can trust (issue 20, items 1-2 and its "Bad input"): every identified
+value carries a spread and a check against data it was not fitted on; a failed check marks
+it ``unverified`` and the blocks refuse it unless the scenario accepts it; position-dependent
+forces and refined wavelengths. Fast tests on synthetic records and files; the per-plant
+targets (mass 3 %, force constant 1 %, wavelengths 2 %, or unverified) are in
+tests/test_commissioning_plants.py (long)."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from analysis.calibration import held_out_levels
+from analysis.commissioning import _file_relative, fit_air_cut, read_target, report_table
+from analysis.commissioning_checks import identified_entries
+from analysis.identification import position_force, select_friction_model
+from controllers.calibration import COMMISSIONING_FORMAT, load_commissioning
+from controllers.friction import FrictionModel
+from cosim.recorder import Result
+
+ROOT = Path(__file__).resolve().parent.parent
+COM = ROOT / "scenarios" / "commissioning"
+
+
+def _record(fm: FrictionModel, speeds, hold, noise, spring=0.0, dt=1e-3, seed=0):
+    """Constant-velocity segments there and back, as the air cut runs them, through ``fm``
+    plus a spring force ``spring * p`` [N/m] (a gravity compensator that grows with the stroke)."""
+    rng = np.random.default_rng(seed)
+    t, p, e, vr = [], [], [], []
+    tt, pp = 0.0, 0.0
+    for s in speeds:
+        for v in (s, -s):
+            n = int(hold / dt)
+            ts, ps = tt + dt * np.arange(n), pp + v * dt * np.arange(n)
+            f = fm.force(v) + fm.offset + np.array([fm.position_ripple(x) for x in ps]) + spring * ps
+            t.append(ts), p.append(ps), vr.append(np.full(n, v)), e.append(f + noise * rng.standard_normal(n))
+            tt, pp = ts[-1] + dt, ps[-1] + v * dt
+    return np.concatenate(t), np.concatenate(p), np.concatenate(e), np.concatenate(vr)
+
+
+# 12 and 4 mm of a 24 mm magnet pitch (the issue's z stage with a spring compensator)
+COGGING = FrictionModel(coulomb=6.0, viscous=45.0, offset=-4.0,
+                        ripple=[[2 * math.pi / 0.012, 1.0, 0.2], [2 * math.pi / 0.004, 0.0, 0.4]])
+SPEEDS = [1e-3, 2.5e-3, 6e-3, 1.5e-2, 4e-2, 8e-2]
+
+
+def test_spring_force_is_found_beside_the_harmonics_and_wavelengths_are_not_snapped():
+    """A 247 N/m spring over the stroke: the position force is kept by the criterion, the
+    wavelengths come out within 2 % (the issue measured 32.4 / 11.3 / 15.2 mm against 12 / 4),
+    their spreads cover the error and every check passes."""
+    t, p, e, vr = _record(COGGING, SPEEDS, hold=0.8, noise=0.05, spring=247.0)
+    fm = select_friction_model(t, p, e, vr, settle=0.1, min_duration=0.3)
+    assert fm.info.get("position_force"), [s["model"] for s in fm.info["selection"]]
+    slope = (position_force(fm, 0.01) - position_force(fm, 0.0)) / 0.01
+    assert slope == pytest.approx(247.0, rel=0.02)
+    lams = sorted(2 * math.pi / k for k, _, _ in fm.ripple)
+    assert len(lams) == 2
+    for got, true in zip(lams, (0.004, 0.012)):
+        assert got == pytest.approx(true, rel=0.02)
+    for h in fm.info["harmonics"]:
+        true = min((2 * math.pi / 0.004, 2 * math.pi / 0.012), key=lambda k: abs(k - h["k"]))
+        assert abs(h["k"] - true) <= 4 * h["k_std"] + 1e-6 * true and h["passed"]
+    assert fm.info["holdout"]["passed"] and fm.info["whiteness"]["white"]
+
+
+def test_spring_is_not_taken_for_a_touch():
+    """The 'drive touched something' refusal must not fire for a spring: the dynamometer
+    reads nothing and the friction model explains the effort."""
+    target = read_target(ROOT / "scenarios/plants/foreign_zstage.toml")
+    t, p, e, vr = _record(COGGING, SPEEDS, hold=0.8, noise=0.05, spring=247.0)
+    res = _result(t, {"drive.table_position": p, "controller.i_ref": e / 24.0, "reference.v_ref": vr,
+                      "reference.a_ref": np.zeros_like(t), "drive.thrust_dyn": 0.3 * np.ones_like(t)})
+    fm, _, warnings = fit_air_cut(res, target)
+    assert fm.info.get("position_force") and not any("residual RMS" in w for w in warnings)
+
+
+def test_unmodelled_harmonic_leaves_a_residual_that_is_not_white():
+    t, p, e, vr = _record(COGGING, SPEEDS, hold=0.8, noise=0.05)
+    fm = select_friction_model(t, p, e, vr, settle=0.1, min_duration=0.3, max_harmonics=1)
+    assert len(fm.ripple) == 1
+    assert not fm.info["whiteness"]["white"]
+    assert 2 * math.pi / fm.info["whiteness"]["peak_k"] == pytest.approx(0.004, rel=0.05)
+
+
+# --------------------------------------------------------------------------- reference levels
+def test_force_constant_checked_on_held_out_levels():
+    x = np.array([38.8, 67.9, 29.1, 58.2])
+    assert held_out_levels(x, 1.03 * x - 0.05)["passed"]
+    # a force constant that saturates at the top level: 2 % low there
+    sat = held_out_levels(x, 1.03 * x * np.where(x > 60, 0.98, 1.0))
+    assert not sat["passed"] and "not proportional" in sat["reason"]
+    close = held_out_levels(np.array([49.0, 50.0, 51.0]), np.array([49.0, 50.0, 51.0]))
+    assert not close["passed"] and "too close" in close["reason"]
+    two = held_out_levels(np.array([30.0, 70.0]), np.array([30.0, 70.0]))
+    assert not two["passed"] and "three or more" in two["reason"]
+
+
+# --------------------------------------------------------------------------- the file and the blocks
+def _doc(unverified: dict) -> dict:
+    doc = json.loads((COM / "linear_stage.json").read_text())
+    doc["unverified"] = unverified
+    return doc
+
+
+def test_blocks_refuse_an_unverified_value_unless_the_scenario_accepts_it(tmp_path):
+    from controllers.keio_observer import CuttingForceObserver
+    f = tmp_path / "commissioning.json"
+    f.write_text(json.dumps(_doc({"mass": "ramps of different accelerations give different inertias"})))
+    with pytest.raises(ValueError, match=r"unverified value\(s\) mass .*different inertias.*accept_unverified"):
+        CuttingForceObserver(commissioning_file=str(f))
+    with pytest.raises(ValueError, match=str(f)):
+        load_commissioning(f, "linear_stage")
+    obs = CuttingForceObserver(commissioning_file=str(f), accept_unverified=["mass"])
+    assert obs.nominal.M_n == json.loads(f.read_text())["nominal"]["mass"]
+    with pytest.raises(ValueError, match="not quantities of a linear_stage"):
+        load_commissioning(f, "linear_stage", ["masss"])
+    with pytest.raises(ValueError, match="must be a list"):
+        load_commissioning(f, "linear_stage", "mass")
+
+
+def test_scenario_names_the_refused_value_at_load(tmp_path):
+    from cosim.errors import ScenarioError
+    from cosim.scenario import load_scenario
+    f = tmp_path / "commissioning.json"
+    f.write_text(json.dumps(_doc({"force_constant": "a level left out is not predicted by the others"})))
+    sc = tmp_path / "fig7.toml"
+    base = f'[scenario]\nextends = "{ROOT}/scenarios/keio_fig7_aluminium_force_control.toml"\n'
+    sc.write_text(base + f'[blocks.observer.settings]\ncommissioning_file = "{f}"\n'
+                  f'[blocks.controller.settings]\ncommissioning_file = "{f}"\n')
+    with pytest.raises(ScenarioError, match="force_constant"):
+        load_scenario(sc)
+    sc.write_text(base + f'[blocks.observer.settings]\ncommissioning_file = "{f}"\n'
+                  f'accept_unverified = ["force_constant"]\n'
+                  f'[blocks.controller.settings]\ncommissioning_file = "{f}"\naccept_unverified = ["force_constant"]\n')
+    load_scenario(sc)
+
+
+def test_old_format_gets_a_clear_error(tmp_path):
+    f = tmp_path / "old.json"
+    f.write_text(json.dumps({**_doc({}), "format": "drillcosim.commissioning/1", "target": "scenarios/x.toml"}))
+    with pytest.raises(ValueError, match=r"commissioning/1 carries no spreads.*drillcosim commission scenarios/x.toml"):
+        load_commissioning(f, "linear_stage")
+
+
+@pytest.mark.parametrize("name", ["linear_stage", "ball_screw", "foreign_zstage", "foreign_ballscrew"])
+def test_shipped_files_carry_spreads_and_checks(name):
+    doc = json.loads((COM / f"{name}.json").read_text())
+    assert doc["format"] == COMMISSIONING_FORMAT
+    mk = "mass" if doc["nominal"]["kind"] == "linear_stage" else "inertia"
+    for q in (mk, "force_constant"):
+        e = doc["identified"][q]
+        assert e["value"] == doc["nominal"][q] if q == mk else e["value"] == pytest.approx(doc["nominal"][q])
+        assert 0 < e["std"] < 0.02 * e["value"] and e["status"] in ("verified", "unverified")
+    assert set(doc["unverified"]) == {q for q, e in doc["identified"].items() if e["status"] == "unverified"}
+    # no absolute path anywhere in the file
+    assert "/work/" not in json.dumps(doc) and '": "/' not in json.dumps(doc)
+
+
+def test_report_shows_no_placeholder_for_a_rejected_stribeck_term():
+    doc = json.loads((COM / "ball_screw.json").read_text())
+    assert doc["friction"]["stribeck"] == 0.0
+    txt = report_table(doc)
+    assert "stribeck velocity" not in txt and "not supported by the data" in txt
+
+
+def test_paths_are_written_relative_to_the_file(tmp_path):
+    out = tmp_path / "com"
+    doc = {"plant": str(ROOT / "scenarios/plants/linear_stage.toml"), "x": [f"run {out}/air_cut/data.csv"]}
+    rel = _file_relative(doc, out)
+    assert not rel["plant"].startswith("/") and (out / rel["plant"]).resolve() == ROOT / "scenarios/plants/linear_stage.toml"
+    assert rel["x"] == ["run air_cut/data.csv"]
+
+
+def test_a_failed_check_is_unverified_with_its_reason():
+    doc = json.loads((COM / "linear_stage.json").read_text())
+    fm = FrictionModel.from_dict(doc["friction"])
+    doc["inertia_fit"]["check"] = {"passed": False, "reason": "ramps of one acceleration only"}
+    ident, unverified = identified_entries(doc, fm, 1.0, (0.0, 0.05))
+    assert ident["mass"]["status"] == "unverified" and unverified["mass"] == "ramps of one acceleration only"
+
+
+def _result(t, signals: dict) -> Result:
+    names = list(signals)
+    return Result(np.asarray(t, float), names, [np.asarray(signals[n], float) for n in names], {n: None for n in names})
