@@ -388,12 +388,12 @@ def report_table(doc: dict) -> str:
         rows.append(("calibration residual", f"{c.get('residual_rms_N', float('nan')):.3g}", "", "N"))
     from analysis.contact_identification import contact_rows
     rows += contact_rows(doc)
-    from analysis.force_margin import gains_rows
-    rows += gains_rows(doc)
     if doc.get("force_loop"):
         m = doc["force_loop"]
-        rows += [("force loop gain margin", f"{m['gain_margin_db']:.3g}", "", "dB"),
-                 ("force loop phase margin", f"{m['phase_margin_deg']:.3g}", "", "deg")]
+        rows += [("gain margin at target gains", f"{m['gain_margin_db']:.3g}", f"Kf {m['loop']['Kf']:.3g}", "dB"),
+                 ("phase margin at target gains", f"{m['phase_margin_deg']:.3g}", "", "deg")]
+    from analysis.force_margin import gains_rows
+    rows += gains_rows(doc)
     w = [max(len(r[i]) for r in rows) for i in range(4)]
     lines = [f"commissioning of {Path(doc['plant']).name}"]
     lines += ["  " + "  ".join(r[i].ljust(w[i]) for i in range(4)) for r in rows]

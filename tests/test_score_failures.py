@@ -87,3 +87,33 @@ def test_limit_cycling_run_exits_nonzero_from_the_cli(tmp_path):
     assert s["scores_passed"] is False
     assert "score 'force_control' FAILED: limit cycle" in r.stderr
     assert "warning: controller: pinned Kf" in r.stderr
+
+
+# --------------------------------------------------------------------------- contract parameters
+def _aluminium_only_stage(tmp_path: Path, optional: str = "") -> Path:
+    """Keio Fig. 4 (CFRP/Ti/CFRP) re-bound to a copy of the project stage's binding that
+    cannot take the layers' materials (the plant would cut its default material instead)."""
+    src = ROOT / "scenarios" / "plants" / "linear_stage.toml"
+    text = "\n".join(line for line in src.read_text().splitlines() if not line.startswith("layer") or
+                     "_material" not in line)
+    (tmp_path / "alu_stage.toml").write_text(text)
+    sc = tmp_path / "fig4_on_alu.toml"
+    sc.write_text(f'[scenario]\nextends = "{ROOT / "scenarios" / "keio_fig4_composite_force_control.toml"}"\n'
+                  f'[fmus.stage]\nplant = "alu_stage.toml"\n{optional}')
+    return sc
+
+
+def test_plant_without_the_experiments_stack_is_refused_at_load(tmp_path):
+    from cosim.errors import ScenarioError
+    from cosim.scenario import load_scenario
+    with pytest.raises(ScenarioError, match=r"fmus\.stage\.plant_parameters\.layer1_material.*no contract "
+                                            r"parameter 'layer1_material', 'layer2_material', 'layer3_material'"):
+        load_scenario(_aluminium_only_stage(tmp_path))
+
+
+def test_optional_parameters_let_it_load_and_are_reported(tmp_path):
+    from cosim.scenario import load_scenario
+    sc = load_scenario(_aluminium_only_stage(
+        tmp_path, 'optional_parameters = ["layer1_material", "layer2_material", "layer3_material"]\n'))
+    assert set(sc.system.bindings["stage"].unbound_parameters) == {"layer1_material", "layer2_material",
+                                                                   "layer3_material"}
