@@ -1,9 +1,9 @@
 """A failed score is not success (issue 20, item 4): scores_passed, scores_failed and exit code 5.
 
 The plant run: Keio Fig. 7 on the project stage with Kf pinned at 3.0, past the force loop's
-stability boundary (predicted critical Kf 2.07 from the commissioning file; docs/commissioning.md
-"One margin"): the loop limit-cycles at ~540 Hz with ~2 N on the true thrust, while the mean
-error stays inside 1 %. Shortened to 1.2 s (contact at ~0.3 s, 0.7 s of steady force control).
+stability boundary (predicted critical Kf 2.07 from the commissioning file; docs/force_loop.md):
+the loop limit-cycles at ~540 Hz with ~2 N on the true thrust, while the mean error stays
+inside 1 %. Shortened to 1.2 s (contact at ~0.3 s, 0.7 s of steady force control).
 """
 from __future__ import annotations
 
