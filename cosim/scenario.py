@@ -356,12 +356,17 @@ def _dir_of(origins: Origins | None, key: str, file: str, base_dir: Path | None)
 NEVER_REQUIRED = ("seed",)
 
 
+def _neutral(name: str, value) -> bool:
+    """A gap of 0 or a new tool (wear_holes 0) is what a plant without the parameter has."""
+    return (name.endswith("_gap") or name == "wear_holes") and value == 0
+
+
 def _refuse_unbound(binding, spec: dict, key: str, c: "_Checker") -> None:
     """A contract parameter the scenario sets but the plant cannot take is refused, naming
     it, unless ``[fmus.<name>] optional_parameters`` lists it (it then stays in summary.json
     under ``contract_parameters_not_bound``)."""
     optional = set(spec.get("optional_parameters", ())) | set(NEVER_REQUIRED)
-    missing = [n for n in binding.unbound_parameters if n not in optional]
+    missing = [n for n, v in binding.unbound_parameters.items() if n not in optional and not _neutral(n, v)]
     if missing:
         raise c.error(f"{key}.plant_parameters.{missing[0]}",
                       f"the plant ({binding.file}) has no contract parameter {', '.join(map(repr, missing))}: it "

@@ -117,3 +117,16 @@ def test_optional_parameters_let_it_load_and_are_reported(tmp_path):
         tmp_path, 'optional_parameters = ["layer1_material", "layer2_material", "layer3_material"]\n'))
     assert set(sc.system.bindings["stage"].unbound_parameters) == {"layer1_material", "layer2_material",
                                                                    "layer3_material"}
+
+
+def test_a_neutral_value_needs_no_parameter(tmp_path):
+    """A gap of 0 (the ball-screw reference cut sets layer1_gap = 0) is what a plant without
+    that parameter has: the foreign ball screw, which binds no layer1_gap, loads it."""
+    from cosim.scenario import load_scenario
+    sc = tmp_path / "gap0.toml"
+    sc.write_text(f'[scenario]\nextends = "{ROOT / "scenarios" / "foreign" / "fang_orbital_cfrp_ti.toml"}"\n'
+                  "[fmus.drive.plant_parameters]\nlayer1_gap = 0.0\n")
+    assert load_scenario(sc).system.bindings["drive"].unbound_parameters == {"layer1_gap": 0.0}
+    sc.write_text(sc.read_text().replace("layer1_gap = 0.0", "layer1_gap = 0.1e-3"))
+    with pytest.raises(Exception, match="no contract parameter 'layer1_gap'"):
+        load_scenario(sc)
