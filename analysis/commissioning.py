@@ -438,11 +438,12 @@ def report_table(doc: dict) -> str:
     from analysis.contact_identification import contact_rows
     from analysis.force_margin import gains_rows
     rows += [(q, v, sd, "", u, "") for q, v, sd, u in contact_rows(doc)]
-    rows += [(q, v, "", ds, u, "") for q, v, ds, u in gains_rows(doc)]
     if doc.get("force_loop"):
         m = doc["force_loop"]
-        rows += [("force loop gain margin", f"{m['gain_margin_db']:.3g}", "", "", "dB", ""),
-                 ("force loop phase margin", f"{m['phase_margin_deg']:.3g}", "", "", "deg", "")]
+        rows += [("gain margin at target gains", f"{m['gain_margin_db']:.3g}", "", f"Kf {m['loop']['Kf']:.3g}",
+                  "dB", ""),
+                 ("phase margin at target gains", f"{m['phase_margin_deg']:.3g}", "", "", "deg", "")]
+    rows += [(q, v, "", ds, u, "") for q, v, ds, u in gains_rows(doc)]
     w = [max(len(r[i]) for r in rows) for i in range(6)]
     lines = [f"commissioning of {Path(doc['plant']).name}"]
     lines += ["  " + "  ".join(r[i].ljust(w[i]) for i in range(6)).rstrip() for r in rows]

@@ -28,7 +28,9 @@ loop ``A`` (poles: eigenvalues; stable iff all inside the unit circle). Breaking
 the current reference gives the loop transfer ``L(e^{jwTs})``; the gain margin is
 ``1/|L|`` where its phase crosses -180 deg, the phase margin ``180 + arg L`` where
 ``|L| = 1``. :func:`tune` picks the largest ``Kf`` (and, if needed, the smallest
-``g_thrust``) that leaves a stated gain margin. docs/commissioning.md has the derivation
+``g_thrust``) that leaves a stated gain margin; :func:`commissioned_loop` is the one loop of the
+commissioning report, its tuned gains (:func:`tune_gains`) and the run's ``force_loop_margin``
+score (docs/force_loop.md). docs/commissioning.md has the derivation
 and the sweep that checks it against simulation.
 """
 from __future__ import annotations
@@ -343,7 +345,7 @@ def tune_gains(doc: dict, datasheet: dict | None = None, *, gain_margin_db: floa
         entry.update(found=False, Kf=None, g_thrust=None,
                      message=f"no Kf >= {KF_MIN} with g_thrust <= {ds['g_thrust']:g} rad/s leaves {gain_margin_db} dB "
                              "on this plant: the blocks keep the data sheet's gains; lower the contact's stiffness "
-                             "or raise its damping (docs/commissioning.md)")
+                             "or raise its damping (docs/force_loop.md)")
         return entry
     m = margins(dataclasses.replace(base, Kf=K_best, g_thrust=g_best), n_freq=1500)
     entry.update(found=True, Kf=float(K_best), g_thrust=float(g_best), gain_margin_db=m["gain_margin_db"],

@@ -170,14 +170,78 @@ def air_cut_friction(result, plant: str = "drive", v_ref: str = "reference.v_ref
 
 
 # --------------------------------------------------------------------------- Fang Table 3
+def _depth_window(idx: np.ndarray, x_tool, last: bool, entry_margin: float, end_margin: float,
+                  exit_margin: float) -> np.ndarray:
+    """The samples of layer run ``idx`` whose tool depth lies ``entry_margin`` [m] below the
+    layer's top and ``end_margin`` (``exit_margin`` for the last layer: clear of the exit
+    thinning) above its bottom -- score_hole's window (analysis/detector_scoring.py)."""
+    x = np.asarray(x_tool, float)
+    top, bottom = x[idx[0]], x[idx[-1]]
+    lo, hi = top + entry_margin, bottom - (exit_margin if last else end_margin)
+    return idx[(x[idx] >= lo) & (x[idx] <= hi)]
+
+
+def _ripple_row(result, plant, observer, t, idx, sel, rpm, phi, F_meas, dc_meas, ripple_settle, ripple_end_margin,
+                ripple_window, ripple_reference) -> dict:
+    """The ripple columns of one layer: in 1-s windows of the converged part, the measured
+    orbital component against the observer's estimate; the AC part (Fig. 7c) over ``sel``."""
+    if not (np.all(rpm[idx] > 0) and f"{plant}.{ripple_reference}" in result
+            and f"{observer}.ripple_amplitude_hat" in result):
+        return {}
+    row = {}
+    t0, t1 = t[idx[0]] + ripple_settle, t[idx[-1]] - ripple_end_margin
+    amp_err, ph_err = [], []
+    w0 = t0
+    while w0 + ripple_window <= t1 + 1e-9:
+        w = (t >= w0) & (t < w0 + ripple_window)
+        a_true, p_true = fit_sinusoid(t[w], result[f"{plant}.{ripple_reference}"][w],
+                                      float(np.median(rpm[w])) / 60.0, None if phi is None else phi[w])
+        a_hat = float(np.mean(result[f"{observer}.ripple_amplitude_hat"][w]))
+        p_hat = float(np.angle(np.mean(np.exp(1j * result[f"{observer}.ripple_phase_hat"][w]))))
+        if a_true > 0:
+            amp_err.append(100.0 * (a_hat - a_true) / a_true)
+            ph_err.append(float(np.degrees(wrap(p_hat - p_true))))
+        w0 += ripple_window
+    if amp_err:
+        row.update(ripple_windows=len(amp_err),
+                   ripple_amplitude_error_pct_max=float(np.max(np.abs(amp_err))),
+                   ripple_amplitude_error_pct_mean=float(np.mean(amp_err)),
+                   ripple_phase_error_deg_max=float(np.max(np.abs(ph_err))),
+                   ripple_phase_error_deg_mean=float(np.mean(ph_err)))
+    if f"{observer}.F_ripple_hat" in result:
+        ac = F_meas[sel] - dc_meas[sel]
+        row["ac_rms_measured_N"] = float(np.sqrt(np.mean(ac ** 2)))
+        row["ac_rms_error_N"] = float(np.sqrt(np.mean((result[f"{observer}.F_ripple_hat"][sel] - ac) ** 2)))
+    return row
+
+
+def _print_table3(rows: list[dict]) -> None:
+    print("Table 3 style: DC thrust, dynamometer vs observer, per layer")
+    print(f"  {'layer':>5} {'material':>10} {'measured N':>11} {'observed N':>11} {'eps_rms N':>10} {'dev %':>7}"
+          f" {'ripple amp err %':>17} {'ripple phase err deg':>21}")
+    for r in rows:
+        print(f"  {r['layer']:>5} {r['material']:>10} {r['measured_N']:>11.2f} {r['observed_N']:>11.2f}"
+              f" {r['eps_rms_N']:>10.2f} {r['deviation_pct']:>7.2f}"
+              f" {r.get('ripple_amplitude_error_pct_max', float('nan')):>17.2f}"
+              f" {r.get('ripple_phase_error_deg_max', float('nan')):>21.2f}")
+
+
 @needs("{plant}.thrust_dyn", "{plant}.layer_index", "{plant}.material_index?", "{observer}.F_dc_hat",
        "{plant}.orbital_speed?", "{observer}.ripple_amplitude_hat?", "{observer}.ripple_phase_hat?",
-       "{observer}.F_ripple_hat?")
+       "{observer}.F_ripple_hat?", "{plant}.tool_position_true?")
 def fang_table3(result, plant: str = "drive", observer: str = "observer", orbital_speed_rpm: float = 120.0,
                 ripple_settle: float = 5.0, ripple_end_margin: float = 3.0, ripple_window: float = 1.0,
                 ripple_reference: str = "thrust_dyn", orbital_speed_signal: str | None = "auto",
-                print_table: bool = True) -> dict:
+                entry_margin: float | None = None, end_margin: float | None = None,
+                exit_margin: float | None = None, print_table: bool = True) -> dict:
     """Table-3-style comparison per layer plus the ripple amplitude / phase errors.
+
+    Window of a layer: its whole cutting time less half an orbital period at both ends (the
+    paper's definition, module docstring); with ``entry_margin``, ``end_margin`` and
+    ``exit_margin`` [m] (all three) the steady part along the tool depth instead, the window
+    of ``score_hole`` (analysis/detector_scoring.py), so that the two scores of one run agree:
+    the whole layer includes the engagement and, in the last layer, the exit thinning, where
+    the observer lags the falling thrust (docs/faults.md, "Which score counts").
 
     Ripple: in windows of ``ripple_window`` s from ``ripple_settle`` s after the layer start
     to ``ripple_end_margin`` s before its end ("once converged"), the orbital-frequency
@@ -190,52 +254,37 @@ def fang_table3(result, plant: str = "drive", observer: str = "observer", orbita
     instead of the constant ``orbital_speed_rpm``, for runs that change it; default "auto",
     the plant's ``orbital_speed`` role when recorded (:func:`orbital_reference`).
     """
+    margins = (entry_margin, end_margin, exit_margin)
+    if any(m is not None for m in margins) and (None in margins or f"{plant}.tool_position_true" not in result):
+        raise ValueError(f"fang_table3: the depth window needs entry_margin, end_margin and exit_margin [m] together "
+                         f"and {plant}.tool_position_true recorded; got {margins}")
     t, F_meas, dc_meas, rpm, n_all, phi = orbital_reference(result, plant, orbital_speed_rpm, orbital_speed_signal)
     dc_obs = result[f"{observer}.F_dc_hat"]
     layer = np.rint(result[f"{plant}.layer_index"]).astype(int)
     material = np.rint(result[f"{plant}.material_index"]).astype(int) if f"{plant}.material_index" in result else None
     rows = []
-    for L in sorted(set(layer[layer > 0])):
+    layers = sorted(set(layer[layer > 0]))
+    for L in layers:
         idx = first_run(layer == L)
         n_avg = int(n_all[idx].max())
         if len(idx) < 2 * n_avg + 2:
             continue
-        sel = idx[n_avg // 2: len(idx) - n_avg // 2]
+        sel = (idx[n_avg // 2: len(idx) - n_avg // 2] if entry_margin is None else
+               _depth_window(idx, result[f"{plant}.tool_position_true"], L == layers[-1], *margins))
+        if len(sel) < 2:
+            continue
         e = dc_obs[sel] - dc_meas[sel]
         m_meas = float(np.mean(dc_meas[sel]))
         eps = float(np.sqrt(np.mean(e ** 2)))
         row = {"layer": int(L),
                "material": MATERIALS.get(int(material[idx[len(idx) // 2]]), "?") if material is not None else "?",
                "t_start": float(t[sel[0]]), "t_end": float(t[sel[-1]]),
+               "window": "whole layer" if entry_margin is None else "steady depth window",
                "measured_N": m_meas, "observed_N": float(np.mean(dc_obs[sel])),
                "eps_rms_N": eps, "deviation_pct": 100.0 * eps / abs(m_meas) if m_meas else float("nan"),
                "mean_deviation_pct": float(100.0 * (np.mean(dc_obs[sel]) - m_meas) / m_meas) if m_meas else float("nan")}
-        # ripple: 1-s windows of the converged part, true ripple vs the observer's estimate
-        if np.all(rpm[idx] > 0) and f"{plant}.{ripple_reference}" in result and f"{observer}.ripple_amplitude_hat" in result:
-            t0, t1 = t[idx[0]] + ripple_settle, t[idx[-1]] - ripple_end_margin
-            amp_err, ph_err = [], []
-            w0 = t0
-            while w0 + ripple_window <= t1 + 1e-9:
-                w = (t >= w0) & (t < w0 + ripple_window)
-                a_true, p_true = fit_sinusoid(t[w], result[f"{plant}.{ripple_reference}"][w],
-                                              float(np.median(rpm[w])) / 60.0, None if phi is None else phi[w])
-                a_hat = float(np.mean(result[f"{observer}.ripple_amplitude_hat"][w]))
-                p_hat = float(np.angle(np.mean(np.exp(1j * result[f"{observer}.ripple_phase_hat"][w]))))
-                if a_true > 0:
-                    amp_err.append(100.0 * (a_hat - a_true) / a_true)
-                    ph_err.append(float(np.degrees(wrap(p_hat - p_true))))
-                w0 += ripple_window
-            if amp_err:
-                row.update(ripple_windows=len(amp_err),
-                           ripple_amplitude_error_pct_max=float(np.max(np.abs(amp_err))),
-                           ripple_amplitude_error_pct_mean=float(np.mean(amp_err)),
-                           ripple_phase_error_deg_max=float(np.max(np.abs(ph_err))),
-                           ripple_phase_error_deg_mean=float(np.mean(ph_err)))
-            # AC part (Fig. 7c): dynamometer minus its DC vs the ripple estimate
-            if f"{observer}.F_ripple_hat" in result:
-                ac = F_meas[sel] - dc_meas[sel]
-                row["ac_rms_measured_N"] = float(np.sqrt(np.mean(ac ** 2)))
-                row["ac_rms_error_N"] = float(np.sqrt(np.mean((result[f"{observer}.F_ripple_hat"][sel] - ac) ** 2)))
+        row.update(_ripple_row(result, plant, observer, t, idx, sel, rpm, phi, F_meas, dc_meas, ripple_settle,
+                               ripple_end_margin, ripple_window, ripple_reference))
         rows.append(row)
     scores = {"table3": rows}
     for r in rows:
@@ -248,14 +297,7 @@ def fang_table3(result, plant: str = "drive", observer: str = "observer", orbita
     if rows:
         scores["max_deviation_pct"] = max(r["deviation_pct"] for r in rows)
     if print_table:
-        print("Table 3 style: DC thrust, dynamometer vs observer, per layer")
-        print(f"  {'layer':>5} {'material':>10} {'measured N':>11} {'observed N':>11} {'eps_rms N':>10} {'dev %':>7}"
-              f" {'ripple amp err %':>17} {'ripple phase err deg':>21}")
-        for r in rows:
-            print(f"  {r['layer']:>5} {r['material']:>10} {r['measured_N']:>11.2f} {r['observed_N']:>11.2f}"
-                  f" {r['eps_rms_N']:>10.2f} {r['deviation_pct']:>7.2f}"
-                  f" {r.get('ripple_amplitude_error_pct_max', float('nan')):>17.2f}"
-                  f" {r.get('ripple_phase_error_deg_max', float('nan')):>21.2f}")
+        _print_table3(rows)
     return scores
 
 

@@ -59,7 +59,7 @@ INTERFACE, SOLVER = "'CS' or 'ME'", " or ".join(f"'{s}'" for s in SOLVERS)
 SOLVER_KEYS = ("solver", "solver_step", "rel_tol", "max_step")    # Model Exchange only
 FMU_KEYS = {"path": STRING, "plant": STRING, "parameters": TABLE, "plant_parameters": TABLE, "logging": BOOL,
             "interface": INTERFACE, "solver": SOLVER, "solver_step": POSITIVE, "rel_tol": POSITIVE,
-            "max_step": POSITIVE}
+            "max_step": POSITIVE, "optional_parameters": STRINGS}
 REBIND_KEYS = ("path", "plant")       # an extending file that changes one of them re-binds the plant
 BLOCK_KEYS = {"class": STRING, "sample_period": NONNEG, "settings": TABLE}
 CONNECTION_KEYS = {"from": STRING, "to": STRING, "scale": NUMBER, "offset": NUMBER, "remove": BOOL}
@@ -390,6 +390,30 @@ def _dir_of(origins: Origins | None, key: str, file: str, base_dir: Path | None)
     return base_dir
 
 
+# contract parameters a plant may lack without changing the experiment (the noise seed);
+# any other -- the stack, its materials, the wear -- is what the experiment is about
+NEVER_REQUIRED = ("seed",)
+
+
+def _neutral(name: str, value) -> bool:
+    """A gap of 0 or a new tool (wear_holes 0) is what a plant without the parameter has."""
+    return (name.endswith("_gap") or name == "wear_holes") and value == 0
+
+
+def _refuse_unbound(binding, spec: dict, key: str, c: "_Checker") -> None:
+    """A contract parameter the scenario sets but the plant cannot take is refused, naming
+    it, unless ``[fmus.<name>] optional_parameters`` lists it (it then stays in summary.json
+    under ``contract_parameters_not_bound``)."""
+    optional = set(spec.get("optional_parameters", ())) | set(NEVER_REQUIRED)
+    missing = [n for n, v in binding.unbound_parameters.items() if n not in optional and not _neutral(n, v)]
+    if missing:
+        raise c.error(f"{key}.plant_parameters.{missing[0]}",
+                      f"the plant ({binding.file}) has no contract parameter {', '.join(map(repr, missing))}: it "
+                      f"cannot be given the stack this experiment sets, so its scores would judge another one; bind "
+                      f"the FMU's parameter under [parameter_roles] of the binding, or, if the experiment does not "
+                      f"depend on it on this plant, list it in [{key}] optional_parameters")
+
+
 def _binding(spec: dict, key: str, c: "_Checker", origins, file: str, base_dir):
     """The plant binding file named by ``[fmus.<name>] plant`` (relative to the file that wrote it)."""
     path = resolve(spec["plant"], _dir_of(origins, f"{key}.plant", file, base_dir))
@@ -472,6 +496,7 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
                     contract = binding.parameter_values(spec.get("plant_parameters", {}))
                 except ScenarioError as e:
                     raise c.error(f"{key}.{e.key}", e.detail) from None
+                _refuse_unbound(binding, spec, key, c)
                 parameters = {**binding.parameters, **contract, **parameters}
             elif "plant_parameters" in spec:
                 raise c.error(f"{key}.plant_parameters", "contract parameters need a plant binding "

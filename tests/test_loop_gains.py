@@ -4,7 +4,7 @@ leaves less than the stated margin warns at load; the report's margin and the ru
 score come from one model and agree within 1 dB.
 
 The committed foreign z-stage file is the case where it matters: Keio Table 2's Kf 0.45
-leaves 3.3 dB there (the stage limit-cycles at 0.64, docs/commissioning.md "One margin"),
+leaves 3.3 dB there (the stage limit-cycles at 0.64, docs/force_loop.md),
 commissioning chose Kf 0.284 at g_thrust 1200 rad/s (6.7 dB).
 """
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """A failed score is not success (issue 20, item 4): scores_passed, scores_failed and exit code 5.
 
 The plant run: Keio Fig. 7 on the project stage with Kf pinned at 3.0, past the force loop's
-stability boundary (predicted critical Kf 2.07 from the commissioning file; docs/commissioning.md
-"One margin"): the loop limit-cycles at ~540 Hz with ~2 N on the true thrust, while the mean
-error stays inside 1 %. Shortened to 1.2 s (contact at ~0.3 s, 0.7 s of steady force control).
+stability boundary (predicted critical Kf 2.07 from the commissioning file; docs/force_loop.md):
+the loop limit-cycles at ~540 Hz with ~2 N on the true thrust, while the mean error stays
+inside 1 %. Shortened to 1.2 s (contact at ~0.3 s, 0.7 s of steady force control).
 """
 from __future__ import annotations
 
@@ -87,3 +87,46 @@ def test_limit_cycling_run_exits_nonzero_from_the_cli(tmp_path):
     assert s["scores_passed"] is False
     assert "score 'force_control' FAILED: limit cycle" in r.stderr
     assert "warning: controller: pinned Kf" in r.stderr
+
+
+# --------------------------------------------------------------------------- contract parameters
+def _aluminium_only_stage(tmp_path: Path, optional: str = "") -> Path:
+    """Keio Fig. 4 (CFRP/Ti/CFRP) re-bound to a copy of the project stage's binding that
+    cannot take the layers' materials (the plant would cut its default material instead)."""
+    src = ROOT / "scenarios" / "plants" / "linear_stage.toml"
+    text = "\n".join(line for line in src.read_text().splitlines() if not line.startswith("layer") or
+                     "_material" not in line)
+    (tmp_path / "alu_stage.toml").write_text(text)
+    sc = tmp_path / "fig4_on_alu.toml"
+    sc.write_text(f'[scenario]\nextends = "{ROOT / "scenarios" / "keio_fig4_composite_force_control.toml"}"\n'
+                  f'[fmus.stage]\nplant = "alu_stage.toml"\n{optional}')
+    return sc
+
+
+def test_plant_without_the_experiments_stack_is_refused_at_load(tmp_path):
+    from cosim.errors import ScenarioError
+    from cosim.scenario import load_scenario
+    with pytest.raises(ScenarioError, match=r"fmus\.stage\.plant_parameters\.layer1_material.*no contract "
+                                            r"parameter 'layer1_material', 'layer2_material', 'layer3_material'"):
+        load_scenario(_aluminium_only_stage(tmp_path))
+
+
+def test_optional_parameters_let_it_load_and_are_reported(tmp_path):
+    from cosim.scenario import load_scenario
+    sc = load_scenario(_aluminium_only_stage(
+        tmp_path, 'optional_parameters = ["layer1_material", "layer2_material", "layer3_material"]\n'))
+    assert set(sc.system.bindings["stage"].unbound_parameters) == {"layer1_material", "layer2_material",
+                                                                   "layer3_material"}
+
+
+def test_a_neutral_value_needs_no_parameter(tmp_path):
+    """A gap of 0 (the ball-screw reference cut sets layer1_gap = 0) is what a plant without
+    that parameter has: the foreign ball screw, which binds no layer1_gap, loads it."""
+    from cosim.scenario import load_scenario
+    sc = tmp_path / "gap0.toml"
+    sc.write_text(f'[scenario]\nextends = "{ROOT / "scenarios" / "foreign" / "fang_orbital_cfrp_ti.toml"}"\n'
+                  "[fmus.drive.plant_parameters]\nlayer1_gap = 0.0\n")
+    assert load_scenario(sc).system.bindings["drive"].unbound_parameters == {"layer1_gap": 0.0}
+    sc.write_text(sc.read_text().replace("layer1_gap = 0.0", "layer1_gap = 0.1e-3"))
+    with pytest.raises(Exception, match="no contract parameter 'layer1_gap'"):
+        load_scenario(sc)
