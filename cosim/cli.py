@@ -119,7 +119,7 @@ def cmd_campaign(args) -> int:
                                  progress=not args.quiet, scheduler=args.scheduler,
                                  wall_timeout=args.timeout, max_steps=args.max_steps,
                                  keep_data=not args.drop_data, processes=args.worker_processes,
-                                 resume=args.resume, gather=args.gather)
+                                 resume=args.resume, gather=args.gather, plots=args.plots)
     except CampaignStopped as e:
         stopped, summaries = e, e.summaries
     except (CosimError, ValueError, OSError) as e:
@@ -206,17 +206,45 @@ def cmd_plot(args) -> int:
     except (OSError, ValueError, StopIteration) as e:
         print(f"drillcosim: cannot read {args.result_dir}/data.csv: {e}", file=sys.stderr)
         return 1
+    src = Path(args.result_dir)
+    if not args.signals and not args.out and src.is_dir():
+        drawn = _draw_scenario_plots(src, result)
+        if drawn is not None:
+            return drawn
     signals = args.signals or result.signals
     missing = [s for s in signals if s not in result]
     if missing:
         print(f"drillcosim: not recorded: {', '.join(missing)} (recorded: {', '.join(result.signals)})",
               file=sys.stderr)
         return 1
-    src = Path(args.result_dir)
     out = Path(args.out) if args.out else (src / "signals.png" if src.is_dir() else src.with_suffix(".png"))
     plot_groups(result, group_by_unit(result, signals), out, result.summary.get("scenario", ""))
     print(f"{out.suffix.lstrip('.').lower() or 'png'}: {out}")
     return 0
+
+
+def _draw_scenario_plots(folder: Path, result) -> int | None:
+    """A run folder's own figures (its scenario's [[plots]], with the run's overrides), drawn
+    now: a campaign leaves them out; None when the folder names no scenario with plots."""
+    from .errors import CosimError
+    from .runner import draw_plots, load
+    scenario = result.summary.get("file")
+    if not scenario or not Path(scenario).exists():
+        return None
+    try:
+        sc = load(scenario, result.summary.get("overrides") or {})
+    except CosimError as e:
+        print(f"drillcosim: {folder}/summary.json names {scenario}, which does not load: {e}", file=sys.stderr)
+        return 1
+    if not sc.plots:
+        return None
+    result.system, result.scenario = sc.system, sc       # as a run's scorers and plotters see them
+    problems = draw_plots(sc, result, folder)
+    for png in sorted(folder.glob("*.png")):
+        print(f"png: {png}")
+    for p in problems:
+        print(f"drillcosim: {p}", file=sys.stderr)
+    return 1 if problems else 0
 
 
 def _start_values(items: list[str]) -> dict:
@@ -339,6 +367,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "on machines that do not share --out's file system)")
     c.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override for every run")
     c.add_argument("--quiet", action="store_true", help="no progress bar")
+    c.add_argument("--plots", action="store_true",
+                   help="draw every run's figures (off by default: they cost as much as a run; "
+                        "`drillcosim plot RUN_FOLDER` draws one run's)")
     c.add_argument("--resume", action="store_true",
                    help="complete the campaign in --out: keep its finished runs, run the interrupted, crashed "
                         "and missing ones again (a folder holding a campaign is refused without it)")
@@ -370,7 +401,8 @@ def build_parser() -> argparse.ArgumentParser:
     i.set_defaults(func=cmd_info)
     pl = sub.add_parser("plot", help="plot recorded signals of a result folder or CSV file")
     pl.add_argument("result_dir", help="result folder (its data.csv) or a CSV file")
-    pl.add_argument("--signals", nargs="+", help="signals to plot (default: all)")
+    pl.add_argument("--signals", nargs="+", help="signals to plot (default: a run folder's own figures, as its "
+                                                 "scenario draws them; else every signal)")
     pl.add_argument("--out", help="image file, format from its suffix: .png, .pdf, .svg "
                                   "(default RESULT_DIR/signals.png, or the CSV's name with .png)")
     pl.set_defaults(func=cmd_plot)
