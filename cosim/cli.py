@@ -338,25 +338,10 @@ def main(argv: list[str] | None = None) -> int:
         return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``drillcosim`` argument parser (the docs' command lines are checked against it)."""
-    p = argparse.ArgumentParser(prog="drillcosim", description="Co-simulation of drilling feed drives: "
-                                "plant FMUs + Python observers/controllers, configured by scenario files.")
-    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
-    sub = p.add_subparsers(dest="command", required=True)
-    r = sub.add_parser("run", help="run a scenario file; prints the paths of CSV, PNG, summary")
-    r.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
-    r.add_argument("--out", help="output folder (default results/<scenario name>)")
-    r.add_argument("--quiet", action="store_true", help="no progress bar, only the paths")
-    r.add_argument("--set", action="append", metavar="KEY=VALUE", default=[],
-                   help="override a scenario key, e.g. --set fmus.stage.parameters.seed=3 (repeatable)")
-    _add_limits(r)
-    r.add_argument("--in-process", action="store_true",
-                   help="run in this process, not in a supervised child (a crashing FMU then kills drillcosim)")
-    r.set_defaults(func=cmd_run)
+def _add_campaign_parser(sub) -> None:
     c = sub.add_parser("campaign", help="run a scenario over a sweep (grid, random draws, seeds) on Dask")
     c.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
-    c.add_argument("--sweep", required=True, help="sweep .toml: [[runs]], [grid], [random], [seeds] (docs/faults.md)")
+    c.add_argument("--sweep", required=True, help="sweep .toml: [[runs]], [grid], [random], [seeds] (docs/campaigns.md)")
     c.add_argument("--out", help="output folder (default results/<scenario name>_campaign)")
     c.add_argument("--workers", type=int, help="workers of the local cluster (default: cores)")
     c.add_argument("--worker-processes", action="store_true",
@@ -378,6 +363,25 @@ def build_parser() -> argparse.ArgumentParser:
                         "stay; a run that failed or crashed keeps its data)")
     _add_limits(c)
     c.set_defaults(func=cmd_campaign)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``drillcosim`` argument parser (the docs' command lines are checked against it)."""
+    p = argparse.ArgumentParser(prog="drillcosim", description="Co-simulation of drilling feed drives: "
+                                "plant FMUs + Python observers/controllers, configured by scenario files.")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    sub = p.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("run", help="run a scenario file; prints the paths of CSV, PNG, summary")
+    r.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
+    r.add_argument("--out", help="output folder (default results/<scenario name>)")
+    r.add_argument("--quiet", action="store_true", help="no progress bar, only the paths")
+    r.add_argument("--set", action="append", metavar="KEY=VALUE", default=[],
+                   help="override a scenario key, e.g. --set fmus.stage.parameters.seed=3 (repeatable)")
+    _add_limits(r)
+    r.add_argument("--in-process", action="store_true",
+                   help="run in this process, not in a supervised child (a crashing FMU then kills drillcosim)")
+    r.set_defaults(func=cmd_run)
+    _add_campaign_parser(sub)
     li = sub.add_parser("list", help="list the scenarios with their description")
     li.add_argument("--dir", help="folder of scenario files (default scenarios/)")
     li.set_defaults(func=cmd_list)
