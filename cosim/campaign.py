@@ -32,9 +32,10 @@ from .errors import CosimError
 from .outputs import jsonable, write_json_atomic
 
 # summary keys that describe the run rather than score it (left out of campaign.csv's scores)
+# (where a run ran -- worker, worker_out_dir -- stays in campaign.json: campaign.csv holds results)
 _RUN_KEYS = {"scenario", "file", "description", "step_size", "overrides", "out_dir", "files", "run",
              "events_fired", "step_rejection", "traceback", "stop_time", "rows_recorded", "signal_number",
-             "campaign_wall_time_s", "data_removed", "timing_s"}
+             "campaign_wall_time_s", "data_removed", "timing_s", "worker", "worker_out_dir", "pid"}
 
 
 # a run's data files, removed after a good run when a campaign keeps only its summaries
