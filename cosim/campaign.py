@@ -32,9 +32,10 @@ from .errors import CosimError
 from .outputs import jsonable, write_json_atomic
 
 # summary keys that describe the run rather than score it (left out of campaign.csv's scores)
+# (where a run ran -- worker, worker_out_dir -- stays in campaign.json: campaign.csv holds results)
 _RUN_KEYS = {"scenario", "file", "description", "step_size", "overrides", "out_dir", "files", "run",
              "events_fired", "step_rejection", "traceback", "stop_time", "rows_recorded", "signal_number",
-             "campaign_wall_time_s", "data_removed", "timing_s"}
+             "campaign_wall_time_s", "data_removed", "timing_s", "worker", "worker_out_dir", "pid"}
 
 
 # a run's data files, removed after a good run when a campaign keeps only its summaries
@@ -43,20 +44,22 @@ GOOD = ("completed", "stopped")
 
 
 def _one_run(path: str, out_dir: str, overrides: dict, index: int, wall_timeout=None, max_steps=None,
-             keep_data: bool = True, stop_name: str | None = None, gather: bool = False) -> dict:
+             keep_data: bool = True, stop_name: str | None = None, gather: bool = False,
+             plots: bool = False) -> dict:
     """A Dask task: one supervised run; never raises (its summary says what happened).
     ``keep_data=False``: a good run's data files are deleted once it is scored (its summary,
     scores and figures stay); a run that went wrong keeps them, they are the evidence.
     ``stop_name``: the campaign's stop request (:class:`_StopRequest`). ``gather``: run in
     this worker's own working folder and send the run's files back with the summary (a
-    worker on another machine, no shared file system); the driver writes them to ``out_dir``."""
+    worker on another machine, no shared file system); the driver writes them to ``out_dir``.
+    ``plots``: draw the scenario's plots (off: ``drillcosim plot RUN`` draws them on demand)."""
     stop = _stop_check(stop_name)
     if stop is not None and stop():
         return {"status": "cancelled", "stop_reason": "the campaign was stopped before this run started",
                 "run": index, "overrides": overrides, "out_dir": out_dir}
     worker = _this_worker()
     out = _worker_folder(worker, stop_name, index) if gather else Path(out_dir)
-    summary = _run_here(path, out, overrides, wall_timeout, max_steps, stop)
+    summary = _run_here(path, out, overrides, (wall_timeout, max_steps, plots), stop)
     summary.update(run=index, overrides=overrides, out_dir=str(out))
     if worker is not None:
         summary["worker"] = worker.address
@@ -72,10 +75,11 @@ def _one_run(path: str, out_dir: str, overrides: dict, index: int, wall_timeout=
 GATHERED = "gathered_files"      # a gathered run's files (name -> bytes), taken out by the driver
 
 
-def _run_here(path: str, out: Path, overrides: dict, wall_timeout, max_steps, stop) -> dict:
+def _run_here(path: str, out: Path, overrides: dict, limits: tuple, stop) -> dict:
     from .errors import SimulationError
     from .runner import RunEnded, run_scenario
     from .supervisor import run_supervised
+    wall_timeout, max_steps, plots = limits
     try:
         out.mkdir(parents=True, exist_ok=True)
         log = out / "log.txt"
@@ -83,14 +87,15 @@ def _run_here(path: str, out: Path, overrides: dict, wall_timeout, max_steps, st
         if not multiprocessing.current_process().daemon:
             from .run_server import server_for_this_thread
             return run_supervised(path, out, overrides, progress=False, wall_timeout=wall_timeout,
-                                  max_steps=max_steps, log_file=log, server=server_for_this_thread(), stop=stop)
+                                  max_steps=max_steps, log_file=log, server=server_for_this_thread(), stop=stop,
+                                  plots=plots)
         # a worker started with daemon = True may not have children: run here (a crash then
         # takes the worker down, and the scheduler reports it: KilledWorker -> crashed)
         import contextlib
         with open(log, "a") as f, contextlib.redirect_stdout(f), contextlib.redirect_stderr(f):
             try:
                 return dict(run_scenario(path, out, overrides, progress=False, wall_timeout=wall_timeout,
-                                         max_steps=max_steps, handle_signals=False).summary)
+                                         max_steps=max_steps, handle_signals=False, plots=plots).summary)
             except (SimulationError, RunEnded) as e:
                 return dict(e.result.summary) if e.result is not None else {"status": "failed", "error": str(e)}
     except (CosimError, OSError) as e:
@@ -197,7 +202,7 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
                  progress: bool = True, scheduler: str | None = None, wall_timeout: float | None = None,
                  max_steps: int | None = None, retries: int = 0, client=None,
                  keep_data: bool = True, processes: bool = False, resume: bool = False,
-                 gather: bool = False) -> list[dict]:
+                 gather: bool = False, plots: bool = False) -> list[dict]:
     """Run ``scenario`` (a path) once per overrides dict; summaries in input order.
 
     ``scenario`` may also be a list of paths, one per run (a campaign over several stacks).
@@ -211,7 +216,9 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
     folder that holds a campaign is refused. SIGINT / SIGTERM (main thread) stop the
     campaign cleanly: :class:`CampaignStopped` once campaign.csv/json are written.
     ``gather``: each run in its worker's own folder, its files sent back to ``out_dir``
-    (workers on machines that do not share ``out_dir``'s file system).
+    (workers on machines that do not share ``out_dir``'s file system). ``plots``: draw each
+    run's figures (off by default: ~1-2 s a run, as much as a hole's simulation; ``drillcosim
+    plot RUN_FOLDER`` draws them for the runs one looks at).
     """
     from .outputs import FolderLock
     from .scenario import load_scenario
@@ -237,7 +244,7 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
         opts = dict(workers=workers, scheduler=scheduler, client=client, processes=processes,
                     retries=retries, progress=progress)
         t0 = time.perf_counter()
-        summaries, signum = _run_jobs(todo, len(jobs), (wall_timeout, max_steps, keep_data), opts, gather)
+        summaries, signum = _run_jobs(todo, len(jobs), (wall_timeout, max_steps, keep_data), opts, (gather, plots))
         for i, s in reused.items():
             summaries[i] = {**s, "reused": True}
         for s in summaries:
@@ -290,9 +297,9 @@ def plan_resume(out: Path, jobs: list, resume: bool) -> dict[int, dict]:
     return kept
 
 
-def _run_jobs(todo: list, n_runs: int, limits: tuple, opts: dict, gather: bool = False) -> tuple[list, int | None]:
-    """Run ``todo`` on Dask; (summaries of all ``n_runs``, None for the runs not in ``todo``;
-    the signal that stopped the campaign, or None)."""
+def _run_jobs(todo: list, n_runs: int, limits: tuple, opts: dict, how: tuple = (False, False)) -> tuple[list, int | None]:
+    """Run ``todo`` on Dask (``how``: gather, plots); (summaries of all ``n_runs``, None for the
+    runs not in ``todo``; the signal that stopped the campaign, or None)."""
     summaries: list = [None] * n_runs
     if not todo:
         return summaries, None
@@ -308,7 +315,7 @@ def _run_jobs(todo: list, n_runs: int, limits: tuple, opts: dict, gather: bool =
         bar = tqdm(total=n_runs, initial=n_runs - len(todo), unit="run", desc="campaign", file=sys.stderr)
     try:
         with stop.installed():
-            futures = {client.submit(_one_run, *job, *limits, stop.name, gather, pure=False, retries=opts["retries"],
+            futures = {client.submit(_one_run, *job, *limits, stop.name, *how, pure=False, retries=opts["retries"],
                                      key=f"drillcosim-run-{job[3]:03d}-{os.getpid()}-{stop.name[-8:]}"): job
                        for job in todo}
             _collect(futures, summaries, stop, bar)

@@ -123,7 +123,7 @@ def cmd_campaign(args) -> int:
                                  progress=not args.quiet, scheduler=args.scheduler,
                                  wall_timeout=args.timeout, max_steps=args.max_steps,
                                  keep_data=not args.drop_data, processes=args.worker_processes,
-                                 resume=args.resume, gather=args.gather)
+                                 resume=args.resume, gather=args.gather, plots=args.plots)
     except CampaignStopped as e:
         stopped, summaries = e, e.summaries
     except (CosimError, ValueError, OSError) as e:
@@ -237,17 +237,45 @@ def cmd_plot(args) -> int:
     except (OSError, ValueError, StopIteration) as e:
         print(f"drillcosim: cannot read {args.result_dir}/data.csv: {e}", file=sys.stderr)
         return 1
+    src = Path(args.result_dir)
+    if not args.signals and not args.out and src.is_dir():
+        drawn = _draw_scenario_plots(src, result)
+        if drawn is not None:
+            return drawn
     signals = args.signals or result.signals
     missing = [s for s in signals if s not in result]
     if missing:
         print(f"drillcosim: not recorded: {', '.join(missing)} (recorded: {', '.join(result.signals)})",
               file=sys.stderr)
         return 1
-    src = Path(args.result_dir)
     out = Path(args.out) if args.out else (src / "signals.png" if src.is_dir() else src.with_suffix(".png"))
     plot_groups(result, group_by_unit(result, signals), out, result.summary.get("scenario", ""))
     print(f"{out.suffix.lstrip('.').lower() or 'png'}: {out}")
     return 0
+
+
+def _draw_scenario_plots(folder: Path, result) -> int | None:
+    """A run folder's own figures (its scenario's [[plots]], with the run's overrides), drawn
+    now: a campaign leaves them out; None when the folder names no scenario with plots."""
+    from .errors import CosimError
+    from .runner import draw_plots, load
+    scenario = result.summary.get("file")
+    if not scenario or not Path(scenario).exists():
+        return None
+    try:
+        sc = load(scenario, result.summary.get("overrides") or {})
+    except CosimError as e:
+        print(f"drillcosim: {folder}/summary.json names {scenario}, which does not load: {e}", file=sys.stderr)
+        return 1
+    if not sc.plots:
+        return None
+    result.system, result.scenario = sc.system, sc       # as a run's scorers and plotters see them
+    problems = draw_plots(sc, result, folder)
+    for png in sorted(folder.glob("*.png")):
+        print(f"png: {png}")
+    for p in problems:
+        print(f"drillcosim: {p}", file=sys.stderr)
+    return 1 if problems else 0
 
 
 def _start_values(items: list[str]) -> dict:
@@ -392,6 +420,33 @@ def main(argv: list[str] | None = None) -> int:
         return 0
 
 
+def _add_campaign_parser(sub) -> None:
+    c = sub.add_parser("campaign", help="run a scenario over a sweep (grid, random draws, seeds) on Dask")
+    c.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
+    c.add_argument("--sweep", required=True, help="sweep .toml: [[runs]], [grid], [random], [seeds] (docs/campaigns.md)")
+    c.add_argument("--out", help="output folder (default results/<scenario name>_campaign)")
+    c.add_argument("--workers", type=int, help="workers of the local cluster (default: cores)")
+    c.add_argument("--worker-processes", action="store_true",
+                   help="local workers as processes, not threads (each run has its own child process either way)")
+    c.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://10.0.0.5:8786")
+    c.add_argument("--gather", action="store_true",
+                   help="run each run in its worker's own folder and send its files back into --out (workers "
+                        "on machines that do not share --out's file system)")
+    c.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override for every run")
+    c.add_argument("--quiet", action="store_true", help="no progress bar")
+    c.add_argument("--plots", action="store_true",
+                   help="draw every run's figures (off by default: they cost as much as a run; "
+                        "`drillcosim plot RUN_FOLDER` draws one run's)")
+    c.add_argument("--resume", action="store_true",
+                   help="complete the campaign in --out: keep its finished runs, run the interrupted, crashed "
+                        "and missing ones again (a folder holding a campaign is refused without it)")
+    c.add_argument("--drop-data", action="store_true",
+                   help="delete data.csv/data.mat of each good run once scored (summaries, scores and figures "
+                        "stay; a run that failed or crashed keeps its data)")
+    _add_limits(c)
+    c.set_defaults(func=cmd_campaign)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``drillcosim`` argument parser (the docs' command lines are checked against it)."""
     p = argparse.ArgumentParser(prog="drillcosim", description="Co-simulation of drilling feed drives: "
@@ -408,27 +463,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--in-process", action="store_true",
                    help="run in this process, not in a supervised child (a crashing FMU then kills drillcosim)")
     r.set_defaults(func=cmd_run)
-    c = sub.add_parser("campaign", help="run a scenario over a sweep (grid, random draws, seeds) on Dask")
-    c.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
-    c.add_argument("--sweep", required=True, help="sweep .toml: [[runs]], [grid], [random], [seeds] (docs/faults.md)")
-    c.add_argument("--out", help="output folder (default results/<scenario name>_campaign)")
-    c.add_argument("--workers", type=int, help="workers of the local cluster (default: cores)")
-    c.add_argument("--worker-processes", action="store_true",
-                   help="local workers as processes, not threads (each run has its own child process either way)")
-    c.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://10.0.0.5:8786")
-    c.add_argument("--gather", action="store_true",
-                   help="run each run in its worker's own folder and send its files back into --out (workers "
-                        "on machines that do not share --out's file system)")
-    c.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override for every run")
-    c.add_argument("--quiet", action="store_true", help="no progress bar")
-    c.add_argument("--resume", action="store_true",
-                   help="complete the campaign in --out: keep its finished runs, run the interrupted, crashed "
-                        "and missing ones again (a folder holding a campaign is refused without it)")
-    c.add_argument("--drop-data", action="store_true",
-                   help="delete data.csv/data.mat of each good run once scored (summaries, scores and figures "
-                        "stay; a run that failed or crashed keeps its data)")
-    _add_limits(c)
-    c.set_defaults(func=cmd_campaign)
+    _add_campaign_parser(sub)
     rp = sub.add_parser("replay", help="run a scenario's observers, detector and controllers on a recording "
                                        "(CSV) instead of its plant FMU; scores where the recording allows")
     rp.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
@@ -468,7 +503,8 @@ def build_parser() -> argparse.ArgumentParser:
     i.set_defaults(func=cmd_info)
     pl = sub.add_parser("plot", help="plot recorded signals of a result folder or CSV file")
     pl.add_argument("result_dir", help="result folder (its data.csv) or a CSV file")
-    pl.add_argument("--signals", nargs="+", help="signals to plot (default: all)")
+    pl.add_argument("--signals", nargs="+", help="signals to plot (default: a run folder's own figures, as its "
+                                                 "scenario draws them; else every signal)")
     pl.add_argument("--out", help="image file, format from its suffix: .png, .pdf, .svg "
                                   "(default RESULT_DIR/signals.png, or the CSV's name with .png)")
     pl.set_defaults(func=cmd_plot)

@@ -57,7 +57,7 @@ def default_out_dir(sc: Scenario) -> Path:
 
 def run_scenario(scenario, out_dir=None, overrides: dict | None = None, progress: bool = True,
                  wall_timeout: float | None = None, max_steps: int | None = None,
-                 handle_signals: bool = True) -> Result:
+                 handle_signals: bool = True, plots: bool = True) -> Result:
     """Load (if a path), validate, run and write results; returns the :class:`Result`.
 
     Output folder (default ``results/<scenario name>``): data.csv, data.mat,
@@ -72,7 +72,7 @@ def run_scenario(scenario, out_dir=None, overrides: dict | None = None, progress
     sc = load(scenario, overrides)
     out = Path(out_dir) if out_dir is not None else default_out_dir(sc)
     with claim(out):
-        return run_in_folder(sc, out, progress, RunWatch(wall_timeout, max_steps), handle_signals, started)
+        return run_in_folder(sc, out, progress, RunWatch(wall_timeout, max_steps), handle_signals, started, plots)
 
 
 def _base_summary(sc: Scenario, out: Path) -> dict:
@@ -92,9 +92,10 @@ def block_load_warnings(sc: Scenario, echo: bool = True) -> list[str]:
 
 
 def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
-                  handle_signals: bool = True, started: float | None = None) -> Result:
+                  handle_signals: bool = True, started: float | None = None, plots: bool = True) -> Result:
     """:func:`run_scenario` on a claimed (locked, cleared) folder ``out``; ``started``: the
-    ``time.perf_counter()`` before the scenario was loaded (for summary.json's ``timing_s``)."""
+    ``time.perf_counter()`` before the scenario was loaded (for summary.json's ``timing_s``).
+    ``plots=False``: scores only (a campaign's default: ``drillcosim plot RUN`` draws them later)."""
     t_run = time.perf_counter()
     recorder = Recorder(sc.record_signals, sc.decimation, out)
     summary = _base_summary(sc, out)
@@ -142,7 +143,9 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
         raise RunEnded(f"run {info.status} at t = {info.time_reached:g} s ({info.stop_reason}); "
                        f"results so far in {out}", info.status, result, watch.signum)
 
-    problems = _score_and_plot(sc, result, out, summary, echo=progress)
+    problems = _score_and_plot(sc, result, out, summary, echo=progress, plots=plots)
+    if not plots and sc.plots:
+        summary["plots"] = "not drawn (a campaign's default); drillcosim plot RUN_FOLDER draws them"
     # where a run's wall time went: start-up and writing are what a campaign pays per run
     summary["timing_s"] = {"load": None if started is None else round(t_run - started, 4),
                            "simulate": round(t_sim - t_run, 4), "write_data": round(t_written - t_sim, 4),
@@ -189,13 +192,14 @@ def _failure_reason(sc: dict) -> str:
     return reason
 
 
-def _score_and_plot(sc: Scenario, result: Result, out: Path, summary: dict, echo: bool = True) -> list[str]:
+def _score_and_plot(sc: Scenario, result: Result, out: Path, summary: dict, echo: bool = True,
+                    plots: bool = True) -> list[str]:
     """Run the score and plot functions. What they print (score tables) goes to
     ``scores.txt`` in the run's folder, and to the terminal unless the run is quiet."""
     problems = []
     printed = io.StringIO()
     with contextlib.redirect_stdout(printed):
-        problems = _call_scores_and_plots(sc, result, out, summary)
+        problems = _call_scores_and_plots(sc, result, out, summary, plots)
     if printed.getvalue():
         (out / "scores.txt").write_text(printed.getvalue())
         if echo:
@@ -203,7 +207,7 @@ def _score_and_plot(sc: Scenario, result: Result, out: Path, summary: dict, echo
     return problems
 
 
-def _call_scores_and_plots(sc: Scenario, result: Result, out: Path, summary: dict) -> list[str]:
+def _call_scores_and_plots(sc: Scenario, result: Result, out: Path, summary: dict, plots: bool = True) -> list[str]:
     problems = []
     for spec, fn, settings, name in sc.scores:
         try:
@@ -214,6 +218,12 @@ def _call_scores_and_plots(sc: Scenario, result: Result, out: Path, summary: dic
             problems.append(f"score {spec}: {type(e).__name__}: {e}")
             continue
         summary["scores"][name] = scores
+    return problems + (draw_plots(sc, result, out) if plots else [])
+
+
+def draw_plots(sc: Scenario, result: Result, out: Path) -> list[str]:
+    """Draw the scenario's plots of ``result`` into ``out``; the problems, one line each."""
+    problems = []
     for p in sc.plots:
         try:
             if "function" in p:

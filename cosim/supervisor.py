@@ -63,7 +63,7 @@ def exit_code(summary: dict) -> int:
 
 def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progress: bool = True,
                    wall_timeout: float | None = None, max_steps: int | None = None,
-                   grace: float = GRACE_S, log_file=None, server=None, stop=None) -> dict:
+                   grace: float = GRACE_S, log_file=None, server=None, stop=None, plots: bool = True) -> dict:
     """Run ``scenario`` in a child process; return its summary (also in summary.json).
 
     Raises only for what happens before the run (:class:`cosim.errors.ScenarioError`,
@@ -73,7 +73,7 @@ def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progre
     :class:`cosim.run_server.RunServer` whose warm child runs it (a campaign's worker), when
     this process is threaded; else a child of its own. ``stop``: a callable polled while the
     run goes, returning a signal number when the run must stop as if it had received that
-    signal (a campaign's driver was interrupted), else None.
+    signal (a campaign's driver was interrupted), else None. ``plots=False``: scores only.
     """
     RunWatch(wall_timeout, max_steps)             # checks the limits before anything starts
     # forked: load here, the child inherits it; else the child loads and this process reads
@@ -86,7 +86,7 @@ def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progre
         tmp = tempfile.mkdtemp(prefix="drillcosim-")
         try:
             return _supervise(sc, out, progress, wall_timeout, max_steps, grace, tmp, log_file, server, lock,
-                              stop)
+                              stop, plots)
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
             (out / HEARTBEAT_NAME).unlink(missing_ok=True)
@@ -174,12 +174,12 @@ class _OneRun:
 
 
 def _supervise(sc, out: Path, progress, wall_timeout, max_steps, grace, tmp, log_file, server=None,
-               lock=None, stop=None) -> dict:
+               lock=None, stop=None, plots: bool = True) -> dict:
     ctx, forked = _context(sc)
     payload = {"parent": (os.getpid(), process_start(os.getpid())), "scenario": sc if forked else None, "path": str(sc.path) if sc.path else None,
                "overrides": sc.overrides, "out": str(out), "progress": progress, "tmp": tmp,
                "wall_timeout": wall_timeout, "max_steps": max_steps,
-               "log_file": str(log_file) if log_file else None}
+               "log_file": str(log_file) if log_file else None, "plots": plots}
     if forked and not hasattr(sc, "system"):
         payload["scenario"] = None                 # facts only (threads came up since): child loads
     if not forked and sc.path is None:
@@ -350,7 +350,8 @@ def run_payload(p: dict) -> int:
         sc = p["scenario"] or load(p["path"], p["overrides"])
         watch = RunWatch(p["wall_timeout"], p["max_steps"], Heartbeat(out / HEARTBEAT_NAME))
         try:
-            run_in_folder(sc, out, p["progress"], watch, handle_signals=True, started=started)
+            run_in_folder(sc, out, p["progress"], watch, handle_signals=True, started=started,
+                          plots=p.get("plots", True))
             code = 0
         except RunEnded as e:
             code = exit_code_for(e.signum) if e.status == "interrupted" else EXIT_TIMEOUT

@@ -65,3 +65,27 @@ def test_local_cluster_does_not_warn_about_port_8787(recwarn):
     finally:
         busy.close()
     assert not [w for w in recwarn if "8787" in str(w.message)]
+
+
+def test_a_campaign_scores_without_plots_and_plot_draws_a_run_on_demand(tmp_path, mass_fmu, capsys):
+    from cosim_helpers import BASE_SCENARIO
+    path = tmp_path / "mass_test.toml"
+    path.write_text(BASE_SCENARIO.format(fmu=mass_fmu))
+    sweep = tmp_path / "s.toml"
+    sweep.write_text('[grid]\n"fmus.mass.parameters.m" = [2.0]\n')
+    out = tmp_path / "camp"
+    assert cli.main(["campaign", str(path), "--sweep", str(sweep), "--out", str(out), "--workers", "1",
+                     "--quiet", "--set", "scenario.stop_time=0.05"]) == 0
+    run = out / "run_000"
+    rows = list(csv.DictReader(open(out / "campaign.csv")))
+    assert rows[0]["final_position_score.final_position_mm"] != ""          # scored ...
+    assert not list(run.glob("*.png")) and "drillcosim plot" in rows[0]["plots"]   # ... not drawn
+    capsys.readouterr()
+    assert cli.main(["plot", str(run)]) == 0                                 # drawn on demand
+    printed = capsys.readouterr().out
+    assert (run / "motion.png").stat().st_size > 1000 and f"png: {run / 'motion.png'}" in printed
+    assert len(list(run.glob("*.png"))) == 2                                 # both [[plots]]
+    again = tmp_path / "camp_plots"
+    assert cli.main(["campaign", str(path), "--sweep", str(sweep), "--out", str(again), "--workers", "1",
+                     "--quiet", "--plots", "--set", "scenario.stop_time=0.05"]) == 0
+    assert len(list((again / "run_000").glob("*.png"))) == 2
