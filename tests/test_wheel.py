@@ -26,7 +26,8 @@ def test_wheel_has_sources_not_build_products(tmp_path):
     (fmus_build / "LinearStage.fmu").write_bytes(b"PK\x05\x06" + b"\0" * 18)
     egg = src / "drillcosim.egg-info"
     egg.mkdir(exist_ok=True)
-    (egg / "SOURCES.txt").write_text("fmus/build/LinearStage.fmu\nfmus/build/reference/abc123/src/src/fmi3Functions.c\n")
+    (egg / "SOURCES.txt").write_text("fmus/build/LinearStage.fmu\n"
+                                     "fmus/build/reference/abc123/src/src/fmi3Functions.c\n")
     p = subprocess.run([sys.executable, "-m", "pip", "wheel", str(src), "--no-deps", "-q", "-w", str(tmp_path / "w")],
                        capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr[-2000:]
