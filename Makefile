@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 DEMO_SCENARIO ?= scenarios/keio_fig7_aluminium_force_control.toml
 DEMO_OUT      ?= results/demo
 
-.PHONY: all venv fmus demo test test-long bench clean
+.PHONY: all venv fmus demo test test-long bench wheel clean
 
 all: test
 
@@ -34,6 +34,13 @@ test-long: fmus
 
 bench: fmus
 	$(PY) -m benchmarks
+
+# the wheel from the package sources only: setuptools copies into build/lib and never
+# removes a stale file there, so a used checkout's build/ goes first (pyproject.toml:
+# package-data names the sources; the plant FMUs are built on first use)
+wheel: $(VENV)/.installed
+	rm -rf build
+	$(PY) -m pip wheel . --no-deps -q -w dist
 
 clean:
 	rm -rf fmus/build results .pytest_cache

@@ -39,7 +39,7 @@ import numpy as np
 from .errors import ScenarioError
 from .input_file import InputTable, coverage_gap, read_input_csv
 from .plant import ROLES
-from .scenario import Origins, build, load_raw, load_scenario, read_toml
+from .scenario import Origins, build, import_object, load_raw, load_scenario, read_toml
 from .paths import scenario_path
 from .scores import bind_settings, needed_signals
 from .units import UnitError, connection_conversion
@@ -146,7 +146,8 @@ def _check_rate(original, plant: str, table: InputTable) -> float:
                             str(table.path))
     h = original.step_size
     for block, reads in _readers(original, plant).items():
-        period = float(original.system.blocks[block].sample_period) or h if block in original.system.blocks else h
+        b = original.system.blocks.get(block)          # (a connection into another FMU: every step)
+        period = (float(b.sample_period) or h) if b is not None else h
         k = period / dt
         if abs(k - round(k)) > RATE_TOL * k or round(k) < 1:
             raise ScenarioError(f"block '{block}' reads {', '.join(reads)} every {period:g} s ({1 / period:g} Hz); "
@@ -208,7 +209,6 @@ def _replay_raw(original, plant: str, signals: dict, measurement: Path, dropped:
 
 def _drop_functions(raw: dict, original, plant: str, have: set, dropped: list) -> None:
     """Scores and plots that need a plant signal the recording lacks are dropped."""
-    from .scenario import import_object
     keep = []
     for spec in raw.get("scores", []):
         missing = _needs_missing(import_object(spec["function"]), spec.get("settings", {}), 1, plant, have)

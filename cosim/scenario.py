@@ -335,9 +335,10 @@ def _construct_block(cls, name: str, spec: dict, c: _Checker):
 
 
 def _check_setting_types(cls, key: str, settings: dict, c: _Checker) -> None:
-    """A setting whose parameter defaults to a number or a bool must be one: ``Kf = "abc"``
-    (an unquoted --set value that is no TOML number) is named here, before the block's own
-    code compares a string with a number."""
+    """A setting whose parameter defaults to a number or a bool may not be text (nor a
+    number a bool): ``Kf = "abc"`` (an unquoted --set value that is no TOML number) is named
+    here, before the block's own code compares a string with a number. Anything else (a
+    list where a scalar is the default, ...) is the block's to judge."""
     try:
         params = inspect.signature(cls).parameters
     except (TypeError, ValueError):        # a builtin or C class: nothing to compare with
@@ -345,9 +346,9 @@ def _check_setting_types(cls, key: str, settings: dict, c: _Checker) -> None:
     for name, value in settings.items():
         default = params[name].default if name in params else inspect.Parameter.empty
         if isinstance(default, bool):
-            ok, want = isinstance(value, bool), "true or false"
+            ok, want = not isinstance(value, (str, int, float)) or isinstance(value, bool), "true or false"
         elif isinstance(default, (int, float)):
-            ok, want = isinstance(value, (int, float)) and not isinstance(value, bool), "a number"
+            ok, want = not isinstance(value, (str, bool)), "a number"
         else:
             continue
         if not ok:

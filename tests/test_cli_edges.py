@@ -48,3 +48,12 @@ def test_setting_of_the_wrong_type_names_it(scenario_file, capsys):
     err = _err(capsys)
     assert ("blocks.force.settings.final: expected a number (the default of Step's final is 1.0), "
             "got str 'abc'") in err
+
+
+def test_a_list_where_a_number_is_the_default_is_the_blocks_to_judge():
+    """InterfaceDetector's thickness_tolerances defaults to 0.0 and takes a list per layer:
+    only text (or a bool) where a number is the default is refused before the block."""
+    from cosim.scenario import load_scenario
+    sc = load_scenario("scenarios/stacks/cfrp_ti.toml")
+    assert list(sc.system.blocks["detector"].thickness_tolerances) == list(
+        sc.raw["blocks"]["detector"]["settings"]["thickness_tolerances"])

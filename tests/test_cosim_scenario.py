@@ -112,8 +112,10 @@ def test_bad_sample_period(scenario_file):
 def test_missing_required_keys_and_files(scenario_file, tmp_path):
     expect_error(scenario_file, {"fmus.mass.path": str(tmp_path / "none.fmu")}, "fmus.mass.path",
                  "does not exist")
-    expect_error(scenario_file, {"blocks.extra.sample_period": 0.01}, "blocks.extra.class",
-                 "missing required key 'class'")
+    # an override below a block that does not exist is a typo of its name (issue 25), unless
+    # the overrides give the new block whole (with its class)
+    expect_error(scenario_file, {"blocks.extra.sample_period": 0.01}, "overrides",
+                 "no block named 'extra' for the override blocks.extra.sample_period (blocks here: force, probe)")
     bad = tmp_path / "broken.toml"
     bad.write_text("[scenario\nstop_time = 1")
     with pytest.raises(ScenarioError, match="not valid TOML"):

@@ -68,7 +68,7 @@ def test_hole_figure_shows_events_windows_feed_and_speeds(figures, tmp_path):
     vlines = {round(line.get_xdata()[0], 2) for line in ax[0].lines if len(set(line.get_xdata())) == 1}
     assert set(T_DET.values()) <= vlines               # detected events
     assert {3.19, 28.19, 58.09} <= vlines              # true ones (half-way between the samples around)
-    labels = " ".join(a.get_legend().get_texts()[i].get_text() for a in ax for i in range(len(a.get_legend().get_texts())))
+    labels = " ".join(text.get_text() for a in ax for text in a.get_legend().get_texts())
     for what in ("detected entry: 3.50 s", "detected interface: 28.40 s", "feed velocity", "spindle", "orbit", "fail"):
         assert what in labels
     feed = ax[1].lines[0].get_ydata()

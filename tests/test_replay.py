@@ -134,3 +134,24 @@ def test_replay_cli_reports_errors(tmp_path, mass_run, capsys):
                  "--quiet"]) == 1
     err = capsys.readouterr().err
     assert err.startswith("drillcosim: ") and "expected a recording at 100 Hz" in err
+
+
+@pytest.mark.long
+def test_fang_hole_detector_and_adaptation_replay(tmp_path):
+    """The Fang hole's observer, interface detector and cutting-parameter adaptation on a
+    recording of its own first 4 s (encoder, motor angle, current, dynamometer at 10 kHz):
+    the same outputs bit for bit; the plant inputs (current, spindle, orbit) go nowhere."""
+    from cosim.scenario import load_raw
+    raw = load_raw(ROOT / "scenarios" / "fang_table5_hole.toml")
+    over = {"scenario.stop_time": 4.0, "record.decimation": 1,
+            "record.signals": raw["record"]["signals"] + ["drive.motor_angle"]}
+    run = run_scenario("fang_table5_hole", out_dir=tmp_path / "run", progress=False, overrides=over)
+    rec = export_recording(run, tmp_path / "hole.csv.gz", [s for s in run.signals if s.startswith("drive.")],
+                           ["SIMULATED: the first 4 s of fang_table5_hole"])
+    sc, info = replay_scenario("fang_table5_hole", rec, overrides=over)
+    assert sorted(d.split(" -> ")[1].split(" ")[0] for d in info["dropped"]) == [
+        "drive.i_ref", "drive.orbital_speed", "drive.spindle_speed"]
+    rep = run_scenario(sc, out_dir=tmp_path / "replay", progress=False)
+    for sig in ("observer.F_dc_hat", "detector.flag", "detector.F_pred", "adapt.feed_rate_cmd", "trajectory.v_ref"):
+        np.testing.assert_array_equal(rep[sig], run[sig], err_msg=sig)
+    assert set(rep.summary["scores"]) == set(run.summary["scores"])
