@@ -142,19 +142,22 @@ def _check_settings(scenario, name: str, block, spec: dict) -> list[tuple[str, s
     return baked
 
 
+def has_c_step(block, t0: float) -> bool:
+    """Whether ``block`` (reset at ``t0``) steps in C: a ``c_kernel`` (controllers.kernels.Kernel)."""
+    if getattr(block, "c_step", None) is None and not hasattr(block, "c_kernel"):
+        return False
+    block.reset(t0)
+    return getattr(block, "c_kernel", None) is not None
+
+
 def _kernel_of(scenario, name: str, block):
     file = str(scenario.path or "<scenario>")
     cls = f"{type(block).__module__}:{type(block).__name__}"
-    if getattr(block, "c_step", None) is None:
-        raise ExportError(f"{file}: block '{name}' ({cls}) has no C step: export-fmu compiles a block's C "
-                          "kernel into the FMU; a Python-only block is not exported (a Python interpreter "
-                          "inside an FMU is not portable)")
-    block.reset(scenario.start_time)
-    k = block.c_kernel
-    if k is None:
-        raise ExportError(f"{file}: block '{name}' ({cls}): these settings have no C step (its "
-                          "_c_supports() said no, or the C compiler is missing), so it cannot be exported")
-    return k
+    if not has_c_step(block, scenario.start_time):
+        raise ExportError(f"{file}: block '{name}' ({cls}) has no C step (with these settings): export-fmu "
+                          "compiles a block's C kernel into the FMU; a Python-only block is not exported (a "
+                          "Python interpreter inside an FMU is not portable)")
+    return block.c_kernel
 
 
 def _state_type(source: Path, function: str) -> str:
