@@ -402,6 +402,25 @@ def cmd_export_fmu(args) -> int:
     return 0
 
 
+def cmd_export_ssp(args) -> int:
+    from .errors import CosimError
+    from .export_fmu import ExportError
+    from .scenario import load_scenario
+    from .ssp.writer import export_ssp
+    try:
+        sc = load_scenario(_scenario_path(args.scenario), _parse_set(args.set))
+        out, missing = export_ssp(sc, args.out, args.fmi, args.allow_missing)
+    except (ExportError, CosimError) as e:
+        print(f"drillcosim export-ssp: {e}", file=sys.stderr)
+        return 2
+    print(f"{out}: SSP 1.0, components {', '.join(sc.system.slaves)} (FMUs) + "
+          f"{', '.join(n for n in sc.system.blocks if n not in {m for k, m, _w in missing if k == 'block'})} "
+          f"(exported blocks, FMI {args.fmi}.0)")
+    for kind, name, why in missing:
+        print(f"  not carried: {kind} {name}: {why}")
+    return 0
+
+
 def _add_limits(p) -> None:
     p.add_argument("--timeout", type=float, metavar="SECONDS",
                    help="wall-clock limit of a run; then status 'timeout' (a run stuck in an FMU is killed)")
@@ -454,7 +473,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("run", help="run a scenario file; prints the paths of CSV, PNG, summary")
-    r.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
+    r.add_argument("scenario", help="scenario .toml (or its name in scenarios/), or an SSP package (.ssp, .ssd)")
     r.add_argument("--out", help="output folder (default results/<scenario name>)")
     r.add_argument("--quiet", action="store_true", help="no progress bar, only the paths")
     r.add_argument("--set", action="append", metavar="KEY=VALUE", default=[],
@@ -531,6 +550,16 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--fmi", type=int, choices=(2, 3), default=3, help="FMI version (default 3)")
     ex.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override a scenario key first")
     ex.set_defaults(func=cmd_export_fmu)
+    es = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 package (plant + exported block FMUs; "
+                        "docs/export.md)")
+    es.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
+    es.add_argument("--out", required=True, help="the .ssp file to write")
+    es.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version of the block FMUs (default 2: "
+                    "what libcosim runs)")
+    es.add_argument("--allow-missing", action="store_true", help="write the package without the Python-only blocks "
+                    "and events (listed) instead of refusing")
+    es.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override a scenario key first")
+    es.set_defaults(func=cmd_export_ssp)
     c = sub.add_parser("conformance", help="run the Modelica Reference-FMUs against fmpy and rewrite "
                                            "the table in docs/conformance.md")
     c.add_argument("--no-write", action="store_true", help="print the table only")

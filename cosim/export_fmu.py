@@ -12,10 +12,9 @@ What the FMU is (docs/export.md):
   every other field of the struct is state, started from the block's state after
   ``reset(start_time)``;
 * its fixed step is the block's sample period ``h`` (the scenario's step size for a
-  block that runs every step). The FMU's clock is its own grid: sample ``j`` runs at
-  ``t0 + (j*k)*h_s`` with ``h_s`` the scenario's step and ``k = h/h_s`` -- the time the
-  drillcosim master gives the block, whatever the master's spelling of t (libcosim counts
-  nanoseconds) -- so two masters give the kernel the same doubles. ``doStep(t, k*h)`` runs
+  block that runs every step). The samples run at the communication points the master
+  gives (so in drillcosim the kernel sees exactly the times the block would; libcosim's
+  times, counted in nanoseconds, differ from ``t0 + n*h`` in the last bits). ``doStep(t, k*h)`` runs
   ``k`` samples from the one ``t`` is on, with the inputs held; ``doStep(t, h/m)`` runs one
   sample when ``t`` is on the block's grid (``round((t - t0)/H)`` a multiple of ``m``), none
   otherwise; any other step size is an error. The outputs after ``doStep`` are those of
@@ -81,7 +80,6 @@ class BlockExport:
     class_name: str
     description: str
     sample_period: float
-    grid_step: float          # the scenario's step size: sample times are t0 + (j k) grid_step
     start_time: float
     stop_time: float
     direct_feedthrough: bool
@@ -142,19 +140,22 @@ def _check_settings(scenario, name: str, block, spec: dict) -> list[tuple[str, s
     return baked
 
 
+def has_c_step(block, t0: float) -> bool:
+    """Whether ``block`` (reset at ``t0``) steps in C: a ``c_kernel`` (controllers.kernels.Kernel)."""
+    if getattr(block, "c_step", None) is None and not hasattr(block, "c_kernel"):
+        return False
+    block.reset(t0)
+    return getattr(block, "c_kernel", None) is not None
+
+
 def _kernel_of(scenario, name: str, block):
     file = str(scenario.path or "<scenario>")
     cls = f"{type(block).__module__}:{type(block).__name__}"
-    if getattr(block, "c_step", None) is None:
-        raise ExportError(f"{file}: block '{name}' ({cls}) has no C step: export-fmu compiles a block's C "
-                          "kernel into the FMU; a Python-only block is not exported (a Python interpreter "
-                          "inside an FMU is not portable)")
-    block.reset(scenario.start_time)
-    k = block.c_kernel
-    if k is None:
-        raise ExportError(f"{file}: block '{name}' ({cls}): these settings have no C step (its "
-                          "_c_supports() said no, or the C compiler is missing), so it cannot be exported")
-    return k
+    if not has_c_step(block, scenario.start_time):
+        raise ExportError(f"{file}: block '{name}' ({cls}) has no C step (with these settings): export-fmu "
+                          "compiles a block's C kernel into the FMU; a Python-only block is not exported (a "
+                          "Python interpreter inside an FMU is not portable)")
+    return block.c_kernel
 
 
 def _state_type(source: Path, function: str) -> str:
@@ -203,7 +204,7 @@ def describe_block(scenario, name: str) -> BlockExport:
     doc = (type(block).__doc__ or "").strip().splitlines()
     return BlockExport(
         name=name, identifier=_identifier(name), class_name=f"{type(block).__module__}:{type(block).__name__}",
-        description=(doc[0] if doc else type(block).__name__), sample_period=h, grid_step=scenario.step_size,
+        description=(doc[0] if doc else type(block).__name__), sample_period=h,
         start_time=scenario.start_time,
         stop_time=scenario.stop_time, direct_feedthrough=bool(getattr(block, "direct_feedthrough", True)),
         source=Path(k.source), function=k.function, state_type=_state_type(Path(k.source), k.function),
@@ -256,8 +257,6 @@ def c_wrapper(ex: BlockExport, fmi: int) -> str:
 #define N_IN {n_in}
 #define N_OUT {max(n_out, 1)}
 #define SAMPLE_PERIOD {_c_num(ex.sample_period)}   /* s, the block's sample period: the fixed step */
-#define GRID_STEP {_c_num(ex.grid_step)}   /* s, the scenario's step: sample j runs at t0 + (j RATIO) GRID_STEP */
-#define RATIO {max(1, round(ex.sample_period / ex.grid_step))}L
 #define STATE_SIZE {len(ex.state)}
 
 typedef struct {{
@@ -290,29 +289,26 @@ int model_validate(const void *data, char *msg, size_t n) {{ (void)data; (void)m
 
 void model_initialize(void *data, double start_time) {{ ((BlockData *)data)->t0 = start_time; }}
 
-/* The FMU's clock is its own grid: sample j runs at t0 + (j RATIO) GRID_STEP -- the time the
- * drillcosim master gives the block -- whatever spelling of t this master uses (libcosim
- * counts nanoseconds). doStep(t, k h): the k samples from the one t is on; doStep(t, h / m):
- * the sample at t when t is on the grid. */
-static double sample_time(const BlockData *d, long j) {{ return d->t0 + (double)(j * RATIO) * GRID_STEP; }}
-
+/* The samples run at the communication points the master gives: doStep(t, k h) runs k samples
+ * at t, t + h, ..., t + (k-1) h; doStep(t, h / m) runs the sample at t when t is on the
+ * block's grid (round((t - t0) / H) a multiple of m), none otherwise. */
 int model_do_step(void *data, double t, double H, char *msg, size_t n)
 {{
     BlockData *d = data;
     if (H == 0.0) return 0;
     double k = H / SAMPLE_PERIOD;
     if (k >= 1.0 - 1e-9) {{
-        long K = lround(k), j0 = lround((t - d->t0) / SAMPLE_PERIOD);
+        long K = lround(k);
         if (fabs(k - (double)K) > 1e-9 * (double)K) goto not_a_multiple;
         for (long i = 0; i < K; i++)
-            {ex.function}(({ex.state_type} *)d->s, sample_time(d, j0 + i), d->u, d->y);
+            {ex.function}(({ex.state_type} *)d->s, i == 0 ? t : t + (double)i * SAMPLE_PERIOD, d->u, d->y);
         return 0;
     }}
     double m = SAMPLE_PERIOD / H;
-    long M = lround(m), j = lround((t - d->t0) / H);
+    long M = lround(m);
     if (fabs(m - (double)M) > 1e-9 * (double)M) goto not_a_multiple;
-    if (j % M == 0)
-        {ex.function}(({ex.state_type} *)d->s, sample_time(d, j / M), d->u, d->y);
+    if (lround((t - d->t0) / H) % M == 0)
+        {ex.function}(({ex.state_type} *)d->s, t, d->u, d->y);
     return 0;
 not_a_multiple:
     snprintf(msg, n, "communication step %.17g s is neither a multiple nor an integer fraction of the "

@@ -297,6 +297,9 @@ class FMUSlave:
         else:
             self.fmu.setupExperiment(startTime=start_time, stopTime=stop_time)
             self.fmu.enterInitializationMode()
+            # again in initialization mode, as libcosim does (FMI 2.0 allows both): some FMUs
+            # (20-sim's) put their start values back in fmi2EnterInitializationMode
+            self.set_values(self.parameters)
         self.fmu.exitInitializationMode()
 
     def instantiate(self, start_time: float = 0.0, stop_time: float | None = None) -> None:

@@ -19,7 +19,7 @@ from fmpy.validation import validate_fmu
 
 from controllers.adaptation import OneStepDelay
 from cosim.algorithm import run
-from cosim.export_fmu import ExportError, export_blocks, with_exported_blocks
+from cosim.export_fmu import ExportError, export_blocks, has_c_step, with_exported_blocks
 from cosim.recorder import Recorder
 from cosim.scenario import load_scenario
 
@@ -28,8 +28,7 @@ FIG7 = ROOT / "scenarios" / "keio_fig7_aluminium_force_control.toml"
 
 
 def _c_blocks(sc) -> list[str]:
-    return [n for n, b in sc.system.blocks.items() if getattr(b, "c_step", None) is not None
-            and (b.reset(sc.start_time) or b.c_kernel is not None)]
+    return [n for n, b in sc.system.blocks.items() if has_c_step(b, sc.start_time)]
 
 
 def _same_run(path: Path, tmp: Path, overrides: dict) -> tuple[int, int]:

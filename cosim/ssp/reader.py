@@ -32,7 +32,7 @@ _EXTRACTED: dict[str, Path] = {}
 UNSUPPORTED = {   # element (namespace prefix, name) -> why it cannot be run as stated
     ("ssd", "SignalDictionaries"): "signal dictionaries",
     ("ssd", "SignalDictionaryReference"): "signal dictionary references",
-    ("ssc", "MapTransformation"): "enumeration map transformations",
+    ("ssc", "EnumerationMappingTransformation"): "enumeration mapping transformations",
     ("ssc", "BooleanMappingTransformation"): "boolean mapping transformations",
     ("ssc", "IntegerMappingTransformation"): "integer mapping transformations",
     ("ssd", "ParameterMapping"): "parameter mappings (ssm)",

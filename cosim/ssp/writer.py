@@ -24,7 +24,7 @@ import zipfile
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
-from ..export_fmu import ExportError, _xml_num, describe_block, write_fmu
+from ..export_fmu import ExportError, _xml_num, describe_block, has_c_step, write_fmu
 from ..units import BUILTIN_UNITS
 from . import DRILLCOSIM_NS, NS
 
@@ -38,11 +38,9 @@ def _not_carried(sc, allow_missing: bool) -> tuple[list[str], list[tuple[str, st
     """(C blocks to export, [(kind, name, why)] not carried); refuses what changes the dynamics."""
     c_blocks, missing = [], []
     for name, b in sc.system.blocks.items():
-        if getattr(b, "c_step", None) is not None:
-            b.reset(sc.start_time)
-            if b.c_kernel is not None:
-                c_blocks.append(name)
-                continue
+        if has_c_step(b, sc.start_time):
+            c_blocks.append(name)
+            continue
         missing.append(("block", name, f"{type(b).__module__}:{type(b).__name__} has no C step (Python only)"))
     missing += [("event", f"events[{i}]", f"{e}: SSP 1.0 has no events") for i, e in enumerate(sc.events)]
     if missing and not allow_missing:
@@ -134,20 +132,18 @@ def _units(models) -> list[str]:
     return L + ["  </ssd:Units>"] if len(L) > 1 else []
 
 
-def _record_wires(sc) -> list[str]:
-    """The recorded signals as the package's variables (a plant role -> its FMU variable, in
-    the FMU's unit); "*" stays "*"."""
-    out = []
-    for sig in sc.record_signals:
-        out.append(sig if "*" in sig else sc.system.source(sig).wire)
-    return out
+def _record_wires(sc, kept: set) -> list[str]:
+    """The recorded signals of the package's components as their variables (a plant role ->
+    its FMU variable, in the FMU's unit); "*" stays "*"."""
+    wires = [sig if "*" in sig else sc.system.source(sig).wire for sig in sc.record_signals]
+    return [w for w in wires if "*" in w or _split(w)[0] in kept]
 
 
-def _annotations(sc, missing) -> list[str]:
+def _annotations(sc, missing, kept: set) -> list[str]:
     """What the package does not carry, and the scenario's record list (drillcosim reads
     it back when it runs the package; other tools ignore it)."""
     rows = [f"        <dc:Item kind={quoteattr(k)} name={quoteattr(n)} why={quoteattr(w)}/>" for k, n, w in missing]
-    rec = f'        <dc:Record signals={quoteattr(" ".join(_record_wires(sc)))} decimation="{sc.decimation}"/>'
+    rec = f'        <dc:Record signals={quoteattr(" ".join(_record_wires(sc, kept)))} decimation="{sc.decimation}"/>'
     return ["  <ssd:Annotations>", '    <ssc:Annotation type="org.drillcosim.not-carried">',
             f'      <dc:NotCarried xmlns:dc="{DRILLCOSIM_NS}">', *rows, rec, "      </dc:NotCarried>",
             "    </ssc:Annotation>", "  </ssd:Annotations>"]
@@ -170,7 +166,7 @@ def ssd_text(sc, models: dict, parameters: dict, conns, missing) -> str:
           "    <ssd:Annotations>", '      <ssc:Annotation type="com.opensimulationplatform">',
           f'        <osp:Algorithm><osp:FixedStepAlgorithm baseStepSize="{_xml_num(sc.step_size)}"/></osp:Algorithm>',
           "      </ssc:Annotation>", "    </ssd:Annotations>", "  </ssd:DefaultExperiment>"]
-    L += _annotations(sc, missing)
+    L += _annotations(sc, missing, set(models))
     return "\n".join(L + ["</ssd:SystemStructureDescription>", ""])
 
 
