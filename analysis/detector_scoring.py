@@ -188,9 +188,34 @@ def layer_thrust_stats(time, x_tool, F_meas, F_obs, x_lo, x_hi, orbital_period=0
             "deviation_pct": 100.0 * eps / meas if meas else math.nan}
 
 
+# Share of a thrust step over the tool's engagement that the moving regression's error F~
+# shows at most (controllers/interface_detector.py: 0.70 at N = 150 for a 25-sample rise)
+REGRESSION_REACH = 0.7
+
+
+def threshold_warnings(time, flag, thd, level_cfrp: float, level_ti: float) -> list[str]:
+    """Warnings when a fixed threshold (Fang Table 4) is out of reach of the thrust this
+    plant showed: the entry's threshold above REGRESSION_REACH of the CFRP level, the
+    interface's above that share of the CFRP -> Ti step. The paper's scenario keeps its
+    thresholds; a user of it on their plant is pointed to the hole plan."""
+    flag, thd = np.asarray(flag, float), np.asarray(thd, float)
+    out = []
+    for k, what, step in ((0, "entry (thd1)", level_cfrp), (1, "interface (thd2)", abs(level_ti - level_cfrp))):
+        armed = thd[(np.rint(flag) == k) & np.isfinite(thd)]
+        if armed.size == 0 or not math.isfinite(step):
+            continue
+        used, reach = float(np.max(np.abs(armed))), REGRESSION_REACH * step
+        if used > reach:
+            out.append(f"the {what} threshold {used:.1f} N is out of reach on this plant: the observed step is "
+                       f"{step:.1f} N, of which the moving regression shows at most ~{reach:.1f} N over the tool's "
+                       f"engagement, so the event may be missed or found late; the paper's fixed thresholds fit "
+                       f"its machine -- a hole plan ([hole], docs/stacks.md) derives them from the process")
+    return out
+
+
 @needs("{plant}.tool_position_true", "{plant}.layer_index", "{plant}.thrust_dyn", "{observer}.F_dc_hat",
        "{detector}.t_entry", "{detector}.t_interface", "{detector}.t_exit_paper", "{detector}.t_exit_thinning",
-       "{detector}.fail", "{detector}.fail_code", "{detector}.flag")
+       "{detector}.fail", "{detector}.fail_code", "{detector}.flag", "{detector}.thd")
 def score_hole(result, plant="drive", observer="observer", detector="detector",
                entry_margin=0.2e-3, end_margin=0.2e-3, exit_margin=0.6e-3, orbital_period=0.5):
     """Scores of one drilled hole (a ``[[scores]]`` function of the scenario).
@@ -200,7 +225,8 @@ def score_hole(result, plant="drive", observer="observer", detector="detector",
     detection), ``fail``. Observer: Table-3 columns per layer (``cfrp_*``, ``ti_*``)
     over the steady part of each layer: ``entry_margin`` below its top,
     ``end_margin`` above the CFRP bottom, ``exit_margin`` above the Ti bottom
-    (clear of the exit thinning).
+    (clear of the exit thinning). ``warnings``: a fixed threshold out of reach of the
+    thrust this plant showed (:func:`threshold_warnings`).
     """
     t = np.asarray(result.time, float)
     g = lambda name: np.asarray(result[name], float)  # noqa: E731
@@ -240,6 +266,8 @@ def score_hole(result, plant="drive", observer="observer", detector="detector",
         st = layer_thrust_stats(t, x_tool, F_meas, F_obs, lo, hi, orbital_period)
         for k, v in st.items():
             out[f"{name}_{k}"] = v
+    out["warnings"] = threshold_warnings(t, g(f"{detector}.flag"), g(f"{detector}.thd"),
+                                         out["cfrp_observed"], out["ti_observed"])
     return out
 
 

@@ -5,27 +5,29 @@ The moving regression of :mod:`controllers.interface_detector` fires once the pr
 error has grown past its threshold, i.e. some way into the thrust's change: every entry
 was found 0.025-0.06 mm late, and a change that is slow against the window (a thinning
 layer) is found at its start instead of at the free face. Once an event has fired, the
-samples around it are available; a least-squares fit of straight-line segments to the
-observed thrust *against the table position* finds the corners of the force profile the
-cut front draws when it crosses a boundary (docs/stacks.md, "Localisation"):
+samples around it are available; a least-squares fit of the thrust's shape at a face
+to the observed thrust *against the table position* finds where the cut front crossed
+the boundary (docs/stacks.md, "Localisation"):
 
-* a layer entered with the tool's engagement: the thrust leaves its level at the
-  boundary and ramps over the engagement length -> the **onset** of the ramp;
-* a layer pushed out (the last layer at the exit; the upper layer of a gap): its thrust
-  falls as it thins and reaches the air level at its free face -> the **end** of the
-  fall;
-* a gap: the thrust falls to the air level at the upper face and rises from it at the
-  lower face -> any position in between is exact; the middle of the air-level stretch.
+* a layer entered with the tool's engagement: the thrust leaves its level (with a
+  trend) at the face and ramps over the engagement length, linearly or as a smoothstep
+  (:func:`onset_face`) -> the **onset** of the ramp;
+* a layer pushed out ahead of the tool (the last layer at the exit; the upper layer of a
+  gap): its thrust falls as it thins -- linearly, quadratically (ligament yield) or at
+  once (break-off) -- and reaches the air level at its free face (:func:`free_face`)
+  -> the **end** of the fall;
+* a gap (a run at the air level between two cut levels, :func:`air_run`): any position
+  between the faces is exact; the middle of the two faces found as above.
 
-The fit is an optimal partition into ``m`` segments (dynamic programming over the
-prefix sums, O(m n^2), once per event, never per sample), each a least-squares line
-``F = a + b x``. A corner between two segments is the intersection of their lines, so
-the position is not tied to the sample grid. The uncertainty is the half-width of the
-range of that corner over which the fit's residual sum grows by less than one residual
-variance (the usual one-parameter likelihood interval), at least half a sample's travel.
+The lengths and laws are fitted, not assumed (a drive the project was not built on has
+its own); the face is tried on a 10 um grid and then on a 1 um one around the best, the
+model is linear in its levels for each face, length and law (a batched least-squares
+solve). The uncertainty is the half-width of the face positions whose best fit is worse
+by less than one residual variance (the one-parameter likelihood interval), at least
+the grid step. About 0.2-1 s once per event, never per sample.
 
 Plain numpy, no state: the detector hands over its history when the window after the
-event is complete (``InterfaceDetector``), and a C port needs only the same prefix sums.
+event is complete (``InterfaceDetector``); a C port needs the same sums over the window.
 """
 from __future__ import annotations
 
@@ -39,127 +41,27 @@ MIN_SEGMENT = 3           # samples: a line through fewer points has no residual
 AIR_SHARE = 0.5           # a level below this share of its neighbours' plateaus (above air) is air (a gap)
 
 
-class _Prefix:
-    """Prefix sums over the samples: the least-squares line of any run in O(1)."""
-
-    def __init__(self, x: np.ndarray, F: np.ndarray):
-        z = np.zeros(1)
-        self.n = np.concatenate((z, np.cumsum(np.ones_like(x))))
-        self.x = np.concatenate((z, np.cumsum(x)))
-        self.xx = np.concatenate((z, np.cumsum(x * x)))
-        self.F = np.concatenate((z, np.cumsum(F)))
-        self.xF = np.concatenate((z, np.cumsum(x * F)))
-        self.FF = np.concatenate((z, np.cumsum(F * F)))
-
-    def sse(self, i, j):
-        """Residual sum of squares of the line through samples i..j-1 (i, j arrays or ints)."""
-        n = self.n[j] - self.n[i]
-        sx, sxx = self.x[j] - self.x[i], self.xx[j] - self.xx[i]
-        sF, sxF, sFF = self.F[j] - self.F[i], self.xF[j] - self.xF[i], self.FF[j] - self.FF[i]
-        vxx = sxx - sx * sx / n
-        vxF = sxF - sx * sF / n
-        vFF = sFF - sF * sF / n
-        with np.errstate(divide="ignore", invalid="ignore"):
-            out = vFF - np.where(vxx > 0, vxF * vxF / np.where(vxx > 0, vxx, 1.0), 0.0)
-        return np.maximum(out, 0.0)
-
-    def line(self, i: int, j: int) -> tuple[float, float]:
-        """(a, b) of F = a + b x through samples i..j-1."""
-        n = self.n[j] - self.n[i]
-        sx, sxx = self.x[j] - self.x[i], self.xx[j] - self.xx[i]
-        sF, sxF = self.F[j] - self.F[i], self.xF[j] - self.xF[i]
-        vxx = sxx - sx * sx / n
-        b = (sxF - sx * sF / n) / vxx if vxx > 0 else 0.0
-        return float((sF - b * sx) / n), float(b)
-
-
-def segment(x, F, m: int, min_len: int = MIN_SEGMENT) -> list[int]:
-    """Start indices of the ``m`` segments (the first is 0) of the least-squares optimal
-    partition of the samples into straight lines of at least ``min_len`` samples."""
-    x, F = np.asarray(x, float), np.asarray(F, float)
-    n = x.size
-    if m < 1 or n < m * min_len:
-        raise ValueError(f"event_locator.segment: {n} samples cannot hold {m} segments of {min_len}")
-    P = _Prefix(x, F)
-    cost = np.full((m + 1, n + 1), np.inf)
-    arg = np.zeros((m + 1, n + 1), dtype=int)
-    cost[0, 0] = 0.0
-    for s in range(1, m + 1):
-        for j in range(s * min_len, n - (m - s) * min_len + 1):
-            i = np.arange((s - 1) * min_len, j - min_len + 1)
-            c = cost[s - 1, i] + P.sse(i, np.full_like(i, j))
-            k = int(np.argmin(c))
-            cost[s, j], arg[s, j] = c[k], i[k]
-    starts, j = [], n
-    for s in range(m, 0, -1):
-        j = int(arg[s, j])
-        starts.append(j)
-    return starts[::-1]
-
-
-class Fit:
-    """A segmented fit: segment bounds, lines, corner positions and their uncertainty."""
-
-    def __init__(self, x, F, m: int):
-        self.x, self.F = np.asarray(x, float), np.asarray(F, float)
-        self.P = _Prefix(self.x, self.F)
-        self.bounds = [*segment(self.x, self.F, m), self.x.size]
-        self.lines = [self.P.line(i, j) for i, j in zip(self.bounds, self.bounds[1:])]
-        sse = sum(float(self.P.sse(i, j)) for i, j in zip(self.bounds, self.bounds[1:]))
-        self.var = sse / max(self.x.size - 2 * m, 1)
-
-    def value(self, s: int, x: float) -> float:
-        a, b = self.lines[s]
-        return a + b * x
-
-    def ends(self, s: int) -> tuple[float, float]:
-        """Fitted thrust at the first and the last sample of segment s."""
-        i, j = self.bounds[s], self.bounds[s + 1]
-        return self.value(s, self.x[i]), self.value(s, self.x[j - 1])
-
-    def change(self, s: int) -> float:
-        lo, hi = self.ends(s)
-        return hi - lo
-
-    def level(self, s: int) -> float:
-        i, j = self.bounds[s], self.bounds[s + 1]
-        return float(np.mean([self.value(s, self.x[i]), self.value(s, self.x[j - 1])]))
-
-    def corner(self, s: int) -> float:
-        """Position [m] where segment s-1 meets segment s: the intersection of their
-        lines, kept between the last sample of s-1's neighbour and the first of s+1's."""
-        (a0, b0), (a1, b1) = self.lines[s - 1], self.lines[s]
-        i = self.bounds[s]
-        lo = self.x[max(self.bounds[s - 1], i - 2)]
-        hi = self.x[min(self.bounds[s + 1] - 1, i + 1)]
-        if abs(b1 - b0) > 0:
-            xc = (a0 - a1) / (b1 - b0)
-            if lo <= xc <= hi:
-                return float(xc)
-        return float(0.5 * (self.x[i - 1] + self.x[i]))
-
-    def corner_uncertainty(self, s: int) -> float:
-        """Half-width [m] of the positions of corner s whose fit is worse by less than one
-        residual variance (the segments' other bounds held), at least half a sample."""
-        i0, i1, i2 = self.bounds[s - 1], self.bounds[s], self.bounds[s + 1]
-        cand = np.arange(i0 + MIN_SEGMENT, i2 - MIN_SEGMENT + 1)
-        cost = self.P.sse(np.full_like(cand, i0), cand) + self.P.sse(cand, np.full_like(cand, i2))
-        ok = cand[cost <= cost.min() + max(self.var, 1e-12)]
-        step = 0.5 * float(np.median(np.abs(np.diff(self.x)))) if self.x.size > 1 else 0.0
-        lo, hi = self.x[max(int(ok.min()) - 1, 0)], self.x[min(int(ok.max()), self.x.size - 1)]
-        return max(0.5 * float(hi - lo), step)
-
-
-def _gap(fit: Fit, air: float) -> tuple[int, int] | None:
-    """(first, last) segment at the air level between two cut plateaus, or None."""
-    m = len(fit.lines)
-    rel = [fit.level(s) - air for s in range(m)]
-    before, after = fit.ends(0)[0] - air, fit.ends(m - 1)[1] - air
-    low = AIR_SHARE * min(before, after)
-    if low <= 0:
+def air_run(x, F, air: float) -> tuple[int, int] | None:
+    """(first, last + 1) sample of the longest run at the air level between two cut
+    levels (a gap between two layers), or None. The levels are the medians of the first
+    and the last fifth of the window; a sample is at the air level below AIR_SHARE of the
+    lower of them, and the run must hold 2 MIN_SEGMENT samples with its median below
+    half of that (a low cut level, Al after CFRP, is not air)."""
+    n = F.size
+    k = max(MIN_SEGMENT, n // 5)
+    low = AIR_SHARE * min(float(np.median(F[:k])) - air, float(np.median(F[-k:])) - air)
+    if not low > 0:
         return None
-    inside = [s for s in range(1, m - 1) if rel[s] < low]
-    return (inside[0], inside[-1]) if inside else None
+    below = np.concatenate(([False], F - air < low, [False]))
+    edges = np.flatnonzero(np.diff(below.astype(int)))
+    starts, ends = edges[0::2], edges[1::2]
+    if starts.size == 0:
+        return None
+    j = int(np.argmax(ends - starts))
+    i0, i1 = int(starts[j]), int(ends[j])
+    if i1 - i0 < 2 * MIN_SEGMENT or not np.median(F[i0:i1]) - air < 0.5 * low:
+        return None
+    return i0, i1
 
 
 # ---------------------------------------------------------------- ramp templates
@@ -267,13 +169,12 @@ def locate(kind: str, x, F, *, air: float = 0.0, sign: float = 1.0, x_trig: floa
         return onset_face(x, F, x0, min(xt, x1))
     if kind == EXIT:
         return free_face(x, F, x0, x1, air)
-    fit = Fit(x, F, 5)
-    gap = _gap(fit, air)
+    gap = air_run(x, F, air)
     if gap is None:
         return onset_face(x, F, x0, min(xt, x1))
     # the upper layer runs out at its free face, the lower one's rise leaves the air level
     # at its face: the middle of the two is inside the gap whatever its width
-    mid = 0.5 * (fit.x[fit.bounds[gap[0]]] + fit.x[fit.bounds[gap[1] + 1] - 1])
+    mid = 0.5 * (x[gap[0]] + x[gap[1] - 1])
     up, down = x <= mid, x >= mid
     if up.sum() < 2 * MIN_SEGMENT or down.sum() < 2 * MIN_SEGMENT:
         return NAN, NAN

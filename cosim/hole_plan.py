@@ -44,9 +44,11 @@ HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "ap
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
              "match_tolerance", "locate_margin", "push_out"}
 # Localisation (controllers/event_locator.py): travel on either side of an event that holds its
-# change and a stretch of level (engagement up to ~0.35 mm on the drives measured), and the
+# change and a stretch of level (engagement up to ~0.35 mm on the drives measured, and the
+# trigger up to ~0.1 mm into it: with 0.3 mm, Ti entries with a 0.22 mm engagement were
+# located 0.2-0.25 mm early, the window holding no plateau after the ramp), and the
 # longest push-out of a last layer (0.4 mm on the project's drive)
-LOCATE_MARGIN = 0.3e-3
+LOCATE_MARGIN = 0.45e-3
 PUSH_OUT = 0.5e-3
 # the observer must see this many orbits in a layer to tell its ripple from its level
 ORBITS_PER_LAYER = 2.0

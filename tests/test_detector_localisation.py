@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from analysis.detector_scoring import SyntheticHole, run_block_on_trace
-from controllers.event_locator import locate, segment, time_at
+from controllers.event_locator import air_run, locate, time_at
 from controllers.interface_detector import InterfaceDetector
 
 MM = 1e-3
@@ -23,12 +23,14 @@ def profile(x, corners, levels):
     return np.interp(x, corners, levels)
 
 
-def test_segment_finds_the_corners_of_a_ramp():
-    x = np.linspace(0.0, 1.0 * MM, 101)
-    F = profile(x, [0.3 * MM, 0.4 * MM], [0.0, 100.0])
-    starts = segment(x, F, 3)
-    assert starts[0] == 0
-    assert abs(x[starts[1]] - 0.3 * MM) <= 0.011 * MM and abs(x[starts[2]] - 0.4 * MM) <= 0.011 * MM
+def test_air_run_is_a_gap_not_a_low_cut_level():
+    x = np.arange(0.0, 1.6 * MM, 0.004 * MM)
+    gap = profile(x, [0.5 * MM, 0.6 * MM, 0.8 * MM, 0.9 * MM], [32.0, 0.0, 0.0, 2300.0])   # Al, gap, Ti
+    i0, i1 = air_run(x, gap, 0.0)
+    # from within the upper layer's fall to within the lower one's rise
+    assert 0.5 * MM <= x[i0] <= 0.6 * MM and 0.8 * MM - 1e-9 <= x[i1 - 1] <= 0.9 * MM
+    cfrp_al = profile(x, [0.5 * MM, 0.6 * MM], [150.0, 20.0]) + np.random.default_rng(0).normal(0, 4, x.size)
+    assert air_run(x, cfrp_al, 0.0) is None
 
 
 @pytest.mark.parametrize("kind,corners,levels,true", [
@@ -47,12 +49,13 @@ def test_locate_noise_free_profiles(kind, corners, levels, true):
     assert 0.0 < dx <= 0.01 * MM
 
 
-def test_locate_gap_lands_between_the_faces():
+@pytest.mark.parametrize("levels", [(150.0, 500.0), (32.0, 2300.0), (500.0, 120.0)])   # CFRP/Ti, Al/Ti, Ti/CFRP
+def test_locate_gap_lands_between_the_faces(levels):
     x = np.arange(0.0, 1.6 * MM, 0.004 * MM)
-    # CFRP thins out over 0.1 mm to its free face at 0.6, a 0.2 mm gap, Ti from 0.8
-    F = profile(x, [0.5 * MM, 0.6 * MM, 0.8 * MM, 0.9 * MM], [150.0, 0.0, 0.0, 500.0])
+    # the upper layer thins out over 0.1 mm to its free face at 0.6, a 0.2 mm gap, the lower from 0.8
+    F = profile(x, [0.5 * MM, 0.6 * MM, 0.8 * MM, 0.9 * MM], [levels[0], 0.0, 0.0, levels[1]])
     x_loc, dx = locate("interface", x, F, sign=+1.0)
-    assert 0.6 * MM <= x_loc <= 0.8 * MM
+    assert abs(x_loc - 0.7 * MM) <= 0.01 * MM
     assert dx >= 0.1 * MM - 0.01 * MM           # the whole gap is the interface
 
 

@@ -204,10 +204,10 @@ def test_incomplete_hole_fails_the_cli(tmp_path):
     the fail-safe retracts, the exit is never found: status incomplete, exit code non-zero."""
     from cosim.cli import main
     sets = ["hole.layers[0].thickness=2.0e-3", "hole.layers[0].tolerance=0.2e-3",
-            "hole.layers[1].thickness=1.0e-3", "hole.layers[1].tolerance=0.1e-3",
+            "hole.layers[1].thickness=1.5e-3", "hole.layers[1].tolerance=0.1e-3",   # room for the windows
             "hole.fail_action=\"retract\"", "hole.process.cfrp.feed_rate=4e-4",
             "fmus.drive.plant_parameters.layer1_thickness=3.5e-3",
-            "fmus.drive.plant_parameters.layer2_thickness=1.0e-3", "fmus.drive.plant_parameters.layer2_gap=0.0"]
+            "fmus.drive.plant_parameters.layer2_thickness=1.5e-3", "fmus.drive.plant_parameters.layer2_gap=0.0"]
     code = main(["run", str(CFRP_TI), "--out", str(tmp_path), "--quiet", *sum((["--set", s] for s in sets), [])])
     import json
     s = json.loads((tmp_path / "summary.json").read_text())
