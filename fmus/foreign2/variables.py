@@ -97,7 +97,7 @@ ZSTAGE = [
     ("cog2_ph", 43, "r", "tunable", 1.1, "rad", -10, 10, "Cogging 2nd harmonic phase"),
     ("g", 44, "r", "tunable", 9.81, "m/s2", 0, 20, "Gravity, downward"),
     ("comp_f0", 45, "r", "tunable", 36.5, "N", 0, 1000, "Compensator spring force at z = 0, upward"),
-    ("comp_k", 46, "r", "tunable", 0.16, "N/mm", 0, 100, "Compensator spring rate: its force grows as the slide goes down"),
+    ("comp_k", 46, "r", "tunable", 0.04, "N/mm", 0, 100, "Compensator spring rate: its force grows as the slide goes down"),
     ("tau_i", 47, "r", "tunable", 0.1, "ms", 0.001, 100, "Current-loop time constant"),
     ("i_max", 48, "r", "tunable", 12.0, "A", 0.1, 100, "Amplifier current limit"),
     ("i_bias", 49, "r", "tunable", 45.0, "mA", -1000, 1000, "Current-sensor offset"),

@@ -109,7 +109,7 @@ enum {
     {"cog2_ph", 43, F2_REAL, F2_TUNE, 1.1, -10, 10, "rad"},\
     {"g", 44, F2_REAL, F2_TUNE, 9.81, 0, 20, "m/s2"},\
     {"comp_f0", 45, F2_REAL, F2_TUNE, 36.5, 0, 1000, "N"},\
-    {"comp_k", 46, F2_REAL, F2_TUNE, 0.16, 0, 100, "N/mm"},\
+    {"comp_k", 46, F2_REAL, F2_TUNE, 0.04, 0, 100, "N/mm"},\
     {"tau_i", 47, F2_REAL, F2_TUNE, 0.1, 0.001, 100, "ms"},\
     {"i_max", 48, F2_REAL, F2_TUNE, 12.0, 0.1, 100, "A"},\
     {"i_bias", 49, F2_REAL, F2_TUNE, 45.0, -1000, 1000, "mA"},\
