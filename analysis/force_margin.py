@@ -43,6 +43,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from controllers.loop_gains import TABLE2_G_THRUST, TABLE2_KF
 from controllers.nominal_models import zoh
 
 
@@ -252,7 +253,7 @@ def loop_from_commissioning(doc: dict, *, feed: float, contact_stiffness: float 
 DEFAULT_FEED = 1e-3            # m/s: the feed when neither the run nor a contact experiment gives one
 REQUIRED_GAIN_MARGIN_DB = 6.0  # dB: what commissioning tunes for and what the margin score warns below
 # where the gains start (the data sheet of the force loop): Keio Table 2
-DATASHEET_GAINS = {"Kf": 0.45, "g_thrust": 1200.0, "g_dob": 1200.0, "g_vel": 2000.0}
+DATASHEET_GAINS = {"Kf": TABLE2_KF, "g_thrust": TABLE2_G_THRUST, "g_dob": 1200.0, "g_vel": 2000.0}
 G_THRUST_GRID = (300.0, 450.0, 600.0, 800.0, 1000.0, 1200.0, 1600.0, 2200.0, 3000.0)   # rad/s
 # tuned this far above the required margin: the run's working point is not the contact
 # experiment's (on the foreign stage a 0.3 % higher feed moves the Stribeck slope and costs 0.23 dB)
@@ -297,8 +298,9 @@ def commissioned_loop(doc: dict, gains: dict, *, feed: float | None = None, F_cm
 def kf_limit(loop: ForceLoop, gain_margin_db: float = REQUIRED_GAIN_MARGIN_DB, Kf_hi: float = 8.0,
              rtol: float = 0.005) -> float | None:
     """The largest ``Kf`` up to ``Kf_hi`` whose loop is stable with at least
-    ``gain_margin_db``; None when not even ``KF_MIN / 4`` is (bisection: the margin falls as
-    ``Kf`` rises, the observer and DOB paths of the loop do not depend on it)."""
+    ``gain_margin_db``; None when not even ``KF_MIN / 4`` is. Bisection in log Kf, which
+    takes the margin to fall as Kf rises (Kf scales the force-error path only; checked
+    against simulation on both stages, docs/force_loop.md)."""
     def ok(K):
         m = margins(dataclasses.replace(loop, Kf=K), n_freq=1500)
         return m["stable"] and m["gain_margin_db"] >= gain_margin_db

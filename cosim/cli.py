@@ -140,12 +140,17 @@ def cmd_campaign(args) -> int:
         if s["status"] not in ("completed", "stopped", "cancelled"):
             print(f"  run {s['run']:03d} {s['status']}: {s.get('error') or s.get('stop_reason', '')} "
                   f"(overrides {s['overrides']})", file=sys.stderr)
+        for f in s.get("scores_failed", []):
+            print(f"  run {s['run']:03d} score '{f['score']}' FAILED: {f['reason']}", file=sys.stderr)
     print(f"csv: {out / 'campaign.csv'}")
     print(f"json: {out / 'campaign.json'}")
     if stopped is not None:
         print(f"drillcosim: {stopped}", file=sys.stderr)
         return 128 + int(stopped.signum)
-    return 0 if set(counts) <= {"completed", "stopped"} else 1
+    if not set(counts) <= {"completed", "stopped"}:
+        return 1
+    from .supervisor import EXIT_SCORES_FAILED
+    return EXIT_SCORES_FAILED if any(s.get("scores_passed") is False for s in summaries) else 0
 
 
 def cmd_replay(args) -> int:

@@ -28,6 +28,7 @@ def _run(twin: Path, tmp_path):
     assert r.summary["status"] in ("completed", "stopped"), r.summary.get("error")
     assert set(r.summary["scores"]) == {name for *_, name in load_scenario(twin).scores}
     assert all(isinstance(v, dict) and v for v in r.summary["scores"].values())
+    assert r.summary["scores_passed"], r.summary.get("scores_failed")       # a failed score is no success
     return r
 
 

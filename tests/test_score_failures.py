@@ -130,3 +130,34 @@ def test_a_neutral_value_needs_no_parameter(tmp_path):
     sc.write_text(sc.read_text().replace("layer1_gap = 0.0", "layer1_gap = 0.1e-3"))
     with pytest.raises(Exception, match="no contract parameter 'layer1_gap'"):
         load_scenario(sc)
+
+
+# --------------------------------------------------------------------------- without the true thrust
+def _force_run(amplitude: float):
+    """1.5 s of force control at 50 N, the dynamometer only (1 N noise, as the plants'), with a
+    440 Hz oscillation of ``amplitude`` N on top."""
+    import math
+
+    import numpy as np
+
+    from cosim.recorder import Result
+    t = np.arange(0.0, 1.5, 2e-4)
+    rng = np.random.default_rng(4)
+    F = 50.0 + amplitude * np.sin(2 * math.pi * 440.0 * t) + rng.standard_normal(len(t))
+    sig = {"stage.thrust_dyn": F, "stage.layer_index": np.ones_like(t), "controller.mode": np.ones_like(t),
+           "controller.F_cmd_out": np.full_like(t, 50.0), "controller.i_ref_max": np.full_like(t, 2.0),
+           "controller.saturated_any": np.zeros_like(t)}
+    return Result(t, list(sig), list(sig.values()), {n: None for n in sig})
+
+
+def test_a_limit_cycle_is_caught_on_the_dynamometer_alone():
+    """A plant without a true-thrust role used to get passed: None (a limit cycle could not
+    be excluded); the oscillation is now judged on the dynamometer, whose 1 N white noise puts
+    a few hundredths of a newton into one spectral line."""
+    from analysis.force_scoring import force_scores
+    quiet, cycling = force_scores(_force_run(0.0)), force_scores(_force_run(6.9))
+    assert quiet["oscillation_signal"] == "thrust_dyn" and quiet["oscillation_amplitude_N"] < 0.1
+    assert quiet["passed"] is True and not quiet["limit_cycle"]
+    assert cycling["oscillation_amplitude_N"] == pytest.approx(6.9, rel=0.05)
+    assert cycling["oscillation_frequency_Hz"] == pytest.approx(440.0, abs=2.0)
+    assert cycling["limit_cycle"] and cycling["passed"] is False and "oscillation 6.8" in cycling["failure"]
