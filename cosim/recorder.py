@@ -148,6 +148,35 @@ class Result:
                    path.parent, summary, {n: types[n] for n in names[1:]})
 
 
+def result_from_spill(out: Path, rows: int) -> Result | None:
+    """The first ``rows`` rows a run that died left in its folder's raw spill file
+    (``.rows.f64``, with the names, units and types of data.columns.json), memory-mapped;
+    None without both files or with fewer rows (the spill is written after data.csv: a
+    death between the two leaves it a chunk short). The spill file is unlinked either way."""
+    spill, meta_file = out / SPILL_NAME, columns_file(out / "data.csv")
+    if not (spill.exists() and meta_file.exists()):
+        return None
+    meta = json.loads(meta_file.read_text())
+    names = [n for n in meta if n != "time"]
+    if any(_kind(meta[n].get("type")) != "real" for n in names):
+        return None                      # typed columns are never spilled
+    s = _Spill.__new__(_Spill)
+    s.path, s.width, s.f = spill, len(names) + 1, open(spill, "r+b")
+    s.f.seek(0, 2)
+    store, rows_file = s.mapped()
+    if len(store) < rows or not rows:
+        return None
+    store = store[:rows]
+    cols = [store[:, k] for k in range(len(names) + 1)]
+    result = Result(cols[0], names, cols[1:], {n: meta[n].get("unit") for n in names}, out,
+                    types={n: meta[n].get("type", "Float64") for n in names})
+    result.rows_store, result.rows_file = store, rows_file
+    if rows_file is not None:
+        import weakref
+        weakref.finalize(result, rows_file.close)
+    return result
+
+
 def _formatter(fmi_type: str | None):
     """value -> CSV field for one column."""
     kind = _kind(fmi_type)

@@ -8,6 +8,7 @@ from scipy.io import loadmat
 
 import cosim.recorder as rec
 from cosim.recorder import SPILL_NAME, Recorder, Result, write_mat_file
+from test_faults_run import fault_fmu  # noqa: F401 - the faulty FMUs
 
 COLUMNS = ["stage.x", "stage.velocity", "observer.F_hat"]
 
@@ -44,3 +45,16 @@ def test_streamed_mat_equals_the_compressed_one(tmp_path, monkeypatch):
     for inst, var in (("stage", "x"), ("stage", "velocity"), ("observer", "F_hat")):
         assert np.array_equal(a[inst][var][0, 0], b[inst][var][0, 0]), (inst, var)
         assert str(a["units"][inst][0, 0][var][0, 0]) == str(b["units"][inst][0, 0][var][0, 0])
+
+
+def test_a_crashed_runs_mat_comes_from_its_spilled_rows(tmp_path, fault_fmu):
+    from cosim.supervisor import run_supervised
+    from test_faults_run import scenario
+    path = scenario(tmp_path, fault_fmu("segfault"), fail=0.3, stop=1.0)
+    s = run_supervised(path, tmp_path / "out", progress=False)
+    assert s["status"] == "crashed" and s["files"]["mat"] is not None
+    assert not (tmp_path / "out" / SPILL_NAME).exists()                 # not left behind
+    csv = Result.from_csv(tmp_path / "out")
+    mat = loadmat(tmp_path / "out" / "data.mat")
+    assert mat["time"].size == s["rows_recorded"] == len(csv.time)
+    assert np.array_equal(mat["time"].ravel(), csv.time) and np.array_equal(mat["mass"]["x"][0, 0].ravel(), csv["mass.x"])
