@@ -161,8 +161,7 @@ def result_from_spill(out: Path, rows: int) -> Result | None:
     if any(_kind(meta[n].get("type")) != "real" for n in names):
         return None                      # typed columns are never spilled
     s = _Spill.__new__(_Spill)
-    s.path, s.width, s.f = spill, len(names) + 1, open(spill, "r+b")
-    s.f.seek(0, 2)
+    s.path, s.width, s.f = spill, len(names) + 1, open(spill, "r+b", buffering=0)
     store, rows_file = s.mapped()
     if len(store) < rows or not rows:
         return None
@@ -215,6 +214,7 @@ class Recorder:
         self._rows: list = []
         self._file = None
         self._spill = None                # the rows as float64, row-major, when they go to disk
+        self._finished: Result | None = None
         self._format = None
         self.allow_nonfinite = False      # else a NaN/inf row stops the run (SimulationError)
         self.nan_ok: list[int] = []       # columns that may hold NaN ("not yet" outputs; set by the master)
@@ -233,6 +233,7 @@ class Recorder:
         self.units = dict(zip(columns, units))
         self.types = dict(zip(columns, types or ["Float64"] * len(columns)))
         self._rows = []
+        self._finished = None
         self._close_spill()
         typed = any(_kind(t) != "real" for t in self.types.values())
         self._format = [repr] + [_formatter(self.types[c]) for c in columns] if typed else None
@@ -243,7 +244,7 @@ class Recorder:
             csv_path = self.out_dir / self.csv_name
             try:
                 columns_file(csv_path).write_text(json.dumps(meta, indent=1) + "\n")
-                self._file = open(csv_path, "w", newline="")
+                self._file = open(csv_path, "wb", buffering=0)   # no buffer: nothing left to flush after an error
             except OSError as e:
                 raise io_problem("create", csv_path, e) from None
             self._append(",".join(["time", *map(_header_field, columns)]) + "\n")
@@ -255,13 +256,14 @@ class Recorder:
         to its last complete row and an :class:`OutputError` says what failed."""
         f = self._file
         end = f.tell()
+        view = memoryview(text.encode())
         try:
-            f.write(text)
-            f.flush()
+            while view:
+                view = view[f.write(view):]
         except OSError as e:
             try:
+                f.truncate(end)
                 f.seek(end)
-                f.truncate()
             except OSError:
                 pass
             raise io_problem("write", self.out_dir / self.csv_name, e) from None
@@ -309,6 +311,13 @@ class Recorder:
             except OSError:
                 pass            # its rows were flushed (or the error reported) by _append
             self._file = None
+        result = self._finished or self._result()
+        self._finished = result             # a second finish (data.mat failed: the disk is full) has the rows
+        if write_mat and self.out_dir is not None:
+            write_mat_file(result, self.out_dir / "data.mat")
+        return result
+
+    def _result(self) -> Result:
         store, rows_file = self._spill.mapped() if self._spill is not None else (None, None)
         self._spill = None
         cols = self._columns(store)
@@ -317,8 +326,6 @@ class Recorder:
         if rows_file is not None:
             import weakref
             weakref.finalize(result, rows_file.close)
-        if write_mat and self.out_dir is not None:
-            write_mat_file(result, self.out_dir / "data.mat")
         return result
 
     def _columns(self, store) -> list[np.ndarray]:
@@ -348,13 +355,15 @@ class _Spill:
     def __init__(self, path: Path, width: int):
         self.path, self.width = path, width
         try:
-            self.f = open(path, "w+b")
+            self.f = open(path, "w+b", buffering=0)   # unbuffered: what a full disk refused is all that is lost
         except OSError as e:
             raise io_problem("create", path, e) from None
 
     def write(self, chunk: np.ndarray) -> None:
+        view = memoryview(np.ascontiguousarray(chunk, dtype=np.float64).tobytes())
         try:
-            self.f.write(np.ascontiguousarray(chunk, dtype=np.float64).tobytes())
+            while view:
+                view = view[self.f.write(view):]
         except OSError as e:
             raise io_problem("write", self.path, e) from None
 
@@ -362,8 +371,7 @@ class _Spill:
         """The rows as a (rows, width) array backed by the file, and the open (unlinked) file
         for reads that should not touch the mapping (:func:`_write_mat_streamed`)."""
         try:
-            self.f.flush()
-            rows = self.f.tell() // (8 * self.width)
+            rows = os.fstat(self.f.fileno()).st_size // (8 * self.width)   # whole rows only
             # copy-on-write: a scorer that writes into a column changes its own pages, never the file
             data = (np.memmap(self.f, dtype=np.float64, mode="c", shape=(rows, self.width)) if rows
                     else np.zeros((0, self.width)))
