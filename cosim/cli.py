@@ -77,6 +77,11 @@ def cmd_run(args) -> int:
         return 1
     out = Path(s["out_dir"])
     code = exit_code(s)
+    took = s.get("lock_takeover")
+    if took:
+        dead = (took.get("previous_run") or {}).get("status")
+        print(f"drillcosim: took {out} over: {took.get('reason')}"
+              + (f"; its run was marked {dead}" if dead else ""), file=sys.stderr)
     if code:
         what = s.get("error") or s.get("stop_reason") or ""
         at = f" at t = {s['time_reached']:g} s" if s.get("time_reached") is not None else ""

@@ -20,6 +20,7 @@ import csv
 import io
 import itertools
 import json
+import os
 import re
 from pathlib import Path
 
@@ -77,6 +78,8 @@ class Result:
         self.out_dir = out_dir
         self.summary = summary if summary is not None else {}
         self._index = {s: i for i, s in enumerate(self.signals)}
+        self.rows_store: np.ndarray | None = None   # (rows, 1 + signals) memory map, if the rows are on disk
+        self.rows_file = None                       # ... and its open file
 
     @property
     def data(self) -> np.ndarray:
@@ -145,6 +148,34 @@ class Result:
                    path.parent, summary, {n: types[n] for n in names[1:]})
 
 
+def result_from_spill(out: Path, rows: int) -> Result | None:
+    """The first ``rows`` rows a run that died left in its folder's raw spill file
+    (``.rows.f64``, with the names, units and types of data.columns.json), memory-mapped;
+    None without both files or with fewer rows (the spill is written after data.csv: a
+    death between the two leaves it a chunk short). The spill file is unlinked either way."""
+    spill, meta_file = out / SPILL_NAME, columns_file(out / "data.csv")
+    if not (spill.exists() and meta_file.exists()):
+        return None
+    meta = json.loads(meta_file.read_text())
+    names = [n for n in meta if n != "time"]
+    if any(_kind(meta[n].get("type")) != "real" for n in names):
+        return None                      # typed columns are never spilled
+    s = _Spill.__new__(_Spill)
+    s.path, s.width, s.f = spill, len(names) + 1, open(spill, "r+b", buffering=0)
+    store, rows_file = s.mapped()
+    if len(store) < rows or not rows:
+        return None
+    store = store[:rows]
+    cols = [store[:, k] for k in range(len(names) + 1)]
+    result = Result(cols[0], names, cols[1:], {n: meta[n].get("unit") for n in names}, out,
+                    types={n: meta[n].get("type", "Float64") for n in names})
+    result.rows_store, result.rows_file = store, rows_file
+    if rows_file is not None:
+        import weakref
+        weakref.finalize(result, rows_file.close)
+    return result
+
+
 def _formatter(fmi_type: str | None):
     """value -> CSV field for one column."""
     kind = _kind(fmi_type)
@@ -182,6 +213,8 @@ class Recorder:
         self.types: dict[str, str] = {}
         self._rows: list = []
         self._file = None
+        self._spill = None                # the rows as float64, row-major, when they go to disk
+        self._finished: Result | None = None
         self._format = None
         self.allow_nonfinite = False      # else a NaN/inf row stops the run (SimulationError)
         self.nan_ok: list[int] = []       # columns that may hold NaN ("not yet" outputs; set by the master)
@@ -200,6 +233,8 @@ class Recorder:
         self.units = dict(zip(columns, units))
         self.types = dict(zip(columns, types or ["Float64"] * len(columns)))
         self._rows = []
+        self._finished = None
+        self._close_spill()
         typed = any(_kind(t) != "real" for t in self.types.values())
         self._format = [repr] + [_formatter(self.types[c]) for c in columns] if typed else None
         if self.out_dir is not None:
@@ -209,23 +244,26 @@ class Recorder:
             csv_path = self.out_dir / self.csv_name
             try:
                 columns_file(csv_path).write_text(json.dumps(meta, indent=1) + "\n")
-                self._file = open(csv_path, "w", newline="")
+                self._file = open(csv_path, "wb", buffering=0)   # no buffer: nothing left to flush after an error
             except OSError as e:
                 raise io_problem("create", csv_path, e) from None
             self._append(",".join(["time", *map(_header_field, columns)]) + "\n")
+            if not typed:
+                self._spill = _Spill(self.out_dir / SPILL_NAME, len(columns) + 1)
 
     def _append(self, text: str) -> None:
         """Write whole lines or nothing: on an I/O error (full disk) the file is cut back
         to its last complete row and an :class:`OutputError` says what failed."""
         f = self._file
         end = f.tell()
+        view = memoryview(text.encode())
         try:
-            f.write(text)
-            f.flush()
+            while view:
+                view = view[f.write(view):]
         except OSError as e:
             try:
+                f.truncate(end)
                 f.seek(end)
-                f.truncate()
             except OSError:
                 pass
             raise io_problem("write", self.out_dir / self.csv_name, e) from None
@@ -249,9 +287,12 @@ class Recorder:
         bad = None if self.allow_nonfinite or np.isfinite(chunk).all() else _first_nonfinite(chunk, self.nan_ok)
         if bad is not None:
             chunk = chunk[:bad[0] + 1]          # keep the rows up to the first bad one
-        self._rows.append(chunk)
+        if self._spill is None:
+            self._rows.append(chunk)
         if self._file is not None:
             self._append(format_chunk(chunk))
+        if self._spill is not None:      # after the CSV: the two hold the same rows
+            self._spill.write(chunk)
         if bad is not None:
             row, cols = bad
             sigs = [self.columns[c - 1] if c else "time" for c in cols]
@@ -270,19 +311,83 @@ class Recorder:
             except OSError:
                 pass            # its rows were flushed (or the error reported) by _append
             self._file = None
-        n = len(self.columns) + 1
-        if not self._format:
-            data = np.concatenate(self._rows) if self._rows else np.zeros((0, n))
-            cols = [data[:, k].copy() for k in range(n)]
-        else:
-            cols = [_column_array([r[k] for r in self._rows], "Float64" if k == 0 else self.types[self.columns[k - 1]])
-                    for k in range(n)]
-        result = Result(cols[0], self.columns, cols[1:], self.units, self.out_dir, types=self.types)
+        result = self._finished or self._result()
+        self._finished = result             # a second finish (data.mat failed: the disk is full) has the rows
         if write_mat and self.out_dir is not None:
             write_mat_file(result, self.out_dir / "data.mat")
             from .modelica_mat import write_modelica_mat      # OMEdit, DyMat, buildingspy read this one
             write_modelica_mat(result, self.out_dir / "data_res.mat")
         return result
+
+    def _result(self) -> Result:
+        store, rows_file = self._spill.mapped() if self._spill is not None else (None, None)
+        self._spill = None
+        cols = self._columns(store)
+        result = Result(cols[0], self.columns, cols[1:], self.units, self.out_dir, types=self.types)
+        result.rows_store, result.rows_file = store, rows_file
+        if rows_file is not None:
+            import weakref
+            weakref.finalize(result, rows_file.close)
+        return result
+
+    def _columns(self, store) -> list[np.ndarray]:
+        n = len(self.columns) + 1
+        if store is not None:           # views of the memory-mapped rows: nothing copied
+            return [store[:, k] for k in range(n)]
+        if not self._format:
+            data = np.concatenate(self._rows) if self._rows else np.zeros((0, n))
+            return [data[:, k].copy() for k in range(n)]
+        return [_column_array([r[k] for r in self._rows], "Float64" if k == 0 else self.types[self.columns[k - 1]])
+                for k in range(n)]
+
+    def _close_spill(self) -> None:
+        if self._spill is not None:
+            self._spill.close()
+            self._spill = None
+
+
+SPILL_NAME = ".rows.f64"    # the run's rows as raw float64 while it runs; unlinked once mapped
+
+
+class _Spill:
+    """Rows appended as raw float64 to a file instead of held in memory; at the end the file
+    is memory-mapped (its pages are the kernel's page cache, not this process's heap) and
+    unlinked, the mapping keeping it alive as long as the :class:`Result` does."""
+
+    def __init__(self, path: Path, width: int):
+        self.path, self.width = path, width
+        try:
+            self.f = open(path, "w+b", buffering=0)   # unbuffered: what a full disk refused is all that is lost
+        except OSError as e:
+            raise io_problem("create", path, e) from None
+
+    def write(self, chunk: np.ndarray) -> None:
+        view = memoryview(np.ascontiguousarray(chunk, dtype=np.float64).tobytes())
+        try:
+            while view:
+                view = view[self.f.write(view):]
+        except OSError as e:
+            raise io_problem("write", self.path, e) from None
+
+    def mapped(self) -> tuple[np.ndarray, object]:
+        """The rows as a (rows, width) array backed by the file, and the open (unlinked) file
+        for reads that should not touch the mapping (:func:`_write_mat_streamed`)."""
+        try:
+            rows = os.fstat(self.f.fileno()).st_size // (8 * self.width)   # whole rows only
+            # copy-on-write: a scorer that writes into a column changes its own pages, never the file
+            data = (np.memmap(self.f, dtype=np.float64, mode="c", shape=(rows, self.width)) if rows
+                    else np.zeros((0, self.width)))
+        except OSError:
+            data, rows = np.zeros((0, self.width)), 0      # nothing could be kept (a full disk): no rows
+        if not rows:
+            self.close()
+            return data, None
+        self.path.unlink(missing_ok=True)     # the open file and the mapping keep the data
+        return data, self.f
+
+    def close(self) -> None:
+        self.f.close()
+        self.path.unlink(missing_ok=True)
 
 
 def format_chunk(chunk: np.ndarray) -> str:
@@ -329,16 +434,20 @@ def _first_nonfinite(chunk: np.ndarray, nan_ok=()) -> tuple[int, list[int]] | No
     return row, [int(c) for c in np.nonzero(bad[row])[0]]
 
 
+MAT_STREAM_BYTES = 64 * 2**20   # a result larger than this is written to data.mat in blocks, uncompressed
+MAT_BLOCK_ROWS = 65536          # rows per block read while streaming
+
+
 def write_mat_file(result: Result, path: Path) -> None:
-    """``time`` plus one struct per instance: ``stage.F_dyn`` -> ``data.stage.F_dyn`` in MATLAB."""
+    """``time`` plus one struct per instance: ``stage.F_dyn`` -> ``data.stage.F_dyn`` in MATLAB.
+    A large result whose rows are on disk (``rows_store``) is streamed block by block
+    (:func:`_write_mat_streamed`); the others go through ``scipy.io.savemat``, compressed."""
+    store = result.rows_store
+    if store is not None and store.nbytes > MAT_STREAM_BYTES:
+        _write_mat_streamed(result, store, path)
+        return
     from scipy.io import savemat
-
-    def ident(s: str) -> str:
-        s = re.sub(r"\W", "_", s)
-        return s if s and not s[0].isdigit() else "_" + s
-
     content: dict = {"time": result.time}
-    units: dict = {}
     for sig in result.signals:
         inst, var = sig.split(".", 1)
         col = result[sig]
@@ -346,7 +455,95 @@ def write_mat_file(result: Result, path: Path) -> None:
             col = np.array([v.hex() if isinstance(v, bytes) else str(v) for v in col], dtype=object)
         elif col.dtype == np.uint64:
             col = col.astype(np.float64) if col.size and col.max() >= 2**63 else col.astype(np.int64)
-        content.setdefault(ident(inst), {})[ident(var)] = col
-        units.setdefault(ident(inst), {})[ident(var)] = result.units.get(sig) or ""
-    content["units"] = units
+        content.setdefault(_mat_ident(inst), {})[_mat_ident(var)] = col
+    content["units"] = _mat_units(result)
     savemat(str(path), content, long_field_names=True, do_compression=True)
+
+
+def _mat_ident(s: str) -> str:
+    s = re.sub(r"\W", "_", s)
+    return s if s and not s[0].isdigit() else "_" + s
+
+
+def _mat_units(result: Result) -> dict:
+    units: dict = {}
+    for sig in result.signals:
+        inst, var = sig.split(".", 1)
+        units.setdefault(_mat_ident(inst), {})[_mat_ident(var)] = result.units.get(sig) or ""
+    return units
+
+
+# MAT-file v5 (MathWorks, "MAT-File Format", level 5): element types and array classes
+_MI_INT8, _MI_INT32, _MI_UINT32, _MI_DOUBLE, _MI_MATRIX = 1, 5, 6, 9, 14
+_MX_STRUCT, _MX_DOUBLE = 2, 6
+
+
+def _mat_element(code: int, payload: bytes) -> bytes:
+    import struct
+    return struct.pack("<II", code, len(payload)) + payload + b"\0" * (-len(payload) % 8)
+
+
+def _mat_array_head(cls: int, dims: tuple, name: str) -> bytes:
+    import struct
+    return (_mat_element(_MI_UINT32, struct.pack("<II", cls, 0))
+            + _mat_element(_MI_INT32, struct.pack(f"<{len(dims)}i", *dims)) + _mat_element(_MI_INT8, name.encode()))
+
+
+def _mat_layout(result: Result, rows: int) -> tuple[list, list[int]]:
+    """The MAT v5 file as parts: bytes, and None where a column's 8 * rows bytes of data go;
+    and the file offset of each column's data, in rows_store's column order (time first)."""
+    import struct
+    header = b"MATLAB 5.0 MAT-file, written by drillcosim".ljust(116) + b"\0" * 8 + struct.pack("<H2s", 0x0100, b"IM")
+    parts, offsets = [header], [0] * (1 + len(result.signals))
+
+    def double_matrix(name: str, k: int) -> bytes:
+        head = _mat_array_head(_MX_DOUBLE, (1, rows), name)
+        offsets[k] = pos_holder[0] + 8 + len(head) + 8
+        pos_holder[0] = offsets[k] + 8 * rows
+        return struct.pack("<II", _MI_MATRIX, len(head) + 8 + 8 * rows) + head + struct.pack("<II", _MI_DOUBLE, 8 * rows)
+
+    pos_holder = [len(header)]                        # the file position reached
+    parts += [double_matrix("time", 0), None]        # None: the column's data goes there
+    groups: dict = {}
+    for k, sig in enumerate(result.signals, start=1):
+        inst, var = sig.split(".", 1)
+        groups.setdefault(_mat_ident(inst), []).append((_mat_ident(var), k))
+    for inst, fields in groups.items():
+        width = max(len(f) for f, _ in fields) + 1
+        head = (_mat_array_head(_MX_STRUCT, (1, 1), inst) + _mat_element(_MI_INT32, struct.pack("<i", width))
+                + _mat_element(_MI_INT8, b"".join(f.encode().ljust(width, b"\0") for f, _ in fields)))
+        field_bytes = len(fields) * (8 + len(_mat_array_head(_MX_DOUBLE, (1, rows), "")) + 8 + 8 * rows)
+        parts.append(struct.pack("<II", _MI_MATRIX, len(head) + field_bytes) + head)
+        pos_holder[0] += 8 + len(head)
+        for f, k in fields:
+            parts += [double_matrix("", k), None]
+    return parts, offsets
+
+
+def _write_mat_streamed(result: Result, store: np.ndarray, path: Path) -> None:
+    """data.mat in the layout of :func:`write_mat_file`, uncompressed, written in blocks of
+    ``MAT_BLOCK_ROWS`` rows: what it holds in memory is one block, whatever the run's length."""
+    import io
+
+    from scipy.io import savemat
+    rows = len(store)
+    parts, offsets = _mat_layout(result, rows)
+    with open(path, "wb") as f:
+        for part in parts:
+            if part is None:
+                f.seek(8 * rows, 1)              # a column's data, filled in below
+            else:
+                f.write(part)
+        units = io.BytesIO()
+        savemat(units, {"units": _mat_units(result)}, long_field_names=True)
+        f.write(units.getvalue()[128:])          # its elements, after our header
+        fd, width = f.fileno(), store.shape[1]
+        for a in range(0, rows, MAT_BLOCK_ROWS):
+            n = min(MAT_BLOCK_ROWS, rows - a)
+            if result.rows_file is not None:      # read, not through the mapping: no page of it stays ours
+                raw = os.pread(result.rows_file.fileno(), 8 * width * n, 8 * width * a)
+                block = np.frombuffer(raw, dtype=np.float64).reshape(n, width)
+            else:
+                block = np.asarray(store[a:a + n])
+            for k, off in enumerate(offsets):
+                os.pwrite(fd, np.ascontiguousarray(block[:, k]).tobytes(), off + 8 * a)

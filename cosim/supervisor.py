@@ -277,11 +277,17 @@ def _outcome(sc, out: Path, exitcode: int, killed_for, received: list[int]) -> d
 
 
 def _mat_from_csv(out: Path, summary: dict) -> str | None:
-    from .recorder import Result, write_mat_file
+    """data.mat of a dead child's rows: from its raw spill file (memory-mapped, bounded
+    memory; removed afterwards), else from data.csv."""
+    from .recorder import Result, result_from_spill, write_mat_file
+    try:
+        spilled = result_from_spill(out, summary.get("rows_recorded") or 0)
+    except (OSError, ValueError):
+        spilled = None
     if not summary.get("rows_recorded"):
         return None
     try:
-        write_mat_file(Result.from_csv(out / "data.csv"), out / "data.mat")
+        write_mat_file(spilled if spilled is not None else Result.from_csv(out / "data.csv"), out / "data.mat")
     except (OSError, ValueError) as e:
         summary["mat_error"] = f"data.mat not written: {e}"
         return None

@@ -36,7 +36,7 @@ def wait_dead(pid_start: tuple, limit: float) -> float:
     return time.monotonic() - t0
 
 
-def test_kill_9_of_run_kills_its_child_and_the_next_run_takes_the_folder_over(tmp_path, mass_fmu):
+def test_kill_9_of_run_kills_its_child_and_the_next_run_takes_the_folder_over(tmp_path, mass_fmu, capsys):
     path = scenario(tmp_path, mass_fmu, fail=-1, stop=60.0, busy=BUSY)
     out = tmp_path / "out"
     proc = _start_cli(path, out)
@@ -49,8 +49,10 @@ def test_kill_9_of_run_kills_its_child_and_the_next_run_takes_the_folder_over(tm
     rows_then = (out / "data.csv").stat().st_size
     time.sleep(0.3)
     assert (out / "data.csv").stat().st_size == rows_then            # nobody writes any more
-    again = run_supervised(scenario(tmp_path, mass_fmu, fail=-1, stop=0.05, name="ok.toml"), out,
-                           progress=False)
+    ok = scenario(tmp_path, mass_fmu, fail=-1, stop=0.05, name="ok.toml")
+    assert cli.main(["run", str(ok), "--out", str(out), "--quiet"]) == 0
+    assert f"took {out} over: the run of pid {proc.pid}" in capsys.readouterr().err
+    again = json.loads((out / "summary.json").read_text())
     assert again["status"] == "completed"
     note = again["lock_takeover"]
     assert note["pid"] == proc.pid and "without releasing" in note["reason"]
