@@ -155,3 +155,21 @@ def test_fang_hole_detector_and_adaptation_replay(tmp_path):
     for sig in ("observer.F_dc_hat", "detector.flag", "detector.F_pred", "adapt.feed_rate_cmd", "trajectory.v_ref"):
         np.testing.assert_array_equal(rep[sig], run[sig], err_msg=sig)
     assert set(rep.summary["scores"]) == set(run.summary["scores"])
+
+
+def test_without_a_dynamometer_column_the_thrust_score_is_left_out(tmp_path):
+    """A machine's recording of the encoder only (mapped, in mm): the observer and the
+    controller run, the thrust score that needs the dynamometer is dropped and said so."""
+    from cosim.input_file import read_input_csv
+    table = read_input_csv(RECORDING)
+    t, z = table.time[:5001], table.column("stage.table_position")[:5001] * 1e3
+    rec = tmp_path / "encoder.csv"
+    rec.write_text("time,z\n" + "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(t, z)))
+    mapping = tmp_path / "m.toml"
+    mapping.write_text('[columns]\ntable_position = { column = "z", unit = "mm" }\n')
+    sc, info = replay_scenario(FIG7, rec, mapping, {"scenario.stop_time": 0.5})
+    assert info["signals"] == {"table_position": "z"}
+    assert [d.split(" (")[0] for d in info["dropped"] if d.startswith(("score", "plot"))] == [
+        "score force_control", "plot analysis.force_scoring:force_figure"]
+    assert [name for *_, name in sc.scores] == ["force_loop_margin"]
+    assert sc.system.blocks["stage"].outputs[0].unit == "m"
