@@ -173,3 +173,23 @@ def test_without_a_dynamometer_column_the_thrust_score_is_left_out(tmp_path):
         "score force_control", "plot analysis.force_scoring:force_figure"]
     assert [name for *_, name in sc.scores] == ["force_loop_margin"]
     assert sc.system.blocks["stage"].outputs[0].unit == "m"
+
+
+def test_a_machine_clock_recording_with_its_start_time(tmp_path, mass_run):
+    """A trace whose clock reads 12.3 s at the scenario's start: shifted by the mapping's
+    recording_start (or --recording-start), the probe sees the same samples."""
+    scenario, run = mass_run
+    rec = tmp_path / "clock.csv"
+    rec.write_text("time,pos [mm]\n" + "".join(f"{float(a) + 12.3!r},{float(b) * 1e3!r}\n"
+                                              for a, b in zip(run.time, run["mass.x"])))
+    with pytest.raises(ScenarioError, match=r"clock.csv: the file starts at 12.3 s, after the first time"):
+        replay_scenario(scenario, rec, _mapping(tmp_path))
+    m = tmp_path / "clock.toml"
+    m.write_text('[replay]\nrecording_start = 12.3\n[columns]\nx = { column = "pos", unit = "mm" }\n')
+    sc, info = replay_scenario(scenario, rec, m)
+    assert info["time_shift_s"] == 12.3
+    rep = run_scenario(sc, out_dir=tmp_path / "rep", progress=False)
+    on_probe = np.isclose(np.round(run.time / 0.01) * 0.01, run.time, atol=1e-12)
+    np.testing.assert_allclose(rep["probe.y"][on_probe], run["probe.y"][on_probe], rtol=1e-12, atol=1e-18)
+    assert main(["replay", str(scenario), "--measurement", str(rec), "--mapping", str(_mapping(tmp_path)),
+                 "--recording-start", "12.3", "--out", str(tmp_path / "cli"), "--quiet"]) == 0
