@@ -213,10 +213,6 @@ class InputFile(Block):
         self.outputs = tuple(Port(n, self.table.units.get(n), f"column '{n}' of {self.table.path.name}")
                              for n in names)
 
-    def time_span(self) -> tuple[float, float]:
-        """First and last time [s] in the file."""
-        return self.player.times[0], self.player.times[-1]
-
     def step(self, t, u):
         return self.player.at(t)
 

@@ -48,9 +48,6 @@ class Playback(Block):
         conv = [(float(s.get("scale", 1.0)), float(s.get("offset", 0.0))) for s in signals.values()]
         self._conv = None if all(c == (1.0, 0.0) for c in conv) else conv
 
-    def time_span(self) -> tuple[float, float]:
-        return self.player.times[0], self.player.times[-1]
-
     def step(self, t, u):
         row = self.player.at(t)
         if self._conv is None:
