@@ -84,9 +84,9 @@ def _plant(original, mapping: dict) -> str:
     if plant is None and len(fmus) == 1:
         return fmus[0]
     if plant not in fmus:
-        where = mapping.get("file") or "--mapping"
-        raise ScenarioError(f"which FMU does the recording stand in for? expected [replay] plant = one of "
-                            f"{fmus}, got {plant!r}", where, "replay.plant")
+        where = mapping.get("file") or "--plant"
+        raise ScenarioError(f"which FMU does the recording stand in for? expected --plant or [replay] plant = "
+                            f"one of {fmus}, got {plant!r}", where, "replay.plant" if mapping.get("file") else None)
     return plant
 
 
@@ -237,19 +237,22 @@ def _drop_functions(raw: dict, original, plant: str, have: set, dropped: list) -
 
 
 def replay_scenario(scenario, measurement, mapping=None, overrides: dict | None = None,
-                    recording_start: float | None = None):
+                    recording_start: float | None = None, plant: str | None = None):
     """The scenario with its plant replaced by the recording ``measurement``: a
     :class:`cosim.scenario.Scenario` ready for :func:`cosim.run_scenario`, and the
     ``summary.json`` entry ``replay`` (what was played, what was dropped).
 
     ``recording_start`` [s] (else the mapping's ``[replay] recording_start``, else the
     scenario's start time): the recording's time at the scenario's start -- a machine's
-    trace seldom starts at 0."""
+    trace seldom starts at 0. ``plant``: the FMU instance the recording stands in for (else
+    the mapping's ``[replay] plant``, else the scenario's only FMU)."""
     path = scenario_path(scenario)
     original = load_scenario(path, overrides)
     measurement = Path(measurement).resolve()
     table = read_input_csv(measurement)
     spec = load_mapping(mapping) if mapping else {}
+    if plant is not None:
+        spec["plant"] = plant
     if recording_start is None:
         recording_start = spec.get("recording_start")
     shift = 0.0 if recording_start is None else float(recording_start) - original.start_time

@@ -215,3 +215,13 @@ def test_export_recording_round_trip(tmp_path, mass_run, suffix, capsys):
     assert out.read_bytes() == first
     assert export_main([str(run.out_dir), str(out), "--signals", "mass.nope"]) == 1
     assert "not recorded" in capsys.readouterr().err
+
+
+def test_two_plants_need_the_plant_named(capsys):
+    """Keio Fig. 4 drives two stages (force control and constant feed side by side)."""
+    fig4 = ROOT / "scenarios" / "keio_fig4_composite_force_control.toml"
+    assert main(["replay", str(fig4), "--measurement", str(RECORDING), "--quiet"]) == 1
+    assert "which FMU does the recording stand in for? expected --plant or [replay] plant = one of " \
+           "['stage', 'stage_cf'], got None" in capsys.readouterr().err
+    sc, info = replay_scenario(fig4, RECORDING, plant="stage", overrides={"scenario.stop_time": 0.5})
+    assert info["plant"] == "stage" and "stage_cf" in sc.system.slaves and "stage" in sc.system.blocks
