@@ -166,7 +166,7 @@ def cmd_replay(args) -> int:
     from .runner import run_scenario
     try:
         sc, info = replay_scenario(_scenario_path(args.scenario), args.measurement, args.mapping,
-                                   _parse_set(args.set))
+                                   _parse_set(args.set), args.recording_start, args.plant)
         out = Path(args.out) if args.out else Path("results") / f"{sc.name}_replay"
         result = run_scenario(sc, out_dir=out, progress=not args.quiet)
     except (CosimError, ValueError, OSError) as e:
@@ -500,6 +500,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "columns <plant>.<role> (e.g. stage.table_position [m]); .csv or .csv.gz")
     rp.add_argument("--mapping", metavar="TOML", help="which column is which plant signal, with units "
                     "([columns] table_position = { column = \"z\", unit = \"mm\" })")
+    rp.add_argument("--plant", metavar="INSTANCE", help="the FMU the recording stands in for (default: the "
+                    "mapping's [replay] plant, else the scenario's only FMU)")
+    rp.add_argument("--recording-start", type=float, metavar="SECONDS", help="the recording's time at the "
+                    "scenario's start (default: the mapping's [replay] recording_start, else the start time)")
     rp.add_argument("--out", help="output folder (default results/<scenario name>_replay)")
     rp.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override a scenario key")
     rp.add_argument("--quiet", action="store_true", help="no progress bar, only the paths")

@@ -23,17 +23,20 @@ class Playback(Block):
     ``measurement_file``: the CSV (:mod:`cosim.input_file`; ``.csv.gz`` too);
     ``signals``: ``{signal name: {"column": name in the file, "unit": SI unit of the
     signal, "scale": 1.0, "offset": 0.0, "description": ...}}``, value = scale * column +
-    offset.
+    offset; ``time_shift`` [s]: the recording's time at the run's time 0.
     """
     direct_feedthrough = False
 
-    def __init__(self, measurement_file: str = "", signals: dict | None = None, sample_period: float = 0.0):
+    def __init__(self, measurement_file: str = "", signals: dict | None = None, time_shift: float = 0.0,
+                 sample_period: float = 0.0):
         super().__init__(sample_period)
         if not measurement_file:
             raise ValueError("measurement_file: expected the path of a recording (CSV)")
         if not signals:
             raise ValueError("signals: expected at least one {signal: {column = ...}}")
         self.table = read_input_csv(measurement_file)
+        if time_shift:                    # the recording's clock -> the run's: t_run = t_rec - time_shift
+            self.table.time = self.table.time - float(time_shift)
         columns = [spec["column"] for spec in signals.values()]
         missing = [c for c in columns if c not in self.table.names]
         if missing:
@@ -44,9 +47,6 @@ class Playback(Block):
                              for name, spec in signals.items())
         conv = [(float(s.get("scale", 1.0)), float(s.get("offset", 0.0))) for s in signals.values()]
         self._conv = None if all(c == (1.0, 0.0) for c in conv) else conv
-
-    def time_span(self) -> tuple[float, float]:
-        return self.player.times[0], self.player.times[-1]
 
     def step(self, t, u):
         row = self.player.at(t)

@@ -18,6 +18,7 @@ Which column is which signal (the **mapping**):
 
       [replay]
       plant = "stage"                 # optional: the FMU instance the recording stands in for
+      recording_start = 12.3          # optional [s]: the recording's time at the scenario's start
       [columns]
       table_position = { column = "z_enc", unit = "mm" }    # -> m
       thrust_dyn = { column = "Fz", unit = "N" }
@@ -66,7 +67,15 @@ def load_mapping(path) -> dict:
             raise ScenarioError(f"unknown key(s) {bad}; expected column, unit, scale, offset", str(path),
                                 f"columns.{signal}")
         cols[signal] = spec
-    return {"plant": raw.get("replay", {}).get("plant"), "columns": cols, "file": str(path)}
+    rp = raw.get("replay", {})
+    bad = sorted(set(rp) - {"plant", "recording_start"})
+    if bad:
+        raise ScenarioError(f"unknown key(s) {bad}; expected plant, recording_start", str(path), "replay")
+    start = rp.get("recording_start")
+    if start is not None and (isinstance(start, bool) or not isinstance(start, (int, float))):
+        raise ScenarioError(f"expected the recording's time [s] at the scenario's start, got {start!r}",
+                            str(path), "replay.recording_start")
+    return {"plant": rp.get("plant"), "recording_start": start, "columns": cols, "file": str(path)}
 
 
 def _plant(original, mapping: dict) -> str:
@@ -75,9 +84,9 @@ def _plant(original, mapping: dict) -> str:
     if plant is None and len(fmus) == 1:
         return fmus[0]
     if plant not in fmus:
-        where = mapping.get("file") or "--mapping"
-        raise ScenarioError(f"which FMU does the recording stand in for? expected [replay] plant = one of "
-                            f"{fmus}, got {plant!r}", where, "replay.plant")
+        where = mapping.get("file") or "--plant"
+        raise ScenarioError(f"which FMU does the recording stand in for? expected --plant or [replay] plant = "
+                            f"one of {fmus}, got {plant!r}", where, "replay.plant" if mapping.get("file") else None)
     return plant
 
 
@@ -227,15 +236,27 @@ def _drop_functions(raw: dict, original, plant: str, have: set, dropped: list) -
     raw["plots"] = keep
 
 
-def replay_scenario(scenario, measurement, mapping=None, overrides: dict | None = None):
+def replay_scenario(scenario, measurement, mapping=None, overrides: dict | None = None,
+                    recording_start: float | None = None, plant: str | None = None):
     """The scenario with its plant replaced by the recording ``measurement``: a
     :class:`cosim.scenario.Scenario` ready for :func:`cosim.run_scenario`, and the
-    ``summary.json`` entry ``replay`` (what was played, what was dropped)."""
+    ``summary.json`` entry ``replay`` (what was played, what was dropped).
+
+    ``recording_start`` [s] (else the mapping's ``[replay] recording_start``, else the
+    scenario's start time): the recording's time at the scenario's start -- a machine's
+    trace seldom starts at 0. ``plant``: the FMU instance the recording stands in for (else
+    the mapping's ``[replay] plant``, else the scenario's only FMU)."""
     path = scenario_path(scenario)
     original = load_scenario(path, overrides)
     measurement = Path(measurement).resolve()
     table = read_input_csv(measurement)
     spec = load_mapping(mapping) if mapping else {}
+    if plant is not None:
+        spec["plant"] = plant
+    if recording_start is None:
+        recording_start = spec.get("recording_start")
+    shift = 0.0 if recording_start is None else float(recording_start) - original.start_time
+    table.time = table.time - shift
     plant = _plant(original, spec)
     signals = _signals(original, plant, table, spec)
     dt = _check_rate(original, plant, table)
@@ -244,11 +265,12 @@ def replay_scenario(scenario, measurement, mapping=None, overrides: dict | None 
         raise ScenarioError(f"{gap} ({original.stop_time!r} s)", str(measurement))
     dropped: list = []
     raw = _replay_raw(original, plant, signals, measurement, dropped)
+    raw["blocks"][plant]["settings"]["time_shift"] = shift
     origins = Origins()
     load_raw(path, overrides, origins)
     sc = build(raw, str(path), path.parent.resolve(), path.stem, origins)
     sc.path, sc.overrides = path, dict(overrides or {})
     info = {"measurement": str(measurement), "mapping": str(mapping) if mapping else None, "plant": plant,
-            "declared": table.comments, "sample_period_s": dt,
+            "declared": table.comments, "sample_period_s": dt, "time_shift_s": shift,
             "signals": {k: v["column"] for k, v in signals.items()}, "dropped": dropped}
     return sc, info

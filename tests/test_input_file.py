@@ -157,3 +157,20 @@ def test_scenario_file_shorter_than_the_run(tmp_path, mass_fmu):
     with pytest.raises(ScenarioError, match=r"blocks.trace.settings.input_file: .*force.csv: the file ends at "
                                             r"0.05 s, before the last time it is played, 0.099"):
         load_scenario(_scenario(tmp_path, mass_fmu, csv_end=0.05))
+
+
+def test_scenario_column_that_names_no_input(tmp_path, mass_fmu):
+    p = _scenario(tmp_path, mass_fmu)
+    t = np.round(np.arange(0, 0.1 + 1e-9, 1e-3), 12)
+    _write(tmp_path / "force.csv", "time,u [N],push [N]", t, np.zeros_like(t), np.ones_like(t))
+    with pytest.raises(ScenarioError, match=r"trace.toml: blocks.trace.settings.into: column 'push' of .*force.csv "
+                                            r"names no input of 'mass' \(inputs: u.*\)"):
+        load_scenario(p)
+
+
+def test_a_unit_nobody_defines(tmp_path, capsys):
+    csv = _write(tmp_path / "u.csv", "time,i_ref [furlong]", [0.0, 1.0], [0.0, 0.0])
+    assert main(["simulate", "LinearStage", "--stop-time", "0.01", "--input-file", str(csv),
+                 "--output", str(tmp_path / "o.csv"), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "column 'i_ref' of" in err and "furlong" in err and "not declared" in err, err

@@ -155,3 +155,73 @@ def test_fang_hole_detector_and_adaptation_replay(tmp_path):
     for sig in ("observer.F_dc_hat", "detector.flag", "detector.F_pred", "adapt.feed_rate_cmd", "trajectory.v_ref"):
         np.testing.assert_array_equal(rep[sig], run[sig], err_msg=sig)
     assert set(rep.summary["scores"]) == set(run.summary["scores"])
+
+
+def test_without_a_dynamometer_column_the_thrust_score_is_left_out(tmp_path):
+    """A machine's recording of the encoder only (mapped, in mm): the observer and the
+    controller run, the thrust score that needs the dynamometer is dropped and said so."""
+    from cosim.input_file import read_input_csv
+    table = read_input_csv(RECORDING)
+    t, z = table.time[:5001], table.column("stage.table_position")[:5001] * 1e3
+    rec = tmp_path / "encoder.csv"
+    rec.write_text("time,z\n" + "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(t, z)))
+    mapping = tmp_path / "m.toml"
+    mapping.write_text('[columns]\ntable_position = { column = "z", unit = "mm" }\n')
+    sc, info = replay_scenario(FIG7, rec, mapping, {"scenario.stop_time": 0.5})
+    assert info["signals"] == {"table_position": "z"}
+    assert [d.split(" (")[0] for d in info["dropped"] if d.startswith(("score", "plot"))] == [
+        "score force_control", "plot analysis.force_scoring:force_figure"]
+    assert [name for *_, name in sc.scores] == ["force_loop_margin"]
+    assert sc.system.blocks["stage"].outputs[0].unit == "m"
+
+
+def test_a_machine_clock_recording_with_its_start_time(tmp_path, mass_run):
+    """A trace whose clock reads 12.3 s at the scenario's start: shifted by the mapping's
+    recording_start (or --recording-start), the probe sees the same samples."""
+    scenario, run = mass_run
+    rec = tmp_path / "clock.csv"
+    rec.write_text("time,pos [mm]\n" + "".join(f"{float(a) + 12.3!r},{float(b) * 1e3!r}\n"
+                                              for a, b in zip(run.time, run["mass.x"])))
+    with pytest.raises(ScenarioError, match=r"clock.csv: the file starts at 12.3 s, after the first time"):
+        replay_scenario(scenario, rec, _mapping(tmp_path))
+    m = tmp_path / "clock.toml"
+    m.write_text('[replay]\nrecording_start = 12.3\n[columns]\nx = { column = "pos", unit = "mm" }\n')
+    sc, info = replay_scenario(scenario, rec, m)
+    assert info["time_shift_s"] == 12.3
+    rep = run_scenario(sc, out_dir=tmp_path / "rep", progress=False)
+    on_probe = np.isclose(np.round(run.time / 0.01) * 0.01, run.time, atol=1e-12)
+    np.testing.assert_allclose(rep["probe.y"][on_probe], run["probe.y"][on_probe], rtol=1e-12, atol=1e-18)
+    assert main(["replay", str(scenario), "--measurement", str(rec), "--mapping", str(_mapping(tmp_path)),
+                 "--recording-start", "12.3", "--out", str(tmp_path / "cli"), "--quiet"]) == 0
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".csv.gz"])
+def test_export_recording_round_trip(tmp_path, mass_run, suffix, capsys):
+    """analysis.recording writes what replay reads: the '#' declaration, units in the
+    header, every value bit for bit; --every decimates; the same run gives the same bytes."""
+    from analysis.recording import main as export_main
+    from cosim.input_file import read_input_csv
+    _, run = mass_run
+    out = tmp_path / f"rec{suffix}"
+    assert export_main([str(run.out_dir), str(out), "--signals", "mass.x", "force.y", "--note", "SIMULATED: test",
+                        "--every", "2"]) == 0
+    table = read_input_csv(out)
+    assert table.comments == ["SIMULATED: test"] and table.units == {"mass.x": "m", "force.y": "N"}
+    np.testing.assert_array_equal(table.time, run.time[::2])
+    np.testing.assert_array_equal(table.column("mass.x"), run["mass.x"][::2])
+    first = out.read_bytes()
+    export_main([str(run.out_dir), str(out), "--signals", "mass.x", "force.y", "--note", "SIMULATED: test",
+                 "--every", "2"])
+    assert out.read_bytes() == first
+    assert export_main([str(run.out_dir), str(out), "--signals", "mass.nope"]) == 1
+    assert "not recorded" in capsys.readouterr().err
+
+
+def test_two_plants_need_the_plant_named(capsys):
+    """Keio Fig. 4 drives two stages (force control and constant feed side by side)."""
+    fig4 = ROOT / "scenarios" / "keio_fig4_composite_force_control.toml"
+    assert main(["replay", str(fig4), "--measurement", str(RECORDING), "--quiet"]) == 1
+    assert "which FMU does the recording stand in for? expected --plant or [replay] plant = one of " \
+           "['stage', 'stage_cf'], got None" in capsys.readouterr().err
+    sc, info = replay_scenario(fig4, RECORDING, plant="stage", overrides={"scenario.stop_time": 0.5})
+    assert info["plant"] == "stage" and "stage_cf" in sc.system.slaves and "stage" in sc.system.blocks
