@@ -67,10 +67,11 @@ class RunInfo:
     error: str | None = None
     step_rejection: dict | None = None   # floor, rejected, retried_steps, smallest_step [s]
     steps_in_c: int = 0              # steps run wholly in C (cosim/fused.py), no Python in them
+    warnings: list | None = None     # the slaves' own (solver_warnings(): an ME rk4 error estimate above rel_tol)
 
     def as_dict(self) -> dict:
         return {k: v for k, v in self.__dict__.items()
-                if v is not None or k not in ("error", "step_rejection")}
+                if v is not None or k not in ("error", "step_rejection", "warnings")}
 
 
 def _getter(indices: list[int]):
@@ -699,6 +700,7 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
                 pass
         if bar is not None:
             bar.close()
+        info.warnings = [w for slave in started for w in getattr(slave, "solver_warnings", list)()] or None
         for slave in started:
             slave.free(failed=(slave.name == failed))
 

@@ -476,6 +476,28 @@ def _add_campaign_parser(sub) -> None:
     c.set_defaults(func=cmd_campaign)
 
 
+def _add_export_parsers(sub) -> None:
+    """``export-fmu`` and ``export-ssp`` (docs/export.md)."""
+    ex = sub.add_parser("export-fmu", help="export blocks with a C step as FMI 3.0 (or 2.0) co-simulation FMUs "
+                        "(docs/export.md)")
+    ex.add_argument("scenario", help="scenario .toml (or its name in scenarios/): the settings of the blocks")
+    ex.add_argument("blocks", nargs="+", metavar="BLOCK", help="block names in the scenario")
+    ex.add_argument("--out", required=True, help="folder for the .fmu files (one per block, named after it)")
+    ex.add_argument("--fmi", type=int, choices=(2, 3), default=3, help="FMI version (default 3)")
+    ex.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override a scenario key first")
+    ex.set_defaults(func=cmd_export_fmu)
+    es = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 package (plant + exported block FMUs; "
+                        "docs/export.md)")
+    es.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
+    es.add_argument("--out", required=True, help="the .ssp file to write")
+    es.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version of the block FMUs (default 2: "
+                    "what libcosim runs)")
+    es.add_argument("--allow-missing", action="store_true", help="write the package without the Python-only blocks "
+                    "and events (listed) instead of refusing")
+    es.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override a scenario key first")
+    es.set_defaults(func=cmd_export_ssp)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``drillcosim`` argument parser (the docs' command lines are checked against it)."""
     p = argparse.ArgumentParser(prog="drillcosim", description="Co-simulation of drilling feed drives: "
@@ -556,24 +578,7 @@ def build_parser() -> argparse.ArgumentParser:
     cm.add_argument("--contact-damping", type=float, metavar="N*s/m", help="contact damping for the margin")
     cm.add_argument("--strict", action="store_true", help="exit 1 when the report has warnings")
     cm.set_defaults(func=cmd_commission)
-    ex = sub.add_parser("export-fmu", help="export blocks with a C step as FMI 3.0 (or 2.0) co-simulation FMUs "
-                        "(docs/export.md)")
-    ex.add_argument("scenario", help="scenario .toml (or its name in scenarios/): the settings of the blocks")
-    ex.add_argument("blocks", nargs="+", metavar="BLOCK", help="block names in the scenario")
-    ex.add_argument("--out", required=True, help="folder for the .fmu files (one per block, named after it)")
-    ex.add_argument("--fmi", type=int, choices=(2, 3), default=3, help="FMI version (default 3)")
-    ex.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override a scenario key first")
-    ex.set_defaults(func=cmd_export_fmu)
-    es = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 package (plant + exported block FMUs; "
-                        "docs/export.md)")
-    es.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
-    es.add_argument("--out", required=True, help="the .ssp file to write")
-    es.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version of the block FMUs (default 2: "
-                    "what libcosim runs)")
-    es.add_argument("--allow-missing", action="store_true", help="write the package without the Python-only blocks "
-                    "and events (listed) instead of refusing")
-    es.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override a scenario key first")
-    es.set_defaults(func=cmd_export_ssp)
+    _add_export_parsers(sub)
     c = sub.add_parser("conformance", help="run the Modelica Reference-FMUs against fmpy and rewrite "
                                            "the table in docs/conformance.md")
     c.add_argument("--no-write", action="store_true", help="print the table only")

@@ -136,7 +136,9 @@ def _check_settings(scenario, name: str, block, spec: dict) -> list[tuple[str, s
             raise ExportError(f"{file}: blocks.{name}.settings.{key} = {value!r} is a file the block reads "
                               "during the run; an FMU has no file at run time (give its values as settings)")
         if PATH_SETTING.search(key) and isinstance(value, str) and value:
-            baked.append((f"blocks.{name}.settings.{key}", value))
+            shown = os.path.relpath(value) if Path(value).is_absolute() and Path(value).is_relative_to(Path.cwd()) \
+                else value
+            baked.append((f"blocks.{name}.settings.{key}", shown))
     return baked
 
 

@@ -526,8 +526,41 @@ class ModelExchangeSlave(FMUSlave):
     # -- solvers -----------------------------------------------------------------------
     def _make_solver(self) -> None:
         self._solver = None
+        self.rk4_error = 0.0           # estimated global error of the rk4 run, relative (see _rk4_error)
+        self.rk4_error_time = None
+        self._rk4_err = None
         if self.solver_name == "cvode":
             self._solver = _CVode(self)
+        elif self.model.nx:
+            self._rk4_err = np.zeros(self.model.nx)
+            nominals = np.ones(self.model.nx)
+            status = self.fmu.getNominalsOfContinuousStates(nominals.ctypes.data_as(POINTER(c_double)), self.model.nx)
+            self._nominals = np.abs(nominals) if status <= WARNING and np.all(nominals != 0) else np.ones(self.model.nx)
+
+    def _rk4_error(self, ta: float, x: np.ndarray, tb: float, xb: np.ndarray) -> None:
+        """Step doubling: the same step as two halves; 16/15 of their difference estimates the
+        local error of the full step taken (RK4 is 4th order: the halves err 16 times less).
+        The local errors are summed per state (their propagation ignored) and scaled by
+        max(|x|, nominal); ``rk4_error`` keeps the largest, compared with ``rel_tol`` in
+        :meth:`solver_warnings`. An estimate, not a bound: with steps outside RK4's asymptotic
+        range it is low (Reference-FMU StateSpace at a 1 s step: 5.6e-3 against 3.6e-2
+        measured, docs/conformance.md), but far above any rel_tol. The step taken stays the
+        full one (results unchanged); it costs 7 more derivative calls per step."""
+        hm = 0.5 * (tb - ta)
+        x2 = self._rk4(ta + hm, self._rk4(ta, x, hm), hm)
+        self._rk4_err += np.abs(x2 - xb) * (16.0 / 15.0)
+        scale = np.maximum(np.abs(xb), self._nominals)
+        rel = float(np.max(self._rk4_err / scale))
+        if rel > self.rk4_error:
+            self.rk4_error, self.rk4_error_time = rel, tb
+
+    def solver_warnings(self) -> list[str]:
+        """Warnings for the run's summary: the rk4 error estimate above ``rel_tol``."""
+        if self.solver_name != "rk4" or not self.rk4_error > self.rel_tol:
+            return []
+        return [f"FMU '{self.name}': rk4 error estimate {self.rk4_error:.2g} (relative, step doubling, "
+                f"at t = {self.rk4_error_time:g} s) exceeds rel_tol {self.rel_tol:g}: lower solver_step "
+                "or use solver = \"cvode\""]
 
     def _integrate(self, t0: float, t1: float) -> tuple[bool, bool]:
         """Integrate from t0 towards t1; stops early at a state or step event.
@@ -562,6 +595,8 @@ class ModelExchangeSlave(FMUSlave):
             ta = t
             tb = t1 if k == n - 1 else t0 + (k + 1) * span / n
             xb = self._rk4(ta, x, tb - ta) if nx else x
+            if nx:
+                self._rk4_error(ta, x, tb, xb)
             self._set_time(tb)
             if nx:
                 self._write_x(xb)

@@ -205,3 +205,15 @@ def test_export_ssp_lists_what_it_leaves_out(tmp_path):
         assert {"resources/observer.fmu", "resources/adapt.fmu", "resources/drive.fmu"} <= set(zf.namelist())
     sc2 = load_scenario(path)           # it validates and loads; the detector's inputs are simply unread
     assert "detector" not in sc2.system.slaves and "adapt" in sc2.system.slaves
+
+
+def test_cli_runs_another_tools_package_and_refuses_a_python_block(tmp_path, capsys):
+    import json
+
+    from cosim.cli import main
+    ssd = THIRD / "omsimulator_linear_transformation" / "SystemStructure.ssd"
+    assert main(["run", str(ssd), "--out", str(tmp_path / "r"), "--quiet"]) == 0       # supervised, as a TOML
+    s = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert s["status"] == "completed" and s["scenario"] == "omsimulator_linear_transformation"
+    assert main(["export-fmu", "fang_table5_hole", "detector", "--out", str(tmp_path / "f")]) == 2
+    assert "block 'detector' (controllers.interface_detector:InterfaceDetector) has no C step" in capsys.readouterr().err

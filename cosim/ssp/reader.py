@@ -234,7 +234,8 @@ def load_ssp(path, overrides: dict | None = None):
     from ..scenario import apply_overrides, build
     path = Path(path)
     raw = apply_overrides(ssp_raw(path), overrides, str(path))
-    sc = build(raw, str(path), path.parent.resolve(), path.stem)
+    name = path.parent.resolve().name if path.name == "SystemStructure.ssd" else path.stem
+    sc = build(raw, str(path), path.parent.resolve(), name)
     sc.path = path
     sc.overrides = dict(overrides or {})
     return sc

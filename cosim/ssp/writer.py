@@ -49,7 +49,8 @@ def _not_carried(sc, allow_missing: bool) -> tuple[list[str], list[tuple[str, st
                           "--allow-missing writes it without them (listed in the SSD's annotations)")
     missing += [("score", str(s[3] or s[0]), "scores are drillcosim's analysis") for s in sc.scores]
     missing += [("plot", str(p.get("file") or p.get("spec") or "plot"), "plots are drillcosim's") for p in sc.plots]
-    missing.append(("record", ", ".join(sc.record_signals), "an SSP importer records what it chooses"))
+    missing.append(("record", ", ".join(sc.record_signals), "kept in the SSD's annotation for drillcosim; "
+                    "another importer records what it chooses"))
     return c_blocks, missing
 
 
