@@ -105,7 +105,6 @@ MAX_LAYERS = 4   # what the project's plants model (docs/plants.md)
 MAX_INTERFACES = MAX_LAYERS - 1
 
 N_MAX = 2000     # samples of the regression window (40 s at dt = 0.02 s)
-AIR_FLOOR_FACTOR = 1.5   # entry threshold >= this x the largest |F~| of the window before arming
 HISTORY = 4096   # samples kept for the localisation (82 s at dt = 0.02 s: 1.6 mm windows at 1.2 mm/min)
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
@@ -248,9 +247,7 @@ class InterfaceDetector(Block):
         feed_per_rev [m/rev]: feed per revolution of each layer's own process (the
             first one is in force at the entry); feed_per_rev_min [m/rev]: the lowest
             the adaptation may command (fail-safe included; default min(feed_per_rev)).
-        Then entry: F~ > entry_fraction * kc_1 * f_1, and > AIR_FLOOR_FACTOR (1.5) x the
-        largest |F~| of the N samples in the air before the entry test armed (the
-        observer's start-up transient on this hole, measured); interface k: |F~| >
+        Then entry: F~ > entry_fraction * kc_1 * f_1; interface k: |F~| >
         max(thd_min, step_fraction * |kc_{k+1}/kc_k - 1| * F^) (the step the
         observed level F^ makes when the material changes under an unchanged process);
         paper exit (recorded): F~ < -max(thd_min, F^ / 2); a layer's tests arm only
@@ -426,8 +423,6 @@ class InterfaceDetector(Block):
         self.h_n = 0                # samples written since the reset
         self.pending = []           # (event index, x at trigger, index of the trigger sample)
         self.F_air = NAN            # observed thrust in air (the entry's level before contact)
-        self.air_err = deque(maxlen=self.N)   # |F~| of the last N samples in the air, before arming
-        self.air_floor = 0.0        # entry threshold floor: AIR_FLOOR_FACTOR x their max
         self.loc = {ev: [NAN] * len(LOC_QUANTITIES) for ev in LOC_EVENTS}
 
     def _set_fail(self, code: int, t: float, x: float) -> None:
@@ -481,11 +476,14 @@ class InterfaceDetector(Block):
         return max(self.rearm_level, 0.5 * thd)
 
     def _engaged(self, F_pred: float) -> bool:
-        """The tool cuts a layer (not in a gap above it): its tests may arm. The floor is
-        the lowest of the layer the flag says and every layer below it: after a missed
-        event the tool is already in a later, maybe softer, layer (issue 23: one missed
-        interface kept every later test from arming)."""
-        return not self.relative or not 1 <= self.flag <= self.n or F_pred >= min(self.floor[self.flag - 1:])
+        """The tool cuts a layer (not in a gap above it): its tests may arm. After a fail
+        (a missed event) the floor is the lowest of the layer the flag says and every
+        layer below it: the tool may already be in a later, softer layer (issue 23: one
+        missed interface kept every later test from arming). Without a fail, the flag's
+        layer's own floor, which keeps the tests from arming in a gap above it."""
+        if not self.relative or not 1 <= self.flag <= self.n:
+            return True
+        return F_pred >= (min(self.floor[self.flag - 1:]) if self.fail else self.floor[self.flag - 1])
 
     def step(self, t, u):
         F, x = float(u[0]), float(u[1])
@@ -512,18 +510,11 @@ class InterfaceDetector(Block):
                 self.quiet = 0
             if self.thd_noise_factor > 0.0:
                 self.err_hist.append(abs(e))
-            if self.flag == 0 and not self.armed:
-                self.air_err.append(abs(e))
             if not self.armed and self._may_arm(x):
                 self.armed = True
-                if self.flag == 0 and self.air_err:
-                    # the observer's start-up transient, as this hole shows it in the air
-                    # before the entry window opens (not assumed: 4-5 N measured there on
-                    # the project's drive, above a 2 N entry threshold of Al at 3 um/rev)
-                    self.air_floor = AIR_FLOOR_FACTOR * max(self.air_err)
             self.thd = NAN
             if self.flag == 0 and self.armed:
-                self.thd = self.thd1 if not self.relative else max(self.thd_entry, self.air_floor)
+                self.thd = self.thd1 if not self.relative else self.thd_entry
                 if e > self.thd:
                     self._event(0, t, x)
             elif self.flag < self.n and self.armed:
