@@ -150,7 +150,8 @@ _OUTPUTS = (
     Port("x_interface", "m", "encoder position at the first interface detection", NAN),
     Port("x_exit", "m", "encoder position at the exit detection (selected criterion)", NAN),
     Port("fail", "1", "fail indicator (latched): an event not found inside its nominal window"),
-    Port("fail_code", "1", "first failing event: 0 none, 1 entry, 1+k interface k, n+1 exit"),
+    Port("fail_code", "1", "first failing event: 0 none, 1 entry, 1+k interface k, n+1 exit, "
+         "n+2 the observed levels disagree with the plan's materials"),
     Port("F_pred", "N", "regression prediction F^ of the current sample (NaN until the window fills)", NAN),
     Port("F_err", "N", "prediction error F~ = F - F^ (NaN until the window fills)", NAN),
     Port("armed", "1", "1 when the next event's test is armed (warm-up/re-arm done)"),
@@ -167,6 +168,7 @@ _OUTPUTS = (
     Port("x_fail", "m", "encoder position when the fail indicator was set", NAN),
     Port("thd", "N", "threshold of the armed test on |F~| (NaN when none is armed)", NAN),
     Port("n_layers", "1", "layers of the nominal stack the detector expects"),
+    Port("level_mismatch", "1", "observed over the plan's level ratio of the last two layers armed (1 = as planned)", NAN),
     *(Port(f"{q}_{ev}_loc", u, f"{what} of the {ev} (NaN until its localisation window is complete)", NAN)
       for ev in LOC_EVENTS for q, u, what in LOC_QUANTITIES),
 )
@@ -216,6 +218,7 @@ class InterfaceDetector(Block):
         locate_margin: float = 0.3e-3,
         push_out: float = 0.5e-3,
         observer_delay: float = 0.0,
+        mismatch_factor: float = 0.0,
     ):
         """Settings (SI units).
 
@@ -287,6 +290,13 @@ class InterfaceDetector(Block):
             window reaches this far above the trigger.
         observer_delay [s]: the observed thrust's delay behind the tool (observer and
             sampling); the fit pairs each force sample with the encoder this much earlier.
+        mismatch_factor: > 1 (process-following mode) checks the plan's materials against
+            the levels observed: when a layer's tests arm, the ratio of its observed level
+            to the layer above's must be within this factor of the plan's ratio
+            ``kc_{k+1} f_{k+1} / (kc_k f_k)``, else a fail (``fail_code`` n+2): a wrong
+            order or a missing layer (CFRP/Ti drilled as Ti/CFRP is a factor ~10 off). 0
+            (default) switches it off. Tool wear moves the ratio by up to ~2.7 between Al
+            and Ti after 80 holes (docs/plants.md), another drive by ~0.8 (issue 23).
         """
         super().__init__(sample_period)
         if self.sample_period <= 0:
@@ -323,6 +333,9 @@ class InterfaceDetector(Block):
         self.feed_rate = float(feed_rate)
         self.time_margin = float(time_margin)
         self.fail_disarms = bool(fail_disarms)
+        if not (mismatch_factor == 0.0 or mismatch_factor > 1.0):
+            raise ValueError(f"InterfaceDetector: mismatch_factor must be 0 (off) or > 1, got {mismatch_factor!r}")
+        self.mismatch_factor = float(mismatch_factor)
         self.thd_min = float(thd_min)
         if not thd_noise_factor >= 0.0:
             raise ValueError(f"InterfaceDetector: thd_noise_factor must be >= 0 (0 = off), got {thd_noise_factor!r}")
@@ -349,6 +362,7 @@ class InterfaceDetector(Block):
             self.step_gain = [step_fraction * abs(kc_[k + 1] / kc_[k] - 1.0) for k in range(n - 1)]
             self.exit_gain = 0.5     # paper exit in relative terms: a drop of half the plateau
             self.floor = [engage_fraction * k_ * fmin for k_ in kc_]
+            self.level_plan = [k_ * f_ for k_, f_ in zip(kc_, fpr)]   # N, new tool, own process
             self.thd_min = float(thd_min)
             self.rearm_level = 0.5 * self.thd_min if rearm_level is None else float(rearm_level)
         else:
@@ -423,7 +437,23 @@ class InterfaceDetector(Block):
         self.h_n = 0                # samples written since the reset
         self.pending = []           # (event index, x at trigger, index of the trigger sample)
         self.F_air = NAN            # observed thrust in air (the entry's level before contact)
+        self.levels = [NAN] * self.n   # observed level of each layer when its tests armed
+        self.mismatch = NAN         # last observed/plan level ratio between two layers
         self.loc = {ev: [NAN] * len(LOC_QUANTITIES) for ev in LOC_EVENTS}
+
+    def _check_level(self, t: float, x: float) -> None:
+        """The first quiet level of a layer (the statistics its tests arm on; any
+        material's floor, so not a gap, whichever material the plan says): compare it
+        with the layer above's (the plan's materials, issue 23); a disagreement beyond
+        mismatch_factor is a fail."""
+        k = self.flag - 1
+        self.levels[k] = self.F_level
+        if not (self.mismatch_factor > 0 and k >= 1 and self.levels[k - 1] > 0):
+            return
+        ratio = (self.levels[k] / self.levels[k - 1]) / (self.level_plan[k] / self.level_plan[k - 1])
+        self.mismatch = ratio
+        if not 1.0 / self.mismatch_factor <= ratio <= self.mismatch_factor:
+            self._set_fail(self.n + 2, t, x)
 
     def _set_fail(self, code: int, t: float, x: float) -> None:
         if not self.fail:
@@ -510,6 +540,9 @@ class InterfaceDetector(Block):
                 self.quiet = 0
             if self.thd_noise_factor > 0.0:
                 self.err_hist.append(abs(e))
+            if self.relative and 1 <= self.flag <= self.n and math.isnan(self.levels[self.flag - 1]) \
+                    and self.quiet >= self.rearm_samples and self.F_level >= min(self.floor):
+                self._check_level(t, x)     # on a cut level (any material's floor: not a gap)
             if not self.armed and self._may_arm(x):
                 self.armed = True
             self.thd = NAN
@@ -622,6 +655,6 @@ class InterfaceDetector(Block):
             self.t_paper, self.x_paper, self.t_thin, self.x_thin,
             self.F_ref,
             *t_if, *x_if,
-            self.t_fail, self.x_fail, self.thd, float(self.n),
+            self.t_fail, self.x_fail, self.thd, float(self.n), self.mismatch,
             *(v for ev in LOC_EVENTS for v in self.loc[ev]),
         )

@@ -132,3 +132,18 @@ def test_exit_follows_the_push_out_law(law):
     F = F + np.random.default_rng(7).normal(0.0, 4.0, x.size)
     x_loc, _dx = locate("exit", x, F)
     assert abs(x_loc - face) <= 0.01 * MM
+
+
+@pytest.mark.parametrize("swapped", [False, True])
+def test_materials_disagreeing_with_the_observed_levels_fail(swapped):
+    """Issue 23: the plan says CFRP over Ti; drilled the other way round the level ratio
+    is ~1/16 of the plan's (kc f: 6.5e7 x 9 um over 2e7 x 6 um = 4.9; observed 85/280)
+    -> a fail naming the materials (fail_code n + 2); in the right order, none."""
+    h = SyntheticHole(F_cfrp=280.0 if swapped else 85.0, F_ti=85.0 if swapped else 280.0, ti_slope=0.0,
+                      lag=0.005, seed=9)
+    out = _run(h, kc=[2.0e7, 6.5e7], feed_per_rev=[6e-6, 9e-6], mismatch_factor=4.0, exit_criterion="thinning")
+    if swapped:
+        assert out["fail"] == 1 and out["fail_code"] == 4
+        assert out["level_mismatch"] == pytest.approx(85.0 / 280.0 / 4.875, rel=0.15)
+    else:
+        assert out["fail"] == 0 and out["level_mismatch"] == pytest.approx(280.0 / 85.0 / 4.875, rel=0.15)
