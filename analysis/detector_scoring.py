@@ -420,7 +420,8 @@ def score_stack(result, plant="drive", detector="detector", adapt="adapt", mater
     fail = bool(det["fail"] >= 0.5)
     out["fail"] = int(fail)
     code = int(det["fail_code"]) if fail else 0
-    out["fail_event"] = names[code - 1] if 1 <= code <= len(names) else None
+    out["fail_event"] = names[code - 1] if 1 <= code <= len(names) else \
+        "materials" if code == len(names) + 1 else None     # the observed levels disagree with the plan
     out["t_fail_s"] = det["t_fail"]
     out["x_fail_mm"] = 1e3 * det["x_fail"]
     inside = plan_windows is not None and all(

@@ -105,7 +105,6 @@ MAX_LAYERS = 4   # what the project's plants model (docs/plants.md)
 MAX_INTERFACES = MAX_LAYERS - 1
 
 N_MAX = 2000     # samples of the regression window (40 s at dt = 0.02 s)
-AIR_FLOOR_FACTOR = 1.5   # entry threshold >= this x the largest |F~| of the window before arming
 HISTORY = 4096   # samples kept for the localisation (82 s at dt = 0.02 s: 1.6 mm windows at 1.2 mm/min)
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
@@ -151,7 +150,8 @@ _OUTPUTS = (
     Port("x_interface", "m", "encoder position at the first interface detection", NAN),
     Port("x_exit", "m", "encoder position at the exit detection (selected criterion)", NAN),
     Port("fail", "1", "fail indicator (latched): an event not found inside its nominal window"),
-    Port("fail_code", "1", "first failing event: 0 none, 1 entry, 1+k interface k, n+1 exit"),
+    Port("fail_code", "1", "first failing event: 0 none, 1 entry, 1+k interface k, n+1 exit, "
+         "n+2 the observed levels disagree with the plan's materials"),
     Port("F_pred", "N", "regression prediction F^ of the current sample (NaN until the window fills)", NAN),
     Port("F_err", "N", "prediction error F~ = F - F^ (NaN until the window fills)", NAN),
     Port("armed", "1", "1 when the next event's test is armed (warm-up/re-arm done)"),
@@ -168,6 +168,7 @@ _OUTPUTS = (
     Port("x_fail", "m", "encoder position when the fail indicator was set", NAN),
     Port("thd", "N", "threshold of the armed test on |F~| (NaN when none is armed)", NAN),
     Port("n_layers", "1", "layers of the nominal stack the detector expects"),
+    Port("level_mismatch", "1", "observed over the plan's level ratio of the last two layers armed (1 = as planned)", NAN),
     *(Port(f"{q}_{ev}_loc", u, f"{what} of the {ev} (NaN until its localisation window is complete)", NAN)
       for ev in LOC_EVENTS for q, u, what in LOC_QUANTITIES),
 )
@@ -217,6 +218,7 @@ class InterfaceDetector(Block):
         locate_margin: float = 0.3e-3,
         push_out: float = 0.5e-3,
         observer_delay: float = 0.0,
+        mismatch_factor: float = 0.0,
     ):
         """Settings (SI units).
 
@@ -248,9 +250,7 @@ class InterfaceDetector(Block):
         feed_per_rev [m/rev]: feed per revolution of each layer's own process (the
             first one is in force at the entry); feed_per_rev_min [m/rev]: the lowest
             the adaptation may command (fail-safe included; default min(feed_per_rev)).
-        Then entry: F~ > entry_fraction * kc_1 * f_1, and > AIR_FLOOR_FACTOR (1.5) x the
-        largest |F~| of the N samples in the air before the entry test armed (the
-        observer's start-up transient on this hole, measured); interface k: |F~| >
+        Then entry: F~ > entry_fraction * kc_1 * f_1; interface k: |F~| >
         max(thd_min, step_fraction * |kc_{k+1}/kc_k - 1| * F^) (the step the
         observed level F^ makes when the material changes under an unchanged process);
         paper exit (recorded): F~ < -max(thd_min, F^ / 2); a layer's tests arm only
@@ -290,6 +290,13 @@ class InterfaceDetector(Block):
             window reaches this far above the trigger.
         observer_delay [s]: the observed thrust's delay behind the tool (observer and
             sampling); the fit pairs each force sample with the encoder this much earlier.
+        mismatch_factor: > 1 (process-following mode) checks the plan's materials against
+            the levels observed: when a layer's tests arm, the ratio of its observed level
+            to the layer above's must be within this factor of the plan's ratio
+            ``kc_{k+1} f_{k+1} / (kc_k f_k)``, else a fail (``fail_code`` n+2): a wrong
+            order or a missing layer (CFRP/Ti drilled as Ti/CFRP is a factor ~10 off). 0
+            (default) switches it off. Tool wear moves the ratio by up to ~2.7 between Al
+            and Ti after 80 holes (docs/plants.md), another drive by ~0.8 (issue 23).
         """
         super().__init__(sample_period)
         if self.sample_period <= 0:
@@ -326,6 +333,9 @@ class InterfaceDetector(Block):
         self.feed_rate = float(feed_rate)
         self.time_margin = float(time_margin)
         self.fail_disarms = bool(fail_disarms)
+        if not (mismatch_factor == 0.0 or mismatch_factor > 1.0):
+            raise ValueError(f"InterfaceDetector: mismatch_factor must be 0 (off) or > 1, got {mismatch_factor!r}")
+        self.mismatch_factor = float(mismatch_factor)
         self.thd_min = float(thd_min)
         if not thd_noise_factor >= 0.0:
             raise ValueError(f"InterfaceDetector: thd_noise_factor must be >= 0 (0 = off), got {thd_noise_factor!r}")
@@ -352,6 +362,7 @@ class InterfaceDetector(Block):
             self.step_gain = [step_fraction * abs(kc_[k + 1] / kc_[k] - 1.0) for k in range(n - 1)]
             self.exit_gain = 0.5     # paper exit in relative terms: a drop of half the plateau
             self.floor = [engage_fraction * k_ * fmin for k_ in kc_]
+            self.level_plan = [k_ * f_ for k_, f_ in zip(kc_, fpr)]   # N, new tool, own process
             self.thd_min = float(thd_min)
             self.rearm_level = 0.5 * self.thd_min if rearm_level is None else float(rearm_level)
         else:
@@ -426,9 +437,23 @@ class InterfaceDetector(Block):
         self.h_n = 0                # samples written since the reset
         self.pending = []           # (event index, x at trigger, index of the trigger sample)
         self.F_air = NAN            # observed thrust in air (the entry's level before contact)
-        self.air_err = deque(maxlen=self.N)   # |F~| of the last N samples in the air, before arming
-        self.air_floor = 0.0        # entry threshold floor: AIR_FLOOR_FACTOR x their max
+        self.levels = [NAN] * self.n   # observed level of each layer when its tests armed
+        self.mismatch = NAN         # last observed/plan level ratio between two layers
         self.loc = {ev: [NAN] * len(LOC_QUANTITIES) for ev in LOC_EVENTS}
+
+    def _check_level(self, t: float, x: float) -> None:
+        """The first quiet level of a layer (the statistics its tests arm on; any
+        material's floor, so not a gap, whichever material the plan says): compare it
+        with the layer above's (the plan's materials, issue 23); a disagreement beyond
+        mismatch_factor is a fail."""
+        k = self.flag - 1
+        self.levels[k] = self.F_level
+        if not (self.mismatch_factor > 0 and k >= 1 and self.levels[k - 1] > 0):
+            return
+        ratio = (self.levels[k] / self.levels[k - 1]) / (self.level_plan[k] / self.level_plan[k - 1])
+        self.mismatch = ratio
+        if not 1.0 / self.mismatch_factor <= ratio <= self.mismatch_factor:
+            self._set_fail(self.n + 2, t, x)
 
     def _set_fail(self, code: int, t: float, x: float) -> None:
         if not self.fail:
@@ -481,11 +506,14 @@ class InterfaceDetector(Block):
         return max(self.rearm_level, 0.5 * thd)
 
     def _engaged(self, F_pred: float) -> bool:
-        """The tool cuts a layer (not in a gap above it): its tests may arm. The floor is
-        the lowest of the layer the flag says and every layer below it: after a missed
-        event the tool is already in a later, maybe softer, layer (issue 23: one missed
-        interface kept every later test from arming)."""
-        return not self.relative or not 1 <= self.flag <= self.n or F_pred >= min(self.floor[self.flag - 1:])
+        """The tool cuts a layer (not in a gap above it): its tests may arm. After a fail
+        (a missed event) the floor is the lowest of the layer the flag says and every
+        layer below it: the tool may already be in a later, softer layer (issue 23: one
+        missed interface kept every later test from arming). Without a fail, the flag's
+        layer's own floor, which keeps the tests from arming in a gap above it."""
+        if not self.relative or not 1 <= self.flag <= self.n:
+            return True
+        return F_pred >= (min(self.floor[self.flag - 1:]) if self.fail else self.floor[self.flag - 1])
 
     def step(self, t, u):
         F, x = float(u[0]), float(u[1])
@@ -512,18 +540,14 @@ class InterfaceDetector(Block):
                 self.quiet = 0
             if self.thd_noise_factor > 0.0:
                 self.err_hist.append(abs(e))
-            if self.flag == 0 and not self.armed:
-                self.air_err.append(abs(e))
+            if self.relative and 1 <= self.flag <= self.n and math.isnan(self.levels[self.flag - 1]) \
+                    and self.quiet >= self.rearm_samples and self.F_level >= min(self.floor):
+                self._check_level(t, x)     # on a cut level (any material's floor: not a gap)
             if not self.armed and self._may_arm(x):
                 self.armed = True
-                if self.flag == 0 and self.air_err:
-                    # the observer's start-up transient, as this hole shows it in the air
-                    # before the entry window opens (not assumed: 4-5 N measured there on
-                    # the project's drive, above a 2 N entry threshold of Al at 3 um/rev)
-                    self.air_floor = AIR_FLOOR_FACTOR * max(self.air_err)
             self.thd = NAN
             if self.flag == 0 and self.armed:
-                self.thd = self.thd1 if not self.relative else max(self.thd_entry, self.air_floor)
+                self.thd = self.thd1 if not self.relative else self.thd_entry
                 if e > self.thd:
                     self._event(0, t, x)
             elif self.flag < self.n and self.armed:
@@ -631,6 +655,6 @@ class InterfaceDetector(Block):
             self.t_paper, self.x_paper, self.t_thin, self.x_thin,
             self.F_ref,
             *t_if, *x_if,
-            self.t_fail, self.x_fail, self.thd, float(self.n),
+            self.t_fail, self.x_fail, self.thd, float(self.n), self.mismatch,
             *(v for ev in LOC_EVENTS for v in self.loc[ev]),
         )

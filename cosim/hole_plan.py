@@ -52,6 +52,9 @@ LOCATE_MARGIN = 0.45e-3
 PUSH_OUT = 0.5e-3
 # the observer must see this many orbits in a layer to tell its ripple from its level
 ORBITS_PER_LAYER = 2.0
+# a layer's observed level over the one above's, against the plan's (kc f) ratio: wear moves it
+# by up to ~2.7 (Al / Ti, 80 holes), another drive by ~0.8; a wrong order by ~10 (CFRP/Ti) or more
+MISMATCH_FACTOR = 4.0
 DETECTOR_DT, DETECTOR_N = 0.02, 150     # InterfaceDetector defaults (Table 4's dt, its window)
 LAYER_KEYS = {"material", "thickness", "tolerance"}
 
@@ -257,6 +260,7 @@ class HolePlan:
             "fail_disarms": True,
             "locate_margin": self.locate_margin,
             "push_out": self.push_out,
+            "mismatch_factor": MISMATCH_FACTOR,
         }
 
     def stages(self) -> list[dict]:

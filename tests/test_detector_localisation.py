@@ -108,3 +108,42 @@ def test_localise_off_leaves_the_outputs_nan():
     assert math.isfinite(out["x_entry"]) and math.isnan(out["x_entry_loc"])
     with pytest.raises(ValueError, match="locate_margin"):
         InterfaceDetector(locate_margin=0.0)
+
+
+@pytest.mark.parametrize("law", ["linear", "quadratic", "break-off", "burr"])
+def test_exit_follows_the_push_out_law(law):
+    """Issue 23 item 4: the exit is where the last layer's own thrust reaches the air
+    level, whatever law it falls by -- linear thinning (the project's drive), quadratic
+    ligament yield (the foreign drive), a cap that breaks off (the face is the break), a
+    burr pushed on 0.1 mm past the face at 5 % of the plateau -- with 4 N of noise."""
+    x = np.arange(0.0, 1.2 * MM, 0.004 * MM)
+    xb, P = 0.9 * MM, 400.0
+    r = lambda L: np.clip((xb - x) / L, 0.0, 1.0)  # noqa: E731
+    face = xb
+    if law == "linear":
+        F = P * r(0.4 * MM)
+    elif law == "quadratic":
+        F = P * r(0.35 * MM) ** 2
+    elif law == "break-off":          # capped at 60 % once the plate yields, breaks 0.08 mm above its bottom
+        face = xb - 0.08 * MM
+        F = np.where(x < 0.5 * MM, P, 0.6 * P) * (x < face)
+    else:
+        F = P * r(0.4 * MM) + 0.05 * P * np.clip(1.0 - (x - xb) / (0.1 * MM), 0.0, 1.0) * (x >= xb)
+    F = F + np.random.default_rng(7).normal(0.0, 4.0, x.size)
+    x_loc, _dx = locate("exit", x, F)
+    assert abs(x_loc - face) <= 0.01 * MM
+
+
+@pytest.mark.parametrize("swapped", [False, True])
+def test_materials_disagreeing_with_the_observed_levels_fail(swapped):
+    """Issue 23: the plan says CFRP over Ti; drilled the other way round the level ratio
+    is ~1/16 of the plan's (kc f: 6.5e7 x 9 um over 2e7 x 6 um = 4.9; observed 85/280)
+    -> a fail naming the materials (fail_code n + 2); in the right order, none."""
+    h = SyntheticHole(F_cfrp=280.0 if swapped else 85.0, F_ti=85.0 if swapped else 280.0, ti_slope=0.0,
+                      lag=0.005, seed=9)
+    out = _run(h, kc=[2.0e7, 6.5e7], feed_per_rev=[6e-6, 9e-6], mismatch_factor=4.0, exit_criterion="thinning")
+    if swapped:
+        assert out["fail"] == 1 and out["fail_code"] == 4
+        assert out["level_mismatch"] == pytest.approx(85.0 / 280.0 / 4.875, rel=0.15)
+    else:
+        assert out["fail"] == 0 and out["level_mismatch"] == pytest.approx(280.0 / 85.0 / 4.875, rel=0.15)

@@ -238,3 +238,44 @@ def test_montecarlo_full():
     from analysis import stack_montecarlo as mc
     rows = mc.run_campaign(mc.draw_campaign(200), workers=2, progress=False)
     assert mc.summarize(rows)["all"]["meets_bars"], mc.table_markdown(mc.summarize(rows))
+
+
+def test_montecarlo_wide_draw_and_refusals():
+    """Issue 23's draw: 1-4 layers, no equal neighbours, per-material processes in range;
+    a plan the loader refuses is redrawn and counted, every drawn plan loads."""
+    from analysis import stack_montecarlo as mc
+    jobs, refused = mc.draw_wide_campaign(30, seed=3)
+    base = mc.plan_of("cfrp_ti")
+    for _i, stack, ov in jobs:
+        mats = stack.split("/")
+        assert 1 <= len(mats) <= 4 and all(a != b for a, b in zip(mats, mats[1:]))
+        assert mc.plan_refusal(base, ov["hole.layers"], {m: {k: ov[f"hole.process.{m}.{k}"] for k in
+                               ("feed_rate", "spindle_speed", "orbital_speed")} for m in set(mats)}) is None
+        for m in set(mats):
+            feed = 6e4 * ov[f"hole.process.{m}.feed_rate"]
+            assert 5.0 <= feed <= 24.0 and 3.0 <= 1e3 * feed / ov[f"hole.process.{m}.spindle_speed"] <= 15.0
+    assert refused >= 0
+    # the loader agrees with the draw's check on the first plan
+    load_scenario(CFRP_TI, overrides=jobs[0][2])
+
+
+def test_montecarlo_wide_short():
+    """Two holes of the wide draw on the project's drive (the >= 200-hole run per plant is
+    test_montecarlo_wide_full, long): every event found is located, within the bars."""
+    from analysis import stack_montecarlo as mc
+    jobs, refused = mc.draw_wide_campaign(2, seed=5)
+    rows = mc.run_campaign(jobs, workers=1, progress=False, base=STACKS / mc.PLANTS["project"])
+    s = mc.summarize_wide(rows, refused)
+    assert s["holes"] == 2 and s["not_located"] == 0, rows
+    assert s["missed"] == 0 and s["false"] == 0 and s["false_fails"] == 0, rows
+    for key, g in s["events"].items():      # "<kind> <materials>"
+        assert g["located_worst"] <= mc.WIDE_BARS_MM[key.split()[0]], (key, g)
+
+
+@pytest.mark.long
+@pytest.mark.parametrize("plant", ["project", "foreign_ballscrew"])
+def test_montecarlo_wide_full(plant):
+    from analysis import stack_montecarlo as mc
+    jobs, refused = mc.draw_wide_campaign(200, seed=23, plant=plant)
+    s = mc.summarize_wide(mc.run_campaign(jobs, workers=2, progress=False, base=STACKS / mc.PLANTS[plant]), refused)
+    assert s["refused_share"] < 0.05 and s["meets_bars"], mc.table_wide_markdown({plant: s})
