@@ -249,3 +249,19 @@ def test_every_experiment_has_a_foreign2_twin_that_loads():
         sc = load_scenario(twin)
         assert all("foreign2_" in b.file for b in sc.system.bindings.values()), twin.name
         assert sc.scores, f"{twin.name} scores nothing"
+
+
+@pytest.mark.parametrize("plant", ["foreign2_zstage", "foreign2_ballscrew"])
+def test_commissioning_file_is_the_bindings_alone(plant):
+    """scenarios/commissioning/foreign2_*.json came from `drillcosim commission BINDING` with
+    nothing else told: target and plant are the binding, the data sheet is the project's, and
+    every drive block of the twins reads it."""
+    import json
+    doc = json.loads((ROOT / "scenarios" / "commissioning" / f"{plant}.json").read_text())
+    assert doc["plant"] == doc["target"] == f"scenarios/plants/{plant}.toml"
+    assert any("data sheet" in w and "project's nominal" in w for w in doc["warnings"])
+    for twin in TWINS:
+        text = twin.read_text()
+        if plant in text and "commissioning_file" in text:
+            assert all(f"../commissioning/{plant}.json" in line
+                       for line in text.splitlines() if line.startswith("commissioning_file")), twin.name
