@@ -265,3 +265,12 @@ def test_commissioning_file_is_the_bindings_alone(plant):
         if plant in text and "commissioning_file" in text:
             assert all(f"../commissioning/{plant}.json" in line
                        for line in text.splitlines() if line.startswith("commissioning_file")), twin.name
+
+
+@pytest.mark.parametrize("name,truths", [("Foreign2ZStage", ["f_comp"]),
+                                         ("Foreign2BallScrew", ["winding_T", "kt_now", "frame_x"])])
+def test_unbound_true_outputs_are_scoring_only(name, truths):
+    """True outputs no role covers are marked for the master's guard: no block can read them."""
+    from cosim.slave import load_model
+    model = load_model(fmu_path(name))
+    assert all(model.variables[n].scoring_only for n in truths)
