@@ -274,3 +274,15 @@ def test_unbound_true_outputs_are_scoring_only(name, truths):
     from cosim.slave import load_model
     model = load_model(fmu_path(name))
     assert all(model.variables[n].scoring_only for n in truths)
+
+
+# Fig. 7's run takes ~60 s here (its scores, not the 30000 steps): long; the calibration ~4 s
+@pytest.mark.parametrize("twin", [pytest.param("keio_fig7_aluminium_force_control", marks=pytest.mark.long),
+                                  "keio_thrust_constant_calibration"])
+def test_quick_twins_run_and_score(twin, tmp_path):
+    """Twins run to the end on the foreign2 z stage and write every score."""
+    from cosim import load_scenario, run_scenario
+    path = ROOT / "scenarios" / "foreign2" / f"{twin}.toml"
+    r = run_scenario(path, out_dir=tmp_path / twin, progress=False)
+    assert r.summary["status"] == "completed", r.summary.get("error")
+    assert set(r.summary["scores"]) == {name for *_, name in load_scenario(path).scores}
