@@ -249,3 +249,40 @@ def test_every_experiment_has_a_foreign2_twin_that_loads():
         sc = load_scenario(twin)
         assert all("foreign2_" in b.file for b in sc.system.bindings.values()), twin.name
         assert sc.scores, f"{twin.name} scores nothing"
+
+
+@pytest.mark.parametrize("plant", ["foreign2_zstage", "foreign2_ballscrew"])
+def test_commissioning_file_is_the_bindings_alone(plant):
+    """scenarios/commissioning/foreign2_*.json came from `drillcosim commission BINDING` with
+    nothing else told: target and plant are the binding, the data sheet is the project's, and
+    every drive block of the twins reads it."""
+    import json
+    doc = json.loads((ROOT / "scenarios" / "commissioning" / f"{plant}.json").read_text())
+    assert doc["plant"] == doc["target"] == f"scenarios/plants/{plant}.toml"
+    assert any("data sheet" in w and "project's nominal" in w for w in doc["warnings"])
+    for twin in TWINS:
+        text = twin.read_text()
+        if plant in text and "commissioning_file" in text:
+            assert all(f"../commissioning/{plant}.json" in line
+                       for line in text.splitlines() if line.startswith("commissioning_file")), twin.name
+
+
+@pytest.mark.parametrize("name,truths", [("Foreign2ZStage", ["f_comp"]),
+                                         ("Foreign2BallScrew", ["winding_T", "kt_now", "frame_x"])])
+def test_unbound_true_outputs_are_scoring_only(name, truths):
+    """True outputs no role covers are marked for the master's guard: no block can read them."""
+    from cosim.slave import load_model
+    model = load_model(fmu_path(name))
+    assert all(model.variables[n].scoring_only for n in truths)
+
+
+# Fig. 7's run takes ~60 s here (its scores, not the 30000 steps): long; the calibration ~4 s
+@pytest.mark.parametrize("twin", [pytest.param("keio_fig7_aluminium_force_control", marks=pytest.mark.long),
+                                  "keio_thrust_constant_calibration"])
+def test_quick_twins_run_and_score(twin, tmp_path):
+    """Twins run to the end on the foreign2 z stage and write every score."""
+    from cosim import load_scenario, run_scenario
+    path = ROOT / "scenarios" / "foreign2" / f"{twin}.toml"
+    r = run_scenario(path, out_dir=tmp_path / twin, progress=False)
+    assert r.summary["status"] == "completed", r.summary.get("error")
+    assert set(r.summary["scores"]) == {name for *_, name in load_scenario(path).scores}

@@ -5,6 +5,8 @@ disagree. Defaults are the plants' TRUE values (the data sheet is in each README
 
 Row: ``(name, value reference, type "r"/"i", kind, start, unit, min, max, description)`` with
 kind ``input``, ``output``, ``discrete`` (an output that only jumps), ``fixed`` or ``tunable``.
+True outputs that no role of the binding covers start their description with "Scoring only:",
+which the master's honest-physics guard honours for any FMU (cosim/system.py).
 """
 from __future__ import annotations
 
@@ -80,7 +82,7 @@ ZSTAGE = [
     ("f_guide", 16, "r", "output", 0.0, "N", 0, 0, "True guide friction on the slide, opposing downward motion"),
     ("layer", 17, "r", "discrete", 0.0, "", 0, 0, "Stack layer at the drill tip, 1..n_layers (0 outside)"),
     ("material", 18, "r", "discrete", 0.0, "", 0, 0, "Material at the drill tip: 0 air, 1 CFRP, 2 Ti-6Al-4V, 3 aluminium"),
-    ("f_comp", 19, "r", "output", 0.0, "N", 0, 0, "True compensator spring force, upward"),
+    ("f_comp", 19, "r", "output", 0.0, "N", 0, 0, "Scoring only: true compensator spring force, upward (no role: the master keeps it from blocks)"),
     ("m_slide", 30, "r", "tunable", 2.55, "kg", 0.1, 100, "Slide mass: carriage, motor coil, encoder head"),
     ("m_spindle", 31, "r", "tunable", 1.65, "kg", 0.01, 100, "Spindle and tool on the compliant mount"),
     ("k_mount", 32, "r", "tunable", 1.4, "N/um", 0.01, 100, "Mount stiffness between slide and spindle"),
@@ -130,9 +132,9 @@ BALLSCREW = [
     ("t_fric", 19, "r", "output", 0.0, "N.m", 0, 0, "True friction torque at the motor"),
     ("layer", 20, "r", "discrete", 0.0, "", 0, 0, "Stack layer at the tool tip, 1..n_layers (0 outside)"),
     ("material", 21, "r", "discrete", 0.0, "", 0, 0, "Material at the tool tip: 0 air, 1 CFRP, 2 Ti-6Al-4V, 3 aluminium"),
-    ("winding_T", 22, "r", "output", 40.0, "degC", 0, 0, "True winding (magnet) temperature"),
-    ("kt_now", 23, "r", "output", 0.0, "N.m/A", 0, 0, "True torque constant at the present temperature"),
-    ("frame_x", 24, "r", "output", 0.0, "um", 0, 0, "True frame deflection along the feed"),
+    ("winding_T", 22, "r", "output", 40.0, "degC", 0, 0, "Scoring only: true winding (magnet) temperature (no role: the master keeps it from blocks)"),
+    ("kt_now", 23, "r", "output", 0.0, "N.m/A", 0, 0, "Scoring only: true torque constant at the present temperature (no role: the master keeps it from blocks)"),
+    ("frame_x", 24, "r", "output", 0.0, "um", 0, 0, "Scoring only: true frame deflection along the feed (no role: the master keeps it from blocks)"),
     ("J_m", 30, "r", "tunable", 2.6e-4, "kg.m2", 1e-6, 1, "Motor rotor, coupling and screw inertia"),
     ("m_tab", 31, "r", "tunable", 32.0, "kg", 0.1, 1000, "Table, spindle and orbital head"),
     ("lead", 32, "r", "fixed", 4.0, "mm", 0.5, 50, "Screw lead"),
