@@ -91,7 +91,7 @@ error of a static force.
 ``commissioning_file`` (commissioning.json of ``drillcosim commission``): its nominal mass,
 force constant and gravity compensation replace ``mass_nominal``,
 ``force_constant_nominal`` and ``F_bias`` -- the set the cutting-force observer reads from
-the same file, so the two never disagree.
+the same file, so the two never disagree. ``accept_unverified``: the quantities of that file marked ``unverified`` it may use anyway (else it refuses them).
 
 With ``force_control = false`` the block never leaves ``mode`` 0 -- the same stack at
 the trajectory's constant feed, for the side-by-side comparison.

@@ -47,7 +47,7 @@ friction file's ``force_constant_nominal`` or else the ``Kt_n`` setting -- are s
 ``Kt_n_cal`` over that constant), ``commissioning_file`` (commissioning.json of ``drillcosim commission``: when given, its
 nominal mass, force constant, gravity compensation and friction model replace ``M_n``,
 ``Kt_n``, ``F_grav_comp``, the friction settings and both files above -- the same set the
-force controller reads), ``i_ref_timing``, ``sample_period`` [s] (> 0).
+force controller reads), ``accept_unverified`` (the quantities of that file marked ``unverified`` it may use anyway (else it refuses them)), ``i_ref_timing``, ``sample_period`` [s] (> 0).
 
 Timing of ``i_ref``: the motion seen between the previous and this encoder sample was
 produced by the current reference applied over that interval. This block declares no
