@@ -34,7 +34,8 @@ from .errors import CosimError, SimulationError
 from .fmi_types import (coerce_all, element_names, io_order, kind_of, parse_start, typed_reader,
                          typed_writer)
 
-BUILTIN_FMUS = ("LinearStage", "BallScrewDrive", "LinearStage3", "BallScrewDrive3", "ForeignBallScrew", "ForeignZStage")   # FMI 2.0, 3.0
+BUILTIN_FMUS = ("LinearStage", "BallScrewDrive", "LinearStage3", "BallScrewDrive3", "ForeignBallScrew", "ForeignZStage",
+                "Foreign2ZStage", "Foreign2BallScrew")   # FMI 2.0, 3.0
 LOG_KEEP = 20          # log messages kept per instance
 
 @dataclass(frozen=True)

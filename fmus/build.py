@@ -371,17 +371,21 @@ def build_all(force: bool = False, verbose: bool = True) -> dict[str, Path]:
     """Build every plant FMU (FMI 2.0 and 3.0, and the foreign-plant fixture of
     fmus/foreign/) that is stale (or all with ``force``); returns name -> .fmu path."""
     from .foreign import build as foreign
+    from .foreign2 import build as foreign2
     return {**{name: build(name, force=force, verbose=verbose) for name in VARIANTS},
-            **foreign.build_all(force=force, verbose=verbose)}
+            **foreign.build_all(force=force, verbose=verbose), **foreign2.build_all(force=force, verbose=verbose)}
 
 
 def fmu_path(name: str) -> Path:
     """Path of the built-in FMU ``name`` ("LinearStage", "BallScrewDrive" for FMI 2.0,
     "LinearStage3", "BallScrewDrive3" for FMI 3.0, "ForeignBallScrew", "ForeignZStage" for
-    the foreign-plant fixture), building it when missing or stale."""
+    the foreign-plant fixture, "Foreign2ZStage", "Foreign2BallScrew" for the second pair), building it when missing or stale."""
     from .foreign import build as foreign
+    from .foreign2 import build as foreign2
     if name in foreign.FOREIGN:
         return foreign.fmu_path(name)
+    if name in foreign2.FOREIGN2:
+        return foreign2.fmu_path(name)
     _variant(name)
     fmu = _fmu_file(name)
     if fmu.exists() and _up_to_date(name):
@@ -396,8 +400,10 @@ def main(argv=None) -> int:
     ap.add_argument("--force", action="store_true", help="rebuild even when up to date")
     args = ap.parse_args(argv)
     from .foreign import build as foreign
-    for n in args.names or list(VARIANTS) + list(foreign.FOREIGN):
-        (foreign.build if n in foreign.FOREIGN else build)(n, force=args.force)
+    from .foreign2 import build as foreign2
+    for n in args.names or list(VARIANTS) + list(foreign.FOREIGN) + list(foreign2.FOREIGN2):
+        (foreign.build if n in foreign.FOREIGN else foreign2.build if n in foreign2.FOREIGN2 else build)(
+            n, force=args.force)
     if not args.names:          # the master's C (cosim/native) and the blocks' kernels (controllers/kernels)
         from controllers.kernels import build_all as build_kernels
         from cosim.native import build_all as build_native
