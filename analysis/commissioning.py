@@ -247,14 +247,19 @@ def current_saturation(result, kind: str) -> str | None:
     # 10 ms means: a saturation lasts, the current noise does not
     from analysis.signal_tools import centred_mean
     n = max(1, int(round(0.01 / float(np.median(np.diff(result.time))))))
-    i_ref = np.abs(centred_mean(result["controller.i_ref"], n))
-    i_meas = np.abs(centred_mean(result["drive.i_meas"], n))
-    high = i_ref > 0.5 * float(np.max(i_ref))
-    short = high & (i_meas < (1 - SATURATION_GAP) * i_ref)
+    i_ref = centred_mean(result["controller.i_ref"], n)
+    i_meas = centred_mean(result["drive.i_meas"], n)
+    # the sensor's own gain and bias from the lower half of the range: a saturation is the
+    # measured current falling short of that line at the top, not a biased sensor
+    low = np.abs(i_ref) <= 0.5 * float(np.max(np.abs(i_ref)))
+    g, b = np.polyfit(i_ref[low], i_meas[low], 1) if low.sum() > 10 else (1.0, 0.0)
+    high = ~low
+    short = high & (np.sign(i_ref) * (g * i_ref + b - i_meas) > SATURATION_GAP * np.abs(i_ref))
     if short.sum() > max(20, 0.2 * high.sum()):
-        return (f"the plant's measured current stays {100 * SATURATION_GAP:g} % or more below the reference in "
-                f"{int(short.sum())} of {int(high.sum())} samples at high current (max |i_meas| "
-                f"{float(np.max(i_meas)):.3g} A against |i_ref| {float(np.max(i_ref)):.3g} A): the current saturates")
+        return (f"the plant's measured current stays {100 * SATURATION_GAP:g} % or more below its own low-current "
+                f"line (i_meas = {g:.4g} i_ref {b:+.3g} A) in {int(short.sum())} of {int(high.sum())} samples at high "
+                f"current (max |i_meas| {float(np.max(np.abs(i_meas))):.3g} A against |i_ref| "
+                f"{float(np.max(np.abs(i_ref))):.3g} A): the current saturates")
     return None
 
 

@@ -326,8 +326,10 @@ def _refine_families(scan, fit_offset, vs, exponent, chosen, dk):
     return ks
 
 
-CRITERION = ("two-fold cross-validation by pairs of segments: a term is kept when it lowers the RMS "
-             "prediction error on the held-out segments by more than min_gain (and the BIC)")
+CRITERION = ("two-fold cross-validation by pairs of segments: a velocity or position-force term is kept when it "
+             "lowers the RMS prediction error on the held-out segments by more than min_gain and lowers the BIC; "
+             "a harmonic when it lowers both and its amplitude reaches 5 % of the largest kept harmonic and 1 % "
+             "of the Coulomb level")
 
 
 def select_friction_model(time, position, effort, v_ref, *, fit_offset: bool = True, settle: float = 0.2,
@@ -378,7 +380,7 @@ def select_friction_model(time, position, effort, v_ref, *, fit_offset: bool = T
         # periodic within it): keep vs and the exponent while adding harmonics, refit at the end
         vs_c, ex_c = (best.v_stribeck, best.stribeck_exponent) if use_stribeck else (None, 2.0)
         cand = _fit(rows, fit_offset, vs_c, ex_c, chosen + [k], units)
-        kept = better(cand, best)
+        kept = _harmonic_supported(cand, best)
         log.append({"model": f"+harmonic k={k:.6g} 1/{position_unit}", "cv_rms": cand.info["cv_rms"],
                     "bic": cand.info["bic"],
                     "rms": cand.info["rms_residual"], "amplitude": float(amp[j]), "kept": kept})
@@ -408,6 +410,16 @@ def select_friction_model(time, position, effort, v_ref, *, fit_offset: bool = T
                      harmonics=harmonic_checks(rows, best, fit_offset, search_decimation),
                      whiteness=whiteness(rows, best, fit_offset, k_max_rev, lambda_min, search_decimation))
     return best
+
+
+def _harmonic_supported(cand: FrictionModel, best: FrictionModel) -> bool:
+    """A harmonic is kept when it lowers the held-out error and the BIC and is relevant (as
+    large as the whiteness test's floor: a ripple term too small to matter is not kept, one
+    that matters is kept though it lowers the held-out RMS by less than a velocity term must)."""
+    amp = math.hypot(cand.ripple[-1][1], cand.ripple[-1][2])
+    floor = max([WHITENESS_RELEVANT[0] * math.hypot(a, b) for _, a, b in cand.ripple[:-1]]
+                + [WHITENESS_RELEVANT[1] * abs(cand.coulomb)])
+    return cand.info["cv_rms"] < best.info["cv_rms"] and cand.info["bic"] < best.info["bic"] and amp >= floor
 
 
 def _newton_refine(rows: _Rows, fit_offset, vs, ex, ks, steps: int = 2) -> list[float]:

@@ -25,11 +25,18 @@ TRUTH = {
     "ball_screw": dict(inertia=0.0003 * 1.05, force_constant=1.10 * 0.97, ripple=[6]),
     "foreign_zstage": dict(mass=4.3, force_constant=24.6, ripple=[0.012, 0.006]),              # fmus/foreign READMEs
     "foreign_ballscrew": dict(inertia=2.162e-4 / 0.95, force_constant=0.87 / 0.95, ripple=[4, 9]),
+    # fmus/foreign2 READMEs: 2.55 + 1.65 kg; Kf 23.29 N/A at the 50 N working current (23.4 at
+    # zero current, -3 % at 6 A, +-1.5 % along the stroke); cogging 7.5 mm + 3.75 mm
+    "foreign2_zstage": dict(mass=4.20, force_constant=23.29, ripple=[0.0075, 0.00375]),
+    # J_m + m_tab p^2 = 2.730e-4; Kt 1.1077 N m/A at the start (30 degC), drifting -0.11 %/K
+    "foreign2_ballscrew": dict(inertia=2.730e-4 / 0.95, force_constant=1.1077 / 0.95, ripple=[3, 7, 14]),
 }
 TARGETS = {"linear_stage": "scenarios/plants/linear_stage.toml",
            "ball_screw": "scenarios/plants/ballscrew_drive.toml",
            "foreign_zstage": "scenarios/foreign/air_cut_friction_identification_keio.toml",
-           "foreign_ballscrew": "scenarios/foreign/air_cut_friction_identification.toml"}
+           "foreign_ballscrew": "scenarios/foreign/air_cut_friction_identification.toml",
+           "foreign2_zstage": "scenarios/plants/foreign2_zstage.toml",
+           "foreign2_ballscrew": "scenarios/plants/foreign2_ballscrew.toml"}
 
 
 def assert_within_or_unverified(doc: dict, truth: dict):
