@@ -645,8 +645,8 @@ def whiteness(rows: _Rows, fm: FrictionModel, fit_offset=True, k_max_rev: int = 
               decimation: int = 10) -> dict:
     """Is a periodic term left in the residual? The residual's least-squares periodogram
     over the drive position: for noise without such a term its power at a wavenumber is
-    ~ exponential, so the peak over ``M`` independent wavenumbers exceeds
-    ``ln(M / false_alarm)`` times the mean power (estimated robustly: median / ln 2) with
+    ~ exponential, so the peak over ``m`` independent wavenumbers exceeds
+    ``ln(m / false_alarm)`` times the mean power (estimated robustly: median / ln 2) with
     probability ``false_alarm``. With 1e5 samples that test finds terms of a few mN that no
     estimate feels, so a peak counts only when it is also as large as
     ``WHITENESS_RELEVANT`` of the largest kept ripple term or of the Coulomb level."""
