@@ -166,8 +166,30 @@ def air_cut(target: dict, out: Path):
     if "thrust_dyn" in target["binding"].roles:
         rec.append("drive.thrust_dyn")
     tables["record"] = {"signals": rec, "decimation": 1}
+    if target.get("air_cut"):
+        tables["blocks.reference.settings"] = air_cut_settings(kind, target["air_cut"])
     sc = write_scenario(out / "experiments" / "air_cut.toml", tables)
     return _run(sc, out / "air_cut")
+
+
+AIR_CUT_KEYS = ("velocities", "hold", "a_max", "pause", "z_start")
+
+
+def air_cut_settings(kind: str, given: dict) -> dict:
+    """The air cut's segment settings a user gives (``drillcosim commission --air-cut
+    KEY=VALUE``: a shorter stroke, other speeds), checked by name; new ``velocities``
+    without ``a_max`` keep the template's two accelerations, alternating by pairs."""
+    from cosim.scenario import read_toml
+    bad = sorted(set(given) - set(AIR_CUT_KEYS))
+    if bad:
+        raise CommissioningError(f"air cut setting(s) {', '.join(bad)} unknown (expected some of "
+                                 f"{', '.join(AIR_CUT_KEYS)}: controllers.friction:VelocitySegments)")
+    out = dict(given)
+    if "velocities" in out and "a_max" not in out:
+        tmpl = read_toml(TEMPLATES / f"air_cut_{kind}.toml")["blocks"]["reference"]["settings"]["a_max"]
+        levels = sorted({float(a) for a in np.atleast_1d(tmpl)}, reverse=True)
+        out["a_max"] = [levels[(j // 2) % len(levels)] for j in range(len(out["velocities"]))]
+    return out
 
 
 def fit_air_cut(result, target: dict) -> tuple:
@@ -346,12 +368,14 @@ def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: fl
 
 # --------------------------------------------------------------------------- the whole
 def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
-               contact_damping: float | None = None, print_table: bool = True, file=None) -> dict:
+               contact_damping: float | None = None, print_table: bool = True, file=None,
+               air_cut_overrides: dict | None = None) -> dict:
     """Run the commissioning experiments and write ``commissioning.json`` (see module doc) into
     ``out_dir``, or to ``file`` (its paths are written relative to the file's folder)."""
     out = Path(out_dir).resolve()      # the experiment files it writes name paths under it
     out.mkdir(parents=True, exist_ok=True)
     target = read_target(target_path)
+    target["air_cut"] = dict(air_cut_overrides or {})
     kind, ds = target["kind"], target["datasheet"]
     warnings = list(target["notes"])
     res = air_cut(target, out)
