@@ -59,6 +59,7 @@ def read_target(path) -> dict:
 
     path = Path(path).resolve()
     raw = read_toml(path)
+    fmu_params = {}
     if "plant" in raw and "roles" in raw:
         binding_path, datasheet, fmu_name, plant_params = path, {}, "drive", {}
     else:
@@ -72,6 +73,7 @@ def read_target(path) -> dict:
         where = Path(origins.file_of(f"fmus.{fmu_name}.plant")).parent
         binding_path = (where / spec["plant"]).resolve()
         plant_params = dict(spec.get("plant_parameters", {}))
+        fmu_params = dict(spec.get("parameters", {}))
         datasheet = {}
         binding = load_binding(binding_path)
         for key, names in DATASHEET_SETTINGS[binding.kind].items():
@@ -93,7 +95,24 @@ def read_target(path) -> dict:
             datasheet[key] = val
             notes.append(f"data sheet: {key} not given, the project's nominal {val:g} is used")
     return {"binding": binding, "binding_path": binding_path, "kind": binding.kind, "datasheet": datasheet,
-            "fmu": fmu_name, "plant_parameters": plant_params, "notes": notes}
+            "fmu": fmu_name, "plant_parameters": plant_params, "fmu_parameters": fmu_params, "notes": notes}
+
+
+# the contract parameters that lay out the workpiece: each experiment sets its own
+STACK_PARAMETERS = ("surface", "n_layers", "wear_holes")
+
+
+def plant_settings(target: dict, fmu: str = "drive") -> dict:
+    """Every setting the target scenario gives its plant, for an experiment's tables: its
+    ``plant_parameters`` but the workpiece layout (the experiment's own) and the FMU's own
+    ``parameters`` (a spring rate, a mount stiffness...): the experiments run on the plant
+    as the scenario configures it."""
+    params = {k: v for k, v in target["plant_parameters"].items()
+              if k not in STACK_PARAMETERS and not k.startswith("layer")}
+    tables = {f"fmus.{fmu}.plant_parameters": params}
+    if target.get("fmu_parameters"):
+        tables[f"fmus.{fmu}.parameters"] = dict(target["fmu_parameters"])
+    return tables
 
 
 # --------------------------------------------------------------------------- scenario files
@@ -134,10 +153,8 @@ def air_cut(target: dict, out: Path):
     kind, ds = target["kind"], target["datasheet"]
     tables = {"scenario": {"extends": str(TEMPLATES / f"air_cut_{kind}.toml"),
                            "description": f"commissioning air cut of {target['binding_path'].name}"},
-              "fmus.drive": {"plant": str(target["binding_path"])}}
-    params = {k: v for k, v in target["plant_parameters"].items() if k == "seed"}
-    params["surface"] = 0.2 if kind == "ball_screw" else 0.5
-    tables["fmus.drive.plant_parameters"] = params
+              "fmus.drive": {"plant": str(target["binding_path"])}, **plant_settings(target)}
+    tables["fmus.drive.plant_parameters"]["surface"] = 0.2 if kind == "ball_screw" else 0.5
     rec = ["drive.i_meas", "drive.table_position", "reference.v_ref", "reference.a_ref", "controller.i_ref"]
     if kind == "ball_screw":
         tables["blocks.controller.settings"] = {DATASHEET_SETTINGS[kind][q][-1]: ds[q] for q in ds}
@@ -149,8 +166,30 @@ def air_cut(target: dict, out: Path):
     if "thrust_dyn" in target["binding"].roles:
         rec.append("drive.thrust_dyn")
     tables["record"] = {"signals": rec, "decimation": 1}
+    if target.get("air_cut"):
+        tables["blocks.reference.settings"] = air_cut_settings(kind, target["air_cut"])
     sc = write_scenario(out / "experiments" / "air_cut.toml", tables)
     return _run(sc, out / "air_cut")
+
+
+AIR_CUT_KEYS = ("velocities", "hold", "a_max", "pause", "z_start")
+
+
+def air_cut_settings(kind: str, given: dict) -> dict:
+    """The air cut's segment settings a user gives (``drillcosim commission --air-cut
+    KEY=VALUE``: a shorter stroke, other speeds), checked by name; new ``velocities``
+    without ``a_max`` keep the template's two accelerations, alternating by pairs."""
+    from cosim.scenario import read_toml
+    bad = sorted(set(given) - set(AIR_CUT_KEYS))
+    if bad:
+        raise CommissioningError(f"air cut setting(s) {', '.join(bad)} unknown (expected some of "
+                                 f"{', '.join(AIR_CUT_KEYS)}: controllers.friction:VelocitySegments)")
+    out = dict(given)
+    if "velocities" in out and "a_max" not in out:
+        tmpl = read_toml(TEMPLATES / f"air_cut_{kind}.toml")["blocks"]["reference"]["settings"]["a_max"]
+        levels = sorted({float(a) for a in np.atleast_1d(tmpl)}, reverse=True)
+        out["a_max"] = [levels[(j // 2) % len(levels)] for j in range(len(out["velocities"]))]
+    return out
 
 
 def fit_air_cut(result, target: dict) -> tuple:
@@ -188,16 +227,62 @@ def fit_air_cut(result, target: dict) -> tuple:
         med = float(np.median(seg_res))
         bad = [j for j, r in enumerate(seg_res) if r > 5 * med and r > 3 * fm.info["noise_rms"]]
         if bad:
+            from analysis.identification import constant_velocity_segments
+            segs = constant_velocity_segments(t, result["reference.v_ref"], settle=settle, min_duration=min_dur)
+            where = ", ".join(f"{j + 1} ({pos[segs[j][0]]:.4g}..{pos[segs[j][-1]]:.4g} {units['position_unit']})"
+                              for j in bad)
+            dyn = (f"; the dynamometer read at most {float(np.max(np.abs(result['drive.thrust_dyn']))):.2g} N, so "
+                   f"not the workpiece" if "drive.thrust_dyn" in result else "")
             raise CommissioningError(
-                f"air cut: segment(s) {', '.join(str(j + 1) for j in bad)} leave a residual of "
-                f"{max(seg_res[j] for j in bad):.3g} {fm.effort_unit} against a median {med:.3g}: the drive touched "
-                f"something (the workpiece, an end stop) while cutting air; clear the travel and commission again")
+                f"air cut: segment(s) {where} leave a residual of {max(seg_res[j] for j in bad):.3g} "
+                f"{fm.effort_unit} against a median {med:.3g}: an effort that neither friction, the position force "
+                f"nor the ripple explains there (an end stop, a cable drag, a force the model lacks){dyn}; clear the "
+                f"travel or shorten it and commission again")
     if fm.info["residual_ratio"] > MAX_RESIDUAL_RATIO:
         warnings.append(f"friction fit: residual RMS {fm.info['rms_residual']:.3g} {fm.effort_unit} is "
                         f"{fm.info['residual_ratio']:.1f}x the noise within the segments (> {MAX_RESIDUAL_RATIO}): "
                         f"the model misses part of the drive's effort")
     inertia = identify_inertia(t, pos, effort, fm, result["reference.a_ref"])
+    sat = current_saturation(result, kind)
+    if sat:
+        inertia["check"] = {**inertia.get("check", {}), "passed": False, "reason": sat}
+        warnings.append(f"air cut: {sat}")
     return fm, inertia, warnings
+
+
+SATURATION_GAP = 0.05             # |i_meas| this far below |i_ref| at high current: the drive limits it
+
+
+def current_saturation(result, kind: str) -> str | None:
+    """Why the air cut's current saturated (the controller at its ``i_max``, or the plant's
+    measured current falling short of the reference at the top of its range), or None. The
+    effort of those samples is not what the fit takes it to be."""
+    from cosim.scenario import read_toml
+    i_ref = np.abs(result["controller.i_ref"])
+    i_max = float(read_toml(TEMPLATES / f"air_cut_{kind}.toml")["blocks"]["controller"]["settings"]["i_max"])
+    n_lim = int(np.sum(i_ref >= 0.999 * i_max))
+    if n_lim:
+        return (f"the current reference sat at the controller's limit i_max = {i_max:g} A for {n_lim} samples: "
+                f"the effort is not the drive's; lower the air cut's accelerations")
+    if "drive.i_meas" not in result:
+        return None
+    # 10 ms means: a saturation lasts, the current noise does not
+    from analysis.signal_tools import centred_mean
+    n = max(1, int(round(0.01 / float(np.median(np.diff(result.time))))))
+    i_ref = centred_mean(result["controller.i_ref"], n)
+    i_meas = centred_mean(result["drive.i_meas"], n)
+    # the sensor's own gain and bias from the lower half of the range: a saturation is the
+    # measured current falling short of that line at the top, not a biased sensor
+    low = np.abs(i_ref) <= 0.5 * float(np.max(np.abs(i_ref)))
+    g, b = np.polyfit(i_ref[low], i_meas[low], 1) if low.sum() > 10 else (1.0, 0.0)
+    high = ~low
+    short = high & (np.sign(i_ref) * (g * i_ref + b - i_meas) > SATURATION_GAP * np.abs(i_ref))
+    if short.sum() > max(20, 0.2 * high.sum()):
+        return (f"the plant's measured current stays {100 * SATURATION_GAP:g} % or more below its own low-current "
+                f"line (i_meas = {g:.4g} i_ref {b:+.3g} A) in {int(short.sum())} of {int(high.sum())} samples at high "
+                f"current (max |i_meas| {float(np.max(np.abs(i_meas))):.3g} A against |i_ref| "
+                f"{float(np.max(np.abs(i_ref))):.3g} A): the current saturates")
+    return None
 
 
 # --------------------------------------------------------------------------- experiment 2
@@ -216,7 +301,8 @@ def thrust_calibration(target: dict, friction_file: Path, mass: float, out: Path
     if target["kind"] == "ball_screw":
         return ball_screw_thrust_calibration(target, friction_file, mass, out)
     ds = target["datasheet"]
-    params = {k: v for k, v in target["plant_parameters"].items() if k == "seed"}
+    plant = plant_settings(target, "stage")
+    params = plant.pop("fmus.stage.plant_parameters")
     params.update(spindle_speed=314.159265)
     names = DATASHEET_SETTINGS["linear_stage"]
     vals = {"mass": mass, "force_constant": ds["force_constant"]}
@@ -225,7 +311,7 @@ def thrust_calibration(target: dict, friction_file: Path, mass: float, out: Path
     tables = {"scenario": {"extends": str(ROOT / "scenarios" / "keio_thrust_constant_calibration.toml"),
                            "description": "commissioning reference cut (thrust constant)"},
               "fmus.stage": {"plant": str(target["binding_path"])},
-              "fmus.stage.plant_parameters": params,
+              "fmus.stage.plant_parameters": params, **plant,
               "blocks.observer.settings": {**observer_ds, "friction_file": str(friction_file), "calibration_file": ""},
               "blocks.controller.settings": {**controller_ds, "calibration_file": "", "F_bias": 0.0}}
     sc = write_scenario(out / "experiments" / "thrust_calibration.toml", tables)
@@ -256,14 +342,15 @@ def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: fl
     ds = target["datasheet"]
     template = TEMPLATES / "thrust_cut_ball_screw.toml"
     block = dict(read_toml(template)["fmus"]["drive"]["plant_parameters"])
-    block.update({k: v for k, v in target["plant_parameters"].items() if k == "seed"})
+    plant = plant_settings(target)
+    block.update(plant.pop("fmus.drive.plant_parameters"))
     names = DATASHEET_SETTINGS["ball_screw"]
     observer = {names[q][0]: (inertia if q == "inertia" else ds[q]) for q in names}
     observer["friction_file"] = str(friction_file)
     controller = {DATASHEET_SETTINGS["ball_screw"][q][-1]: ds[q] for q in ds}
     tables = {"scenario": {"extends": str(template), "description": "commissioning reference cut (thrust constant)"},
               "fmus.drive": {"plant": str(target["binding_path"])},
-              "fmus.drive.plant_parameters": block,
+              "fmus.drive.plant_parameters": block, **plant,
               "blocks.controller.settings": controller, "blocks.observer.settings": observer,
               "[[connections]]": [{"from": "drive.motor_angle", "to": "controller.z", "scale": ds["pitch"]}]}
     sc = write_scenario(out / "experiments" / "thrust_calibration.toml", tables)
@@ -281,11 +368,14 @@ def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: fl
 
 # --------------------------------------------------------------------------- the whole
 def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
-               contact_damping: float | None = None, print_table: bool = True) -> dict:
-    """Run the commissioning experiments and write ``commissioning.json`` (see module doc)."""
+               contact_damping: float | None = None, print_table: bool = True, file=None,
+               air_cut_overrides: dict | None = None) -> dict:
+    """Run the commissioning experiments and write ``commissioning.json`` (see module doc) into
+    ``out_dir``, or to ``file`` (its paths are written relative to the file's folder)."""
     out = Path(out_dir).resolve()      # the experiment files it writes name paths under it
     out.mkdir(parents=True, exist_ok=True)
     target = read_target(target_path)
+    target["air_cut"] = dict(air_cut_overrides or {})
     kind, ds = target["kind"], target["datasheet"]
     warnings = list(target["notes"])
     res = air_cut(target, out)
@@ -326,7 +416,8 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
         from analysis.contact_identification import _target_gains
         from analysis.force_margin import commission_gains
         commission_gains(doc, _target_gains(target_path))      # Kf, g_thrust for the stated margin
-    return _finish(doc, res, fm, target, out, scale, travel, print_table)
+    dest = Path(file).resolve() if file else out / "commissioning.json"
+    return _finish(doc, res, fm, target, out, scale, travel, print_table, dest)
 
 
 def _travel(result, kind: str) -> tuple[float, float]:
@@ -335,15 +426,16 @@ def _travel(result, kind: str) -> tuple[float, float]:
     return float(p[0]), float(p[np.argmax(np.abs(p - p[0]))])
 
 
-def _finish(doc, res, fm, target, out: Path, scale, travel, print_table) -> dict:
+def _finish(doc, res, fm, target, out: Path, scale, travel, print_table, dest: Path) -> dict:
     """Spreads and checks (``identified``, ``unverified``), then the file, figure, summary, report."""
     from analysis.commissioning_checks import identified_entries
     doc["identified"], doc["unverified"] = identified_entries(doc, fm, scale, tuple(sorted(travel)))
     for q, why in doc["unverified"].items():
         doc["warnings"].append(f"UNVERIFIED {q}: {why}")
-    write_json_atomic(out / "commissioning.json", _file_relative(doc, out))
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(dest, _file_relative(doc, dest.parent, (out,)))
     report_figure(res, fm, target, out)
-    summary = {"commissioning_file": "commissioning.json", "kind": doc["nominal"]["kind"],
+    summary = {"commissioning_file": str(dest), "kind": doc["nominal"]["kind"],
                "nominal": doc["nominal"], "friction_model": fm.info.get("selection"), "contact": doc["contact"],
                "unverified": doc["unverified"], "warnings": doc["warnings"]}
     write_json_atomic(out / "summary.json", _file_relative(summary, out))
@@ -368,19 +460,21 @@ def without_calibration(doc: dict) -> dict:
     return {**doc, "nominal": nom, "friction": fm.to_dict(), "calibration": None}
 
 
-def _file_relative(obj, base: Path):
-    """Every absolute path under the file's folder or in the repository written relative to
-    the file's folder ``base`` (a commissioning file is committed and read from other
-    checkouts and folders), also inside messages."""
+def _file_relative(obj, base: Path, roots=()):
+    """Every absolute path under the file's folder ``base``, one of ``roots`` (the experiments'
+    folder) or the repository written relative to ``base`` (a commissioning file is committed
+    and read from other checkouts and folders), also inside messages."""
     import os
     if isinstance(obj, dict):
-        return {k: _file_relative(v, base) for k, v in obj.items()}
+        return {k: _file_relative(v, base, roots) for k, v in obj.items()}
     if isinstance(obj, list):
-        return [_file_relative(v, base) for v in obj]
+        return [_file_relative(v, base, roots) for v in obj]
     if isinstance(obj, str):
-        obj = obj.replace(str(base) + "/", "")
-        if str(ROOT) + "/" in obj:
-            obj = obj.replace(str(ROOT) + "/", os.path.relpath(ROOT, base) + "/")
+        # the deepest folder first: the experiments' folder may lie inside the repository
+        for r in sorted({str(Path(x).resolve()) for x in (base, *roots, ROOT)}, key=len, reverse=True):
+            if r + "/" in obj:
+                rel = os.path.relpath(r, base)
+                obj = obj.replace(r + "/", "" if rel == "." else rel + "/")
     return obj
 
 

@@ -81,7 +81,9 @@ def friction_entry(fm) -> dict:
         ho["reason"] = (f"held-back segment {ho['worst_segment']} mean effort predicted {ho['worst_error']:+.3g} "
                         f"{fm.effort_unit} off (limit {ho['worst_limit']:.3g})")
     ho = {k: v for k, v in ho.items() if k not in ("segment_error", "segment_limit")}
-    std = info.get("std", {})
+    # the spreads were taken before the thrust calibration rescaled the efforts (not vs)
+    sc = info.get("rescaled_by_thrust_calibration", 1.0)
+    std = {k: v * (1.0 if k == "v_stribeck" else sc) for k, v in info.get("std", {}).items()}
     params = {"coulomb": fm.coulomb, "viscous": fm.viscous, "offset": fm.offset}
     if fm.stribeck:
         params.update(stribeck=fm.stribeck, v_stribeck=fm.v_stribeck)
@@ -92,8 +94,8 @@ def friction_entry(fm) -> dict:
 def ripple_entry(fm, travel: float) -> dict:
     info = fm.info
     terms, reasons = [], []
-    for h in info.get("harmonics", []):
-        t = {"k": h["k"], "k_std": h["k_std"], "amplitude": h["amplitude"], "passed": h["passed"]}
+    for h, (_, a, b) in zip(info.get("harmonics", []), fm.ripple):
+        t = {"k": h["k"], "k_std": h["k_std"], "amplitude": math.hypot(a, b), "passed": h["passed"]}
         if fm.position_unit != "rad":
             lam = 2 * math.pi / h["k"]
             t.update(wavelength=lam, wavelength_std=lam * h["k_std"] / h["k"])
@@ -125,7 +127,7 @@ def gravity_entry(doc: dict, fm, p_range: tuple[float, float]) -> dict:
     p = np.linspace(p_range[0], p_range[1], 201)
     pf = position_force(fm, p)
     change = float(np.ptp(pf)) if len(pf) else 0.0
-    std = (fm.info.get("std") or {}).get("offset", math.nan)
+    std = (fm.info.get("std") or {}).get("offset", math.nan) * fm.info.get("rescaled_by_thrust_calibration", 1.0)
     check = {"method": "position-dependent force over the air cut's travel", "change_N": change,
              "limit_N": POSITION_FORCE_LIMIT_N, "passed": change <= POSITION_FORCE_LIMIT_N}
     if not check["passed"]:

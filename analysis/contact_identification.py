@@ -272,16 +272,6 @@ def identify_contact(result, steps, *, force_constant: float, friction, current_
             "frequencies_Hz": [float(x / (2 * math.pi)) for x in w], "warnings": warnings}
 
 
-def _target_fmu_parameters(target_path, fmu: str) -> dict:
-    """The FMU's own ``parameters`` a target scenario sets (its plant as configured: e.g. the
-    contact it was built with); {} for a binding file."""
-    from cosim.scenario import load_raw, read_toml
-    raw = read_toml(Path(target_path))
-    if "plant" in raw and "roles" in raw:
-        return {}
-    return dict(load_raw(Path(target_path)).get("fmus", {}).get(fmu, {}).get("parameters", {}))
-
-
 def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings: list) -> dict | None:
     """Run the contact experiment on the commissioned stage (``doc``: the commissioning
     document so far, written for the observer and controller to read) and return the
@@ -295,18 +285,14 @@ def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings
     com = exp / "commissioning_air_cut.json"
     com.write_text(json.dumps(doc, indent=1))
     steps = schedule()
-    params = {k: v for k, v in target["plant_parameters"].items() if k == "seed"}
+    from analysis.commissioning import plant_settings
     tables = {"scenario": {"extends": str(TEMPLATE), "description":
                            f"commissioning contact experiment of {Path(target['binding_path']).name}"},
-              "fmus.drive": {"plant": str(target["binding_path"])},
-              "fmus.drive.plant_parameters": params,
+              "fmus.drive": {"plant": str(target["binding_path"])}, **plant_settings(target),
               "blocks.observer.settings": {"commissioning_file": str(com)},
               "blocks.controller.settings": {"commissioning_file": str(com)},
               "[[events]]": [{"time": steps[0][0] - SETTLE, "set": "excitation.amplitude", "value": AMPLITUDE}]
               + [{"time": t0, "set": "excitation.frequency", "value": f} for t0, f in steps]}
-    fmu_params = _target_fmu_parameters(target_path, target["fmu"])
-    if fmu_params:
-        tables["fmus.drive.parameters"] = fmu_params
     sc = write_scenario(exp / "contact.toml", tables)
     from cosim.errors import ScenarioError
     try:

@@ -84,7 +84,7 @@ Implementation choices (the paper leaves them open)
 * ``commissioning_file`` (commissioning.json of ``drillcosim commission``): its nominal set
   (inertia, calibrated force constant, pitch, eta) replaces ``J_en``, ``K_Tn``, ``K_pitch``,
   ``eta`` and its friction model the friction settings and ``friction_file`` -- the same set
-  the position controller reads (docs/commissioning.md).
+  the position controller reads (docs/commissioning.md); ``accept_unverified``: the quantities of that file marked ``unverified`` it may use anyway (else it refuses them).
 """
 from __future__ import annotations
 

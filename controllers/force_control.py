@@ -94,7 +94,8 @@ force constant and gravity compensation replace ``mass_nominal``,
 the same file, so the two never disagree. ``Kf`` comes from its ``force_loop_gains`` (tuned
 for the stated gain margin on that plant, :mod:`controllers.loop_gains`) unless the
 scenario pins it; a pinned Kf that leaves less than the margin at the commissioned
-g_thrust is a load warning (``load_warnings``, in summary.json).
+g_thrust is a load warning (``load_warnings``, in summary.json). ``accept_unverified``: the quantities of that file marked
+``unverified`` it may use anyway (else it refuses them).
 
 With ``force_control = false`` the block never leaves ``mode`` 0 -- the same stack at
 the trajectory's constant feed, for the side-by-side comparison.

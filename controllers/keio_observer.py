@@ -48,7 +48,8 @@ friction file's ``force_constant_nominal`` or else the ``Kt_n`` setting -- are s
 nominal mass, force constant, gravity compensation and friction model replace ``M_n``,
 ``Kt_n``, ``F_grav_comp``, the friction settings and both files above -- the same set the
 force controller reads; its tuned ``force_loop_gains`` give ``g_thrust`` unless the scenario
-pins it, :mod:`controllers.loop_gains`), ``i_ref_timing``, ``sample_period`` [s] (> 0).
+pins it, :mod:`controllers.loop_gains`), ``accept_unverified`` (the quantities of that file
+marked ``unverified`` it may use anyway; else it refuses them), ``i_ref_timing``, ``sample_period`` [s] (> 0).
 
 Timing of ``i_ref``: the motion seen between the previous and this encoder sample was
 produced by the current reference applied over that interval. This block declares no

@@ -185,7 +185,8 @@ class PositionController(KernelBlock, Block):
         minus compensator); dt [s] sample period used when ``sample_period`` is 0
         (after the first call the actual spacing of the calls is used);
         commissioning_file (commissioning.json of ``drillcosim commission``): its mass,
-        force constant and gravity_comp replace mass_nominal, force_constant_nominal, F_bias.
+        force constant and gravity_comp replace mass_nominal, force_constant_nominal, F_bias;
+        accept_unverified: the file's unverified quantities it may use anyway (else refused).
     Inputs
         z_ref [m], v_ref [m/s], a_ref [m/s2] (reference and feed-forward), z [m] encoder.
     Outputs
@@ -269,7 +270,7 @@ class BallScrewPositionController(PositionController):
     Table 1 defaults: 0.0003, 1.10, 0.637e-3, 0.95), the rest as PositionController.
     ``commissioning_file`` (commissioning.json of ``drillcosim commission``): its nominal
     inertia, force constant, pitch and eta replace those four settings (the set the Fang
-    observer reads).
+    observer reads); ``accept_unverified`` as for :class:`PositionController`.
     """
 
     def __init__(self, J_en: float = 0.0003, K_Tn: float = 1.10, K_pitch: float = 0.637e-3,

@@ -185,3 +185,27 @@ def test_a_failed_check_is_unverified_with_its_reason():
 def _result(t, signals: dict) -> Result:
     names = list(signals)
     return Result(np.asarray(t, float), names, [np.asarray(signals[n], float) for n in names], {n: None for n in names})
+
+
+def test_a_saturating_current_is_named():
+    from analysis.commissioning import current_saturation
+    t = np.arange(0, 2.0, 1e-3)
+    i_ref = 3.0 * np.sin(2 * math.pi * t)
+    ok = _result(t, {"controller.i_ref": i_ref, "drive.i_meas": 1.012 * i_ref})      # a sensor gain is not saturation
+    assert current_saturation(ok, "ball_screw") is None
+    clipped = _result(t, {"controller.i_ref": i_ref, "drive.i_meas": np.clip(i_ref, -2.2, 2.2)})
+    assert "current saturates" in current_saturation(clipped, "ball_screw")
+    at_limit = _result(t, {"controller.i_ref": np.clip(2.5 * i_ref, -6.0, 6.0)})          # the air cut's i_max 6 A
+    assert "i_max = 6 A" in current_saturation(at_limit, "ball_screw")
+
+
+def test_too_short_an_air_cut_is_refused_with_its_cause(tmp_path):
+    """An air cut set (``--air-cut``) to one speed there and back cannot separate Coulomb
+    from viscous friction: a clear error, no commissioning file."""
+    from analysis.commissioning import CommissioningError, commission
+    with pytest.raises(CommissioningError, match="unknown.*velocities"):
+        commission(ROOT / "scenarios/plants/linear_stage.toml", tmp_path, air_cut_overrides={"speeds": [1e-3]})
+    with pytest.raises(CommissioningError, match="two different speeds"):
+        commission(ROOT / "scenarios/plants/linear_stage.toml", tmp_path, print_table=False,
+                   air_cut_overrides={"velocities": [2e-3, -2e-3], "hold": 0.5})
+    assert not (tmp_path / "commissioning.json").exists()
