@@ -160,9 +160,7 @@ def result_from_spill(out: Path, rows: int) -> Result | None:
     names = [n for n in meta if n != "time"]
     if any(_kind(meta[n].get("type")) != "real" for n in names):
         return None                      # typed columns are never spilled
-    s = _Spill.__new__(_Spill)
-    s.path, s.width, s.f = spill, len(names) + 1, open(spill, "r+b", buffering=0)
-    store, rows_file = s.mapped()
+    store, rows_file = _Spill(spill, len(names) + 1, reopen=True).mapped()
     if len(store) < rows or not rows:
         return None
     store = store[:rows]
@@ -354,12 +352,13 @@ class _Spill:
     is memory-mapped (its pages are the kernel's page cache, not this process's heap) and
     unlinked, the mapping keeping it alive as long as the :class:`Result` does."""
 
-    def __init__(self, path: Path, width: int):
+    def __init__(self, path: Path, width: int, reopen: bool = False):
+        """``reopen``: the spill a dead run left, to map (else a new, empty one)."""
         self.path, self.width = path, width
-        try:
-            self.f = open(path, "w+b", buffering=0)   # unbuffered: what a full disk refused is all that is lost
+        try:   # unbuffered: what a full disk refused is all that is lost
+            self.f = open(path, "r+b" if reopen else "w+b", buffering=0)
         except OSError as e:
-            raise io_problem("create", path, e) from None
+            raise io_problem("open" if reopen else "create", path, e) from None
 
     def write(self, chunk: np.ndarray) -> None:
         view = memoryview(np.ascontiguousarray(chunk, dtype=np.float64).tobytes())
@@ -495,14 +494,15 @@ def _mat_layout(result: Result, rows: int) -> tuple[list, list[int]]:
     import struct
     header = b"MATLAB 5.0 MAT-file, written by drillcosim".ljust(116) + b"\0" * 8 + struct.pack("<H2s", 0x0100, b"IM")
     parts, offsets = [header], [0] * (1 + len(result.signals))
+    at = [len(header)]                                # the file position reached
 
     def double_matrix(name: str, k: int) -> bytes:
+        """A (1, rows) double matrix up to its data; notes where column k's data starts."""
         head = _mat_array_head(_MX_DOUBLE, (1, rows), name)
-        offsets[k] = pos_holder[0] + 8 + len(head) + 8
-        pos_holder[0] = offsets[k] + 8 * rows
+        offsets[k] = at[0] + 8 + len(head) + 8
+        at[0] = offsets[k] + 8 * rows
         return struct.pack("<II", _MI_MATRIX, len(head) + 8 + 8 * rows) + head + struct.pack("<II", _MI_DOUBLE, 8 * rows)
 
-    pos_holder = [len(header)]                        # the file position reached
     parts += [double_matrix("time", 0), None]        # None: the column's data goes there
     groups: dict = {}
     for k, sig in enumerate(result.signals, start=1):
@@ -514,7 +514,7 @@ def _mat_layout(result: Result, rows: int) -> tuple[list, list[int]]:
                 + _mat_element(_MI_INT8, b"".join(f.encode().ljust(width, b"\0") for f, _ in fields)))
         field_bytes = len(fields) * (8 + len(_mat_array_head(_MX_DOUBLE, (1, rows), "")) + 8 + 8 * rows)
         parts.append(struct.pack("<II", _MI_MATRIX, len(head) + field_bytes) + head)
-        pos_holder[0] += 8 + len(head)
+        at[0] += 8 + len(head)
         for f, k in fields:
             parts += [double_matrix("", k), None]
     return parts, offsets

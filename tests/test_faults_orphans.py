@@ -15,8 +15,7 @@ import pytest
 
 from cosim import cli
 from cosim.outputs import LOCK_NAME, FolderLock, alive, claim, process_start
-from cosim.supervisor import run_supervised
-from test_faults_run import BUSY, ROOT, _start_cli, _wait_for_rows, fault_fmu, scenario  # noqa: F401
+from test_faults_run import BUSY, ROOT, _start_cli, _wait_for_rows, scenario
 
 ORPHAN_LIMIT_S = 2.0      # s: the bound for a child to die with its parent
 
