@@ -469,6 +469,10 @@ def write_fmu(ex: BlockExport, out_dir: Path, fmi: int = 3) -> Path:
             zf.write(lib, f"binaries/{plat}/{ex.identifier}{ext}")
             for name, data in sources.items():
                 zf.writestr(f"sources/{name}", data)
+        from fmpy.validation import validate_fmu
+        problems = validate_fmu(str(part))
+        if problems:      # a generator bug: never hand out an FMU that fmpy finds fault with
+            raise ExportError(f"block '{ex.name}': the generated FMU does not validate: {'; '.join(problems)}")
         os.replace(part, fmu)
     return fmu
 

@@ -193,10 +193,10 @@ def test_fail_holds_conservative_set_never_another_material(action, retract):
     ad.reset(0.0)
     ad.step(0.0, [1.0, 0.0])
     y = ad.step(1.0, [1.0, 1.0])          # fail in the CFRP
-    assert y[:3] == (1e-4, 1000.0, 60.0) and y[6] == retract and y[7] == (1 if action == "hold" else 2)
+    assert tuple(y[:3]) == (1e-4, 1000.0, 60.0) and y[6] == retract and y[7] == (1 if action == "hold" else 2)
     assert y[8] == 1.0
     y = ad.step(2.0, [2.0, 0.0])          # a later flag does not bring Ti's (or CFRP's) set back
-    assert y[:3] == (1e-4, 1000.0, 60.0) and y[8] == 1.0
+    assert tuple(y[:3]) == (1e-4, 1000.0, 60.0) and y[8] == 1.0
 
 
 def test_incomplete_hole_fails_the_cli(tmp_path):

@@ -17,7 +17,9 @@ simulation is an error naming the feature, the file and the element.
 """
 from __future__ import annotations
 
+import atexit
 import hashlib
+import shutil
 import tempfile
 import zipfile
 from pathlib import Path
@@ -60,6 +62,7 @@ def package_dir(path: Path) -> tuple[Path, Path]:
     digest = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
     if digest not in _EXTRACTED:
         d = Path(tempfile.mkdtemp(prefix=f"drillcosim_ssp_{path.stem}_"))
+        atexit.register(shutil.rmtree, d, ignore_errors=True)
         with zipfile.ZipFile(path) as zf:
             zf.extractall(d)
         _EXTRACTED[digest] = d
