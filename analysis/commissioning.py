@@ -17,7 +17,10 @@ then give the data sheet), it runs on the plant, through its roles only:
    (:mod:`analysis.force_margin`) at the working point.
 
 It writes ``commissioning.json`` (one set of nominal parameters per drive, the friction
-model, ripple, calibration, warnings), ``commissioning.png`` and ``summary.json``. Observers
+model, ripple, calibration, warnings; every identified value with its 1-sigma spread and
+its check against data it was not fitted on, a failed one ``unverified`` with the reason:
+:mod:`analysis.commissioning_checks`), ``commissioning.png`` and ``summary.json``. Every
+setting the target gives its plant reaches every experiment (:func:`plant_settings`). Observers
 and controllers read the file through ``commissioning_file`` (Keio) or ``friction_file``
 (any block using :func:`controllers.friction.make_friction`). Refusals
 (:class:`CommissioningError`, nothing written as commissioning.json): a missing role, an
@@ -513,9 +516,12 @@ def report_table(doc: dict) -> str:
     if "gravity_comp" in nom:
         rows.append(("gravity comp", f"{nom['gravity_comp']:.5g}", _sd(ident.get("gravity_comp")), "", "N",
                      st("gravity_comp")))
-    if info.get("position_force"):
-        rows.append(("position force (poly)", " ".join(f"{c:.4g}" for c in info["position_force"]["coefficients"]),
-                     "", "", eu, ""))
+    if info.get("position_force"):      # what it changes over the air cut's travel, and its mean slope
+        pf = info["position_force"]
+        ends = [sum(c * x ** (d + 1) for d, c in enumerate(pf["coefficients"])) for x in (-1.0, 1.0)]
+        pu = fr["position_unit"]
+        rows.append(("position force (spring)", f"{ends[1] - ends[0]:+.4g} over {2 * pf['half_span']:.3g} {pu}",
+                     "", "", f"{eu} ({(ends[1] - ends[0]) / (2 * pf['half_span']):+.4g} {eu}/{pu})", ""))
     terms = (ident.get("ripple") or {}).get("value") or [{"k": k} for k, _, _ in fr["ripple"]]
     for (k, a, b), t in zip(fr["ripple"], terms):
         per = f"{k:.4g}/rev" if fr["position_unit"] == "rad" else \

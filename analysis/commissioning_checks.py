@@ -19,7 +19,9 @@ Checks (each stated in docs/commissioning.md):
   agree (2 %, 25 % + 3 sigma), the travel covers two periods of it, and no periodic term is
   left in the residual (whiteness);
 * gravity_comp (linear stage): no position-dependent force that changes the effort by more
-  than 1 % of the 50 N working thrust over the air cut's travel (the blocks take one constant).
+  than 1 % of the 50 N working thrust over the air cut's travel (the blocks take one constant);
+* that offset (gravity_comp, a ball screw's friction offset) against the reference cut: its
+  intercept within 3 sigma or 0.5 N (:func:`intercept_problem`).
 """
 from __future__ import annotations
 
@@ -71,7 +73,30 @@ def force_constant_entry(doc: dict, unit: str) -> dict:
     check = dict(cal.get("check") or {"passed": False, "reason": "the reference cut left no check"})
     check["intercept_N"] = {"value": cal.get("intercept_N"), "std": cal.get("intercept_std_N"),
                             "applied": False}
-    return _entry(cal["Kt_n_cal"], cal.get("Kt_n_cal_std", math.nan), unit, check)
+    entry = _entry(cal["Kt_n_cal"], cal.get("Kt_n_cal_std", math.nan), unit, check)
+    # what the constant is valid for: the current range of the reference levels [A]
+    thrust = [abs(v["F_dyn_mean_N"]) for v in cal.get("levels", [])]
+    if thrust and unit == "N/A":
+        entry["valid_current_range_A"] = [min(thrust) / cal["Kt_n_cal"], max(thrust) / cal["Kt_n_cal"]]
+    elif thrust:      # ball screw: thrust -> motor current through the data-sheet pitch and efficiency
+        k = doc["nominal"]["pitch"] / doc["nominal"]["eta"] / cal["Kt_n_cal"]
+        entry["valid_current_range_A"] = [min(thrust) * k, max(thrust) * k]
+    return entry
+
+
+INTERCEPT_LIMIT_N = 0.5
+
+
+def intercept_problem(doc: dict) -> str | None:
+    """The reference cut's intercept when it is significant (beyond 3 sigma and 0.5 N): the
+    estimate carries that offset at the cut's position and feed, so the offset the air cut
+    identified (gravity_comp, or the friction's offset) does not hold there."""
+    cal = doc.get("calibration") or {}
+    c, sd = cal.get("intercept_N"), cal.get("intercept_std_N")
+    if c is None or sd is None or not (abs(c) > 3 * sd and abs(c) > INTERCEPT_LIMIT_N):
+        return None
+    return (f"the reference cut leaves an offset of {c:+.2f} +- {sd:.2f} N (F_meas = gain F_hat + offset; > 3 sigma "
+            f"and > {INTERCEPT_LIMIT_N} N): the air cut's offset does not hold at the cut's position and feed")
 
 
 def friction_entry(fm) -> dict:
@@ -147,6 +172,12 @@ def identified_entries(doc: dict, fm, scale: float, travel: tuple[float, float])
              "friction": friction_entry(fm), "ripple": ripple_entry(fm, travel[1] - travel[0])}
     if mk == "mass":
         ident["gravity_comp"] = gravity_entry(doc, fm, travel)
+    offset = ident["gravity_comp" if mk == "mass" else "friction"]
+    why = intercept_problem(doc)
+    if why:
+        offset["status"] = "unverified"
+        offset["check"]["reference_cut_offset"] = why
+        offset["check"]["reason"] = "; ".join(r for r in (offset["check"].get("reason"), why) if r)
     unverified = {q: e["check"].get("reason", "failed its check") for q, e in ident.items()
                   if e["status"] == "unverified"}
     return ident, unverified

@@ -5,7 +5,9 @@ position-periodic ripple (cogging, ball-screw ripple). On the constant-velocity 
 an air cut every sample is a row of the linear regression::
 
     effort = Fc sgn(v) + b v + offset + Fs sgn(v) exp(-(|v|/vs)^delta)
-             + sum_k (a_k sin(k p) + c_k cos(k p))
+             + sum_k (a_k sin(k p) + c_k cos(k p)) + sum_d q_d x^d    (x: p scaled to [-1, 1])
+
+(the last term a position-dependent force: a spring, gravity that changes with the stroke).
 
 :func:`identify_friction` fits one given structure (the old interface, kept).
 :func:`select_friction_model` *chooses* the structure -- the commissioning fit:
@@ -17,12 +19,20 @@ an air cut every sample is a row of the linear regression::
 2. harmonics of the drive position found from the *spectrum* of the residual (a
    least-squares periodogram over the position, never a harmonic given by hand): the
    strongest peak is added, the whole model refitted, repeated while the criterion
-   improves;
-3. the criterion is the Bayesian information criterion on the samples,
-   ``BIC = n ln(RSS/n) + p ln(n)`` (``p`` free parameters: 2 per harmonic, 3 for Stribeck
-   amplitude, velocity and exponent). A term is kept only if it lowers the BIC; with white
-   current noise a spurious harmonic lowers the RSS by ~2 sigma^2 against a penalty of
+   improves; the wavenumbers are finally least-squares values (Newton steps on all samples);
+   the position-dependent force (degree 1, 2) is tried before the harmonics and again with them;
+3. the criterion (``CRITERION``, docs/commissioning.md): two-fold cross-validation by pairs
+   of segments and the Bayesian information criterion ``BIC = n ln(RSS/n) + p ln(n)``
+   (``p`` free parameters: 2 per harmonic, 3 for Stribeck amplitude, velocity and
+   exponent). A term is kept only if it lowers both (a velocity or position term by more than
+   ``min_gain`` of the held-out RMS, a harmonic only when its amplitude is relevant); with
+   white current noise a spurious harmonic lowers the RSS by ~2 sigma^2 against a penalty of
    ``2 ln n`` (~23 at 10^5 samples), so noise is never taken for ripple.
+
+After the choice, the checks the commissioning file reports (:func:`holdout_check`,
+:func:`harmonic_checks`, :func:`whiteness`, :func:`friction_spreads`): friction predicted
+on held-back segments, each ripple term refitted on each half of the segments, the
+residual's periodogram, and the 1-sigma spread of every parameter.
 
 Checks that make a commissioning refuse or warn instead of writing a silently wrong
 model (:class:`IdentificationError`): segments in both directions and at >= 2 speeds; the

@@ -390,7 +390,8 @@ def cmd_commission(args) -> int:
     except (CommissioningError, CosimError) as e:
         print(f"drillcosim commission: {e}", file=sys.stderr)
         return 2
-    print(f"commissioning file: {args.file or f'{out}/commissioning.json'}\nreport: {out}/commissioning.png\nsummary: {out}/summary.json")
+    print(f"commissioning file: {args.file or f'{out}/commissioning.json'}\nreport: {out}/commissioning.png\n"
+          f"summary: {out}/summary.json")
     return 1 if doc["warnings"] and args.strict else 0
 
 
@@ -574,11 +575,8 @@ def build_parser() -> argparse.ArgumentParser:
     cm.add_argument("target", help="a plant binding (scenarios/plants/x.toml) or a scenario that binds one "
                                    "(its observer/controller settings are the data sheet)")
     cm.add_argument("--out", help="output folder (default results/commission_<name>)")
-    cm.add_argument("--file", help="where to write commissioning.json (default OUT/commissioning.json; its paths "
-                                   "are relative to its folder, so write it where it will be read)")
-    cm.add_argument("--air-cut", action="append", metavar="KEY=VALUE",
-                    help="an air-cut segment setting (velocities, hold, a_max, pause, z_start; TOML values), e.g. "
-                         "a shorter stroke: --air-cut 'velocities=[3e-4, -3e-4, 3e-3, -3e-3, 3e-2, -3e-2]'")
+    cm.add_argument("--file", help="commissioning.json's path (default OUT/; its paths are relative to it)")
+    cm.add_argument("--air-cut", action="append", metavar="KEY=VALUE", help="air-cut setting (docs/commissioning.md)")
     cm.add_argument("--contact-stiffness", type=float, metavar="N/m", help="tool/workpiece contact stiffness "
                     "for the force-loop margin (linear stage)")
     cm.add_argument("--contact-damping", type=float, metavar="N*s/m", help="contact damping for the margin")

@@ -209,3 +209,17 @@ def test_too_short_an_air_cut_is_refused_with_its_cause(tmp_path):
         commission(ROOT / "scenarios/plants/linear_stage.toml", tmp_path, print_table=False,
                    air_cut_overrides={"velocities": [2e-3, -2e-3], "hold": 0.5})
     assert not (tmp_path / "commissioning.json").exists()
+
+
+def test_a_significant_reference_cut_offset_unverifies_the_offset():
+    """The intercept is not applied; beyond 3 sigma and 0.5 N it marks the offset the blocks
+    take (gravity_comp) unverified with the offset measured; within them it does not."""
+    doc = json.loads((COM / "linear_stage.json").read_text())
+    fm = FrictionModel.from_dict(doc["friction"])
+    doc["calibration"].update(intercept_N=1.45, intercept_std_N=0.14)
+    ident, unverified = identified_entries(doc, fm, 1.0, (0.0, 0.05))
+    assert "offset of +1.45" in unverified["gravity_comp"]
+    assert ident["force_constant"]["valid_current_range_A"][1] == pytest.approx(
+        max(v["F_dyn_mean_N"] for v in doc["calibration"]["levels"]) / doc["calibration"]["Kt_n_cal"])
+    doc["calibration"].update(intercept_N=0.3, intercept_std_N=0.05)
+    assert "gravity_comp" not in identified_entries(doc, fm, 1.0, (0.0, 0.05))[1]
