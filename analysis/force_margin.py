@@ -441,7 +441,8 @@ def force_loop_margin(result, commissioning_file: str | None = None, contact_sti
     if not commissioning_file:
         raise ValueError(f"force_loop_margin: no commissioning_file given and block '{controller}' "
                          "has no commissioning_file setting")
-    load_commissioning(commissioning_file, "linear_stage")       # refuses a wrong file with its reason
+    # refuses a wrong file with its reason; accepts what the controller was told to accept
+    load_commissioning(commissioning_file, "linear_stage", cs.get("accept_unverified", ()))
     doc = json.loads(Path(commissioning_file).read_text())
     measured = run_feed(result, controller) if feed is None else None
     loop = commissioned_loop(doc, _run_gains(result, raw, controller, observer, doc),
