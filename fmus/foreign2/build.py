@@ -2,7 +2,7 @@
 
 ``fmus/foreign2/<Name>/<Name>.c`` is a plant model over its own FMI glue: ``f2core.c`` with
 ``f2fmi2.c`` (FMI 2.0 CS, Foreign2ZStage) or ``f2fmi3.c`` (FMI 3.0 CS, Foreign2BallScrew), and
-``f2stack.c`` (drill and stack); nothing of ``fmus/common`` or ``fmus/foreign``. Their
+``f2stack.c`` (drill and stack) and ``f2drive.c`` (amplifier, friction, sub-steps); nothing of ``fmus/common`` or ``fmus/foreign``. Their
 variables are one table each (:mod:`fmus.foreign2.variables`), from which this writes
 ``<Name>/modelDescription.xml`` and ``<Name>/<Name>_vars.h`` (only when their content changes),
 compiles against the FMI headers shipped with fmpy and packs ``fmus/build/<Name>.fmu``;
@@ -23,8 +23,8 @@ from .variables import PLANTS, UNITS
 
 HERE = Path(__file__).resolve().parent
 GLUE = {2: "f2fmi2.c", 3: "f2fmi3.c"}
-SHARED_SOURCES = ["f2core.c", "f2stack.c"]
-SHARED_HEADERS = ["f2core.h", "f2stack.h"]
+SHARED_SOURCES = ["f2core.c", "f2stack.c", "f2drive.c"]
+SHARED_HEADERS = ["f2core.h", "f2stack.h", "f2drive.h"]
 FOREIGN2 = tuple(PLANTS)
 _KIND_C = {"fixed": "F2_FIXED", "tunable": "F2_TUNE", "input": "F2_IN", "output": "F2_OUT", "discrete": "F2_OUT"}
 
