@@ -13,6 +13,11 @@ from fmpy.validation import validate_fmu
 from fmus.foreign2.build import FOREIGN2, HERE, fmu_path
 from fmus.foreign2.variables import PLANTS
 
+try:
+    from plant_helpers import ExtractedPlant, plant_maker
+except ImportError:  # tests/ imported as a package
+    from tests.plant_helpers import ExtractedPlant, plant_maker
+
 ROOT = Path(__file__).resolve().parents[1]
 INCH = 0.0254
 # documented truth (README.md of each plant)
@@ -24,7 +29,7 @@ AIR = {"surface_pos": 500.0}          # the stack out of reach: moves in air
 FRICTIONLESS_ZS = {"F_c": 0.0, "F_s": 0.0, "visc": 0.0, "cog1": 0.0, "cog2": 0.0, "kf_rip": 0.0}
 
 
-class Plant:
+class Plant(ExtractedPlant):
     """One instance of a foreign2 FMU through fmpy (FMI 2.0 or 3.0), by variable name."""
 
     def __init__(self, name, params=None):
@@ -56,29 +61,12 @@ class Plant:
         """n steps of dt with the inputs held; the outputs after each step."""
         for k, x in inputs.items():
             self.set(k, x)
-        res = np.empty((n, len(outs)))
-        for j in range(n):
-            self.fmu.doStep(self.t, dt)
-            self.t += dt
-            res[j] = self.get(*outs)
-        return res
-
-    def close(self):
-        self.fmu.terminate()
-        self.fmu.freeInstance()
-        shutil.rmtree(self._dir, ignore_errors=True)
+        return super().run(n, dt, outs)
 
 
 @pytest.fixture
 def plants():
-    made = []
-
-    def make(name, params=None):
-        made.append(Plant(name, params))
-        return made[-1]
-    yield make
-    for p in made:
-        p.close()
+    yield from plant_maker(Plant)
 
 
 @pytest.mark.parametrize("name", FOREIGN2)
