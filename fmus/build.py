@@ -299,6 +299,16 @@ def _up_to_date(name: str) -> bool:
     return all(p.stat().st_mtime <= t for p in _inputs(name))
 
 
+def _keep(name: str, fmu: Path, force: bool, verbose: bool, up_to_date) -> bool:
+    """Whether the built ``fmu`` stands: not ``force`` and ``up_to_date()``; says so when verbose
+    (for fmus/foreign and fmus/foreign2 too)."""
+    if force or not up_to_date():
+        return False
+    if verbose:
+        print(f"{name}: up to date ({fmu})")
+    return True
+
+
 class _Lock:
     def __init__(self, path: Path):
         self.path = path
@@ -329,9 +339,7 @@ def build(name: str, force: bool = False, verbose: bool = True) -> Path:
     with _Lock(BUILD_DIR / ".lock"):
         generate(name)
         fmu = _fmu_file(name)
-        if not force and _up_to_date(name):
-            if verbose:
-                print(f"{name}: up to date ({fmu})")
+        if _keep(name, fmu, force, verbose, lambda: _up_to_date(name)):
             return fmu
         plat, ext = _platform(fmi)
         d = HERE / model

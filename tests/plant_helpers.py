@@ -109,6 +109,44 @@ class Plant:
             shutil.rmtree(self._dir, ignore_errors=True)
 
 
+class ExtractedPlant:
+    """What the foreign-plant test drivers share (tests/test_foreign_plants.py,
+    tests/test_foreign2_plants.py): a subclass sets ``self.fmu`` (an fmpy slave past
+    initialisation), ``self._dir`` (its extraction), ``self.t`` and defines ``get(*names)``."""
+
+    def step(self, h):
+        self.fmu.doStep(self.t, h)
+        self.t += h
+
+    def run(self, n, dt, outs, control=None):
+        """n steps of dt; ``control(plant)`` before each step; the outputs after each step."""
+        res = np.empty((n, len(outs)))
+        for k in range(n):
+            if control:
+                control(self)
+            self.step(dt)
+            res[k] = self.get(*outs)
+        return res
+
+    def close(self):
+        self.fmu.terminate()
+        self.fmu.freeInstance()
+        shutil.rmtree(self._dir, ignore_errors=True)
+
+
+def plant_maker(cls):
+    """Body of a ``plants`` fixture (``yield from plant_maker(Plant)``): yields
+    ``make(name, params=None)`` -> ``cls(name, params)`` and closes every plant made."""
+    made = []
+
+    def make(name, params=None):
+        made.append(cls(name, params))
+        return made[-1]
+    yield make
+    for p in made:
+        p.close()
+
+
 def run_constant_current(name, i_ref, t_end, dt=1e-4, params=None, outputs=()):
     """Open loop: constant current reference; returns dict of arrays incl. 't'."""
     pl = Plant(name, params or {})

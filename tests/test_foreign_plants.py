@@ -15,6 +15,11 @@ from fmpy.validation import validate_fmu
 
 from fmus.foreign.build import FOREIGN, HERE, fmu_path
 
+try:
+    from plant_helpers import ExtractedPlant, plant_maker
+except ImportError:  # tests/ imported as a package
+    from tests.plant_helpers import ExtractedPlant, plant_maker
+
 # data of the true plants (the FMUs' start values; test_start_values_match_xml pins them)
 BS = dict(Jm=2.0e-4, m_table=40.0, lead=4.0e-3, k_screw=130e6, d_screw=4000.0, Kt=0.87,
           T_coul=0.045, T_stat=0.075, w_strb=0.6, strb_exp=1.5, b_visc=8e-4,
@@ -27,7 +32,7 @@ ZS = dict(mass=4.3, Kf=24.6, g=9.81, F_bal=38.0, F_coul=6.0, F_stat=9.5, v_strb=
 LAW = dict(K_cfrp=6900.0, K_ti=17300.0, K_al=1150.0, x=0.8)
 
 
-class Plant:
+class Plant(ExtractedPlant):
     """One instance of a foreign FMU through fmpy's FMU3Slave, by variable name."""
 
     def __init__(self, name, params=None):
@@ -60,36 +65,10 @@ class Plant:
     def get(self, *names):
         return np.array(self.fmu.getFloat64([self.vars[n].valueReference for n in names]))
 
-    def step(self, h):
-        self.fmu.doStep(self.t, h)
-        self.t += h
-
-    def run(self, n, dt, outs, control=None):
-        """n steps of dt; ``control(plant)`` before each step; outputs after each step."""
-        res = np.empty((n, len(outs)))
-        for k in range(n):
-            if control:
-                control(self)
-            self.step(dt)
-            res[k] = self.get(*outs)
-        return res
-
-    def close(self):
-        self.fmu.terminate()
-        self.fmu.freeInstance()
-        shutil.rmtree(self._dir, ignore_errors=True)
-
 
 @pytest.fixture
 def plants():
-    made = []
-
-    def make(name, params=None):
-        made.append(Plant(name, params))
-        return made[-1]
-    yield make
-    for p in made:
-        p.close()
+    yield from plant_maker(Plant)
 
 
 AIR_BS = {"surface_pos": 500.0}      # stack far away: air moves

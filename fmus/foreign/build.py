@@ -39,12 +39,38 @@ def _inputs(name: str) -> list[Path]:
             + [HERE / name / "modelDescription.xml", HERE / name / "README.md", Path(__file__).resolve()])
 
 
-def _build_description(name: str) -> str:
-    files = "\n".join(f'      <SourceFile name="{p.name}"/>' for p in _sources(name))
+def build_description(name: str, sources: list[Path]) -> str:
+    """FMI 3.0 ``sources/buildDescription.xml`` of a hand-written FMU (fmus/foreign2 too)."""
+    files = "\n".join(f'      <SourceFile name="{p.name}"/>' for p in sources)
     return ('<?xml version="1.0" encoding="UTF-8"?>\n<fmiBuildDescription fmiVersion="3.0">\n'
             f'  <BuildConfiguration modelIdentifier="{name}">\n'
             f'    <SourceFileSet language="C99">\n{files}\n    </SourceFileSet>\n'
             '    <Library name="m"/>\n  </BuildConfiguration>\n</fmiBuildDescription>\n')
+
+
+def compile_library(name: str, lib: Path, sources: list[Path], include_dirs: list[Path], defines=()) -> str:
+    """Compile ``sources`` into the shared library ``lib`` against fmpy's FMI headers and
+    ``include_dirs`` (fmus/foreign2 too); raises RuntimeError on failure, returns the warnings."""
+    from fmus.build import _fmi_include
+    cmd = [os.environ.get("CC", "gcc"), "-O2", "-shared", "-fPIC", "-std=gnu11", "-Wall", "-Wextra",
+           "-Wno-unused-parameter", f"-I{_fmi_include()}"] + [f"-I{d}" for d in include_dirs] + ["-o", str(lib)]
+    cmd += list(defines) + [str(s) for s in sources] + ["-lm"]
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    if res.returncode != 0:
+        raise RuntimeError(f"compiling {name} failed:\n{' '.join(cmd)}\n{res.stdout}{res.stderr}")
+    return res.stderr
+
+
+def cli(argv, prog: str, doc: str, names, build_one) -> int:
+    """``prog [--force] [name ...]``: build the FMUs ``names`` (or those given) with ``build_one``
+    (fmus/foreign2 too)."""
+    ap = argparse.ArgumentParser(prog=prog, description=doc.splitlines()[0])
+    ap.add_argument("names", nargs="*", help=f"FMUs to build (default: {', '.join(names)})")
+    ap.add_argument("--force", action="store_true", help="rebuild even when up to date")
+    args = ap.parse_args(argv)
+    for n in args.names or names:
+        build_one(n, force=args.force)
+    return 0
 
 
 def _fmu_file(name: str) -> Path:
@@ -89,25 +115,18 @@ def build(name: str, force: bool = False, verbose: bool = True, si_twin_dir: Pat
     """Build one foreign FMU if stale (or ``force``); returns the .fmu path."""
     _check(name)
     import fmpy
-    from fmus.build import BUILD_DIR, _fmi_include, _Lock
+    from fmus.build import BUILD_DIR, _keep, _Lock
     with _Lock(BUILD_DIR / ".lock"):
         fmu = _fmu_file(name) if si_twin_dir is None else si_twin_dir / f"{name}SI.fmu"
-        if not force and _up_to_date(name):
-            if verbose:
-                print(f"{name}: up to date ({fmu})")
+        if _keep(name, fmu, force, verbose, lambda: _up_to_date(name)):
             return fmu
         ext = {"darwin64": ".dylib", "win64": ".dll", "win32": ".dll"}.get(fmpy.platform, ".so")
         with tempfile.TemporaryDirectory(dir=BUILD_DIR) as tmp:
             lib = Path(tmp) / f"{name}{ext}"
-            cmd = [os.environ.get("CC", "gcc"), "-O2", "-shared", "-fPIC", "-std=gnu11", "-Wall", "-Wextra",
-                   "-Wno-unused-parameter", f"-I{_fmi_include()}", f"-I{HERE}", "-o", str(lib)]
-            cmd += ["-DFOREIGN_SI_INTERFACE"] if si_twin_dir is not None else []
-            cmd += [str(s) for s in _sources(name)] + ["-lm"]
-            res = subprocess.run(cmd, capture_output=True, text=True)
-            if res.returncode != 0:
-                raise RuntimeError(f"compiling {name} failed:\n{' '.join(cmd)}\n{res.stdout}{res.stderr}")
-            if res.stderr.strip() and verbose:
-                print(res.stderr, file=sys.stderr)
+            warnings = compile_library(name, lib, _sources(name), [HERE],
+                                       ["-DFOREIGN_SI_INTERFACE"] if si_twin_dir is not None else [])
+            if warnings.strip() and verbose:
+                print(warnings, file=sys.stderr)
             tmp_fmu = Path(tmp) / f"{name}.fmu"
             with zipfile.ZipFile(tmp_fmu, "w", zipfile.ZIP_DEFLATED) as zf:
                 if si_twin_dir is None:
@@ -117,7 +136,7 @@ def build(name: str, force: bool = False, verbose: bool = True, si_twin_dir: Pat
                 zf.write(lib, f"binaries/{fmpy.platform_tuple}/{name}{ext}")
                 for f in _sources(name) + [HERE / h for h in SHARED_HEADERS]:
                     zf.write(f, f"sources/{f.name}")
-                zf.writestr("sources/buildDescription.xml", _build_description(name))
+                zf.writestr("sources/buildDescription.xml", build_description(name, _sources(name)))
                 zf.write(HERE / name / "README.md", "documentation/README.md")
             os.replace(tmp_fmu, fmu)
         if verbose:
@@ -136,13 +155,7 @@ def fmu_path(name: str) -> Path:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m fmus.foreign.build", description=__doc__.splitlines()[0])
-    ap.add_argument("names", nargs="*", help=f"FMUs to build (default: {', '.join(FOREIGN)})")
-    ap.add_argument("--force", action="store_true", help="rebuild even when up to date")
-    args = ap.parse_args(argv)
-    for n in args.names or FOREIGN:
-        build(n, force=args.force)
-    return 0
+    return cli(argv, "python -m fmus.foreign.build", __doc__, FOREIGN, build)
 
 
 if __name__ == "__main__":

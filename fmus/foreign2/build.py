@@ -2,7 +2,7 @@
 
 ``fmus/foreign2/<Name>/<Name>.c`` is a plant model over its own FMI glue: ``f2core.c`` with
 ``f2fmi2.c`` (FMI 2.0 CS, Foreign2ZStage) or ``f2fmi3.c`` (FMI 3.0 CS, Foreign2BallScrew), and
-``f2stack.c`` (drill and stack); nothing of ``fmus/common`` or ``fmus/foreign``. Their
+``f2stack.c`` (drill and stack) and ``f2drive.c`` (amplifier, friction, sub-steps); nothing of ``fmus/common`` or ``fmus/foreign``. Their
 variables are one table each (:mod:`fmus.foreign2.variables`), from which this writes
 ``<Name>/modelDescription.xml`` and ``<Name>/<Name>_vars.h`` (only when their content changes),
 compiles against the FMI headers shipped with fmpy and packs ``fmus/build/<Name>.fmu``;
@@ -10,9 +10,7 @@ skipped when the .fmu is newer than every input. ``python -m fmus.build`` builds
 """
 from __future__ import annotations
 
-import argparse
 import os
-import subprocess
 import sys
 import tempfile
 import zipfile
@@ -23,8 +21,8 @@ from .variables import PLANTS, UNITS
 
 HERE = Path(__file__).resolve().parent
 GLUE = {2: "f2fmi2.c", 3: "f2fmi3.c"}
-SHARED_SOURCES = ["f2core.c", "f2stack.c"]
-SHARED_HEADERS = ["f2core.h", "f2stack.h"]
+SHARED_SOURCES = ["f2core.c", "f2stack.c", "f2drive.c"]
+SHARED_HEADERS = ["f2core.h", "f2stack.h", "f2drive.h"]
 FOREIGN2 = tuple(PLANTS)
 _KIND_C = {"fixed": "F2_FIXED", "tunable": "F2_TUNE", "input": "F2_IN", "output": "F2_OUT", "discrete": "F2_OUT"}
 
@@ -137,12 +135,8 @@ def vars_header(name: str) -> str:
     return "\n".join(lines)
 
 
-def _write_if_changed(path: Path, text: str) -> None:
-    if not path.exists() or path.read_text() != text:
-        path.write_text(text)
-
-
 def generate(name: str) -> None:
+    from fmus.build import _write_if_changed
     _check(name)
     _write_if_changed(HERE / name / "modelDescription.xml", model_description(name))
     _write_if_changed(HERE / name / f"{name}_vars.h", vars_header(name))
@@ -172,43 +166,21 @@ def _up_to_date(name: str) -> bool:
     return fmu.exists() and all(p.stat().st_mtime <= fmu.stat().st_mtime for p in _inputs(name))
 
 
-def _build_description(name: str) -> str:
-    files = "\n".join(f'      <SourceFile name="{p.name}"/>' for p in _sources(name))
-    return ('<?xml version="1.0" encoding="UTF-8"?>\n<fmiBuildDescription fmiVersion="3.0">\n'
-            f'  <BuildConfiguration modelIdentifier="{name}">\n'
-            f'    <SourceFileSet language="C99">\n{files}\n    </SourceFileSet>\n'
-            '    <Library name="m"/>\n  </BuildConfiguration>\n</fmiBuildDescription>\n')
-
-
-def _compile(name: str, lib: Path) -> str:
-    from fmus.build import _fmi_include
-    cmd = [os.environ.get("CC", "gcc"), "-O2", "-shared", "-fPIC", "-std=gnu11", "-Wall", "-Wextra",
-           "-Wno-unused-parameter", f"-I{_fmi_include()}", f"-I{HERE}", f"-I{HERE / name}", "-o", str(lib)]
-    cmd += [str(s) for s in _sources(name)] + ["-lm"]
-    res = subprocess.run(cmd, capture_output=True, text=True)
-    if res.returncode != 0:
-        raise RuntimeError(f"compiling {name} failed:\n{' '.join(cmd)}\n{res.stdout}{res.stderr}")
-    return res.stderr.strip()
-
-
 def build(name: str, force: bool = False, verbose: bool = True) -> Path:
     """Build one foreign2 FMU if stale (or ``force``); returns the .fmu path."""
     _check(name)
-    import fmpy
-    from fmus.build import BUILD_DIR, _Lock
+    from fmus.build import BUILD_DIR, _keep, _Lock, _platform
+    from fmus.foreign.build import build_description, compile_library
     with _Lock(BUILD_DIR / ".lock"):
         generate(name)
         fmu = _fmu_file(name)
-        if not force and _up_to_date(name):
-            if verbose:
-                print(f"{name}: up to date ({fmu})")
+        if _keep(name, fmu, force, verbose, lambda: _up_to_date(name)):
             return fmu
         fmi = PLANTS[name]["fmi"]
-        plat = fmpy.platform if fmi == 2 else fmpy.platform_tuple
-        ext = {"darwin64": ".dylib", "win64": ".dll", "win32": ".dll"}.get(fmpy.platform, ".so")
+        plat, ext = _platform(fmi)
         with tempfile.TemporaryDirectory(dir=BUILD_DIR) as tmp:
             lib = Path(tmp) / f"{name}{ext}"
-            warnings = _compile(name, lib)
+            warnings = compile_library(name, lib, _sources(name), [HERE, HERE / name]).strip()
             if warnings and verbose:
                 print(warnings, file=sys.stderr)
             tmp_fmu = Path(tmp) / f"{name}.fmu"
@@ -218,7 +190,7 @@ def build(name: str, force: bool = False, verbose: bool = True) -> Path:
                 for f in _sources(name) + _headers(name):
                     zf.write(f, f"sources/{f.name}")
                 if fmi == 3:
-                    zf.writestr("sources/buildDescription.xml", _build_description(name))
+                    zf.writestr("sources/buildDescription.xml", build_description(name, _sources(name)))
                 zf.write(HERE / name / "README.md", "documentation/README.md" if fmi == 3 else "documentation/index.md")
             os.replace(tmp_fmu, fmu)
         if verbose:
@@ -237,13 +209,8 @@ def fmu_path(name: str) -> Path:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m fmus.foreign2.build", description=__doc__.splitlines()[0])
-    ap.add_argument("names", nargs="*", help=f"FMUs to build (default: {', '.join(FOREIGN2)})")
-    ap.add_argument("--force", action="store_true", help="rebuild even when up to date")
-    args = ap.parse_args(argv)
-    for n in args.names or FOREIGN2:
-        build(n, force=args.force)
-    return 0
+    from fmus.foreign.build import cli
+    return cli(argv, "python -m fmus.foreign2.build", __doc__, FOREIGN2, build)
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "f2core.h"
@@ -142,3 +143,44 @@ double f2_normal(F2State *s) {
     s->have_spare = 1;
     return r * cos(a);
 }
+
+F2Inst *f2_new(const char *name, void (*emit)(F2Inst *, int, const char *), const void *cb, void *env,
+               int logging) {
+    F2Inst *c = calloc(1, sizeof *c);
+    if (!c) return NULL;
+    strncpy(c->name, name ? name : "foreign2", sizeof c->name - 1);
+    c->cb = cb;
+    c->env = env;
+    c->emit = emit;
+    c->logging = logging ? 1 : 0;
+    f2_reset(c);
+    return c;
+}
+
+static int copy_state(void **state, const void *from) {
+    if (!*state) *state = malloc(sizeof(F2State));
+    if (!*state) return 0;
+    memcpy(*state, from, sizeof(F2State));
+    return 1;
+}
+
+int f2_state_get(F2Inst *c, void **state) { return copy_state(state, &c->s); }
+
+int f2_state_set(F2Inst *c, const void *state) {
+    if (!state) return 0;
+    memcpy(&c->s, state, sizeof(F2State));
+    return 1;
+}
+
+void f2_state_free(void **state) {
+    free(*state);
+    *state = NULL;
+}
+
+int f2_state_pack(const void *state, void *bytes, size_t size) {
+    if (size < sizeof(F2State)) return 0;
+    memcpy(bytes, state, sizeof(F2State));
+    return 1;
+}
+
+int f2_state_unpack(const void *bytes, void **state) { return copy_state(state, bytes); }

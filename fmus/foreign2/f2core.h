@@ -9,6 +9,7 @@
 #ifndef F2CORE_H
 #define F2CORE_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #define F2_NVAL 160                 /* value references 0 .. F2_NVAL-1 */
@@ -69,5 +70,17 @@ int f2_enter_run(F2Inst *c, const char *fn);       /* checks, seeds, model init 
 int f2_do_step(F2Inst *c, const char *fn, double t, double H);
 void f2_log(F2Inst *c, int is_error, const char *fmt, ...);
 double f2_normal(F2State *s);                      /* N(0,1), reproducible from the seed */
+
+/* ---- for the API layers (f2fmi2.c, f2fmi3.c) ---- */
+/* a new instance with its start values (name NULL: "foreign2"); NULL if out of memory */
+F2Inst *f2_new(const char *name, void (*emit)(F2Inst *, int, const char *), const void *cb, void *env,
+               int logging);
+/* FMU states are a copy of the plain-data F2State, allocated when *state is NULL; each returns 0
+ * (and changes nothing) when out of memory, on a NULL state or a buffer shorter than F2State */
+int f2_state_get(F2Inst *c, void **state);
+int f2_state_set(F2Inst *c, const void *state);
+void f2_state_free(void **state);
+int f2_state_pack(const void *state, void *bytes, size_t size);
+int f2_state_unpack(const void *bytes, void **state);     /* bytes: sizeof(F2State) of them */
 
 #endif

@@ -32,14 +32,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
                                                                        : "the GUID does not match this binary");
         return NULL;
     }
-    F2Inst *c = calloc(1, sizeof *c);
-    if (!c) return NULL;
-    strncpy(c->name, name ? name : "foreign2", sizeof c->name - 1);
-    c->cb = cb;
-    c->emit = emit2;
-    c->logging = logging ? 1 : 0;
-    f2_reset(c);
-    return c;
+    return f2_new(name, emit2, cb, NULL, logging);
 }
 
 void fmi2FreeInstance(fmi2Component c) { free(c); }
@@ -104,21 +97,15 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 
 /* FMU states: a copy of the plain-data F2State */
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) {
-    if (!*state) *state = malloc(sizeof(F2State));
-    if (!*state) return fmi2Error;
-    memcpy(*state, &INST->s, sizeof(F2State));
-    return fmi2OK;
+    return f2_state_get(INST, state) ? fmi2OK : fmi2Error;
 }
 
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state) {
-    if (!state) return fmi2Error;
-    memcpy(&INST->s, state, sizeof(F2State));
-    return fmi2OK;
+    return f2_state_set(INST, state) ? fmi2OK : fmi2Error;
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state) {
-    free(*state);
-    *state = NULL;
+    f2_state_free(state);
     return fmi2OK;
 }
 
@@ -128,9 +115,7 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate state, size_
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size) {
-    if (size < sizeof(F2State)) return fmi2Error;
-    memcpy(bytes, state, sizeof(F2State));
-    return fmi2OK;
+    return f2_state_pack(state, bytes, size) ? fmi2OK : fmi2Error;
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *state) {
@@ -138,10 +123,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte bytes[], size
         f2_log(INST, 1, "fmi2DeSerializeFMUstate: %zu bytes, expected %zu", size, sizeof(F2State));
         return fmi2Error;
     }
-    if (!*state) *state = malloc(sizeof(F2State));
-    if (!*state) return fmi2Error;
-    memcpy(*state, bytes, size);
-    return fmi2OK;
+    return f2_state_unpack(bytes, state) ? fmi2OK : fmi2Error;
 }
 
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference u[], size_t nu,

@@ -41,15 +41,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String name, fmi3String token, fmi3
                      "fmi3InstantiateCoSimulation: event mode is not supported (hasEventMode=false)");
         return NULL;
     }
-    F2Inst *c = calloc(1, sizeof *c);
-    if (!c) return NULL;
-    strncpy(c->name, name ? name : "foreign2", sizeof c->name - 1);
-    c->cb = (const void *)log;
-    c->env = env;
-    c->emit = emit3;
-    c->logging = logging ? 1 : 0;
-    f2_reset(c);
-    return c;
+    return f2_new(name, emit3, (const void *)log, env, logging);
 }
 
 fmi3Instance fmi3InstantiateModelExchange(fmi3String name, fmi3String token, fmi3String resources,
@@ -175,21 +167,15 @@ fmi3Status fmi3GetVariableDependencies(fmi3Instance c, fmi3ValueReference dep, s
 
 /* FMU states: a copy of the plain-data F2State */
 fmi3Status fmi3GetFMUState(fmi3Instance c, fmi3FMUState *state) {
-    if (!*state) *state = malloc(sizeof(F2State));
-    if (!*state) return fmi3Error;
-    memcpy(*state, &INST->s, sizeof(F2State));
-    return fmi3OK;
+    return f2_state_get(INST, state) ? fmi3OK : fmi3Error;
 }
 
 fmi3Status fmi3SetFMUState(fmi3Instance c, fmi3FMUState state) {
-    if (!state) return refuse(c, "fmi3SetFMUState with a NULL state");
-    memcpy(&INST->s, state, sizeof(F2State));
-    return fmi3OK;
+    return f2_state_set(INST, state) ? fmi3OK : refuse(c, "fmi3SetFMUState with a NULL state");
 }
 
 fmi3Status fmi3FreeFMUState(fmi3Instance c, fmi3FMUState *state) {
-    free(*state);
-    *state = NULL;
+    f2_state_free(state);
     return fmi3OK;
 }
 
@@ -199,17 +185,12 @@ fmi3Status fmi3SerializedFMUStateSize(fmi3Instance c, fmi3FMUState state, size_t
 }
 
 fmi3Status fmi3SerializeFMUState(fmi3Instance c, fmi3FMUState state, fmi3Byte bytes[], size_t size) {
-    if (size < sizeof(F2State)) return refuse(c, "fmi3SerializeFMUState into a short buffer");
-    memcpy(bytes, state, sizeof(F2State));
-    return fmi3OK;
+    return f2_state_pack(state, bytes, size) ? fmi3OK : refuse(c, "fmi3SerializeFMUState into a short buffer");
 }
 
 fmi3Status fmi3DeserializeFMUState(fmi3Instance c, const fmi3Byte bytes[], size_t size, fmi3FMUState *state) {
     if (size != sizeof(F2State)) return refuse(c, "fmi3DeserializeFMUState of a foreign size");
-    if (!*state) *state = malloc(sizeof(F2State));
-    if (!*state) return fmi3Error;
-    memcpy(*state, bytes, size);
-    return fmi3OK;
+    return f2_state_unpack(bytes, state) ? fmi3OK : fmi3Error;
 }
 
 fmi3Status fmi3GetDirectionalDerivative(fmi3Instance c, const fmi3ValueReference u[], size_t nu,

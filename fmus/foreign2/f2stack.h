@@ -39,18 +39,4 @@ double f2s_k(const F2Stack *st, double c);
 double f2s_step(const F2Stack *st, double *c, double x, double v, double n, double h);
 void f2s_where(const F2Stack *st, double x, double *layer, double *material);
 
-/* guide / bearing friction: Coulomb + Stribeck + viscous, regularised by v/sqrt(v^2 + vr^2);
- * *slope is dF/dv (for the linearly implicit velocity update) */
-static inline double f2_friction(double v, double Fc, double dFs, double vs, double a, double vr, double b,
-                                 double *slope) {
-    double u = (v < 0 ? -v : v) / vs;
-    double e = __builtin_exp(-__builtin_pow(u, a));
-    double g = Fc + dFs * e;
-    double q = __builtin_sqrt(v * v + vr * vr);
-    double s = v / q;
-    double dg = u > 0.0 ? -dFs * e * a * __builtin_pow(u, a - 1.0) / vs * (v < 0 ? -1.0 : 1.0) : 0.0;
-    *slope = dg * s + g * vr * vr / (q * q * q) + b;
-    return g * s + b * v;
-}
-
 #endif

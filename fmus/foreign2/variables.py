@@ -35,6 +35,39 @@ UNITS = {
     "degC": ({"K": 1}, 1.0, 273.15),
 }
 
+
+
+def _amplifier(vr, tau_i, i_max, i_bias, i_gain, i_noise):
+    """The current amplifier and its sensor at value references vr .. vr+4, in the order of the
+    block that fmus/foreign2/f2drive.h reads."""
+    return [
+        ("tau_i", vr, "r", "tunable", tau_i, "ms", 0.001, 100, "Current-loop time constant"),
+        ("i_max", vr + 1, "r", "tunable", i_max, "A", 0.1, 100, "Amplifier current limit"),
+        ("i_bias", vr + 2, "r", "tunable", i_bias, "mA", -1000, 1000, "Current-sensor offset"),
+        ("i_gain", vr + 3, "r", "tunable", i_gain, "%", -20, 20, "Current-sensor gain error"),
+        ("i_noise", vr + 4, "r", "tunable", i_noise, "mA", 0, 1000, "Current-sensor noise, standard deviation"),
+    ]
+
+
+def _h_sub(vr):
+    return ("h_sub", vr, "r", "fixed", 4.0, "us", 0.1, 50, "Internal integration sub-step")
+
+
+def _at_tip(vr, tip):
+    """The discrete outputs layer and material at the ``tip`` ("drill tip", "tool tip")."""
+    return [("layer", vr, "r", "discrete", 0.0, "", 0, 0, f"Stack layer at the {tip}, 1..n_layers (0 outside)"),
+            ("material", vr + 1, "r", "discrete", 0.0, "", 0, 0,
+             f"Material at the {tip}: 0 air, 1 CFRP, 2 Ti-6Al-4V, 3 aluminium")]
+
+
+def _spindle(vr, rpm):
+    return ("spindle", vr, "r", "input", rpm, "rpm", 0, 0, "Spindle speed")
+
+
+def _dyno(name, vr):
+    return (name, vr, "r", "output", 0.0, "N", 0, 0, "Dynamometer under the workpiece: thrust plus noise")
+
+
 # the drill and stack block (fmus/foreign2/f2stack.h: value references 100.., same order)
 STACK = [
     ("surface_pos", 100, "r", "fixed", 1.0, "mm", -1000, 1000, "Feed position at which the drill tip touches the stack top"),
@@ -72,16 +105,15 @@ STACK = [
 
 ZSTAGE = [
     ("i_set", 1, "r", "input", 0.0, "%", 0, 0, "Current set-point in % of the rated current (100 % = i_rated), positive drives the slide down"),
-    ("spindle", 2, "r", "input", 3000.0, "rpm", 0, 0, "Spindle speed"),
+    _spindle(2, 3000.0),
     ("z_enc", 10, "r", "output", 0.0, "in", 0, 0, "Linear encoder on the slide, positive down, quantised to enc_res"),
     ("i_fbk", 11, "r", "output", 0.0, "%", 0, 0, "Current feedback in % of i_rated (sensor with offset, gain error and noise)"),
-    ("dyno_fz", 12, "r", "output", 0.0, "N", 0, 0, "Dynamometer under the workpiece: thrust plus noise"),
+    _dyno("dyno_fz", 12),
     ("f_thrust", 13, "r", "output", 0.0, "N", 0, 0, "True thrust on the tool, positive pushing it back up"),
     ("tip_z", 14, "r", "output", 0.0, "in", 0, 0, "True drill-tip position (equals z_enc at rest in air)"),
     ("slide_v", 15, "r", "output", 0.0, "in/s", 0, 0, "True slide velocity"),
     ("f_guide", 16, "r", "output", 0.0, "N", 0, 0, "True guide friction on the slide, opposing downward motion"),
-    ("layer", 17, "r", "discrete", 0.0, "", 0, 0, "Stack layer at the drill tip, 1..n_layers (0 outside)"),
-    ("material", 18, "r", "discrete", 0.0, "", 0, 0, "Material at the drill tip: 0 air, 1 CFRP, 2 Ti-6Al-4V, 3 aluminium"),
+    *_at_tip(17, "drill tip"),
     ("f_comp", 19, "r", "output", 0.0, "N", 0, 0, "Scoring only: true compensator spring force, upward (no role: the master keeps it from blocks)"),
     ("m_slide", 30, "r", "tunable", 2.55, "kg", 0.1, 100, "Slide mass: carriage, motor coil, encoder head"),
     ("m_spindle", 31, "r", "tunable", 1.65, "kg", 0.01, 100, "Spindle and tool on the compliant mount"),
@@ -100,11 +132,7 @@ ZSTAGE = [
     ("g", 44, "r", "tunable", 9.81, "m/s2", 0, 20, "Gravity, downward"),
     ("comp_f0", 45, "r", "tunable", 36.5, "N", 0, 1000, "Compensator spring force at z = 0, upward"),
     ("comp_k", 46, "r", "tunable", 0.04, "N/mm", 0, 100, "Compensator spring rate: its force grows as the slide goes down"),
-    ("tau_i", 47, "r", "tunable", 0.1, "ms", 0.001, 100, "Current-loop time constant"),
-    ("i_max", 48, "r", "tunable", 12.0, "A", 0.1, 100, "Amplifier current limit"),
-    ("i_bias", 49, "r", "tunable", 45.0, "mA", -1000, 1000, "Current-sensor offset"),
-    ("i_gain", 50, "r", "tunable", 0.8, "%", -20, 20, "Current-sensor gain error"),
-    ("i_noise", 51, "r", "tunable", 20.0, "mA", 0, 1000, "Current-sensor noise, standard deviation"),
+    *_amplifier(47, tau_i=0.1, i_max=12.0, i_bias=45.0, i_gain=0.8, i_noise=20.0),
     ("F_c", 52, "r", "tunable", 5.0, "N", 0, 100, "Coulomb guide friction"),
     ("F_s", 53, "r", "tunable", 8.0, "N", 0, 100, "Breakaway guide friction (>= F_c)"),
     ("v_s", 54, "r", "tunable", 2.0, "mm/s", 0.01, 100, "Stribeck velocity"),
@@ -113,25 +141,24 @@ ZSTAGE = [
     ("v_reg", 57, "r", "tunable", 2.0, "um/s", 0.01, 1000, "Friction regularisation velocity (pre-sliding)"),
     ("enc_res", 58, "r", "fixed", 5.0, "nm", 0.1, 1e5, "Encoder resolution"),
     ("z_start", 59, "r", "fixed", 0.0, "in", -40, 40, "Initial slide position"),
-    ("h_sub", 60, "r", "fixed", 4.0, "us", 0.1, 50, "Internal integration sub-step"),
+    _h_sub(60),
 ]
 
 BALLSCREW = [
     ("i_cmd", 1, "r", "input", 0.0, "A", 0, 0, "Torque-current command, positive feeds the table into the workpiece"),
-    ("spindle", 2, "r", "input", 2000.0, "rpm", 0, 0, "Spindle speed"),
+    _spindle(2, 2000.0),
     ("orbit", 3, "r", "input", 120.0, "rpm", 0, 0, "Orbital (eccentric) speed"),
     ("i_act", 10, "r", "output", 0.0, "A", 0, 0, "Current feedback (sensor with offset, gain error and noise)"),
     ("lin_scale", 11, "r", "output", 0.0, "um", 0, 0, "Linear scale: table relative to the frame, quantised"),
     ("rotor", 12, "r", "output", 0.0, "rev", 0, 0, "Motor encoder, quantised to enc_cpr counts per revolution"),
-    ("dyno", 13, "r", "output", 0.0, "N", 0, 0, "Dynamometer under the workpiece: thrust plus noise"),
+    _dyno("dyno", 13),
     ("f_axial", 14, "r", "output", 0.0, "N", 0, 0, "True thrust on the tool (DC and orbital ripple)"),
     ("f_orb", 15, "r", "output", 0.0, "N", 0, 0, "True orbital ripple part of the thrust"),
     ("tool_x", 16, "r", "output", 0.0, "um", 0, 0, "True tool-tip position relative to the frame's rest (origin of lin_scale)"),
     ("table_v", 17, "r", "output", 0.0, "um/s", 0, 0, "True table velocity relative to the frame"),
     ("rotor_v", 18, "r", "output", 0.0, "rpm", 0, 0, "True motor speed"),
     ("t_fric", 19, "r", "output", 0.0, "N.m", 0, 0, "True friction torque at the motor"),
-    ("layer", 20, "r", "discrete", 0.0, "", 0, 0, "Stack layer at the tool tip, 1..n_layers (0 outside)"),
-    ("material", 21, "r", "discrete", 0.0, "", 0, 0, "Material at the tool tip: 0 air, 1 CFRP, 2 Ti-6Al-4V, 3 aluminium"),
+    *_at_tip(20, "tool tip"),
     ("winding_T", 22, "r", "output", 40.0, "degC", 0, 0, "Scoring only: true winding (magnet) temperature (no role: the master keeps it from blocks)"),
     ("kt_now", 23, "r", "output", 0.0, "N.m/A", 0, 0, "Scoring only: true torque constant at the present temperature (no role: the master keeps it from blocks)"),
     ("frame_x", 24, "r", "output", 0.0, "um", 0, 0, "Scoring only: true frame deflection along the feed (no role: the master keeps it from blocks)"),
@@ -151,11 +178,7 @@ BALLSCREW = [
     ("R_w", 43, "r", "tunable", 1.3, "Ohm", 0.01, 100, "Winding resistance (copper losses R i^2)"),
     ("R_th", 44, "r", "tunable", 1.6, "K/W", 0.01, 100, "Thermal resistance winding to ambient"),
     ("tau_th", 45, "r", "tunable", 40.0, "s", 0.1, 1e5, "Thermal time constant"),
-    ("tau_i", 46, "r", "tunable", 0.25, "ms", 0.001, 100, "Current-loop time constant"),
-    ("i_max", 47, "r", "tunable", 9.0, "A", 0.1, 100, "Amplifier current limit"),
-    ("i_bias", 48, "r", "tunable", 15.0, "mA", -1000, 1000, "Current-sensor offset"),
-    ("i_gain", 49, "r", "tunable", 1.0, "%", -20, 20, "Current-sensor gain error"),
-    ("i_noise", 50, "r", "tunable", 12.0, "mA", 0, 1000, "Current-sensor noise, standard deviation"),
+    *_amplifier(46, tau_i=0.25, i_max=9.0, i_bias=15.0, i_gain=1.0, i_noise=12.0),
     ("T_c", 51, "r", "tunable", 0.05, "N.m", 0, 10, "Coulomb friction torque"),
     ("T_s", 52, "r", "tunable", 0.08, "N.m", 0, 10, "Breakaway friction torque (>= T_c)"),
     ("w_s", 53, "r", "tunable", 0.8, "rad/s", 0.01, 100, "Stribeck speed"),
@@ -179,7 +202,7 @@ BALLSCREW = [
     ("enc_cpr", 71, "i", "fixed", 131072, "", 4, 1073741824, "Motor encoder counts per revolution"),
     ("scale_res", 72, "r", "fixed", 0.5, "um", 0.001, 1000, "Linear scale resolution"),
     ("x_start", 73, "r", "fixed", 0.0, "um", -1e6, 1e6, "Initial table position"),
-    ("h_sub", 74, "r", "fixed", 4.0, "us", 0.1, 50, "Internal integration sub-step"),
+    _h_sub(74),
     ("q_spin", 75, "r", "tunable", 8.0, "W", 0, 1000, "Heat from the spindle into the feed motor per 1000 rpm"),
 ]
 
