@@ -437,24 +437,26 @@ class _StopRequest:
 
 
 def _stop_check(name: str | None):
-    """For a run: a callable giving the signal that stopped its campaign, or None."""
+    """For a run: a callable giving the signals that stopped its campaign (a second one: kill
+    the run at once; only a worker thread of the driver sees more than the first), or []."""
     if name is None:
         return None
     local = _LOCAL_STOPS.get(name)
     if local is not None:                         # a worker thread of the driver's process
-        return lambda: local[0] if local else None
-    state = {"next": 0.0, "signum": None}
+        return lambda: local
+    state = {"next": 0.0, "signals": []}
 
-    def remote() -> int | None:
+    def remote() -> list[int]:
         now = time.monotonic()
-        if state["signum"] is None and now >= state["next"]:
+        if not state["signals"] and now >= state["next"]:
             state["next"] = now + STOP_POLL_S
             try:
                 from distributed import get_client
-                state["signum"] = get_client().get_metadata([name], default=None)
+                signum = get_client().get_metadata([name], default=None)
+                state["signals"] = [int(signum)] if signum else []
             except Exception:  # noqa: BLE001 - not in a task, or the scheduler is unreachable
                 pass
-        return state["signum"]
+        return state["signals"]
     return remote
 
 

@@ -71,8 +71,9 @@ def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progre
     ``log_file``: the child's stdout and stderr (C-level output too) go there. ``server``: a
     :class:`cosim.run_server.RunServer` whose warm child runs it (a campaign's worker), when
     this process is threaded; else a child of its own. ``stop``: a callable polled while the
-    run goes, returning a signal number when the run must stop as if it had received that
-    signal (a campaign's driver was interrupted), else None. ``plots=False``: scores only.
+    run goes, returning the signals the run must act on as if it had received them (a
+    campaign's driver was interrupted: the first stops the run, a second kills it), else
+    an empty list. ``plots=False``: scores only.
     """
     RunWatch(wall_timeout, max_steps)             # checks the limits before anything starts
     # forked: load here, the child inherits it; else the child loads and this process reads
@@ -212,10 +213,9 @@ def _supervise(sc, out: Path, progress, wall_timeout, max_steps, grace, tmp, log
         t_signal = None
         while not job.wait(POLL_S):
             now = time.monotonic()
-            if stop is not None and not received:
-                asked = stop()                # a campaign being stopped: as if this run got the signal
-                if asked:
-                    forward(asked, None)
+            if stop is not None:
+                for signum in stop()[len(received):]:   # a campaign being stopped: as if this run got them
+                    forward(signum, None)
             beat = Heartbeat.read(out / HEARTBEAT_NAME) or {}
             if beat.get("finishing") and len(received) < 2:
                 continue                      # writing data.mat: never killed for being slow
