@@ -202,7 +202,7 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
                  progress: bool = True, scheduler: str | None = None, wall_timeout: float | None = None,
                  max_steps: int | None = None, retries: int = 0, client=None,
                  keep_data: bool = True, processes: bool = False, resume: bool = False,
-                 gather: bool = False, plots: bool = False) -> list[dict]:
+                 gather: bool = False, plots: bool = False, replace: bool = False) -> list[dict]:
     """Run ``scenario`` (a path) once per overrides dict; summaries in input order.
 
     ``scenario`` may also be a list of paths, one per run (a campaign over several stacks).
@@ -213,7 +213,8 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
     task whose worker died (0: reported ``crashed`` at once). ``keep_data=False`` deletes a
     good run's data.csv/data.mat after scoring (summaries, scores and figures stay).
     ``resume``: complete the campaign in ``out_dir`` (:func:`plan_resume`); without it a
-    folder that holds a campaign is refused. SIGINT / SIGTERM (main thread) stop the
+    folder that holds a campaign is refused, unless ``replace`` (run everything again: a
+    tool that regenerates its own results folder). SIGINT / SIGTERM (main thread) stop the
     campaign cleanly: :class:`CampaignStopped` once campaign.csv/json are written.
     ``gather``: each run in its worker's own folder, its files sent back to ``out_dir``
     (workers on machines that do not share ``out_dir``'s file system). ``plots``: draw each
@@ -237,7 +238,7 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
     jobs = [(path, str((out / f"run_{i:03d}").resolve()), dict(ovr or {}), i)
             for i, (path, ovr) in enumerate(zip(paths, overrides_list))]
     with FolderLock(out) as lock:          # one driver per campaign folder; a dead one's is taken over
-        reused = plan_resume(out, jobs, resume)
+        reused = {} if replace and not resume else plan_resume(out, jobs, resume)
         write_json_atomic(out / PLAN_NAME, {"runs": [{"scenario": j[0], "overrides": j[2]} for j in jobs],
                                             "pid": os.getpid(), "lock_takeover": lock.took_over})
         todo = [j for j in jobs if j[3] not in reused]

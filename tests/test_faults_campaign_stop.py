@@ -125,6 +125,11 @@ def test_a_second_campaign_into_a_campaign_folder_is_refused(tmp_path, mass_fmu,
     assert "is not this one" in capsys.readouterr().err
     assert cli.main(args + ["--resume"]) == 0
     assert "2 runs: 2 completed (2 kept from the earlier campaign)" in capsys.readouterr().out
+    from cosim.campaign import run_campaign        # a tool regenerating its own folder says so
+    again = run_campaign(path, [{"fmus.mass.parameters.m": 9.0}], out_dir=out, workers=1, progress=False,
+                         replace=True)
+    assert again[0]["status"] == "completed" and not again[0]["reused"]
+    assert json.loads((out / "run_000" / "summary.json").read_text())["overrides"] == {"fmus.mass.parameters.m": 9.0}
 
 
 @pytest.mark.long
