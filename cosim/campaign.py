@@ -59,7 +59,7 @@ def _one_run(path: str, out_dir: str, overrides: dict, index: int, wall_timeout=
                 "run": index, "overrides": overrides, "out_dir": out_dir}
     worker = _this_worker()
     out = _worker_folder(worker, stop_name, index) if gather else Path(out_dir)
-    summary = _run_here(path, out, overrides, (wall_timeout, max_steps, plots), stop)
+    summary = _run_here(path, out, overrides, (wall_timeout, max_steps, plots, keep_data), stop)
     summary.update(run=index, overrides=overrides, out_dir=str(out))
     if worker is not None:
         summary["worker"] = worker.address
@@ -79,7 +79,7 @@ def _run_here(path: str, out: Path, overrides: dict, limits: tuple, stop) -> dic
     from .errors import SimulationError
     from .runner import RunEnded, run_scenario
     from .supervisor import run_supervised
-    wall_timeout, max_steps, plots = limits
+    wall_timeout, max_steps, plots, mat = limits      # mat: data.mat of a good run, kept or not
     try:
         out.mkdir(parents=True, exist_ok=True)
         log = out / "log.txt"
@@ -88,7 +88,7 @@ def _run_here(path: str, out: Path, overrides: dict, limits: tuple, stop) -> dic
             from .run_server import server_for_this_thread
             return run_supervised(path, out, overrides, progress=False, wall_timeout=wall_timeout,
                                   max_steps=max_steps, log_file=log, server=server_for_this_thread(), stop=stop,
-                                  plots=plots)
+                                  plots=plots, mat=mat)
         # a worker started with daemon = True may not have children: run here (a crash then
         # takes the worker down, and the scheduler reports it: KilledWorker -> crashed)
         import contextlib
