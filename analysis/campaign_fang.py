@@ -163,7 +163,7 @@ def run(holes=None, out_dir=None, workers=None, progress=True, gap=0.02e-3, scen
     workers = workers or os.cpu_count() or 1
     t0 = time.perf_counter()
     summaries = run_campaign(str(scenario), [p["overrides"] for p in plan], out_dir=str(out),
-                             workers=workers, progress=progress)
+                             workers=workers, progress=progress, replace=True)   # regenerates its folder
     wall = time.perf_counter() - t0
     rows = [{**{k: v for k, v in p.items() if k != "overrides"}, **s, **_flat_scores(s)}
             for p, s in zip(plan, summaries)]

@@ -194,7 +194,7 @@ def run_campaign(jobs, workers: int = 2, progress: bool = True, out_dir=None, sc
     scenarios = [base or STACKS / f"{stack_type}.toml" for _i, stack_type, _ov in jobs]
     with tempfile.TemporaryDirectory(prefix="stack_mc_") as tmp:
         summaries = campaign(scenarios, [ov for _i, _t, ov in jobs], out_dir=out_dir or tmp, workers=workers,
-                             progress=progress, scheduler=scheduler, keep_data=False)
+                             progress=progress, scheduler=scheduler, keep_data=False, replace=True)
     return [row_of(i, stack_type, s) for (i, stack_type, _ov), s in zip(jobs, summaries)]
 
 

@@ -59,7 +59,7 @@ def _one_run(path: str, out_dir: str, overrides: dict, index: int, wall_timeout=
                 "run": index, "overrides": overrides, "out_dir": out_dir}
     worker = _this_worker()
     out = _worker_folder(worker, stop_name, index) if gather else Path(out_dir)
-    summary = _run_here(path, out, overrides, (wall_timeout, max_steps, plots), stop)
+    summary = _run_here(path, out, overrides, (wall_timeout, max_steps, plots, keep_data), stop)
     summary.update(run=index, overrides=overrides, out_dir=str(out))
     if worker is not None:
         summary["worker"] = worker.address
@@ -79,7 +79,7 @@ def _run_here(path: str, out: Path, overrides: dict, limits: tuple, stop) -> dic
     from .errors import SimulationError
     from .runner import RunEnded, run_scenario
     from .supervisor import run_supervised
-    wall_timeout, max_steps, plots = limits
+    wall_timeout, max_steps, plots, mat = limits      # mat: data.mat of a good run, kept or not
     try:
         out.mkdir(parents=True, exist_ok=True)
         log = out / "log.txt"
@@ -88,7 +88,7 @@ def _run_here(path: str, out: Path, overrides: dict, limits: tuple, stop) -> dic
             from .run_server import server_for_this_thread
             return run_supervised(path, out, overrides, progress=False, wall_timeout=wall_timeout,
                                   max_steps=max_steps, log_file=log, server=server_for_this_thread(), stop=stop,
-                                  plots=plots)
+                                  plots=plots, mat=mat)
         # a worker started with daemon = True may not have children: run here (a crash then
         # takes the worker down, and the scheduler reports it: KilledWorker -> crashed)
         import contextlib
@@ -202,7 +202,7 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
                  progress: bool = True, scheduler: str | None = None, wall_timeout: float | None = None,
                  max_steps: int | None = None, retries: int = 0, client=None,
                  keep_data: bool = True, processes: bool = False, resume: bool = False,
-                 gather: bool = False, plots: bool = False) -> list[dict]:
+                 gather: bool = False, plots: bool = False, replace: bool = False) -> list[dict]:
     """Run ``scenario`` (a path) once per overrides dict; summaries in input order.
 
     ``scenario`` may also be a list of paths, one per run (a campaign over several stacks).
@@ -213,7 +213,8 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
     task whose worker died (0: reported ``crashed`` at once). ``keep_data=False`` deletes a
     good run's data.csv/data.mat after scoring (summaries, scores and figures stay).
     ``resume``: complete the campaign in ``out_dir`` (:func:`plan_resume`); without it a
-    folder that holds a campaign is refused. SIGINT / SIGTERM (main thread) stop the
+    folder that holds a campaign is refused, unless ``replace`` (run everything again: a
+    tool that regenerates its own results folder). SIGINT / SIGTERM (main thread) stop the
     campaign cleanly: :class:`CampaignStopped` once campaign.csv/json are written.
     ``gather``: each run in its worker's own folder, its files sent back to ``out_dir``
     (workers on machines that do not share ``out_dir``'s file system). ``plots``: draw each
@@ -237,7 +238,7 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
     jobs = [(path, str((out / f"run_{i:03d}").resolve()), dict(ovr or {}), i)
             for i, (path, ovr) in enumerate(zip(paths, overrides_list))]
     with FolderLock(out) as lock:          # one driver per campaign folder; a dead one's is taken over
-        reused = plan_resume(out, jobs, resume)
+        reused = {} if replace and not resume else plan_resume(out, jobs, resume)
         write_json_atomic(out / PLAN_NAME, {"runs": [{"scenario": j[0], "overrides": j[2]} for j in jobs],
                                             "pid": os.getpid(), "lock_takeover": lock.took_over})
         todo = [j for j in jobs if j[3] not in reused]
@@ -437,24 +438,26 @@ class _StopRequest:
 
 
 def _stop_check(name: str | None):
-    """For a run: a callable giving the signal that stopped its campaign, or None."""
+    """For a run: a callable giving the signals that stopped its campaign (a second one: kill
+    the run at once; only a worker thread of the driver sees more than the first), or []."""
     if name is None:
         return None
     local = _LOCAL_STOPS.get(name)
     if local is not None:                         # a worker thread of the driver's process
-        return lambda: local[0] if local else None
-    state = {"next": 0.0, "signum": None}
+        return lambda: local
+    state = {"next": 0.0, "signals": []}
 
-    def remote() -> int | None:
+    def remote() -> list[int]:
         now = time.monotonic()
-        if state["signum"] is None and now >= state["next"]:
+        if not state["signals"] and now >= state["next"]:
             state["next"] = now + STOP_POLL_S
             try:
                 from distributed import get_client
-                state["signum"] = get_client().get_metadata([name], default=None)
+                signum = get_client().get_metadata([name], default=None)
+                state["signals"] = [int(signum)] if signum else []
             except Exception:  # noqa: BLE001 - not in a task, or the scheduler is unreachable
                 pass
-        return state["signum"]
+        return state["signals"]
     return remote
 
 

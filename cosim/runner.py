@@ -92,10 +92,13 @@ def block_load_warnings(sc: Scenario, echo: bool = True) -> list[str]:
 
 
 def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
-                  handle_signals: bool = True, started: float | None = None, plots: bool = True) -> Result:
+                  handle_signals: bool = True, started: float | None = None, plots: bool = True,
+                  mat: bool = True) -> Result:
     """:func:`run_scenario` on a claimed (locked, cleared) folder ``out``; ``started``: the
     ``time.perf_counter()`` before the scenario was loaded (for summary.json's ``timing_s``).
-    ``plots=False``: scores only (a campaign's default: ``drillcosim plot RUN`` draws them later)."""
+    ``plots=False``: scores only (a campaign's default: ``drillcosim plot RUN`` draws them later).
+    ``mat=False``: no data.mat for a run that ends well (a campaign that drops its good runs'
+    data); one that ends otherwise still gets it, as evidence."""
     t_run = time.perf_counter()
     recorder = Recorder(sc.record_signals, sc.decimation, out)
     summary = _base_summary(sc, out)
@@ -123,7 +126,7 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
         raise
     watch.heartbeat.finishing()
     t_sim = time.perf_counter()
-    result = recorder.finish()
+    result = recorder.finish(write_mat=mat or info.status not in ("completed", "stopped"))
     t_written = time.perf_counter()
     summary.update(info.as_dict())
     summary["rows_recorded"] = len(result.time)
@@ -154,7 +157,7 @@ def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
     for scores in summary["scores"].values():   # a score may judge the run: a hole not finished (cosim/hole_plan.py)
         if isinstance(scores, dict) and scores.get("status") == "incomplete":
             summary.update(status="incomplete", error=scores.get("status_reason", "incomplete"))
-    summary["files"] = {"csv": str(out / "data.csv"), "mat": str(out / "data.mat"),
+    summary["files"] = {"csv": str(out / "data.csv"), "mat": str(out / "data.mat") if mat else None,
                         "png": sorted(str(f) for f in out.glob("*.png"))}   # earlier PNGs were removed
     summary["scores_passed"], failed = scores_verdict(summary["scores"], [name for *_, name in sc.scores])
     if failed:

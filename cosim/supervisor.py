@@ -63,7 +63,8 @@ def exit_code(summary: dict) -> int:
 
 def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progress: bool = True,
                    wall_timeout: float | None = None, max_steps: int | None = None,
-                   grace: float = GRACE_S, log_file=None, server=None, stop=None, plots: bool = True) -> dict:
+                   grace: float = GRACE_S, log_file=None, server=None, stop=None, plots: bool = True,
+                   mat: bool = True) -> dict:
     """Run ``scenario`` in a child process; return its summary (also in summary.json).
 
     Raises only for what happens before the run (:class:`cosim.errors.ScenarioError`,
@@ -72,8 +73,9 @@ def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progre
     ``log_file``: the child's stdout and stderr (C-level output too) go there. ``server``: a
     :class:`cosim.run_server.RunServer` whose warm child runs it (a campaign's worker), when
     this process is threaded; else a child of its own. ``stop``: a callable polled while the
-    run goes, returning a signal number when the run must stop as if it had received that
-    signal (a campaign's driver was interrupted), else None. ``plots=False``: scores only.
+    run goes, returning the signals the run must act on as if it had received them (a
+    campaign's driver was interrupted: the first stops the run, a second kills it), else
+    an empty list. ``plots=False``: scores only; ``mat=False``: no data.mat if the run ends well.
     """
     RunWatch(wall_timeout, max_steps)             # checks the limits before anything starts
     # forked: load here, the child inherits it; else the child loads and this process reads
@@ -86,7 +88,7 @@ def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progre
         tmp = tempfile.mkdtemp(prefix="drillcosim-")
         try:
             return _supervise(sc, out, progress, wall_timeout, max_steps, grace, tmp, log_file, server, lock,
-                              stop, plots)
+                              stop, {"plots": plots, "mat": mat})
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
             (out / HEARTBEAT_NAME).unlink(missing_ok=True)
@@ -174,12 +176,12 @@ class _OneRun:
 
 
 def _supervise(sc, out: Path, progress, wall_timeout, max_steps, grace, tmp, log_file, server=None,
-               lock=None, stop=None, plots: bool = True) -> dict:
+               lock=None, stop=None, outputs: dict | None = None) -> dict:
     ctx, forked = _context(sc)
     payload = {"parent": (os.getpid(), process_start(os.getpid())), "scenario": sc if forked else None, "path": str(sc.path) if sc.path else None,
                "overrides": sc.overrides, "out": str(out), "progress": progress, "tmp": tmp,
                "wall_timeout": wall_timeout, "max_steps": max_steps,
-               "log_file": str(log_file) if log_file else None, "plots": plots}
+               "log_file": str(log_file) if log_file else None, **(outputs or {})}
     if forked and not hasattr(sc, "system"):
         payload["scenario"] = None                 # facts only (threads came up since): child loads
     if not forked and sc.path is None:
@@ -213,10 +215,9 @@ def _supervise(sc, out: Path, progress, wall_timeout, max_steps, grace, tmp, log
         t_signal = None
         while not job.wait(POLL_S):
             now = time.monotonic()
-            if stop is not None and not received:
-                asked = stop()                # a campaign being stopped: as if this run got the signal
-                if asked:
-                    forward(asked, None)
+            if stop is not None:
+                for signum in stop()[len(received):]:   # a campaign being stopped: as if this run got them
+                    forward(signum, None)
             beat = Heartbeat.read(out / HEARTBEAT_NAME) or {}
             if beat.get("finishing") and len(received) < 2:
                 continue                      # writing data.mat: never killed for being slow
@@ -357,7 +358,7 @@ def run_payload(p: dict) -> int:
         watch = RunWatch(p["wall_timeout"], p["max_steps"], Heartbeat(out / HEARTBEAT_NAME))
         try:
             run_in_folder(sc, out, p["progress"], watch, handle_signals=True, started=started,
-                          plots=p.get("plots", True))
+                          plots=p.get("plots", True), mat=p.get("mat", True))
             code = 0
         except RunEnded as e:
             code = exit_code_for(e.signum) if e.status == "interrupted" else EXIT_TIMEOUT

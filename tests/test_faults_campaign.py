@@ -24,6 +24,7 @@ def test_campaign_one_crash_five_completed_on_two_local_workers(tmp_path, fault_
     assert not (tmp_path / "camp" / "run_000" / "data.csv").exists()
     assert (tmp_path / "camp" / "run_000" / "summary.json").exists()
     assert (tmp_path / "camp" / "run_003" / "data.csv").exists()
+    assert summaries[0]["files"]["mat"] is None              # a good run's data.mat is not even written
     statuses = [s["status"] for s in summaries]
     assert statuses == ["completed"] * 3 + ["crashed"] + ["completed"] * 2
     crashed = summaries[3]

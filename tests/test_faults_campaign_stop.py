@@ -125,6 +125,11 @@ def test_a_second_campaign_into_a_campaign_folder_is_refused(tmp_path, mass_fmu,
     assert "is not this one" in capsys.readouterr().err
     assert cli.main(args + ["--resume"]) == 0
     assert "2 runs: 2 completed (2 kept from the earlier campaign)" in capsys.readouterr().out
+    from cosim.campaign import run_campaign        # a tool regenerating its own folder says so
+    again = run_campaign(path, [{"fmus.mass.parameters.m": 9.0}], out_dir=out, workers=1, progress=False,
+                         replace=True)
+    assert again[0]["status"] == "completed" and not again[0]["reused"]
+    assert json.loads((out / "run_000" / "summary.json").read_text())["overrides"] == {"fmus.mass.parameters.m": 9.0}
 
 
 @pytest.mark.long
@@ -182,3 +187,19 @@ def test_resume_keeps_finished_runs_and_reruns_the_rest(tmp_path):
     assert 0 not in plan_resume(out, jobs, resume=True)
     with pytest.raises(CosimError, match="holds a campaign .*add --resume"):
         plan_resume(out, jobs, resume=False)
+
+
+def test_a_second_stop_request_kills_a_run_stuck_in_c_at_once(tmp_path, fault_fmu):
+    """A campaign's run hears the driver's signals through ``stop``: the first asks it to
+    stop (a run stuck in C cannot), the second kills it without waiting for the grace."""
+    from cosim.supervisor import run_supervised
+    path = scenario(tmp_path, fault_fmu("hang"), fail=0.02, stop=5.0)
+    t0 = time.monotonic()
+
+    def stop() -> list[int]:
+        waited = time.monotonic() - t0
+        return [signal.SIGINT] * (waited > 1.0) + [signal.SIGINT] * (waited > 1.5)
+    s = run_supervised(path, tmp_path / "out", progress=False, grace=60.0, stop=stop)
+    assert time.monotonic() - t0 < 10.0                  # not the 60 s grace
+    assert s["status"] == "interrupted" and s["killed"] and s["stuck_instance"] == "mass"
+    assert s["signal_number"] == signal.SIGINT
