@@ -115,7 +115,7 @@ def _wide_plan(rng: np.random.Generator) -> tuple[list, dict, list]:
 def plan_refusal(base_plan: dict, layers: list, process: dict) -> str | None:
     """Why the hole plan refuses this drawn plan at load, or None (the same checks as the
     scenario loader: cosim.hole_plan)."""
-    from cosim.hole_plan import DETECTOR_DT, DETECTOR_N, HolePlan
+    from cosim.hole_plan import DETECTOR_DT, DETECTOR_N_MIN, HolePlan
 
     class Refused(Exception):
         pass
@@ -123,7 +123,7 @@ def plan_refusal(base_plan: dict, layers: list, process: dict) -> str | None:
     hole = {**base_plan, "layers": layers, "gap_tolerance": 1e-3 * WIDE["gap_mm"][1],
             "process": {**base_plan["process"], **process}}
     try:
-        HolePlan(hole, lambda key, msg: Refused(f"{key}: {msg}")).check_windows(DETECTOR_N * DETECTOR_DT)
+        HolePlan(hole, lambda key, msg: Refused(f"{key}: {msg}")).check_windows(2 * DETECTOR_N_MIN * DETECTOR_DT)
     except Refused as e:
         return str(e)
     return None

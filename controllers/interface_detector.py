@@ -219,6 +219,7 @@ class InterfaceDetector(Block):
         push_out: float = 0.5e-3,
         observer_delay: float = 0.0,
         mismatch_factor: float = 0.0,
+        restart: bool = False,
     ):
         """Settings (SI units).
 
@@ -290,6 +291,10 @@ class InterfaceDetector(Block):
             window reaches this far above the trigger.
         observer_delay [s]: the observed thrust's delay behind the tool (observer and
             sampling); the fit pairs each force sample with the encoder this much earlier.
+        restart: with localisation, once an event is located (its window after the
+            trigger complete: the engagement ramp is behind the tool) the regression
+            window restarts and the next test arms after N_min quiet samples instead of
+            rearm_samples: a layer needs locate_margin + 2 N_min dt of feed, not N dt.
         mismatch_factor: > 1 (process-following mode) checks the plan's materials against
             the levels observed: when a layer's tests arm, the ratio of its observed level
             to the layer above's must be within this factor of the plan's ratio
@@ -336,6 +341,7 @@ class InterfaceDetector(Block):
         if not (mismatch_factor == 0.0 or mismatch_factor > 1.0):
             raise ValueError(f"InterfaceDetector: mismatch_factor must be 0 (off) or > 1, got {mismatch_factor!r}")
         self.mismatch_factor = float(mismatch_factor)
+        self.restart = bool(restart)
         self.thd_min = float(thd_min)
         if not thd_noise_factor >= 0.0:
             raise ValueError(f"InterfaceDetector: thd_noise_factor must be >= 0 (0 = off), got {thd_noise_factor!r}")
@@ -421,6 +427,7 @@ class InterfaceDetector(Block):
         self.drop = False           # paper drop condition met in the last layer
         self.exit_armed = False     # the last layer's (exit) tests have been armed once
         self.quiet = 0              # consecutive samples with |F~| < rearm level
+        self.need = self.rearm_samples   # quiet samples the next test needs to arm
         self.err_hist = deque(maxlen=2 * self.N)   # |F~| of the last 2 N samples (noise threshold)
         self.armed = False
         self.fail = 0
@@ -468,6 +475,7 @@ class InterfaceDetector(Block):
         self.flag = k + 1
         self.armed = False
         self.quiet = 0
+        self.need = self.rearm_samples
         self.t_last, self.x_last = t, x
         if self.localise:
             self.pending.append((k, x, self.h_n))
@@ -541,7 +549,7 @@ class InterfaceDetector(Block):
             if self.thd_noise_factor > 0.0:
                 self.err_hist.append(abs(e))
             if self.relative and 1 <= self.flag <= self.n and math.isnan(self.levels[self.flag - 1]) \
-                    and self.quiet >= self.rearm_samples and self.F_level >= min(self.floor):
+                    and self.quiet >= self.need and self.F_level >= min(self.floor):
                 self._check_level(t, x)     # on a cut level (any material's floor: not a gap)
             if not self.armed and self._may_arm(x):
                 self.armed = True
@@ -607,6 +615,12 @@ class InterfaceDetector(Block):
             in_air = sel & (xs < x_loc - 0.5 * self.locate_margin)
             self.F_air = float(np.mean(hF[in_air])) if in_air.any() else NAN
         self.loc[name] = [x_loc, time_at(ht, hx, x_loc), dx, t_now]
+        if self.restart and k == self.flag - 1 and k < self.n and not self.armed:
+            # the window after the event holds its engagement ramp: from here on the tool
+            # is on the new level, so the regression restarts here and the tests arm as
+            # soon as its N_min samples are quiet, instead of once a full window of N has
+            # left the ramp (issue 23: thin layers at high feeds were never armed)
+            self.n_buf, self.quiet, self.need = 0, 0, self.N_min
 
     def _exit_tests(self, t, x, F, F_pred, e):
         if not self.drop:
@@ -629,7 +643,7 @@ class InterfaceDetector(Block):
         approach's deceleration are no contact). The others: as after every event (re-arming)."""
         if self.flag == 0:
             return self.windows is None or x >= self.windows[0][0]
-        return self.quiet >= self.rearm_samples and self._engaged(self.F_level)
+        return self.quiet >= self.need and self._engaged(self.F_level)
 
     def _check_windows(self, t, x):
         if self.windows is None or self.flag > self.n or self.fail:

@@ -55,7 +55,7 @@ ORBITS_PER_LAYER = 2.0
 # a layer's observed level over the one above's, against the plan's (kc f) ratio: wear moves it
 # by up to ~2.7 (Al / Ti, 80 holes), another drive by ~0.8; a wrong order by ~10 (CFRP/Ti) or more
 MISMATCH_FACTOR = 4.0
-DETECTOR_DT, DETECTOR_N = 0.02, 150     # InterfaceDetector defaults (Table 4's dt, its window)
+DETECTOR_DT, DETECTOR_N_MIN = 0.02, 25  # InterfaceDetector defaults (Table 4's dt, its shortest window)
 LAYER_KEYS = {"material", "thickness", "tolerance"}
 
 
@@ -161,7 +161,8 @@ class HolePlan:
     def check_windows(self, window_s: float) -> None:
         """Each layer, at its thinnest, must hold what the detector needs in it (errors
         name the layer): its regression window at the layer's feed after the engagement
-        (``window_s`` [s]: the detector re-arms once its window lies on the new level),
+        (``window_s`` [s]: the detector restarts its window once the event is located
+        and arms once N_min samples of it are quiet: 2 N_min dt),
         ORBITS_PER_LAYER orbits (the observer tells the ripple from the level), and each
         localisation window reaching into it (after the event above: locate_margin, plus
         gap_tolerance after an interface; before the exit: push_out + locate_margin)."""
@@ -261,6 +262,7 @@ class HolePlan:
             "locate_margin": self.locate_margin,
             "push_out": self.push_out,
             "mismatch_factor": MISMATCH_FACTOR,
+            "restart": True,
         }
 
     def stages(self) -> list[dict]:
@@ -317,9 +319,11 @@ def expand(raw: dict, error, origin: str = "[hole]") -> dict:
             raise error(f"hole.{role}" if role in hole else "hole",
                         f"the plan drives block '{plan.names[role]}' ({role}), which the scenario does not have")
     tname, dname, aname = (plan.names[r] for r in ("trajectory", "detector", "adapt"))
+    # the detector restarts its regression once an event is located, and arms after N_min
+    # quiet samples of it: a layer must hold twice its shortest window after the engagement
     dblock = blocks[dname] if isinstance(blocks[dname], dict) else {}
-    dt, N = dblock.get("sample_period", DETECTOR_DT), (dblock.get("settings") or {}).get("N", DETECTOR_N)
-    plan.check_windows(float(N) * float(dt) if _num(dt) and _num(N) else DETECTOR_N * DETECTOR_DT)
+    dt, n_min = dblock.get("sample_period", DETECTOR_DT), (dblock.get("settings") or {}).get("N_min", DETECTOR_N_MIN)
+    plan.check_windows(2.0 * float(n_min) * float(dt) if _num(dt) and _num(n_min) else 2 * DETECTOR_N_MIN * DETECTOR_DT)
     tset = blocks[tname].get("settings", {})
     traj = plan.trajectory(tset)
     for k, v in traj.items():

@@ -147,3 +147,23 @@ def test_materials_disagreeing_with_the_observed_levels_fail(swapped):
         assert out["level_mismatch"] == pytest.approx(85.0 / 280.0 / 4.875, rel=0.15)
     else:
         assert out["fail"] == 0 and out["level_mismatch"] == pytest.approx(280.0 / 85.0 / 4.875, rel=0.15)
+
+
+@pytest.mark.parametrize("restart", [False, True])
+def test_restart_arms_a_thin_layer_at_a_high_feed(restart):
+    """Issue 23, arming that fits the layer: 2.3 mm of Ti (1300 N) over CFRP at 23 mm/min
+    with a 0.34 mm engagement. Re-arming after a full 3 s window off the entry ramp comes
+    too late: the Ti/CFRP interface is taken at the exit's push-out, a fail. Restarting
+    the regression once the entry is located arms the test in the Ti: found, located
+    within 0.02 mm, the exit too."""
+    h = SyntheticHole(feed=0.38e-3, t1=2.3 * MM, t2=3.4 * MM, gap=0.0, F_cfrp=1300.0, F_ti=300.0, ti_slope=0.0,
+                      engage=0.34 * MM, lag=0.005, seed=3)
+    out = _run(h, kc=[6.5e7, 2.0e7], feed_per_rev=[10e-6, 9e-6], restart=restart, thicknesses=(2.3 * MM, 3.4 * MM),
+               thickness_tolerances=0.4 * MM, max_gap=0.5 * MM)
+    b = h.boundaries
+    if not restart:
+        assert out["fail"] == 1 and out["x_interface1"] > b[2] - 0.5 * MM
+        return
+    assert out["fail"] == 0 and out["flag"] == 3
+    assert abs(out["x_interface1_loc"] - b[1]) <= 0.02 * MM
+    assert abs(out["x_exit_loc"] - b[2]) <= 0.05 * MM
