@@ -39,7 +39,7 @@ _RUN_KEYS = {"scenario", "file", "description", "step_size", "overrides", "out_d
 
 
 # a run's data files, removed after a good run when a campaign keeps only its summaries
-DATA_FILES = ("data.csv", "data.mat", "data.columns.json")
+DATA_FILES = ("data.csv", "data.mat", "data_res.mat", "data.columns.json")
 GOOD = ("completed", "stopped")
 
 

@@ -32,8 +32,8 @@ LOCK_NAME = ".drillcosim.lock"
 HEARTBEAT_NAME = ".heartbeat"
 TRACEBACK_NAME = "crash_traceback.txt"
 # what a run writes; removed before a run so that no earlier result is taken for this run's
-PRODUCED = ("data.csv", "data.columns.json", "data.mat", "summary.json", "scores.txt", TRACEBACK_NAME, HEARTBEAT_NAME,
-            ".rows.f64")
+PRODUCED = ("data.csv", "data.columns.json", "data.mat", "data_res.mat", "summary.json", "scores.txt",
+            TRACEBACK_NAME, HEARTBEAT_NAME, ".rows.f64")
 PRODUCED_GLOBS = ("*.png", ".summary.json.*.tmp")
 SUMMARY_RESERVE = 16384      # bytes held for summary.json from the start (a failed run's: 1-6 kB)
 TAKEOVER_WAIT_S = 3.0        # s to wait for an orphaned child's lock after killing the child
