@@ -106,6 +106,8 @@ def _summary_facts(path: Path, overrides):
     from types import SimpleNamespace
 
     from .scenario import load_raw
+    if path.suffix.lower() in (".ssp", ".ssd"):     # not TOML: the SSP reader is its only parser
+        return load(path, overrides)
     raw = load_raw(path, overrides)
     s = raw.get("scenario", {})
     return SimpleNamespace(name=s.get("name", path.stem), path=path, description=s.get("description", ""),

@@ -217,3 +217,20 @@ def test_cli_runs_another_tools_package_and_refuses_a_python_block(tmp_path, cap
     assert s["status"] == "completed" and s["scenario"] == "omsimulator_linear_transformation"
     assert main(["export-fmu", "fang_table5_hole", "detector", "--out", str(tmp_path / "f")]) == 2
     assert "block 'detector' (controllers.interface_detector:InterfaceDetector) has no C step" in capsys.readouterr().err
+
+
+def test_supervised_ssp_run_from_a_threaded_process(tmp_path):
+    """With a thread alive (a notebook, a campaign's worker) the supervisor cannot fork and
+    reads only the facts a summary needs: an SSD is not TOML, so it is loaded by its reader."""
+    import threading
+
+    from cosim.cli import main
+    hold = threading.Event()
+    t = threading.Thread(target=hold.wait, args=(30,))
+    t.start()
+    try:
+        ssd = THIRD / "omsimulator_linear_transformation" / "SystemStructure.ssd"
+        assert main(["run", str(ssd), "--out", str(tmp_path / "r"), "--quiet"]) == 0
+    finally:
+        hold.set()
+        t.join()
