@@ -266,7 +266,7 @@ def contact_mass(doc: dict) -> float:
     with the slide at the contact mode, and the fitted stiffness is the mount's in series with
     the contact's. The contact mode is then the slide's on that series spring, so its mass is
     the one the contact experiment saw (Foreign2ZStage: 2.56 kg of 4.16 kg; predicted critical
-    Kf 0.72 against 0.6-0.7 simulated, docs/force_loop.md). The blocks' nominal mass stays the
+    Kf 0.72 against 0.70-0.75 simulated, docs/force_loop.md). The blocks' nominal mass stays the
     air cut's."""
     from analysis.commissioning_checks import MASS_CONTACT_LIMIT
 
