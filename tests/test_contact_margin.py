@@ -207,3 +207,55 @@ def test_commissioned_gains_report_and_run_margin_agree(commissioned, tmp_path):
     assert m["loop"]["Kf"] == pytest.approx(g["Kf"]) and m["loop"]["g_thrust"] == pytest.approx(g["g_thrust"])
     assert m["gain_margin_db"] == pytest.approx(g["gain_margin_db"], abs=1.0)
     assert res.summary["scores"]["force_control"]["passed"] and res.summary["scores_passed"]
+
+
+# --------------------------------------------------------------------------- compliant mount (issue 20)
+FOREIGN2_FILE = ROOT / "scenarios/commissioning/foreign2_zstage.json"
+FOREIGN2_FIG7 = ROOT / "scenarios/foreign2/keio_fig7_aluminium_force_control.toml"
+# Keio Fig. 7 on Foreign2ZStage, 2 s, Kf pinned, committed file (docs/force_loop.md): the
+# true thrust oscillates 0.008 N at Kf 0.7 and 0.57 N at 192 Hz, sustained, at 0.75
+FOREIGN2_SIMULATED_BOUNDARY = (0.7, 0.75)
+
+
+def test_compliant_mount_margin_matches_the_simulated_boundary():
+    """The contact experiment sees the slide alone (2.56 of 4.16 kg): the contact mode is the
+    slide's on the mount-and-contact spring, and the loop is stable with an open-loop-unstable
+    mode (Stribeck slope steeper than the contact damping). The predicted critical Kf falls in
+    the simulated bracket widened by the 10 % the brief allows; the gain margin at Kf 0.45 is
+    the upper one and agrees with that Kf ratio within 0.5 dB (Kf is not the only gain in the
+    loop: the DOB path is not scaled)."""
+    from analysis.force_margin import commissioned_loop, margins
+    doc = json.loads(FOREIGN2_FILE.read_text())
+    loop = commissioned_loop(doc, {"Kf": 0.45})
+    assert loop.mass == pytest.approx(doc["contact"]["mass_seen"]) and loop.mass_nominal == doc["nominal"]["mass"]
+    K_crit = critical(loop, "Kf", 0.02, 8.0)
+    lo, hi = FOREIGN2_SIMULATED_BOUNDARY
+    assert 0.9 * lo < K_crit < 1.1 * hi
+    m = margins(loop, n_freq=1500)
+    assert m["stable"] and m["gain_reduction_margin_db"] < 0 < m["gain_margin_db"]
+    assert m["gain_margin_db"] == pytest.approx(20 * math.log10(K_crit / 0.45), abs=0.5)
+
+
+def test_air_cut_mass_stays_when_the_contact_agrees():
+    """A contact experiment whose moving mass agrees with the air cut (the two other stages:
+    0.2 % and 0.06 %) leaves the single-mass model as it was."""
+    from analysis.force_margin import contact_mass
+    doc = {"nominal": {"mass": 4.3}, "contact": {"mass_seen": 4.3 * 1.02}}
+    assert contact_mass(doc) == 4.3
+    doc["contact"]["mass_seen"] = 2.6
+    assert contact_mass(doc) == 2.6
+
+
+@pytest.mark.long
+def test_compliant_mount_boundary_in_simulation(tmp_path):
+    """Fig. 7 (2 s) at 0.9 and 1.2 x the predicted critical Kf: quiet below (< 0.1 N on the
+    true thrust, measured 0.008 N at 0.7), a sustained oscillation above (> 0.3 N, measured
+    0.65 N at 0.8; the friction bounds it below the score's 1 N limit-cycle threshold)."""
+    from analysis.force_margin import commissioned_loop
+    from cosim.runner import run_scenario
+    K_crit = critical(commissioned_loop(json.loads(FOREIGN2_FILE.read_text()), {}), "Kf", 0.02, 8.0)
+    for factor, quiet in ((0.9, True), (1.2, False)):
+        res = run_scenario(FOREIGN2_FIG7, out_dir=tmp_path / f"run{factor}", progress=False, handle_signals=False,
+                           overrides={"blocks.controller.settings.Kf": factor * K_crit, "scenario.stop_time": 2.0})
+        osc = res.summary["scores"]["force_control"]["oscillation_amplitude_N"]
+        assert (osc < 0.1) if quiet else (osc > 0.3), (factor, K_crit, osc)

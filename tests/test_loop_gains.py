@@ -21,6 +21,7 @@ from controllers.loop_gains import TABLE2_G_THRUST, TABLE2_KF, kf_max_at
 ROOT = Path(__file__).resolve().parent.parent
 FOREIGN = ROOT / "scenarios" / "commissioning" / "foreign_zstage.json"
 PROJECT = ROOT / "scenarios" / "commissioning" / "linear_stage.json"
+FOREIGN2 = ROOT / "scenarios" / "commissioning" / "foreign2_zstage.json"   # compliant mount
 
 
 @pytest.fixture()
@@ -79,6 +80,7 @@ def test_kf_table_is_interpolated_in_log_g_thrust():
 
 
 @pytest.mark.parametrize("name, com", [pytest.param("foreign", FOREIGN, marks=pytest.mark.long),   # 7 s
+                                       pytest.param("foreign2", FOREIGN2, marks=pytest.mark.long),
                                        ("project", PROJECT)])
 def test_report_margin_and_run_score_agree(tmp_path, name, com):
     """The file's margin at the gains it chose (the report's) against the run's
@@ -86,6 +88,7 @@ def test_report_margin_and_run_score_agree(tmp_path, name, com):
     0.001 dB on both); the run passes its scores at those gains. Shortened Fig. 7 (1.2 s)."""
     from cosim.runner import run_scenario
     scenario = {"foreign": "scenarios/foreign/keio_fig7_aluminium_force_control.toml",
+                "foreign2": "scenarios/foreign2/keio_fig7_aluminium_force_control.toml",
                 "project": "scenarios/keio_fig7_aluminium_force_control.toml"}[name]
     r = run_scenario(ROOT / scenario, out_dir=tmp_path, progress=False, handle_signals=False,
                      overrides={"scenario.stop_time": 1.2})
@@ -102,7 +105,7 @@ def test_report_margin_and_run_score_agree(tmp_path, name, com):
 def test_committed_gains_are_what_commissioning_tunes():
     """The committed files' force_loop_gains are tune_gains' answer on their own contents."""
     from analysis.force_margin import tune_gains
-    for com in (FOREIGN, PROJECT):
+    for com in (FOREIGN, PROJECT, FOREIGN2):
         doc = json.loads(com.read_text())
         g = tune_gains(doc)
         assert g["Kf"] == pytest.approx(doc["force_loop_gains"]["Kf"], rel=1e-6)
