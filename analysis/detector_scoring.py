@@ -355,6 +355,15 @@ def _event_dz(t, x_tool, xa, xb, td):
     return x_det - xa if not x_det > xa else max(x_det - xb, 0.0) if math.isfinite(xb) else x_det - xa
 
 
+def _located(result, detector, name, t, x_tool, td) -> dict:
+    """The detector's located position of event ``name``: when the encoder passed it, the
+    tool tip there [mm], its +- [mm] and how long after the trigger (``td``) it was known."""
+    t_loc = last_value(result[f"{detector}.t_{name}_loc"])
+    return {"t_loc_s": t_loc, "x_loc_mm": 1e3 * interp_at(t, x_tool, t_loc),
+            "loc_uncertainty_mm": 1e3 * last_value(result[f"{detector}.dx_{name}_loc"]),
+            "loc_known_after_s": last_value(result[f"{detector}.tknown_{name}_loc"]) - td}
+
+
 @needs("{plant}.tool_position_true", "{plant}.layer_index", *(f"{{detector}}.{n}" for n in _DET),
        *(f"{{detector}}.{n}" for n in _LOC), "{adapt}.failsafe", "{adapt}.t_failsafe")
 def score_stack(result, plant="drive", detector="detector", adapt="adapt", materials=("cfrp", "ti"),
@@ -362,11 +371,9 @@ def score_stack(result, plant="drive", detector="detector", adapt="adapt", mater
     """Score of one hole of a hole plan (appended by :mod:`cosim.hole_plan`).
 
     Per event (entry, interface1.., exit; ``events`` names the materials on both sides):
-    true, trigger and located time; the depth error of the *located* position
-    ``<event>_dz_mm`` (tool-tip travel between the true time and the time the encoder
-    passed the located position; negative = early; NaN when the event was not located)
-    and of the trigger ``<event>_trigger_dz_mm``; the located position's uncertainty and
-    how long after the trigger it was known (``events``). A detection more than
+    true, trigger, located time; depth error ``<event>_dz_mm`` of the *located* position
+    (tool-tip travel from the true time to when the encoder passed it; negative = early;
+    NaN: not located), ``<event>_trigger_dz_mm`` of the trigger. A detection more than
     ``match_tolerance`` [m] from its true event is a *false* event and its true event
     *missed*; an event the tool passed but the detector did not report is missed; a flag
     before the tool touched the stack is false. ``missed_events`` / ``false_events``:
@@ -391,15 +398,12 @@ def score_stack(result, plant="drive", detector="detector", adapt="adapt", mater
         xa, xb, x_det = interp_at(t, x_tool, ta), interp_at(t, x_tool, tb), interp_at(t, x_tool, td)
         tt = ta if math.isfinite(ta) else tb
         dz = _event_dz(t, x_tool, xa, xb, td)
-        t_loc = last_value(result[f"{detector}.t_{name}_loc"])
         events[name] = {"between": label, "t_true_s": [ta, tb], "t_det_s": td,
                         "x_true_mm": [1e3 * xa, 1e3 * xb], "x_det_mm": 1e3 * x_det,
-                        "t_loc_s": t_loc, "x_loc_mm": 1e3 * interp_at(t, x_tool, t_loc),
-                        "loc_uncertainty_mm": 1e3 * last_value(result[f"{detector}.dx_{name}_loc"]),
-                        "loc_known_after_s": last_value(result[f"{detector}.tknown_{name}_loc"]) - td}
+                        **_located(result, detector, name, t, x_tool, td)}
         # the located position is the event's position (process record); the trigger's
         # is when the adaptation acted
-        out[f"{name}_dz_mm"] = 1e3 * _event_dz(t, x_tool, xa, xb, t_loc)
+        out[f"{name}_dz_mm"] = 1e3 * _event_dz(t, x_tool, xa, xb, events[name]["t_loc_s"])
         out[f"{name}_trigger_dz_mm"] = 1e3 * dz
         if math.isfinite(td) and not (math.isfinite(dz) and abs(dz) <= match_tolerance):
             false.append(name)

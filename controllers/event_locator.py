@@ -148,14 +148,13 @@ def free_face(x, F, lo: float, hi: float, air: float) -> tuple[float, float]:
     return _best_face(lo, hi, sse, PUSH_OUT_LENGTHS, PUSH_OUT_SHAPES, x.size)
 
 
-def locate(kind: str, x, F, *, air: float = 0.0, sign: float = 1.0, x_trig: float | None = None):
+def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None):
     """Located position [m] of an event and its uncertainty [m] from the samples around
     its trigger: table positions ``x`` [m] (increasing along the feed), observed thrust
     ``F`` [N]. ``kind``: "entry", "interface" or "exit"; ``air`` [N]: the observed thrust
-    with the tool in air (before the entry); ``sign``: +1 when the next layer cuts
-    harder (an interface whose thrust rises), -1 softer (kept for the record: a fitted
-    ramp has either sign); ``x_trig`` [m]: where the detector fired (an onset lies
-    before it; default the window's middle). (NaN, NaN) when there are too few samples."""
+    with the tool in air (before the entry); ``x_trig`` [m]: where the detector fired
+    (an onset lies before it; default the window's middle). A ramp of either sign is
+    fitted. (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
     x, F = np.asarray(x, float), np.asarray(F, float)

@@ -609,8 +609,7 @@ class InterfaceDetector(Block):
         name = LOC_EVENTS[0] if k == 0 else LOC_EVENTS[-1] if k == self.n else f"interface{k}"
         kind = "entry" if k == 0 else "exit" if k == self.n else "interface"
         air = self.F_air if math.isfinite(self.F_air) else 0.0
-        sign = self.step_signs[k - 1] if kind == "interface" else 1.0
-        x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, sign=sign, x_trig=x_trig)
+        x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig)
         if k == 0 and math.isfinite(x_loc):
             in_air = sel & (xs < x_loc - 0.5 * self.locate_margin)
             self.F_air = float(np.mean(hF[in_air])) if in_air.any() else NAN

@@ -43,8 +43,7 @@ def test_air_run_is_a_gap_not_a_low_cut_level():
 def test_locate_noise_free_profiles(kind, corners, levels, true):
     x = np.arange(0.0, 1.2 * MM, 0.004 * MM)      # 0.02 s samples at 12 mm/min
     F = profile(x, [c * MM for c in corners], levels)
-    sign = math.copysign(1.0, levels[-1] - levels[0])
-    x_loc, dx = locate(kind, x, F, sign=sign)
+    x_loc, dx = locate(kind, x, F)
     assert abs(x_loc - true * MM) <= 0.01 * MM
     assert 0.0 < dx <= 0.01 * MM
 
@@ -54,7 +53,7 @@ def test_locate_gap_lands_between_the_faces(levels):
     x = np.arange(0.0, 1.6 * MM, 0.004 * MM)
     # the upper layer thins out over 0.1 mm to its free face at 0.6, a 0.2 mm gap, the lower from 0.8
     F = profile(x, [0.5 * MM, 0.6 * MM, 0.8 * MM, 0.9 * MM], [levels[0], 0.0, 0.0, levels[1]])
-    x_loc, dx = locate("interface", x, F, sign=+1.0)
+    x_loc, dx = locate("interface", x, F)
     assert abs(x_loc - 0.7 * MM) <= 0.01 * MM
     assert dx >= 0.1 * MM - 0.01 * MM           # the whole gap is the interface
 
