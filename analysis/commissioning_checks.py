@@ -61,7 +61,18 @@ def mass_entry(doc: dict, mass_key: str, scale: float) -> dict:
             check["passed"] = False
             check["reason"] = (f"the contact experiment's moving mass {c['mass_seen']:.4g} kg differs by "
                                f"{100 * dev:+.1f} % from the air cut's {m_air:.4g} kg (> {100 * lim:.1f} %)")
-    return _entry(doc["nominal"][mass_key], fit.get("std", math.nan) * scale, unit, check)
+    value = doc["nominal"][mass_key]
+    std_stat = fit.get("std", math.nan) * scale
+    # The fit's own spread knows only the noise; the disagreement between independent
+    # experiments (ramps of other accelerations, the contact test) shows the model error,
+    # and was 15x the statistical spread on the project stage. Each of two estimates that
+    # differ by d carries about d / sqrt(2) of it.
+    devs = [abs(check.get("max_rel_deviation") or 0.0),
+            abs((check.get("contact_experiment") or {}).get("relative_deviation") or 0.0)]
+    std_model = value * max(devs) / math.sqrt(2)
+    entry = _entry(value, math.hypot(std_stat, std_model) if std_stat == std_stat else std_model, unit, check)
+    entry["std_statistical"] = std_stat
+    return entry
 
 
 def force_constant_entry(doc: dict, unit: str) -> dict:
