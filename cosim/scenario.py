@@ -349,11 +349,29 @@ def _check_setting_types(cls, key: str, settings: dict, c: _Checker) -> None:
             ok, want = not isinstance(value, (str, int, float)) or isinstance(value, bool), "true or false"
         elif isinstance(default, (int, float)):
             ok, want = not isinstance(value, (str, bool)), "a number"
+        elif _numeric_annotation(params.get(name)):     # Kf: float | None (None: from the file)
+            ok, want = not isinstance(value, (str, bool)), "a number"
         else:
             continue
         if not ok:
-            raise c.error(f"{key}.settings.{name}", f"expected {want} (the default of {cls.__name__}'s "
-                                                     f"{name} is {default!r}), got {_show(value)}")
+            what = (f"the default of {cls.__name__}'s {name} is {default!r}" if default is not None
+                    and default is not inspect.Parameter.empty else
+                    f"{cls.__name__}'s {name} is {_annotation_text(params[name])}")
+            raise c.error(f"{key}.settings.{name}", f"expected {want} ({what}), got {_show(value)}")
+
+
+def _annotation_text(param) -> str:
+    ann = param.annotation
+    return ann if isinstance(ann, str) else getattr(ann, "__name__", str(ann))
+
+
+def _numeric_annotation(param) -> bool:
+    """A parameter declared as a number, or a number or None (its default then comes from
+    elsewhere, e.g. a commissioning file)."""
+    if param is None or param.annotation is inspect.Parameter.empty:
+        return False
+    words = set(re.findall(r"[A-Za-z_]+", _annotation_text(param)))
+    return bool(words & {"float", "int"}) and words <= {"float", "int", "None", "Optional"}
 
 
 def _wire_input_files(system: System, stop_time: float, c: _Checker) -> None:

@@ -50,6 +50,15 @@ def test_setting_of_the_wrong_type_names_it(scenario_file, capsys):
             "got str 'abc'") in err
 
 
+def test_the_issue_s_kf_typo_names_kf(capsys):
+    """The issue's own case: Kf has no number default (None: the commissioning file's tuned
+    gain), so its declared type says what it takes."""
+    assert main(["run", "keio_fig7_aluminium_force_control", "--quiet",
+                 "--set", "blocks.controller.settings.Kf=abc"]) == 1
+    assert ("blocks.controller.settings.Kf: expected a number (ThrustForceController's Kf is "
+            "float | None), got str 'abc'") in _err(capsys)
+
+
 def test_a_list_where_a_number_is_the_default_is_the_blocks_to_judge():
     """InterfaceDetector's thickness_tolerances defaults to 0.0 and takes a list per layer:
     only text (or a bool) where a number is the default is refused before the block."""
