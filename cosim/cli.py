@@ -500,6 +500,25 @@ def _add_export_parsers(sub) -> None:
     es.set_defaults(func=cmd_export_ssp)
 
 
+def _add_replay_parser(sub) -> None:
+    """``replay``: a scenario's blocks on a recording (:mod:`cosim.replay`)."""
+    rp = sub.add_parser("replay", help="run a scenario's observers, detector and controllers on a recording "
+                                       "(CSV) instead of its plant FMU; scores where the recording allows")
+    rp.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
+    rp.add_argument("--measurement", required=True, metavar="CSV", help="the recording: first column time [s], "
+                    "columns <plant>.<role> (e.g. stage.table_position [m]); .csv or .csv.gz")
+    rp.add_argument("--mapping", metavar="TOML", help="which column is which plant signal, with units "
+                    "([columns] table_position = { column = \"z\", unit = \"mm\" })")
+    rp.add_argument("--plant", metavar="INSTANCE", help="the FMU the recording stands in for (default: the "
+                    "mapping's [replay] plant, else the scenario's only FMU)")
+    rp.add_argument("--recording-start", type=float, metavar="SECONDS", help="the recording's time at the "
+                    "scenario's start (default: the mapping's [replay] recording_start, else the start time)")
+    rp.add_argument("--out", help="output folder (default results/<scenario name>_replay)")
+    rp.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override a scenario key")
+    rp.add_argument("--quiet", action="store_true", help="no progress bar, only the paths")
+    rp.set_defaults(func=cmd_replay)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``drillcosim`` argument parser (the docs' command lines are checked against it)."""
     p = argparse.ArgumentParser(prog="drillcosim", description="Co-simulation of drilling feed drives: "
@@ -517,21 +536,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run in this process, not in a supervised child (a crashing FMU then kills drillcosim)")
     r.set_defaults(func=cmd_run)
     _add_campaign_parser(sub)
-    rp = sub.add_parser("replay", help="run a scenario's observers, detector and controllers on a recording "
-                                       "(CSV) instead of its plant FMU; scores where the recording allows")
-    rp.add_argument("scenario", help="scenario .toml (or its name in scenarios/)")
-    rp.add_argument("--measurement", required=True, metavar="CSV", help="the recording: first column time [s], "
-                    "columns <plant>.<role> (e.g. stage.table_position [m]); .csv or .csv.gz")
-    rp.add_argument("--mapping", metavar="TOML", help="which column is which plant signal, with units "
-                    "([columns] table_position = { column = \"z\", unit = \"mm\" })")
-    rp.add_argument("--plant", metavar="INSTANCE", help="the FMU the recording stands in for (default: the "
-                    "mapping's [replay] plant, else the scenario's only FMU)")
-    rp.add_argument("--recording-start", type=float, metavar="SECONDS", help="the recording's time at the "
-                    "scenario's start (default: the mapping's [replay] recording_start, else the start time)")
-    rp.add_argument("--out", help="output folder (default results/<scenario name>_replay)")
-    rp.add_argument("--set", action="append", metavar="KEY=VALUE", default=[], help="override a scenario key")
-    rp.add_argument("--quiet", action="store_true", help="no progress bar, only the paths")
-    rp.set_defaults(func=cmd_replay)
+    _add_replay_parser(sub)
     li = sub.add_parser("list", help="list the scenarios with their description")
     li.add_argument("--dir", help="folder of scenario files (default scenarios/)")
     li.set_defaults(func=cmd_list)
