@@ -296,6 +296,18 @@ WINDOW_AFTER_TOP = 1.0e-3         # m
 WINDOW_BEFORE_BOTTOM = 0.8e-3     # m
 
 
+def _cut_position_force(friction_file: Path) -> dict:
+    """The observer setting that applies the air cut's position force in the reference cut, as
+    the blocks will apply it: the cut's intercept then shows what is left at the cut's
+    position, not the spring the air cut already found. About the fit's centre, where the
+    identified force is zero, so it adds to the friction file's offset (F_grav_comp = -offset)."""
+    pf = json.loads(Path(friction_file).read_text()).get("info", {}).get("position_force")
+    if not pf or not any(pf.get("coefficients") or ()):
+        return {}
+    from controllers.position_force import from_identification
+    return {"blocks.observer.settings.position_force": from_identification(pf, pf["center"])}
+
+
 def thrust_calibration(target: dict, friction_file: Path, mass: float, out: Path):
     """The reference cut with the dynamometer: Kt_n_cal (N/A or N m/A), or None when the
     plant has no ``thrust_dyn`` role."""
@@ -316,6 +328,7 @@ def thrust_calibration(target: dict, friction_file: Path, mass: float, out: Path
               "fmus.stage": {"plant": str(target["binding_path"])},
               "fmus.stage.plant_parameters": params, **plant,
               "blocks.observer.settings": {**observer_ds, "friction_file": str(friction_file), "calibration_file": ""},
+              **_cut_position_force(friction_file),
               "blocks.controller.settings": {**controller_ds, "calibration_file": "", "F_bias": 0.0}}
     sc = write_scenario(out / "experiments" / "thrust_calibration.toml", tables)
     _run(sc, out / "thrust_calibration")
@@ -408,6 +421,10 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
     else:   # net gravity along +z, as the observer wants it, where the air cut started
         from analysis.identification import position_force
         nominal["gravity_comp"] = -fm.offset - float(position_force(fm, travel[0]))
+        if fm.info.get("position_force") and any(fm.info["position_force"]["coefficients"]):
+            # the blocks add the change from there at the measured position (controllers/position_force.py)
+            from controllers.position_force import from_identification
+            nominal["position_force"] = from_identification(fm.info["position_force"], travel[0])
     doc = {"format": FORMAT, "plant": str(target["binding_path"]), "target": str(Path(target_path).resolve()),
            "nominal": nominal, "friction": fm.to_dict(), "calibration": cal, "inertia_fit": inertia,
            "contact": None, "force_loop": None, "warnings": warnings}
@@ -459,6 +476,9 @@ def without_calibration(doc: dict) -> dict:
     nom.update(force_constant=nom["force_constant_datasheet"], **{mass_key: nom[mass_key] * back})
     if "gravity_comp" in nom:
         nom["gravity_comp"] *= back
+    if "position_force" in nom:
+        pf = nom["position_force"]
+        nom["position_force"] = {**pf, "coefficients": [c * back for c in pf["coefficients"]]}
     fm = rescale_friction(FrictionModel.from_dict(doc["friction"]), back)
     return {**doc, "nominal": nom, "friction": fm.to_dict(), "calibration": None}
 

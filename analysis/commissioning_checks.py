@@ -19,9 +19,11 @@ Checks (each stated in docs/commissioning.md):
   agree (2 %, 25 % + 3 sigma), the travel covers two periods of it, and no periodic term is
   left in the residual (whiteness);
 * gravity_comp (linear stage): no position-dependent force that changes the effort by more
-  than 1 % of the 50 N working thrust over the air cut's travel (the blocks take one constant);
-* that offset (gravity_comp, a ball screw's friction offset) against the reference cut: its
-  intercept within 3 sigma or 0.5 N (:func:`intercept_problem`).
+  than 1 % of the 50 N working thrust over the air cut's travel, unless the file carries it
+  as ``nominal.position_force`` (then the blocks apply it at the measured position);
+* that offset (gravity_comp, a ball screw's friction offset) against the reference cut (whose
+  observer applies the position force, when there is one): its intercept within 3 sigma or
+  0.5 N (:func:`intercept_problem`).
 """
 from __future__ import annotations
 
@@ -159,13 +161,18 @@ def ripple_entry(fm, travel: float) -> dict:
 
 def gravity_entry(doc: dict, fm, p_range: tuple[float, float]) -> dict:
     """gravity_comp of a linear stage: one constant, valid only if the effort does not change
-    with the stroke (a spring, a stroke-dependent compensator)."""
+    with the stroke (a spring, a stroke-dependent compensator) -- unless the file gives the
+    blocks that change too (``nominal.position_force``, applied at the measured position);
+    then the stroke is no reason, and the reference cut (run with it) is the check."""
     p = np.linspace(p_range[0], p_range[1], 201)
     pf = position_force(fm, p)
     change = float(np.ptp(pf)) if len(pf) else 0.0
     std = (fm.info.get("std") or {}).get("offset", math.nan) * fm.info.get("rescaled_by_thrust_calibration", 1.0)
     check = {"method": "position-dependent force over the air cut's travel", "change_N": change,
              "limit_N": POSITION_FORCE_LIMIT_N, "passed": change <= POSITION_FORCE_LIMIT_N}
+    if doc["nominal"].get("position_force"):
+        check.update(method="position-dependent force over the air cut's travel, applied by the blocks at the "
+                     "measured position (nominal.position_force)", applied_by_blocks=True, passed=True)
     if not check["passed"]:
         check["reason"] = (f"the effort changes by {change:.2f} N over the travel {p_range[0] * 1e3:.3g}-"
                            f"{p_range[1] * 1e3:.3g} mm (a spring or a stroke-dependent gravity compensator, "

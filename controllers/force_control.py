@@ -90,7 +90,9 @@ error of a static force.
 
 ``commissioning_file`` (commissioning.json of ``drillcosim commission``): its nominal mass,
 force constant and gravity compensation replace ``mass_nominal``,
-``force_constant_nominal`` and ``F_bias`` -- the set the cutting-force observer reads from
+``force_constant_nominal`` and ``F_bias``, its ``position_force`` (a spring-type compensator:
+the static force changes with the stroke) the ``position_force`` setting, evaluated at the
+measured position each sample (:mod:`controllers.position_force`) -- the set the cutting-force observer reads from
 the same file, so the two never disagree. ``Kf`` comes from its ``force_loop_gains`` (tuned
 for the stated gain margin on that plant, :mod:`controllers.loop_gains`) unless the
 scenario pins it; a pinned Kf that leaves less than the margin at the commissioned
@@ -136,7 +138,8 @@ class ThrustForceController(KernelBlock, Block):
         mass_nominal [kg] 3.95,
         force_constant_nominal [N/A] 24.0, calibration_file [path] (thrust_calibration.json:
         its Kt_n_cal replaces force_constant_nominal), g_dob [rad/s] 1200, g_vel [rad/s] 2000,
-        i_max [A] drive limit, F_bias [N] known static force in +z;
+        i_max [A] drive limit, F_bias [N] known static force in +z; position_force: its change
+        with the table position (controllers/position_force.py), evaluated at the encoder;
         F_cmd [N] default thrust command (start value of the ``F_cmd`` input);
         force_control [bool] (false = position control only);
         F_contact [N], t_confirm [s]: contact detection on ``F_thrust_hat``, armed
@@ -181,12 +184,13 @@ class ThrustForceController(KernelBlock, Block):
                  z_retract: float = 0.0, v_retract: float = 0.005, a_retract: float = 0.05,
                  v_max: float = math.inf, tau_switch: float = 0.01, dt: float = 1e-4,
                  sample_period: float = 0.0, calibration_file: str | None = None,
-                 commissioning_file: str | None = None, accept_unverified=()):
+                 commissioning_file: str | None = None, accept_unverified=(), position_force=None):
         super().__init__(sample_period)
         self.load_warnings: list[str] = []
         if commissioning_file:
             nom = load_commissioning(commissioning_file, "linear_stage", accept_unverified)["nominal"]
             mass_nominal, force_constant_nominal, F_bias = nom["mass"], nom["force_constant"], nom["gravity_comp"]
+            position_force = nom.get("position_force")
             Kf = self._commissioned_kf(commissioning_file, Kf, force_control)
         elif calibration_file:
             force_constant_nominal = load_calibration(calibration_file).Kt_n_cal
@@ -206,7 +210,7 @@ class ThrustForceController(KernelBlock, Block):
         self.v_max = float(v_max)
         self.tau_switch = float(tau_switch)
         self.core = RobustAcceleration(mass_nominal, force_constant_nominal, g_dob, g_vel, i_max,
-                                       F_bias, sample_period if sample_period > 0 else dt)
+                                       F_bias, sample_period if sample_period > 0 else dt, position_force)
         self.inputs = (
             *TRAJECTORY_PORTS, ENCODER_PORT,       # the approach trajectory
             Port("F_cmd", "N", "thrust-force command", start=float(F_cmd)),

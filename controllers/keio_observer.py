@@ -35,7 +35,12 @@ when given (``F_ripple``). ``v_hat`` is ``v`` low-passed by the same g.
 
 F_ref (eq. 2) has no inertia term and no filter: ``Kt_n I_ref - F_fric(v_hat) + F_grav_comp``.
 
+A spring-type gravity compensator makes the gravity term depend on the stroke: with
+``position_force`` (:mod:`controllers.position_force`) it is ``F_grav_comp + sum_k c_k (z -
+z0)^k`` at the measured ``z`` of each sample, in ``d`` and in ``F_ref`` alike.
+
 Settings: ``M_n`` [kg], ``Kt_n`` [N/A], ``g_thrust`` [rad/s], ``F_grav_comp`` [N],
+``position_force`` (dict ``reference_position`` [m], ``coefficients`` [N/m^k]),
 ``F_coulomb`` [N], ``b_viscous`` [N s/m], ``F_stribeck`` [N], ``v_stribeck`` [m/s],
 ``F_ripple`` (rows [k rad/m, a_sin N, a_cos N]), ``v_eps`` [m/s], ``v_stick`` [m/s],
 ``friction_file`` (friction.json of air_cut_friction_identification_keio: when given it
@@ -45,7 +50,7 @@ replaces the friction settings *and* F_grav_comp, by its identified offset),
 friction, cogging and gravity efforts -- identified through the uncalibrated constant, the
 friction file's ``force_constant_nominal`` or else the ``Kt_n`` setting -- are scaled by
 ``Kt_n_cal`` over that constant), ``commissioning_file`` (commissioning.json of ``drillcosim commission``: when given, its
-nominal mass, force constant, gravity compensation and friction model replace ``M_n``,
+nominal mass, force constant, gravity compensation (with its ``position_force``) and friction model replace ``M_n``,
 ``Kt_n``, ``F_grav_comp``, the friction settings and both files above -- the same set the
 force controller reads; its tuned ``force_loop_gains`` give ``g_thrust`` unless the scenario
 pins it, :mod:`controllers.loop_gains`), ``accept_unverified`` (the quantities of that file
@@ -69,6 +74,7 @@ from controllers.friction import FrictionModel, make_friction, resolve_path
 from controllers.kernels import KernelBlock
 from controllers.loop_gains import commissioned_g_thrust
 from controllers.kernels import structs
+from controllers.position_force import MAX_TERMS, parse as parse_position_force, static_force
 from controllers.nominal_models import DiscretisedBlock, KeioNominal, keio_model, zoh
 
 
@@ -87,7 +93,7 @@ class CuttingForceObserver(KernelBlock, DiscretisedBlock):
                  F_ripple=None, v_eps: float = 1e-5, v_stick: float = 5e-5,
                  friction_file: str | None = None, calibration_file: str | None = None,
                  i_ref_timing: str = "held", sample_period: float = KeioNominal.sample_period,
-                 commissioning_file: str | None = None, accept_unverified=()):
+                 commissioning_file: str | None = None, accept_unverified=(), position_force=None):
         super().__init__(sample_period)
         self.load_warnings: list[str] = []
         if commissioning_file:
@@ -106,6 +112,7 @@ class CuttingForceObserver(KernelBlock, DiscretisedBlock):
             self.friction.v_eps = float(v_eps)
             friction_file = calibration_file = None
             F_grav_comp = com["nominal"]["gravity_comp"]
+            position_force = com["nominal"].get("position_force")
         else:
             self.friction = make_friction(resolve_path(friction_file), F_coulomb, b_viscous, F_stribeck, v_stribeck,
                                           v_eps, effort_unit="N", velocity_unit="m/s", ripple=F_ripple,
@@ -117,12 +124,15 @@ class CuttingForceObserver(KernelBlock, DiscretisedBlock):
             self.F_grav_comp = -self.friction.offset
         else:
             self.F_grav_comp = float(F_grav_comp)
+        # a spring-type compensator: the gravity term follows the measured position
+        self.pf_z0, self.pf = parse_position_force(position_force, "CuttingForceObserver: position_force")
         self.calibration = load_calibration(calibration_file) if calibration_file else None
         if self.calibration is not None:
             Kt_id = float(self.friction.info.get("force_constant_nominal", Kt_n)) if friction_file else float(Kt_n)
             scale = self.calibration.Kt_n_cal / Kt_id
             self.friction = rescale_friction(self.friction, scale)
             self.F_grav_comp *= scale
+            self.pf = tuple(c * scale for c in self.pf)
             self.nominal = KeioNominal(M_n=float(M_n), Kt_n=self.calibration.Kt_n_cal, g_thrust=float(g_thrust))
         if not v_stick >= 0:
             raise ValueError(f"CuttingForceObserver: v_stick must be >= 0 m/s, got {v_stick!r}")
@@ -155,10 +165,12 @@ class CuttingForceObserver(KernelBlock, DiscretisedBlock):
         "F_grav_comp": ("N", "gravity compensation"), "a": ("1", "observer pole exp(-g_thrust Ts)"),
         "b": ("1", "1 - a"), "Ts": ("s", "sample period"), "v_stick": ("m/s", "standstill band"),
         "F_static": ("N", "largest static friction"), "held": ("1", "1: i_ref_timing 'held'"),
-        "has_ripple": ("1", "1: position ripple in use"), **structs.nested("fr", structs.FRICTION_PARAMETERS)}
+        "has_ripple": ("1", "1: position ripple in use"), **structs.nested("fr", structs.FRICTION_PARAMETERS),
+        **structs.POSITION_FORCE_PARAMETERS}
 
     def _c_supports(self) -> bool:
-        return type(self.friction) is FrictionModel and len(self.friction.ripple) <= structs.MAX_RIPPLE
+        return (type(self.friction) is FrictionModel and len(self.friction.ripple) <= structs.MAX_RIPPLE
+                and len(self.pf) <= MAX_TERMS)
 
     def _c_fill(self, c) -> None:
         nom = self.nominal
@@ -168,6 +180,7 @@ class CuttingForceObserver(KernelBlock, DiscretisedBlock):
                      z_prev=self._z_prev, v_prev=self._v_prev, i_prev=self._i_prev, F_dis=self._F_dis,
                      v_lp=self._v_lp)
         structs.fill_friction(c.fr, self.friction)
+        structs.fill_position_force(c, self.pf_z0, self.pf)
 
     def step(self, t, u):
         i_in, z = float(u[0]), float(u[1])
@@ -181,7 +194,8 @@ class CuttingForceObserver(KernelBlock, DiscretisedBlock):
         i_last = i_in if self.i_ref_timing == "held" else self._i_prev
         fm = self.friction
         v = (z - self._z_prev) / Ts
-        d = nom.Kt_n * i_last - nom.M_n * (v - self._v_prev) / Ts + self.F_grav_comp
+        F_grav = static_force(self.F_grav_comp, self.pf_z0, self.pf, z)
+        d = nom.Kt_n * i_last - nom.M_n * (v - self._v_prev) / Ts + F_grav
         rip = fm.position_ripple(z) if self._ripple else 0.0
         if -self.v_stick <= v <= self.v_stick:
             # standstill: static friction takes whatever it can hold (|F| <= Coulomb + Stribeck)
@@ -198,5 +212,5 @@ class CuttingForceObserver(KernelBlock, DiscretisedBlock):
         self._v_prev = v
         self._i_prev = i_in
         fric_lp = fm.force(self._v_lp) + rip
-        F_ref = nom.Kt_n * i_in - fric_lp + self.F_grav_comp
+        F_ref = nom.Kt_n * i_in - fric_lp + F_grav
         return (self._F_dis, F_ref, self._v_lp)

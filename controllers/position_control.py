@@ -67,6 +67,7 @@ import numpy as np
 from cosim.block import Block, Port
 from controllers.kernels import KernelBlock
 from controllers.kernels import structs
+from controllers.position_force import parse as parse_position_force, static_force
 
 
 def nominal_loop_poles(Kp: float, Kv: float) -> np.ndarray:
@@ -113,7 +114,7 @@ class RobustAcceleration:
     """
 
     def __init__(self, mass_nominal: float, force_constant_nominal: float, g_dob: float,
-                 g_vel: float, i_max: float, F_bias: float, dt: float):
+                 g_vel: float, i_max: float, F_bias: float, dt: float, position_force=None):
         if not mass_nominal > 0 or not force_constant_nominal > 0:
             raise ValueError("mass_nominal and force_constant_nominal must be > 0")
         if not g_dob > 0 or not g_vel > 0:
@@ -126,6 +127,10 @@ class RobustAcceleration:
         self.g_vel = float(g_vel)
         self.i_max = float(i_max)
         self.F_bias = float(F_bias)
+        # a static force that changes with the stroke (controllers/position_force.py): the
+        # bias then follows the measured position, so the DOB need not chase a spring
+        self.pf_z0, self.pf = parse_position_force(position_force, "RobustAcceleration: position_force")
+        self.F_bias_z = self.F_bias    # the bias at the last measured position [N]
         self.dt0 = float(dt)
         self.reset()
 
@@ -138,10 +143,12 @@ class RobustAcceleration:
         self.i = 0.0          # last (saturated) current reference [A]
         self.i_unsat = 0.0
         self.dt = self.dt0
+        self.F_bias_z = self.F_bias
         self._dt_poles = None        # dt the filter poles exp(-g dt) below were computed for
 
     def measure(self, t: float, z: float) -> float:
         """Update v_hat and F_dis_hat with the encoder position ``z`` at ``t``; returns v_hat."""
+        self.F_bias_z = static_force(self.F_bias, self.pf_z0, self.pf, z)
         if self.z_prev is None:  # first sample: start at rest, no disturbance known yet
             self.z_prev, self.t_prev = z, t
             return self.v
@@ -153,21 +160,21 @@ class RobustAcceleration:
         v_new = av * self.v + (1.0 - av) * (z - self.z_prev) / dt
         self.a = (v_new - self.v) / dt
         self.v = v_new
-        raw = self.Kt * self.i + self.F_bias - self.M * self.a
+        raw = self.Kt * self.i + self.F_bias_z - self.M * self.a
         self.F_dis = ad * self.F_dis + (1.0 - ad) * raw
         self.z_prev, self.t_prev = z, t
         return self.v
 
     def current(self, a_ref: float) -> float:
         """Current reference [A] for ``a_ref`` [m/s2], saturated at +-i_max."""
-        i = (self.M * a_ref - self.F_bias + self.F_dis) / self.Kt
+        i = (self.M * a_ref - self.F_bias_z + self.F_dis) / self.Kt
         self.i_unsat = i
         self.i = max(-self.i_max, min(self.i_max, i))
         return self.i
 
     def accel_for_current(self, i: float) -> float:
         """Acceleration reference that would produce current ``i`` now (bumpless transfer)."""
-        return (self.Kt * i + self.F_bias - self.F_dis) / self.M
+        return (self.Kt * i + self.F_bias_z - self.F_dis) / self.M
 
     @property
     def saturated(self) -> bool:
@@ -185,7 +192,10 @@ class PositionController(KernelBlock, Block):
         minus compensator); dt [s] sample period used when ``sample_period`` is 0
         (after the first call the actual spacing of the calls is used);
         commissioning_file (commissioning.json of ``drillcosim commission``): its mass,
-        force constant and gravity_comp replace mass_nominal, force_constant_nominal, F_bias;
+        force constant and gravity_comp replace mass_nominal, force_constant_nominal, F_bias,
+        and its position_force (if any) that setting; position_force: a static force that
+        changes with the stroke, added to F_bias at the measured position
+        (controllers/position_force.py);
         accept_unverified: the file's unverified quantities it may use anyway (else refused).
     Inputs
         z_ref [m], v_ref [m/s], a_ref [m/s2] (reference and feed-forward), z [m] encoder.
@@ -203,19 +213,20 @@ class PositionController(KernelBlock, Block):
                  force_constant_nominal: float = 24.0, g_dob: float = 1200.0,
                  g_vel: float = 2000.0, i_max: float = 10.0, F_bias: float = 0.0,
                  dt: float = 1e-4, sample_period: float = 0.0, commissioning_file: str | None = None,
-                 accept_unverified=()):
+                 accept_unverified=(), position_force=None):
         super().__init__(sample_period)
         if commissioning_file:      # the drive's one nominal set (docs/commissioning.md)
             from controllers.calibration import load_commissioning
             nom = load_commissioning(commissioning_file, "linear_stage", accept_unverified)["nominal"]
             mass_nominal, force_constant_nominal, F_bias = nom["mass"], nom["force_constant"], nom["gravity_comp"]
+            position_force = nom.get("position_force")
         if not Kp > 0 or not Kv > 0:
             raise ValueError(f"PositionController: Kp and Kv must be > 0 1/s, got {Kp!r}, {Kv!r}")
         self.Kp = float(Kp)
         self.Kv = float(Kv)
         self.eta = 1.0
         self.core = RobustAcceleration(mass_nominal, force_constant_nominal, g_dob, g_vel, i_max,
-                                       F_bias, sample_period if sample_period > 0 else dt)
+                                       F_bias, sample_period if sample_period > 0 else dt, position_force)
         self.reset(0.0)
 
     @classmethod

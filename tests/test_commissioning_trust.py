@@ -223,3 +223,30 @@ def test_a_significant_reference_cut_offset_unverifies_the_offset():
         max(v["F_dyn_mean_N"] for v in doc["calibration"]["levels"]) / doc["calibration"]["Kt_n_cal"])
     doc["calibration"].update(intercept_N=0.3, intercept_std_N=0.05)
     assert "gravity_comp" not in identified_entries(doc, fm, 1.0, (0.0, 0.05))[1]
+
+
+def test_a_position_force_the_blocks_apply_is_no_reason_to_unverify():
+    """foreign2_zstage (a 40 N/m spring compensator): the file carries the spring as
+    ``nominal.position_force`` (the identified effort's change from the air cut's start,
+    along +z), the blocks apply it, so the 2.6 N change over the stroke no longer unverifies
+    gravity_comp; without the entry it does again, and a significant reference-cut offset
+    still does."""
+    from controllers.keio_observer import CuttingForceObserver
+    from controllers.position_force import parse, static_force
+    doc = json.loads((COM / "foreign2_zstage.json").read_text())
+    fm = FrictionModel.from_dict(doc["friction"])
+    nom = doc["nominal"]
+    z0, coeffs = parse(nom["position_force"])
+    for z in (0.0, 0.03, 0.065):
+        assert static_force(nom["gravity_comp"], z0, coeffs, z) == pytest.approx(
+            -fm.offset - float(position_force(fm, z)), abs=1e-9)
+    travel = (0.0, 0.065)
+    ident, unverified = identified_entries(doc, fm, 1.0, travel)
+    assert ident["gravity_comp"]["check"]["change_N"] > 2.0 and "gravity_comp" not in unverified
+    assert "gravity_comp" not in doc["unverified"]
+    no_pf = {**doc, "nominal": {k: v for k, v in nom.items() if k != "position_force"}}
+    assert "the blocks take one constant" in identified_entries(no_pf, fm, 1.0, travel)[1]["gravity_comp"]
+    doc["calibration"] = {**doc["calibration"], "intercept_N": 1.45, "intercept_std_N": 0.14}
+    assert "offset of +1.45" in identified_entries(doc, fm, 1.0, travel)[1]["gravity_comp"]
+    obs = CuttingForceObserver(commissioning_file=str(COM / "foreign2_zstage.json"), accept_unverified=["mass", "ripple"])
+    assert (obs.pf_z0, obs.pf) == (z0, coeffs)

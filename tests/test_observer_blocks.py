@@ -55,6 +55,45 @@ def test_keio_observer_beats_force_reference_in_acceleration():
     assert np.mean(Fh[steady]) == pytest.approx(40.0, rel=0.05)
 
 
+def test_keio_observer_position_force_is_the_force_evaluated_by_hand():
+    """A spring-type compensator (controllers/position_force.py): the observer given the
+    polynomial equals one whose constant gravity term is set, before every sample, to the
+    polynomial written out at that sample's encoder position; both the C kernel and the
+    Python step."""
+    z0, c1, c2 = 0.004, -40.0, 100.0
+    spring = {"reference_position": z0, "coefficients": [c1, c2]}
+    kw = dict(F_coulomb=8.0, b_viscous=30.0, F_grav_comp=4.7, sample_period=1e-4)
+    for kernel in ("c", "python"):
+        with_pf = CuttingForceObserver(position_force=spring, **kw)
+        by_hand = CuttingForceObserver(**kw)
+        with_pf.kernel, by_hand.kernel = kernel, "python"     # the hand one's constant changes per sample
+        with_pf.reset(0.0)
+        by_hand.reset(0.0)
+        worst = 0.0
+        for k in range(6000):
+            t = k * 1e-4
+            z = 0.03 * (1 - math.cos(2 * t)) + math.floor(1e-3 * math.sin(40 * t) / 4e-9) * 4e-9
+            i = 1.5 + math.sin(30 * t)
+            by_hand.F_grav_comp = 4.7 + c1 * (z - z0) + c2 * (z - z0) ** 2
+            a, b = with_pf.step(t, (i, z)), by_hand.step(t, (i, z))
+            worst = max(worst, *(abs(x - y) / (1 + abs(y)) for x, y in zip(a, b)))
+        assert worst < 1e-9, (kernel, worst)
+    # and the gravity term really moves: over the stroke the spring changes it by ~2 N
+    assert abs(c1 * 0.06 + c2 * 0.06 ** 2) > 1.5
+
+
+def test_keio_observer_without_position_force_is_unchanged():
+    """No entry, or zero coefficients, is the constant gravity_comp bit for bit."""
+    kw = dict(F_coulomb=8.0, F_grav_comp=0.7, sample_period=1e-4)
+    blocks = [CuttingForceObserver(**kw), CuttingForceObserver(position_force={"reference_position": 0.01,
+                                                                                 "coefficients": [0.0, 0.0]}, **kw)]
+    for b in blocks:
+        b.reset(0.0)
+    for k in range(2000):
+        u = (1.0 + math.sin(20 * k * 1e-4), 1e-6 * k)
+        assert blocks[0].step(k * 1e-4, u) == blocks[1].step(k * 1e-4, u)
+
+
 def test_keio_observer_protocol():
     obs = CuttingForceObserver()
     assert obs.input_names() == ["i_ref", "z"]

@@ -141,6 +141,11 @@ def test_trajectory_kernel_matches_python_step():
                                   a_max=0.5, t_start=0.01), inputs)
 
 
+# a spring-type gravity compensator with a cubic term (controllers/position_force.py), so the
+# C Horner loop runs over more than one coefficient
+SPRING = {"reference_position": 0.002, "coefficients": [-40.0, 300.0, -2.0e4]}
+
+
 def test_position_kernels_match_python_step():
     from controllers.position_control import BallScrewPositionController, PositionController
 
@@ -149,6 +154,7 @@ def test_position_kernels_match_python_step():
             t = k * 1e-4
             yield t, (1e-3 * t, 1e-3, 0.0, _encoder(t))
     _agree(lambda: PositionController(i_max=2.0, F_bias=0.7), inputs)      # saturates at the start
+    _agree(lambda: PositionController(i_max=2.0, F_bias=0.7, position_force=SPRING), inputs)
     _agree(lambda: BallScrewPositionController(i_max=6.0), inputs)
 
 
@@ -160,7 +166,7 @@ def test_force_control_kernel_matches_python_step():
             t = k * 1e-4
             F = 50.0 + 5 * math.sin(300 * t) if 0.1 < t < 0.5 else 0.5
             yield t, (1e-3 * t, 1e-3, 0.0, _encoder(t), 50.0, F)
-    for kw in ({}, {"v_max": 3e-3, "i_max": 1.0}, {"force_control": False}):
+    for kw in ({}, {"v_max": 3e-3, "i_max": 1.0}, {"force_control": False}, {"position_force": SPRING}):
         c, p = _agree(lambda: ThrustForceController(F_bias=0.7, z_contact_min=0.0, exit_min_depth=0.2e-3,
                                                     a_retract=0.5, **kw), inputs)
         assert p.mode == (0 if kw.get("force_control") is False else 2)     # every mode was visited
@@ -175,8 +181,28 @@ def test_keio_observer_kernel_matches_python_step():
             yield t, (2.0 + math.sin(50 * t), _encoder(t))
     for kw in ({"F_coulomb": 8.0, "b_viscous": 30.0, "F_stribeck": 3.0, "v_stribeck": 1e-3,
                 "F_ripple": [[392.7, -1.03, 0.0006], [785.4, 0.1, 0.2]]},
-               {"F_coulomb": 8.0, "i_ref_timing": "previous_call", "v_stick": 0.0}):
+               {"F_coulomb": 8.0, "i_ref_timing": "previous_call", "v_stick": 0.0},
+               {"F_coulomb": 8.0, "position_force": SPRING}):
         _agree(lambda: CuttingForceObserver(F_grav_comp=0.7, **kw), inputs)
+
+
+def test_position_force_kernels_are_bit_identical_to_python():
+    """The position force is Horner's rule in the same order in C and Python: equal doubles."""
+    from controllers.force_control import ThrustForceController
+    from controllers.keio_observer import CuttingForceObserver
+    for make, u_of in ((lambda: CuttingForceObserver(F_coulomb=8.0, F_grav_comp=0.7, position_force=SPRING),
+                        lambda t: (2.0 + math.sin(50 * t), _encoder(t))),
+                       (lambda: ThrustForceController(F_bias=0.7, z_contact_min=0.0, position_force=SPRING),
+                        lambda t: (1e-3 * t, 1e-3, 0.0, _encoder(t), 50.0, 40.0 if t > 0.1 else 0.5))):
+        c, p = make(), make()
+        p.kernel = "python"
+        p.reset(0.0)
+        c.reset(0.0)
+        assert c.c_kernel is not None
+        for k in range(5000):
+            t = k * 1e-4
+            yc, yp = ([y if y == y else "nan" for y in b.step(t, u_of(t))] for b in (c, p))   # nan: z_contact
+            assert yc == yp, (type(c).__name__, t)
 
 
 def test_kernel_groups_keep_the_order_of_connected_blocks():

@@ -44,15 +44,34 @@ static void profile_step(double z, double v, double z_target, double v_max, doub
     *a_o = a;
 }
 
+/* controllers.position_force: a static force that changes with the stroke (a spring-type
+ * gravity compensator), F0 + sum_k c[k-1] (z - z0)^k by Horner in the Python order; with no
+ * terms F0 itself, so a drive without one computes exactly what it did before */
+#define POSITION_FORCE_TERMS 6          /* controllers/position_force.py MAX_TERMS */
+
+static double static_force(double F0, double n, double z0, const double *c, double z)
+{
+    if (n == 0.0)
+        return F0;
+    int m = (int)n;
+    double y = z - z0;
+    double acc = c[m - 1];
+    for (int k = m - 2; k >= 0; k--)
+        acc = acc * y + c[k];
+    return F0 + acc * y;
+}
+
 /* controllers.position_control.RobustAcceleration */
 typedef struct {
     double M, Kt, g_dob, g_vel, i_max, F_bias, dt0;
     double has_prev, z_prev, t_prev, v, a, F_dis, i, i_unsat, dt;
-    double has_poles, dt_poles, av, ad;
+    double has_poles, dt_poles, av, ad, F_bias_z;
+    double pf_n, pf_z0, pf[POSITION_FORCE_TERMS];
 } Robust;
 
 static double robust_measure(Robust *c, double t, double z)
 {
+    c->F_bias_z = static_force(c->F_bias, c->pf_n, c->pf_z0, c->pf, z);
     if (c->has_prev == 0.0) {
         c->has_prev = 1.0;
         c->z_prev = z;
@@ -71,7 +90,7 @@ static double robust_measure(Robust *c, double t, double z)
     double v_new = av * c->v + (1.0 - av) * (z - c->z_prev) / dt;
     c->a = (v_new - c->v) / dt;
     c->v = v_new;
-    double raw = c->Kt * c->i + c->F_bias - c->M * c->a;
+    double raw = c->Kt * c->i + c->F_bias_z - c->M * c->a;
     c->F_dis = ad * c->F_dis + (1.0 - ad) * raw;
     c->z_prev = z;
     c->t_prev = t;
@@ -80,7 +99,7 @@ static double robust_measure(Robust *c, double t, double z)
 
 static double robust_current(Robust *c, double a_ref)
 {
-    double i = (c->M * a_ref - c->F_bias + c->F_dis) / c->Kt;
+    double i = (c->M * a_ref - c->F_bias_z + c->F_dis) / c->Kt;
     c->i_unsat = i;
     c->i = MAX(-c->i_max, MIN(c->i_max, i));
     return c->i;
@@ -304,6 +323,7 @@ typedef struct {
     double Kt_n, M_n, F_grav_comp, a, b, Ts, v_stick, F_static, held, has_ripple;
     double first, z_prev, v_prev, i_prev, F_dis, v_lp;
     Friction fr;
+    double pf_n, pf_z0, pf[POSITION_FORCE_TERMS];
 } KeioObserver;
 
 /* u: i_ref, z; y: F_thrust_hat, F_ref, v_hat */
@@ -320,7 +340,8 @@ void keio_observer_step(KeioObserver *s, double t, const double *u, double *y)
     }
     double i_last = s->held != 0.0 ? i_in : s->i_prev;
     double v = (z - s->z_prev) / Ts;
-    double d = s->Kt_n * i_last - s->M_n * (v - s->v_prev) / Ts + s->F_grav_comp;
+    double F_grav = static_force(s->F_grav_comp, s->pf_n, s->pf_z0, s->pf, z);
+    double d = s->Kt_n * i_last - s->M_n * (v - s->v_prev) / Ts + F_grav;
     double rip = s->has_ripple != 0.0 ? friction_ripple(&s->fr, z) : 0.0;
     double fric;
     if (-s->v_stick <= v && v <= s->v_stick) {
@@ -336,7 +357,7 @@ void keio_observer_step(KeioObserver *s, double t, const double *u, double *y)
     s->i_prev = i_in;
     double fric_lp = friction_force(&s->fr, s->v_lp) + rip;
     y[0] = s->F_dis;
-    y[1] = s->Kt_n * i_in - fric_lp + s->F_grav_comp;
+    y[1] = s->Kt_n * i_in - fric_lp + F_grav;
     y[2] = s->v_lp;
 }
 

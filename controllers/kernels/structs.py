@@ -7,9 +7,14 @@ from __future__ import annotations
 
 import ctypes
 
+from controllers.position_force import MAX_TERMS as MAX_PF      # drive_control.c POSITION_FORCE_TERMS
+
 _D = ctypes.c_double
 MAX_RIPPLE = 8          # rows of a friction ripple the C side holds (drive_control.c)
 MAX_PHASES = 96         # phases of VelocitySegments the C side holds (drive_control.c)
+# a position-dependent static force (controllers/position_force.py): appended to the structs
+# that take a static force, after their other fields
+_PF_FIELDS = [("pf_n", _D), ("pf_z0", _D), ("pf", _D * MAX_PF)]
 
 
 def _doubles(names: str) -> list:
@@ -18,7 +23,7 @@ def _doubles(names: str) -> list:
 
 class Robust(ctypes.Structure):
     _fields_ = _doubles("M Kt g_dob g_vel i_max F_bias dt0 "
-                        "has_prev z_prev t_prev v a F_dis i i_unsat dt has_poles dt_poles av ad")
+                        "has_prev z_prev t_prev v a F_dis i i_unsat dt has_poles dt_poles av ad F_bias_z") + _PF_FIELDS
 
 
 class Friction(ctypes.Structure):
@@ -45,7 +50,7 @@ class Force(ctypes.Structure):
 
 class KeioObserver(ctypes.Structure):
     _fields_ = _doubles("Kt_n M_n F_grav_comp a b Ts v_stick F_static held has_ripple "
-                        "first z_prev v_prev i_prev F_dis v_lp") + [("fr", Friction)]
+                        "first z_prev v_prev i_prev F_dis v_lp") + [("fr", Friction)] + _PF_FIELDS
 
 
 class Segments(ctypes.Structure):
@@ -66,6 +71,14 @@ def fill_robust(c: Robust, core) -> None:
          has_poles=core._dt_poles is not None, dt_poles=core._dt_poles)
     if core._dt_poles is not None:
         c.av, c.ad = core._av, core._ad
+    c.F_bias_z = core.F_bias_z
+    fill_position_force(c, core.pf_z0, core.pf)
+
+
+def fill_position_force(c, z0: float, coeffs) -> None:
+    """A position force (reference position, coefficients of (z - z0)^k) -> ``pf_*`` fields."""
+    c.pf_n, c.pf_z0 = float(len(coeffs)), float(z0)
+    c.pf[:] = [float(v) for v in coeffs] + [0.0] * (MAX_PF - len(coeffs))
 
 
 def fill_friction(f: Friction, model) -> bool:
@@ -87,11 +100,16 @@ FRICTION_PARAMETERS = {
     "n_ripple": ("1", "rows of the position ripple in use"),
     "ripple": ("", "position ripple rows [wavenumber 1/m, sine N, cosine N]"),
 }
+POSITION_FORCE_PARAMETERS = {
+    "pf_n": ("1", "terms of the position force in use"), "pf_z0": ("m", "reference position of the position force"),
+    "pf": ("", "position force coefficients of (z - pf_z0)^k, k = 1.. [N/m^k]"),
+}
 ROBUST_PARAMETERS = {
     "M": ("kg", "nominal mass"), "Kt": ("N/A", "nominal force constant"),
     "g_dob": ("rad/s", "disturbance-observer bandwidth"), "g_vel": ("rad/s", "velocity filter bandwidth"),
     "i_max": ("A", "current limit"), "F_bias": ("N", "known static force in +z"),
     "dt0": ("s", "sample period used before two samples were seen"),
+    **POSITION_FORCE_PARAMETERS,
 }
 
 
