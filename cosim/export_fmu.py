@@ -33,7 +33,6 @@ import json
 import math
 import os
 import re
-import subprocess
 import tempfile
 import uuid
 import zipfile
@@ -437,17 +436,12 @@ def _compile(ex: BlockExport, fmi: int, sources: dict[str, bytes], tmp: Path) ->
         (src / name).write_bytes(data)
     _plat, ext = _platform(fmi)
     lib = tmp / f"{ex.identifier}{ext}"
-    cc = os.environ.get("CC", "gcc")
-    # -ffp-contract=off as for the master's kernels: the same doubles as the block in drillcosim
-    cmd = [cc, "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-std=gnu11", "-Wall", "-Wno-unused-function",
-           "-fvisibility=default", f"-I{_fmi_include()}", f"-I{src}", "-o", str(lib),
-           str(src / f"{ex.identifier}.c"), "-lm"]
-    try:
-        res = subprocess.run(cmd, capture_output=True, text=True)
-    except OSError as e:
-        raise ExportError(f"block '{ex.name}': cannot run the C compiler {cc!r}: {e}") from None
-    if res.returncode != 0:
-        raise ExportError(f"block '{ex.name}': compiling the FMU failed:\n{' '.join(cmd)}\n{res.stderr}")
+    from .native import NativeUnavailable, compile_shared
+    try:      # the master's compile rule: the same doubles as the block in drillcosim
+        compile_shared(src / f"{ex.identifier}.c", lib, flags=("-Wno-unused-function", "-fvisibility=default"),
+                       includes=(_fmi_include(), src), what=f"block '{ex.name}' (its FMU)")
+    except NativeUnavailable as e:
+        raise ExportError(str(e)) from None
     return lib
 
 

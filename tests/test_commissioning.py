@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.air_cut_helpers import air_cut_record
 
 from analysis.commissioning import CommissioningError, fit_air_cut, read_target
 from analysis.force_margin import ForceLoop, critical, margins, tune
@@ -29,20 +30,6 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 # --------------------------------------------------------------------------- synthetic air cuts
-def air_cut_record(fm: FrictionModel, speeds, hold, noise, dt=1e-3, seed=0):
-    """Constant-velocity segments (there and back at each speed) through ``fm``."""
-    rng = np.random.default_rng(seed)
-    t, p, e, vr = [], [], [], []
-    tt, pp = 0.0, 0.0
-    for s in speeds:
-        for v in (s, -s):
-            n = int(hold / dt)
-            ts = tt + dt * np.arange(n)
-            ps = pp + v * dt * np.arange(n)
-            f = fm.force(v) + fm.offset + np.array([fm.position_ripple(x) for x in ps])
-            t.append(ts), p.append(ps), vr.append(np.full(n, v)), e.append(f + noise * rng.standard_normal(n))
-            tt, pp = ts[-1] + dt, ps[-1] + v * dt
-    return np.concatenate(t), np.concatenate(p), np.concatenate(e), np.concatenate(vr)
 
 
 @pytest.mark.parametrize("truth, units", [

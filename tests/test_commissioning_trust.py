@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.air_cut_helpers import air_cut_record
 
 from analysis.calibration import held_out_levels
 from analysis.commissioning import _file_relative, fit_air_cut, read_target, report_table
@@ -25,20 +26,6 @@ ROOT = Path(__file__).resolve().parent.parent
 COM = ROOT / "scenarios" / "commissioning"
 
 
-def _record(fm: FrictionModel, speeds, hold, noise, spring=0.0, dt=1e-3, seed=0):
-    """Constant-velocity segments there and back, as the air cut runs them, through ``fm``
-    plus a spring force ``spring * p`` [N/m] (a gravity compensator that grows with the stroke)."""
-    rng = np.random.default_rng(seed)
-    t, p, e, vr = [], [], [], []
-    tt, pp = 0.0, 0.0
-    for s in speeds:
-        for v in (s, -s):
-            n = int(hold / dt)
-            ts, ps = tt + dt * np.arange(n), pp + v * dt * np.arange(n)
-            f = fm.force(v) + fm.offset + np.array([fm.position_ripple(x) for x in ps]) + spring * ps
-            t.append(ts), p.append(ps), vr.append(np.full(n, v)), e.append(f + noise * rng.standard_normal(n))
-            tt, pp = ts[-1] + dt, ps[-1] + v * dt
-    return np.concatenate(t), np.concatenate(p), np.concatenate(e), np.concatenate(vr)
 
 
 # 12 and 4 mm of a 24 mm magnet pitch (the issue's z stage with a spring compensator)
@@ -51,7 +38,7 @@ def test_spring_force_is_found_beside_the_harmonics_and_wavelengths_are_not_snap
     """A 247 N/m spring over the stroke: the position force is kept by the criterion, the
     wavelengths come out within 2 % (the issue measured 32.4 / 11.3 / 15.2 mm against 12 / 4),
     their spreads cover the error and every check passes."""
-    t, p, e, vr = _record(COGGING, SPEEDS, hold=0.8, noise=0.05, spring=247.0)
+    t, p, e, vr = air_cut_record(COGGING, SPEEDS, hold=0.8, noise=0.05, spring=247.0)
     fm = select_friction_model(t, p, e, vr, settle=0.1, min_duration=0.3)
     assert fm.info.get("position_force"), [s["model"] for s in fm.info["selection"]]
     slope = (position_force(fm, 0.01) - position_force(fm, 0.0)) / 0.01
@@ -70,7 +57,7 @@ def test_spring_is_not_taken_for_a_touch():
     """The 'drive touched something' refusal must not fire for a spring: the dynamometer
     reads nothing and the friction model explains the effort."""
     target = read_target(ROOT / "scenarios/plants/foreign_zstage.toml")
-    t, p, e, vr = _record(COGGING, SPEEDS, hold=0.8, noise=0.05, spring=247.0)
+    t, p, e, vr = air_cut_record(COGGING, SPEEDS, hold=0.8, noise=0.05, spring=247.0)
     res = _result(t, {"drive.table_position": p, "controller.i_ref": e / 24.0, "reference.v_ref": vr,
                       "reference.a_ref": np.zeros_like(t), "drive.thrust_dyn": 0.3 * np.ones_like(t)})
     fm, _, warnings = fit_air_cut(res, target)
@@ -78,7 +65,7 @@ def test_spring_is_not_taken_for_a_touch():
 
 
 def test_unmodelled_harmonic_leaves_a_residual_that_is_not_white():
-    t, p, e, vr = _record(COGGING, SPEEDS, hold=0.8, noise=0.05)
+    t, p, e, vr = air_cut_record(COGGING, SPEEDS, hold=0.8, noise=0.05)
     fm = select_friction_model(t, p, e, vr, settle=0.1, min_duration=0.3, max_harmonics=1)
     assert len(fm.ripple) == 1
     assert not fm.info["whiteness"]["white"]

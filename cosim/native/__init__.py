@@ -33,6 +33,23 @@ def lib_path(src: Path) -> Path:
     return src.parent / "build" / f"lib{src.stem}{_EXT}"
 
 
+def compile_shared(src: Path, out: Path, flags=(), includes=(), what: str | None = None) -> None:
+    """The one rule that compiles C into a shared library with the system compiler (``$CC``,
+    default gcc): the master's and the blocks' kernels, and the block FMUs exported from them.
+    ``-ffp-contract=off`` keeps the doubles those of the Python reference (no fused
+    multiply-add). :class:`NativeUnavailable` names ``what`` and the compiler's output."""
+    cc = os.environ.get("CC", "gcc")
+    cmd = [cc, "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-std=gnu11", "-Wall", *flags,
+           *(f"-I{d}" for d in includes), "-o", str(out), str(src), "-lm"]
+    what = what or Path(src).name
+    try:
+        res = subprocess.run(cmd, capture_output=True, text=True)
+    except OSError as e:
+        raise NativeUnavailable(f"{what}: cannot run the C compiler {cc!r}: {e}") from None
+    if res.returncode != 0:
+        raise NativeUnavailable(f"{what}: compiling failed:\n{' '.join(cmd)}\n{res.stderr}")
+
+
 def build(src: Path, force: bool = False, verbose: bool = False) -> Path:
     """Compile ``src`` into ``build/lib<stem>.so`` beside it when stale (atomically:
     concurrent builds of campaign workers each write a temporary file and rename it).
@@ -45,17 +62,9 @@ def build(src: Path, force: bool = False, verbose: bool = False) -> Path:
     if not force and lib.exists() and lib.stat().st_mtime_ns >= newest:
         return lib
     lib.parent.mkdir(exist_ok=True)
-    cc = os.environ.get("CC", "gcc")
     with tempfile.TemporaryDirectory(dir=lib.parent) as tmp:
         out = Path(tmp) / lib.name
-        cmd = [cc, "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-std=gnu11", "-Wall", "-Wextra",
-               "-o", str(out), str(src), "-lm"]
-        try:
-            res = subprocess.run(cmd, capture_output=True, text=True)
-        except OSError as e:
-            raise NativeUnavailable(f"{src.name}: cannot run the C compiler {cc!r}: {e}") from None
-        if res.returncode != 0:
-            raise NativeUnavailable(f"{src.name}: compiling failed:\n{' '.join(cmd)}\n{res.stderr}")
+        compile_shared(src, out, flags=("-Wextra",), what=src.name)
         os.replace(out, lib)
     if verbose:
         print(f"built {lib}")
