@@ -106,6 +106,7 @@ MAX_INTERFACES = MAX_LAYERS - 1
 
 N_MAX = 2000     # samples of the regression window (40 s at dt = 0.02 s)
 HISTORY = 4096   # samples kept for the localisation (82 s at dt = 0.02 s: 1.6 mm windows at 1.2 mm/min)
+ENTRY_SWING = 5  # samples: an entry candidate is dropped once the mean of its last F~ is negative
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
                   ("t", "s", "time the encoder passed the located position"),
@@ -213,6 +214,7 @@ class InterfaceDetector(Block):
         thd_min: float = 8.0,
         fail_disarms: bool = False,
         thd_noise_factor: float = 0.0,
+        entry_confirm: bool = False,
         step_signs: Sequence[float] | None = None,
         localise: bool = True,
         locate_margin: float = 0.3e-3,
@@ -346,6 +348,7 @@ class InterfaceDetector(Block):
         if not thd_noise_factor >= 0.0:
             raise ValueError(f"InterfaceDetector: thd_noise_factor must be >= 0 (0 = off), got {thd_noise_factor!r}")
         self.thd_noise_factor = float(thd_noise_factor)
+        self.entry_confirm = bool(entry_confirm)
         if step_signs is None:     # from the plan's kc when given, else Fang's stack (a harder layer below)
             step_signs = [math.copysign(1.0, kc[k + 1] - kc[k]) for k in range(n - 1)] \
                 if kc is not None and not isinstance(kc, (int, float)) else [1.0] * (n - 1)
@@ -429,6 +432,9 @@ class InterfaceDetector(Block):
         self.quiet = 0              # consecutive samples with |F~| < rearm level
         self.need = self.rearm_samples   # quiet samples the next test needs to arm
         self.err_hist = deque(maxlen=2 * self.N)   # |F~| of the last 2 N samples (noise threshold)
+        self.cand = None            # entry candidate (t, x, F^, history index) awaiting confirmation
+        self.cand_F = []            # thrust samples since the candidate
+        self.cand_e = deque(maxlen=ENTRY_SWING)   # its last F~
         self.armed = False
         self.fail = 0
         self.fail_code = 0
@@ -469,8 +475,33 @@ class InterfaceDetector(Block):
             if self.fail_disarms and self.flag <= self.n:
                 self.armed, self.quiet = False, 0
 
-    def _event(self, k: int, t: float, x: float) -> None:
-        """Event k (0 entry, 1..n-1 interface k, n exit) found at (t, x)."""
+    def _entry_confirm(self, t, x, F, F_pred, e) -> None:
+        """The entry with confirmation (issue 23: aluminium first at a low feed per rev, the
+        threshold of a few N is within the observer's noise and start-up ringing in air):
+        F~ > thd makes a candidate at (t, x); it is dropped as soon as the mean of its last
+        ENTRY_SWING F~ is negative (ringing or noise swings back, a ramp into the layer keeps
+        F~ positive), and becomes the entry, at the candidate's (t, x), once the mean thrust
+        of the N_min samples since it stands above the air level at the candidate (F^ there)
+        by the threshold: the tool stays on a cut level."""
+        if self.cand is None:
+            if e > self.thd:
+                self.cand = (t, x, F_pred, self.h_n - 1)
+                self.cand_F = [F]
+                self.cand_e.clear()
+                self.cand_e.append(e)
+            return
+        self.cand_F.append(F)
+        self.cand_e.append(e)
+        if sum(self.cand_e) < 0.0:
+            self.cand = None
+        elif len(self.cand_F) >= self.N_min and sum(self.cand_F) / len(self.cand_F) > self.cand[2] + self.thd:
+            tc, xc, _F, i_c = self.cand
+            self.cand = None
+            self._event(0, tc, xc, i_c)
+
+    def _event(self, k: int, t: float, x: float, i_hist: int | None = None) -> None:
+        """Event k (0 entry, 1..n-1 interface k, n exit) found at (t, x); i_hist: its
+        sample's index in the history (default the latest)."""
         self.t_ev[k], self.x_ev[k] = t, x
         self.flag = k + 1
         self.armed = False
@@ -478,7 +509,7 @@ class InterfaceDetector(Block):
         self.need = self.rearm_samples
         self.t_last, self.x_last = t, x
         if self.localise:
-            self.pending.append((k, x, self.h_n))
+            self.pending.append((k, x, self.h_n if i_hist is None else i_hist))
         if self.windows is not None and x < self.windows[k][0]:
             self._set_fail(k + 1, t, x)  # found before its window opens
 
@@ -556,7 +587,9 @@ class InterfaceDetector(Block):
             self.thd = NAN
             if self.flag == 0 and self.armed:
                 self.thd = self.thd1 if not self.relative else self.thd_entry
-                if e > self.thd:
+                if self.entry_confirm:
+                    self._entry_confirm(t, x, F, F_pred, e)
+                elif e > self.thd:
                     self._event(0, t, x)
             elif self.flag < self.n and self.armed:
                 self.thd = self._thd_interface(self.flag, self.F_level)

@@ -263,6 +263,7 @@ class HolePlan:
             "push_out": self.push_out,
             "mismatch_factor": MISMATCH_FACTOR,
             "restart": True,
+            "entry_confirm": True,
         }
 
     def stages(self) -> list[dict]:

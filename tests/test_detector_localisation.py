@@ -166,3 +166,17 @@ def test_restart_arms_a_thin_layer_at_a_high_feed(restart):
     assert out["fail"] == 0 and out["flag"] == 3
     assert abs(out["x_interface1_loc"] - b[1]) <= 0.02 * MM
     assert abs(out["x_exit_loc"] - b[2]) <= 0.05 * MM
+
+
+def test_exit_air_level_from_its_own_samples():
+    """Issue 23: the observer's air level drifts over a hole (-1.9 N at the entry, 0 after
+    the exit on a wide-draw hole); an aluminium push-out of 9 N fitted down to the entry's
+    level was located 0.25 mm past its face. The exit's air level is fitted on the samples
+    after the face."""
+    from controllers.event_locator import locate
+    rng = np.random.default_rng(5)
+    x = np.arange(-1.0e-3, 0.45e-3, 5e-6)
+    face, L = 0.0, 0.3e-3
+    F = 9.0 * np.clip((face - x) / L, 0.0, 1.0) + 0.5 + rng.normal(0.0, 0.7, x.size)
+    x_loc, _dx = locate("exit", x, F, air=-1.9)
+    assert abs(x_loc - face) <= 0.03e-3
