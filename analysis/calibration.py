@@ -56,7 +56,7 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.force_scoring import moving_average
+from analysis.signal_tools import moving_average
 from analysis.plotting import pyplot, save_figure
 from controllers.calibration import ThrustCalibration, load_calibration  # noqa: F401 (the file format)
 from analysis.plant_info import true_parameters

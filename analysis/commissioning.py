@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.identification import IdentificationError, identify_inertia, select_friction_model
+from analysis.experiments import plant_settings, run_experiment, write_scenario
 from analysis.plotting import pyplot, save_figure
 from controllers.calibration import COMMISSIONING_FORMAT, DATASHEET_DEFAULT, DATASHEET_SETTINGS
 from cosim.outputs import write_json_atomic
@@ -101,56 +102,6 @@ def read_target(path) -> dict:
             "fmu": fmu_name, "plant_parameters": plant_params, "fmu_parameters": fmu_params, "notes": notes}
 
 
-# the contract parameters that lay out the workpiece: each experiment sets its own
-STACK_PARAMETERS = ("surface", "n_layers", "wear_holes")
-
-
-def plant_settings(target: dict, fmu: str = "drive") -> dict:
-    """Every setting the target scenario gives its plant, for an experiment's tables: its
-    ``plant_parameters`` but the workpiece layout (the experiment's own) and the FMU's own
-    ``parameters`` (a spring rate, a mount stiffness...): the experiments run on the plant
-    as the scenario configures it."""
-    params = {k: v for k, v in target["plant_parameters"].items()
-              if k not in STACK_PARAMETERS and not k.startswith("layer")}
-    tables = {f"fmus.{fmu}.plant_parameters": params}
-    if target.get("fmu_parameters"):
-        tables[f"fmus.{fmu}.parameters"] = dict(target["fmu_parameters"])
-    return tables
-
-
-# --------------------------------------------------------------------------- scenario files
-def _toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        return repr(float(v)) if isinstance(v, float) else str(v)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    return json.dumps(str(v))
-
-
-def write_scenario(path: Path, tables: dict) -> Path:
-    """A small TOML file from ``{"section.sub": {key: value}}`` (flat tables only)."""
-    lines = []
-    for sec, kv in tables.items():
-        if sec.startswith("[["):
-            for item in kv:
-                lines.append(sec)
-                lines += [f"{k} = {_toml_value(v)}" for k, v in item.items()]
-            continue
-        lines.append(f"[{sec}]")
-        lines += [f"{k} = {_toml_value(v)}" for k, v in kv.items()]
-        lines.append("")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n")
-    return path
-
-
-def _run(scenario: Path, out: Path):
-    from cosim.runner import run_scenario
-    return run_scenario(scenario, out_dir=out, progress=False, handle_signals=False)
-
-
 # --------------------------------------------------------------------------- experiment 1
 def air_cut(target: dict, out: Path):
     kind, ds = target["kind"], target["datasheet"]
@@ -172,7 +123,7 @@ def air_cut(target: dict, out: Path):
     if target.get("air_cut"):
         tables["blocks.reference.settings"] = air_cut_settings(kind, target["air_cut"])
     sc = write_scenario(out / "experiments" / "air_cut.toml", tables)
-    return _run(sc, out / "air_cut")
+    return run_experiment(sc, out / "air_cut")
 
 
 AIR_CUT_KEYS = ("velocities", "hold", "a_max", "pause", "z_start")
@@ -331,7 +282,7 @@ def thrust_calibration(target: dict, friction_file: Path, mass: float, out: Path
               **_cut_position_force(friction_file),
               "blocks.controller.settings": {**controller_ds, "calibration_file": "", "F_bias": 0.0}}
     sc = write_scenario(out / "experiments" / "thrust_calibration.toml", tables)
-    _run(sc, out / "thrust_calibration")
+    run_experiment(sc, out / "thrust_calibration")
     return json.loads((out / "thrust_calibration" / "thrust_calibration.json").read_text())
 
 
@@ -370,7 +321,7 @@ def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: fl
               "blocks.controller.settings": controller, "blocks.observer.settings": observer,
               "[[connections]]": [{"from": "drive.motor_angle", "to": "controller.z", "scale": ds["pitch"]}]}
     sc = write_scenario(out / "experiments" / "thrust_calibration.toml", tables)
-    res = _run(sc, out / "thrust_calibration")
+    res = run_experiment(sc, out / "thrust_calibration")
     levels = window_levels(res["drive.table_position"], res["drive.thrust_dyn"], res["observer.F_dc_hat"],
                            reference_block_windows(block))
     fit = fit_thrust_constant(levels, ds["force_constant"], unit="N m/A")

@@ -277,7 +277,7 @@ def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings
     document so far, written for the observer and controller to read) and return the
     ``contact`` entry; a failed experiment adds its reason to ``warnings`` and returns an
     entry with ``error`` (no stiffness, so no margin is computed from it)."""
-    from analysis.commissioning import _run, write_scenario
+    from analysis.experiments import run_experiment, write_scenario
     from controllers.friction import FrictionModel
 
     exp = out / "experiments"
@@ -285,7 +285,7 @@ def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings
     com = exp / "commissioning_air_cut.json"
     com.write_text(json.dumps(doc, indent=1))
     steps = schedule()
-    from analysis.commissioning import plant_settings
+    from analysis.experiments import plant_settings
     tables = {"scenario": {"extends": str(TEMPLATE), "description":
                            f"commissioning contact experiment of {Path(target['binding_path']).name}"},
               "fmus.drive": {"plant": str(target["binding_path"])}, **plant_settings(target),
@@ -296,7 +296,7 @@ def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings
     sc = write_scenario(exp / "contact.toml", tables)
     from cosim.errors import ScenarioError
     try:
-        res = _run(sc, out / "contact")
+        res = run_experiment(sc, out / "contact")
     except ScenarioError as e:        # e.g. a plant without the spindle_speed role cannot cut
         msg = f"contact experiment could not run on this plant ({sc}): {e}"
         warnings.append(msg)

@@ -32,14 +32,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from analysis.calibration import calibration_in_use
 from analysis.plotting import pyplot, save_figure
-from analysis.signal_tools import centred_mean
+from analysis.signal_tools import moving_average
 from cosim.scores import needs
-
-
-def moving_average(x: np.ndarray, n: int) -> np.ndarray:
-    """Centred moving average over ``n`` samples (shrinking window at the ends)."""
-    return centred_mean(x, n, edges="shrink")
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -226,7 +222,6 @@ def force_scores(result, stage="stage", controller="controller", observer="obser
         out["definitions"]["passed"] = v.pop("definition")
         out.update(v)
     if f"{observer}.F_thrust_hat" in result:
-        from analysis.calibration import calibration_in_use   # (it imports this module)
         out["thrust_constant"] = calibration_in_use(result, observer)
     if len(layers) >= 2:
         # thrust jumps under force control, for the side-by-side with constant feed

@@ -38,3 +38,8 @@ def centred_mean(x, n, edges: str = "shift") -> np.ndarray:
     if edges == "nan":
         out[~inside] = np.nan
     return out
+
+
+def moving_average(x: np.ndarray, n: int) -> np.ndarray:
+    """Centred moving average over ``n`` samples (shrinking window at the ends)."""
+    return centred_mean(x, n, edges="shrink")
