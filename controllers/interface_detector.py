@@ -175,8 +175,119 @@ _OUTPUTS = (
 )
 
 
+def _checked_table4(thd1, thd2, thd3, exit_criterion, exit_ratio, thicknesses) -> tuple[float, ...]:
+    """Table 4's thresholds, the exit criterion and the layer thicknesses [m], checked."""
+    if not (thd1 > 0 and thd2 > 0 and thd3 < 0):
+        raise ValueError(f"InterfaceDetector: need thd1 > 0, thd2 > 0, thd3 < 0; got {thd1}, {thd2}, {thd3}")
+    if exit_criterion not in EXIT_CRITERIA:
+        raise ValueError(f"InterfaceDetector: exit_criterion must be one of {EXIT_CRITERIA}, got {exit_criterion!r}")
+    if not 0.0 < exit_ratio < 1.0:
+        raise ValueError(f"InterfaceDetector: exit_ratio must be in (0, 1), got {exit_ratio}")
+    thicknesses = tuple(float(v) for v in thicknesses)
+    if not 1 <= len(thicknesses) <= MAX_LAYERS or min(thicknesses) <= 0:
+        raise ValueError(f"InterfaceDetector: thicknesses must be 1..{MAX_LAYERS} positive layer "
+                         f"thicknesses [m], got {thicknesses}")
+    return thicknesses
+
+
+def _step_signs(step_signs, kc, n: int) -> list[float]:
+    """Per interface +1 (the next layer cuts harder) or -1; default from the plan's ``kc``
+    when given, else Fang's stack (a harder layer below)."""
+    if step_signs is None:
+        step_signs = [math.copysign(1.0, kc[k + 1] - kc[k]) for k in range(n - 1)] \
+            if kc is not None and not isinstance(kc, (int, float)) else [1.0] * (n - 1)
+    signs = [float(v) for v in step_signs]
+    if len(signs) != n - 1 or any(v not in (-1.0, 1.0) for v in signs):
+        raise ValueError(f"InterfaceDetector: step_signs needs one +1 (next layer harder) or -1 (softer) per "
+                         f"interface ({n - 1}), got {list(step_signs)}")
+    return signs
+
+
 class InterfaceDetector(Block):
-    """Moving-linear-regression detector of tool entry, every interface and exit."""
+    """Moving-linear-regression detector of tool entry, every interface and exit.
+
+    Settings (SI units).
+
+    sample_period: detector period dt [s] (Table 4: 0.02 s).
+    N: regression window [samples] (see module docstring for the default).
+    N_min: the window grows from N_min to N samples after a reset: the tests
+        start once N_min samples are in (short approaches).
+    thd1, thd2 [N] (> 0), thd3 [N] (< 0): Table 4 thresholds 50, 50, -30 N (fixed
+        thresholds, used when ``kc`` is not given; thd2 for every interface).
+    exit_criterion: "paper" (F~ < thd3) or "thinning" (F < exit_ratio * F_ref
+        after the paper drop has started).
+    exit_ratio: fraction of the last layer's plateau thrust at which the thinning
+        criterion declares the exit.
+    rearm_level [N], rearm_samples: re-arming after an event (module docstring);
+        defaults min(thd1, thd2, |thd3|) (process-following: max(thd_min / 2 ...),
+        see below) and N.
+    surface [m]: nominal top surface in encoder coordinates; None switches the
+        fail windows off.
+    thicknesses [m]: nominal layer thicknesses, top first (1..4 layers).
+    thickness_tolerances [m]: +- tolerance of each thickness (one value or one per layer).
+    max_gap [m]: largest accepted gap between two layers.
+    tolerance [m]: window half-width around each nominal event position (detection).
+    exit_tolerance [m]: early-side width of the exit window.
+    feed_rate [m/s]: slowest nominal feed; > 0 adds the time frame check.
+    time_margin [1]: factor on the nominal time to the end of the next window.
+
+    Process-following thresholds (docs/stacks.md), on when ``kc`` is given:
+    kc [N/(m/rev)]: nominal (new-tool) thrust coefficient of each layer;
+    feed_per_rev [m/rev]: feed per revolution of each layer's own process (the
+        first one is in force at the entry); feed_per_rev_min [m/rev]: the lowest
+        the adaptation may command (fail-safe included; default min(feed_per_rev)).
+    Then entry: F~ > entry_fraction * kc_1 * f_1; interface k: |F~| >
+    max(thd_min, step_fraction * |kc_{k+1}/kc_k - 1| * F^) (the step the
+    observed level F^ makes when the material changes under an unchanged process);
+    paper exit (recorded): F~ < -max(thd_min, F^ / 2); a layer's tests arm only
+    once F^ >= engage_fraction * kc_k * feed_per_rev_min (the tool is in the
+    material, not in a gap) and |F~| stayed below half the test's threshold
+    (at least rearm_level, default thd_min / 2) for rearm_samples.
+    fail_disarms: a fail re-arms the tests as an event does (the adaptation changes
+        the process on a fail: its thrust step is not an interface).
+    thd_noise_factor: > 0 lowers an interface test's threshold to this multiple of the
+        largest |F~| over the N samples before the regression window (the layer's own
+        plateau noise, measured; a change under way cannot raise its own threshold),
+        never below thd_min and never above the
+        threshold above; 0 (default) keeps the thresholds as they are. Why: a fixed
+        or step-scaled threshold is reached only once the new layer's thrust has
+        risen by it, and a drill whose thrust blends slowly into the harder layer
+        (a smoothstep over its engagement length) is then found late by a depth
+        that grows with the threshold's share of the step; on a quiet plateau a
+        threshold a few times its noise finds it near the onset. Only an F~ of the
+        sign of the step into the next layer (``step_signs``) meets the lowered
+        threshold: a plate thinning out over a gap (the depression) deflects over a
+        length the detector cannot know, and its onset is no interface.
+    step_signs: per interface, +1 when the next layer cuts harder (thrust rises), -1
+        softer; default from ``kc`` when given, else +1 (Fang's CFRP over Ti).
+
+    Localisation (``controllers.event_locator``; docs/stacks.md): after each event
+    the samples around it are fitted by straight-line segments against the encoder
+    position, which gives the event's position without the regression's lag
+    (outputs ``x_/t_/dx_/tknown_<event>_loc``); the flag, and so the adaptation,
+    still change at the trigger.
+    localise: False switches it off (outputs stay NaN).
+    locate_margin [m]: travel on either side of an entry or a layer change that
+        holds the change and a stretch of the level on its other side (the tool's
+        engagement, the observer's settling); the located position is known once the
+        encoder is this far past the trigger (interfaces: ``max_gap`` further).
+    push_out [m]: longest stretch over which the last layer's thrust falls before
+        the exit (the plant's push-out; 0.4 mm on the project's drive): the exit's
+        window reaches this far above the trigger.
+    observer_delay [s]: the observed thrust's delay behind the tool (observer and
+        sampling); the fit pairs each force sample with the encoder this much earlier.
+    restart: with localisation, once an event is located (its window after the
+        trigger complete: the engagement ramp is behind the tool) the regression
+        window restarts and the next test arms after N_min quiet samples instead of
+        rearm_samples: a layer needs locate_margin + 2 N_min dt of feed, not N dt.
+    mismatch_factor: > 1 (process-following mode) checks the plan's materials against
+        the levels observed: when a layer's tests arm, the ratio of its observed level
+        to the layer above's must be within this factor of the plan's ratio
+        ``kc_{k+1} f_{k+1} / (kc_k f_k)``, else a fail (``fail_code`` n+2): a wrong
+        order or a missing layer (CFRP/Ti drilled as Ti/CFRP is a factor ~10 off). 0
+        (default) switches it off. Tool wear moves the ratio by up to ~2.7 between Al
+        and Ti after 80 holes (docs/plants.md), another drive by ~0.8 (issue 23).
+    """
 
     inputs = (
         Port("F", "N", "observed DC thrust force (from the observer)"),
@@ -223,110 +334,13 @@ class InterfaceDetector(Block):
         mismatch_factor: float = 0.0,
         restart: bool = False,
     ):
-        """Settings (SI units).
-
-        sample_period: detector period dt [s] (Table 4: 0.02 s).
-        N: regression window [samples] (see module docstring for the default).
-        N_min: the window grows from N_min to N samples after a reset: the tests
-            start once N_min samples are in (short approaches).
-        thd1, thd2 [N] (> 0), thd3 [N] (< 0): Table 4 thresholds 50, 50, -30 N (fixed
-            thresholds, used when ``kc`` is not given; thd2 for every interface).
-        exit_criterion: "paper" (F~ < thd3) or "thinning" (F < exit_ratio * F_ref
-            after the paper drop has started).
-        exit_ratio: fraction of the last layer's plateau thrust at which the thinning
-            criterion declares the exit.
-        rearm_level [N], rearm_samples: re-arming after an event (module docstring);
-            defaults min(thd1, thd2, |thd3|) (process-following: max(thd_min / 2 ...),
-            see below) and N.
-        surface [m]: nominal top surface in encoder coordinates; None switches the
-            fail windows off.
-        thicknesses [m]: nominal layer thicknesses, top first (1..4 layers).
-        thickness_tolerances [m]: +- tolerance of each thickness (one value or one per layer).
-        max_gap [m]: largest accepted gap between two layers.
-        tolerance [m]: window half-width around each nominal event position (detection).
-        exit_tolerance [m]: early-side width of the exit window.
-        feed_rate [m/s]: slowest nominal feed; > 0 adds the time frame check.
-        time_margin [1]: factor on the nominal time to the end of the next window.
-
-        Process-following thresholds (docs/stacks.md), on when ``kc`` is given:
-        kc [N/(m/rev)]: nominal (new-tool) thrust coefficient of each layer;
-        feed_per_rev [m/rev]: feed per revolution of each layer's own process (the
-            first one is in force at the entry); feed_per_rev_min [m/rev]: the lowest
-            the adaptation may command (fail-safe included; default min(feed_per_rev)).
-        Then entry: F~ > entry_fraction * kc_1 * f_1; interface k: |F~| >
-        max(thd_min, step_fraction * |kc_{k+1}/kc_k - 1| * F^) (the step the
-        observed level F^ makes when the material changes under an unchanged process);
-        paper exit (recorded): F~ < -max(thd_min, F^ / 2); a layer's tests arm only
-        once F^ >= engage_fraction * kc_k * feed_per_rev_min (the tool is in the
-        material, not in a gap) and |F~| stayed below half the test's threshold
-        (at least rearm_level, default thd_min / 2) for rearm_samples.
-        fail_disarms: a fail re-arms the tests as an event does (the adaptation changes
-            the process on a fail: its thrust step is not an interface).
-        thd_noise_factor: > 0 lowers an interface test's threshold to this multiple of the
-            largest |F~| over the N samples before the regression window (the layer's own
-            plateau noise, measured; a change under way cannot raise its own threshold),
-            never below thd_min and never above the
-            threshold above; 0 (default) keeps the thresholds as they are. Why: a fixed
-            or step-scaled threshold is reached only once the new layer's thrust has
-            risen by it, and a drill whose thrust blends slowly into the harder layer
-            (a smoothstep over its engagement length) is then found late by a depth
-            that grows with the threshold's share of the step; on a quiet plateau a
-            threshold a few times its noise finds it near the onset. Only an F~ of the
-            sign of the step into the next layer (``step_signs``) meets the lowered
-            threshold: a plate thinning out over a gap (the depression) deflects over a
-            length the detector cannot know, and its onset is no interface.
-        step_signs: per interface, +1 when the next layer cuts harder (thrust rises), -1
-            softer; default from ``kc`` when given, else +1 (Fang's CFRP over Ti).
-
-        Localisation (``controllers.event_locator``; docs/stacks.md): after each event
-        the samples around it are fitted by straight-line segments against the encoder
-        position, which gives the event's position without the regression's lag
-        (outputs ``x_/t_/dx_/tknown_<event>_loc``); the flag, and so the adaptation,
-        still change at the trigger.
-        localise: False switches it off (outputs stay NaN).
-        locate_margin [m]: travel on either side of an entry or a layer change that
-            holds the change and a stretch of the level on its other side (the tool's
-            engagement, the observer's settling); the located position is known once the
-            encoder is this far past the trigger (interfaces: ``max_gap`` further).
-        push_out [m]: longest stretch over which the last layer's thrust falls before
-            the exit (the plant's push-out; 0.4 mm on the project's drive): the exit's
-            window reaches this far above the trigger.
-        observer_delay [s]: the observed thrust's delay behind the tool (observer and
-            sampling); the fit pairs each force sample with the encoder this much earlier.
-        restart: with localisation, once an event is located (its window after the
-            trigger complete: the engagement ramp is behind the tool) the regression
-            window restarts and the next test arms after N_min quiet samples instead of
-            rearm_samples: a layer needs locate_margin + 2 N_min dt of feed, not N dt.
-        mismatch_factor: > 1 (process-following mode) checks the plan's materials against
-            the levels observed: when a layer's tests arm, the ratio of its observed level
-            to the layer above's must be within this factor of the plan's ratio
-            ``kc_{k+1} f_{k+1} / (kc_k f_k)``, else a fail (``fail_code`` n+2): a wrong
-            order or a missing layer (CFRP/Ti drilled as Ti/CFRP is a factor ~10 off). 0
-            (default) switches it off. Tool wear moves the ratio by up to ~2.7 between Al
-            and Ti after 80 holes (docs/plants.md), another drive by ~0.8 (issue 23).
-        """
+        """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
         if self.sample_period <= 0:
             raise ValueError("InterfaceDetector: sample_period (dt) must be > 0 s (Table 4: 0.02 s)")
-        if not (thd1 > 0 and thd2 > 0 and thd3 < 0):
-            raise ValueError(f"InterfaceDetector: need thd1 > 0, thd2 > 0, thd3 < 0; got {thd1}, {thd2}, {thd3}")
-        if exit_criterion not in EXIT_CRITERIA:
-            raise ValueError(f"InterfaceDetector: exit_criterion must be one of {EXIT_CRITERIA}, got {exit_criterion!r}")
-        if not 0.0 < exit_ratio < 1.0:
-            raise ValueError(f"InterfaceDetector: exit_ratio must be in (0, 1), got {exit_ratio}")
-        thicknesses = tuple(float(v) for v in thicknesses)
-        if not 1 <= len(thicknesses) <= MAX_LAYERS or min(thicknesses) <= 0:
-            raise ValueError(f"InterfaceDetector: thicknesses must be 1..{MAX_LAYERS} positive layer "
-                             f"thicknesses [m], got {thicknesses}")
+        thicknesses = _checked_table4(thd1, thd2, thd3, exit_criterion, exit_ratio, thicknesses)
         self.n = n = len(thicknesses)
-        self.N = int(N)
-        if not self.N <= N_MAX:   # the weights of every window length grow as N^2 (N = 8000: 0.5 GB)
-            raise ValueError(f"InterfaceDetector: N must be <= {N_MAX} samples, got {N}")
-        self.N_min = min(int(N_min), self.N)
-        if self.N_min < 3:
-            raise ValueError(f"InterfaceDetector: N_min must be >= 3, got {N_min}")
-        # weights for every window length the growing window passes through
-        self.W = {n_: regression_weights(n_) for n_ in range(self.N_min, self.N + 1)}
+        self._set_window(N, N_min)
         self.thd1, self.thd2, self.thd3 = float(thd1), float(thd2), float(thd3)
         self.exit_criterion = exit_criterion
         self.exit_ratio = float(exit_ratio)
@@ -349,33 +363,51 @@ class InterfaceDetector(Block):
             raise ValueError(f"InterfaceDetector: thd_noise_factor must be >= 0 (0 = off), got {thd_noise_factor!r}")
         self.thd_noise_factor = float(thd_noise_factor)
         self.entry_confirm = bool(entry_confirm)
-        if step_signs is None:     # from the plan's kc when given, else Fang's stack (a harder layer below)
-            step_signs = [math.copysign(1.0, kc[k + 1] - kc[k]) for k in range(n - 1)] \
-                if kc is not None and not isinstance(kc, (int, float)) else [1.0] * (n - 1)
-        self.step_signs = [float(v) for v in step_signs]
-        if len(self.step_signs) != n - 1 or any(v not in (-1.0, 1.0) for v in self.step_signs):
-            raise ValueError(f"InterfaceDetector: step_signs needs one +1 (next layer harder) or -1 (softer) per "
-                             f"interface ({n - 1}), got {list(step_signs)}")
+        self.step_signs = _step_signs(step_signs, kc, n)
         self.relative = kc is not None
-        if self.relative:
-            kc_ = _per_layer("kc", kc, n)
-            fpr = _per_layer("feed_per_rev", feed_per_rev, n)
-            if min(kc_) <= 0 or min(fpr) <= 0:
-                raise ValueError("InterfaceDetector: kc and feed_per_rev must be > 0")
-            fmin = min(fpr) if feed_per_rev_min is None else float(feed_per_rev_min)
-            for name, v in (("entry_fraction", entry_fraction), ("step_fraction", step_fraction),
-                            ("engage_fraction", engage_fraction)):
-                if not 0.0 < v < 1.0:
-                    raise ValueError(f"InterfaceDetector: {name} must be in (0, 1), got {v}")
-            self.thd_entry = entry_fraction * kc_[0] * fpr[0]
-            self.step_gain = [step_fraction * abs(kc_[k + 1] / kc_[k] - 1.0) for k in range(n - 1)]
-            self.exit_gain = 0.5     # paper exit in relative terms: a drop of half the plateau
-            self.floor = [engage_fraction * k_ * fmin for k_ in kc_]
-            self.level_plan = [k_ * f_ for k_, f_ in zip(kc_, fpr)]   # N, new tool, own process
-            self.thd_min = float(thd_min)
-            self.rearm_level = 0.5 * self.thd_min if rearm_level is None else float(rearm_level)
-        else:
-            self.rearm_level = float(min(thd1, thd2, -thd3) if rearm_level is None else rearm_level)
+        self._set_thresholds(kc, feed_per_rev, feed_per_rev_min, entry_fraction, step_fraction,
+                             engage_fraction, thd_min, rearm_level)
+        self._set_localisation(localise, locate_margin, push_out, observer_delay)
+        self.windows = self._windows()
+        self.reset(0.0)
+
+    def _set_window(self, N, N_min) -> None:
+        """The regression window, growing from ``N_min`` to ``N`` samples after a reset, and
+        the weights for every length it passes through."""
+        self.N = int(N)
+        if not self.N <= N_MAX:   # the weights of every window length grow as N^2 (N = 8000: 0.5 GB)
+            raise ValueError(f"InterfaceDetector: N must be <= {N_MAX} samples, got {N}")
+        self.N_min = min(int(N_min), self.N)
+        if self.N_min < 3:
+            raise ValueError(f"InterfaceDetector: N_min must be >= 3, got {N_min}")
+        self.W = {n_: regression_weights(n_) for n_ in range(self.N_min, self.N + 1)}
+
+    def _set_thresholds(self, kc, feed_per_rev, feed_per_rev_min, entry_fraction, step_fraction,
+                        engage_fraction, thd_min, rearm_level) -> None:
+        """Process-following thresholds from the plan's ``kc`` and feeds, else Table 4's."""
+        if not self.relative:
+            self.rearm_level = float(min(self.thd1, self.thd2, -self.thd3) if rearm_level is None else rearm_level)
+            return
+        n = self.n
+        kc_ = _per_layer("kc", kc, n)
+        fpr = _per_layer("feed_per_rev", feed_per_rev, n)
+        if min(kc_) <= 0 or min(fpr) <= 0:
+            raise ValueError("InterfaceDetector: kc and feed_per_rev must be > 0")
+        fmin = min(fpr) if feed_per_rev_min is None else float(feed_per_rev_min)
+        for name, v in (("entry_fraction", entry_fraction), ("step_fraction", step_fraction),
+                        ("engage_fraction", engage_fraction)):
+            if not 0.0 < v < 1.0:
+                raise ValueError(f"InterfaceDetector: {name} must be in (0, 1), got {v}")
+        self.thd_entry = entry_fraction * kc_[0] * fpr[0]
+        self.step_gain = [step_fraction * abs(kc_[k + 1] / kc_[k] - 1.0) for k in range(n - 1)]
+        self.exit_gain = 0.5     # paper exit in relative terms: a drop of half the plateau
+        self.floor = [engage_fraction * k_ * fmin for k_ in kc_]
+        self.level_plan = [k_ * f_ for k_, f_ in zip(kc_, fpr)]   # N, new tool, own process
+        self.thd_min = float(thd_min)
+        self.rearm_level = 0.5 * self.thd_min if rearm_level is None else float(rearm_level)
+
+    def _set_localisation(self, localise, locate_margin, push_out, observer_delay) -> None:
+        """The localisation settings (``controllers.event_locator``), checked."""
         self.localise = bool(localise)
         for name, v in (("locate_margin", locate_margin), ("push_out", push_out)):
             if not v > 0.0:
@@ -384,8 +416,6 @@ class InterfaceDetector(Block):
             raise ValueError(f"InterfaceDetector: observer_delay must be >= 0 s, got {observer_delay!r}")
         self.locate_margin, self.push_out = float(locate_margin), float(push_out)
         self.observer_delay = float(observer_delay)
-        self.windows = self._windows()
-        self.reset(0.0)
 
     def loc_window(self, k: int) -> tuple[float, float]:
         """Travel [m] (before, after) the trigger of event k (0 entry, 1..n-1 interface
