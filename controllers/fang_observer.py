@@ -171,14 +171,27 @@ class AdaptiveThrustObserver(DiscretisedBlock):
             raise ValueError(f"AdaptiveThrustObserver: g_fric_vel must be > 0 rad/s, got {g_fric_vel!r}")
         self.g_fric_vel = float(g_fric_vel)
 
+        self.inputs, self.outputs = self._ports()
+
+        # ---- model (casadi, once) and Kalman gain in scaled coordinates
+        self._kalman(position_unit)
+        self._y_theta = self.sx * self.nominal.K_pitch      # motor angle [rad] -> y [position_unit]
+        self._kf = self.nominal.force_per_torque       # eta/K_pitch: torque -> table force
+        self._k = self._kernel(kernel)
+        self.step = self.c_kernel.step if self._k is not None else self._step_python
+        self.ensure_discretised()
+        self.reset(0.0)
+
+    def _ports(self) -> tuple[tuple[Port, ...], tuple[Port, ...]]:
+        """Inputs (the motor angle when the observer or its friction ripple needs it, the
+        orbital speed when it is not a setting) and outputs."""
         ins = [Port("i_m", "A", "measured motor (torque) current"),
                Port("x", "m", "table linear encoder (feed coordinate)")]
         if self._use_theta:
             ins.append(Port("theta", "rad", "motor-angle encoder"))
         if self.orbital_speed_rpm is None:
             ins.append(Port("orbital_speed", "rpm", "orbital speed (ripple frequency = rpm/60 Hz)"))
-        self.inputs = tuple(ins)
-        self.outputs = (
+        outputs = (
             Port("F_dc_hat", "N", "observed DC thrust, eq. 9"),
             Port("F_ripple_hat", "N", "observed orbital ripple, eq. 8"),
             Port("tau_d_hat", "N*m", "observed disturbance torque (DC + ripple), eq. 5"),
@@ -187,8 +200,11 @@ class AdaptiveThrustObserver(DiscretisedBlock):
             Port("ripple_phase_hat", "rad", "phi_ph of eq. 8 (reference: phi = 2 pi f_orbital t)"),
             Port("w_hat", "rad/s", "motor speed estimate"),
         )
+        return tuple(ins), outputs
 
-        # ---- model (casadi, once) and Kalman gain in scaled coordinates
+    def _kalman(self, position_unit: str) -> None:
+        """The casadi model and the steady-state Kalman gain, in scaled coordinates (y in
+        ``position_unit``)."""
         self.model = fang_model(self.nominal)
         sx = _UNITS[position_unit]
         T = np.diag([sx, 1.0, 1.0])
@@ -198,20 +214,14 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         G = T @ self.model.G
         C = self.model.ss.C @ Ti * sx            # = [1, 0, 0]: y in position_unit
         check_observable(A, C, "Fang observer (scaled)")
-        P = scipy.linalg.solve_continuous_are(A.T, C.T, np.diag(Q), np.array([[self.R]]))
+        P = scipy.linalg.solve_continuous_are(A.T, C.T, np.diag(self.Q), np.array([[self.R]]))
         K = P @ C.T / self.R
         AK = A - K @ C
         if np.max(np.linalg.eigvals(AK).real) >= 0:
             raise ValueError("AdaptiveThrustObserver: A - K C is not stable")
         self.P, self.K, self.A_K, self.C = P, K, AK, C
         self.sx = sx
-        self._y_theta = sx * self.nominal.K_pitch      # motor angle [rad] -> y [position_unit]
-        self._kf = self.nominal.force_per_torque       # eta/K_pitch: torque -> table force
         self._cont = (AK, B, K, G)
-        self._k = self._kernel(kernel)
-        self.step = self.c_kernel.step if self._k is not None else self._step_python
-        self.ensure_discretised()
-        self.reset(0.0)
 
     def _kernel(self, kernel: str):
         """The C kernel's state (ctypes), or None for the Python step (see module docstring)."""
@@ -355,7 +365,10 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         c0, c1 = Yn[0], Yn[1]
         self._Si = (a * s00 + b * c0 * c0, a * s01 + b * c0 * c1, a * s11 + b * c1 * c1)
 
-        # ---- outputs at t (eq. 5-9)
+        return self._outputs(xn, th0, th1, theta, phi, Ts)
+
+    def _outputs(self, xn, th0, th1, theta, phi, Ts):
+        """The outputs at t (eq. 5-9) from the updated state ``xn`` and ripple parameters."""
         kf = self._kf
         w_hat = xn[1]
         tau_dc = xn[2]
