@@ -238,6 +238,47 @@ class _Plan:
     python_rates: list     # the rate of each block that runs in Python (cosim/fused.py)
 
 
+def _write_plan(system, bus, read_plan) -> list:
+    """Per FMU with driven inputs: (slave, input names, reader of their bus slots, slots).
+    An array input is written whole: its undriven elements hold their start values."""
+    write_plan = []
+    for slave, *_ in read_plan:
+        in_vars = slave.io_order([v for v in slave.variables.values() if v.causality == "input"
+                                  and any(system.driven_by(f"{slave.name}.{e}") for e in v.elements)])
+        in_signals = []
+        for v in in_vars:              # an array input is written whole: undriven elements hold start
+            for e, start in zip(v.elements, v.start_values()):
+                sig = f"{slave.name}.{e}"
+                if not system.driven_by(sig):
+                    bus.add(sig, start)
+                in_signals.append(sig)
+        if in_vars:
+            refs = [bus.ref(s, wire=True) for s in in_signals]
+            write_plan.append((slave, [v.name for v in in_vars], _reader(refs), refs))
+    return write_plan
+
+
+def _block_plan(system, bus, block_slots, groups) -> tuple[list, list]:
+    """The schedule's entries: one per Python block, one call per group of C-kernel blocks
+    (cosim/kernel_group.py), with their rates and bus slots."""
+    blocks, c_groups = [], []
+    first_of = {g[0]: g for g in groups}
+    in_group = {n for g in groups for n in g}
+    slots_of = {name: (a, b) for name, a, b in block_slots}
+    for name, a, b in block_slots:
+        if name in first_of:            # C-kernel blocks: one call for the group (cosim/kernel_group.py)
+            g = first_of[name]
+            b = slots_of[g[-1]][1]
+            step, ext = kernel_group.build(system, bus, g, a, b)
+            c_groups.append((system.rate(name), g, a))
+            blocks.append((system.rate(name), step, _getter(ext), a, b, b - a, "+".join(g)))
+        elif name not in in_group:
+            block = system.blocks[name]
+            read_u = _reader([bus.ref(f"{name}.{p.name}") for p in block.inputs])
+            blocks.append((system.rate(name), block.step, read_u, a, b, b - a, name))
+    return blocks, c_groups
+
+
 def _compile(system, recorder, events, extra_record) -> _Plan:
     """Signals -> bus slots, every reader and the block schedule, before any FMU is loaded."""
     t0, h = system.start_time, system.step_size
@@ -267,35 +308,8 @@ def _compile(system, recorder, events, extra_record) -> _Plan:
             sig = f"{name}.{p.name}"
             if system.driven_by(sig) is None:
                 bus.add(sig, float(p.start))
-    write_plan = []
-    for slave, *_ in read_plan:
-        in_vars = slave.io_order([v for v in slave.variables.values() if v.causality == "input"
-                                  and any(system.driven_by(f"{slave.name}.{e}") for e in v.elements)])
-        in_signals = []
-        for v in in_vars:              # an array input is written whole: undriven elements hold start
-            for e, start in zip(v.elements, v.start_values()):
-                sig = f"{slave.name}.{e}"
-                if not system.driven_by(sig):
-                    bus.add(sig, start)
-                in_signals.append(sig)
-        if in_vars:
-            refs = [bus.ref(s, wire=True) for s in in_signals]
-            write_plan.append((slave, [v.name for v in in_vars], _reader(refs), refs))
-    blocks, c_groups = [], []
-    first_of = {g[0]: g for g in groups}
-    in_group = {n for g in groups for n in g}
-    slots_of = {name: (a, b) for name, a, b in block_slots}
-    for name, a, b in block_slots:
-        if name in first_of:            # C-kernel blocks: one call for the group (cosim/kernel_group.py)
-            g = first_of[name]
-            b = slots_of[g[-1]][1]
-            step, ext = kernel_group.build(system, bus, g, a, b)
-            c_groups.append((system.rate(name), g, a))
-            blocks.append((system.rate(name), step, _getter(ext), a, b, b - a, "+".join(g)))
-        elif name not in in_group:
-            block = system.blocks[name]
-            read_u = _reader([bus.ref(f"{name}.{p.name}") for p in block.inputs])
-            blocks.append((system.rate(name), block.step, read_u, a, b, b - a, name))
+    write_plan = _write_plan(system, bus, read_plan)
+    blocks, c_groups = _block_plan(system, bus, block_slots, groups)
     cond_events = [e for e in events if e.when is not None]
     conds = [(*bus.ref(sig), OPERATORS[op], number, ev)
              for ev, (sig, op, number) in zip(cond_events, conditions)]
@@ -320,7 +334,7 @@ def _compile(system, recorder, events, extra_record) -> _Plan:
                             if sig not in nan_ok and not isinstance(bus.values[i], (str, bytes))])
     return _Plan(bus, columns, read_plan, write_plan, blocks, conds, timed, setters, record, record_refs,
                  recorder.decimation if recorder is not None else 0, bus_names, nan_ok, finite_slots,
-                 c_groups, [system.rate(n) for n in order if n not in in_group])
+                 c_groups, [system.rate(n) for n in order if not any(n in g for g in groups)])
 
 
 def _start_recorder(system, recorder, plan: _Plan, allow_nonfinite: bool) -> None:
@@ -617,6 +631,31 @@ class _Loop:
         _check(status, {"read": "getReal", "write": "setReal"}.get(phase, phase), slave, t)
         raise AssertionError("unreachable: _check raises for a status > 1")
 
+def _run_chunks(loop, plan, n_run: int, recorder, watch, bar, allow_nonfinite: bool):
+    """The steps in wall-clock chunks: after each, the rows go to the recorder, the bus is
+    checked for NaN/inf, the progress bar moves and the watch may end the run. Returns
+    (steps taken, stop event, ``ended``: (status, reason) from the watch or None)."""
+    n, stop, ended = 0, False, None
+    chunk = CHUNK_FIRST
+    watch.start()
+    wall_chunk = _time.perf_counter()
+    while True:
+        n, stop = loop.run(n, min(n + chunk, n_run + 1))
+        if recorder is not None:
+            recorder.write(loop.take_rows())      # raises on a NaN/inf row (then the run stops)
+        if not allow_nonfinite:
+            _check_bus(loop.values, plan.finite_slots, plan.bus_names, plan.nan_ok, loop.t)
+        if bar is not None:
+            bar.update(n - bar.n)
+        now = _time.perf_counter()
+        chunk, wall_chunk = next_chunk(chunk, now - wall_chunk), now
+        if stop or n >= n_run:
+            return n, stop, None
+        ended = watch.check()
+        if ended is not None:
+            return n, stop, ended
+
+
 def simulate(system, stop_time: float, recorder: Recorder | None = None,
              events: list[Event] = (), progress: bool = False, extra_record=(),
              step_rejection_floor: float | None = None, watch: RunWatch | None = None,
@@ -650,25 +689,7 @@ def simulate(system, stop_time: float, recorder: Recorder | None = None,
             from tqdm import tqdm
             bar = tqdm(total=n_run, unit="step", unit_scale=True, file=sys.stderr, disable=None,
                        desc="co-simulation", mininterval=0.5, leave=False)   # None: only on a TTY
-        n, stop, ended = 0, False, None          # ended: (status, reason) from the watch
-        chunk = CHUNK_FIRST
-        watch.start()
-        wall_chunk = _time.perf_counter()
-        while True:
-            n, stop = loop.run(n, min(n + chunk, n_run + 1))
-            if recorder is not None:
-                recorder.write(loop.take_rows())      # raises on a NaN/inf row (then the run stops)
-            if not allow_nonfinite:
-                _check_bus(loop.values, plan.finite_slots, plan.bus_names, plan.nan_ok, loop.t)
-            if bar is not None:
-                bar.update(n - bar.n)
-            now = _time.perf_counter()
-            chunk, wall_chunk = next_chunk(chunk, now - wall_chunk), now
-            if stop or n >= n_run:
-                break
-            ended = watch.check()
-            if ended is not None:
-                break
+        n, stop, ended = _run_chunks(loop, plan, n_run, recorder, watch, bar, allow_nonfinite)
         _finish_info(info, system, grid, n, n_run, stop, ended)
         return info
     except SimulationError as e:
