@@ -429,7 +429,7 @@ def _sources(ex: BlockExport, fmi: int) -> dict[str, bytes]:
 
 
 def _compile(ex: BlockExport, fmi: int, sources: dict[str, bytes], tmp: Path) -> Path:
-    from fmus.build import _fmi_include, _platform
+    from fmus.build_tools import fmi_include as _fmi_include, platform as _platform
     src = tmp / "sources"
     src.mkdir()
     for name, data in sources.items():
@@ -449,7 +449,7 @@ def write_fmu(ex: BlockExport, out_dir: Path, fmi: int = 3) -> Path:
     """Compile and pack ``<out_dir>/<identifier>.fmu``; returns its path."""
     if fmi not in (2, 3):
         raise ExportError(f"--fmi: expected 2 or 3, got {fmi!r}")
-    from fmus.build import _platform
+    from fmus.build_tools import platform as _platform
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     sources = _sources(ex, fmi)

@@ -30,10 +30,11 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 from . import spec
+from .build_tools import BUILD_DIR, BuildLock as _Lock, fmi_include as _fmi_include, keep as _keep, \
+    platform as _platform, write_if_changed as _write_if_changed
 
 HERE = Path(__file__).resolve().parent
 COMMON = HERE / "common"
-BUILD_DIR = HERE / "build"
 FRAME_SOURCES = {2: "fmi2_frame.c", 3: "fmi3_frame.c"}
 CORE_SOURCES = ["frame_core.c", "drill.c"]
 COMMON_HEADERS = ["model_api.h", "frame_core.h", "drill.h"]
@@ -233,14 +234,6 @@ def _vars_header(name: str) -> str:
     return "\n".join(L)
 
 
-def _write_if_changed(path: Path, text: str) -> bool:
-    if path.exists() and path.read_text() == text:
-        return False
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text)
-    return True
-
-
 def _generated(name: str) -> list[tuple[Path, str]]:
     model, fmi = _variant(name)
     d = HERE / model
@@ -259,18 +252,6 @@ def generate(name: str) -> list[Path]:
 
 
 # ----------------------------------------------------------------------------- compile + pack
-
-def _platform(fmi: int) -> tuple[str, str]:
-    """(binaries/ folder, shared-library extension): FMI 2.0 "linux64", FMI 3.0 "x86_64-linux"."""
-    import fmpy
-    ext = {"darwin64": ".dylib", "win64": ".dll", "win32": ".dll"}.get(fmpy.platform, ".so")
-    return (fmpy.platform if fmi == 2 else fmpy.platform_tuple), ext
-
-
-def _fmi_include() -> Path:
-    import fmpy
-    return Path(fmpy.__file__).resolve().parent / "c-code"
-
 
 def _sources(name: str) -> tuple[list[Path], list[Path]]:
     model, fmi = _variant(name)
@@ -297,40 +278,6 @@ def _up_to_date(name: str) -> bool:
         return False
     t = fmu.stat().st_mtime
     return all(p.stat().st_mtime <= t for p in _inputs(name))
-
-
-def _keep(name: str, fmu: Path, force: bool, verbose: bool, up_to_date) -> bool:
-    """Whether the built ``fmu`` stands: not ``force`` and ``up_to_date()``; says so when verbose
-    (for fmus/foreign and fmus/foreign2 too)."""
-    if force or not up_to_date():
-        return False
-    if verbose:
-        print(f"{name}: up to date ({fmu})")
-    return True
-
-
-class _Lock:
-    def __init__(self, path: Path):
-        self.path = path
-        self.fd = None
-
-    def __enter__(self):
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.fd = os.open(self.path, os.O_CREAT | os.O_RDWR, 0o644)
-        try:
-            import fcntl
-            fcntl.flock(self.fd, fcntl.LOCK_EX)
-        except ImportError:  # pragma: no cover (Windows)
-            pass
-        return self
-
-    def __exit__(self, *exc):
-        try:
-            import fcntl
-            fcntl.flock(self.fd, fcntl.LOCK_UN)
-        except ImportError:  # pragma: no cover
-            pass
-        os.close(self.fd)
 
 
 def build(name: str, force: bool = False, verbose: bool = True) -> Path:

@@ -51,7 +51,7 @@ def build_description(name: str, sources: list[Path]) -> str:
 def compile_library(name: str, lib: Path, sources: list[Path], include_dirs: list[Path], defines=()) -> str:
     """Compile ``sources`` into the shared library ``lib`` against fmpy's FMI headers and
     ``include_dirs`` (fmus/foreign2 too); raises RuntimeError on failure, returns the warnings."""
-    from fmus.build import _fmi_include
+    from fmus.build_tools import fmi_include as _fmi_include
     cmd = [os.environ.get("CC", "gcc"), "-O2", "-shared", "-fPIC", "-std=gnu11", "-Wall", "-Wextra",
            "-Wno-unused-parameter", f"-I{_fmi_include()}"] + [f"-I{d}" for d in include_dirs] + ["-o", str(lib)]
     cmd += list(defines) + [str(s) for s in sources] + ["-lm"]
@@ -74,7 +74,7 @@ def cli(argv, prog: str, doc: str, names, build_one) -> int:
 
 
 def _fmu_file(name: str) -> Path:
-    from fmus.build import BUILD_DIR
+    from fmus.build_tools import BUILD_DIR
     return BUILD_DIR / f"{name}.fmu"
 
 
@@ -115,7 +115,7 @@ def build(name: str, force: bool = False, verbose: bool = True, si_twin_dir: Pat
     """Build one foreign FMU if stale (or ``force``); returns the .fmu path."""
     _check(name)
     import fmpy
-    from fmus.build import BUILD_DIR, _keep, _Lock
+    from fmus.build_tools import BUILD_DIR, BuildLock as _Lock, keep as _keep
     with _Lock(BUILD_DIR / ".lock"):
         fmu = _fmu_file(name) if si_twin_dir is None else si_twin_dir / f"{name}SI.fmu"
         if _keep(name, fmu, force, verbose, lambda: _up_to_date(name)):

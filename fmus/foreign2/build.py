@@ -136,7 +136,7 @@ def vars_header(name: str) -> str:
 
 
 def generate(name: str) -> None:
-    from fmus.build import _write_if_changed
+    from fmus.build_tools import write_if_changed as _write_if_changed
     _check(name)
     _write_if_changed(HERE / name / "modelDescription.xml", model_description(name))
     _write_if_changed(HERE / name / f"{name}_vars.h", vars_header(name))
@@ -157,7 +157,7 @@ def _inputs(name: str) -> list[Path]:
 
 
 def _fmu_file(name: str) -> Path:
-    from fmus.build import BUILD_DIR
+    from fmus.build_tools import BUILD_DIR
     return BUILD_DIR / f"{name}.fmu"
 
 
@@ -169,7 +169,7 @@ def _up_to_date(name: str) -> bool:
 def build(name: str, force: bool = False, verbose: bool = True) -> Path:
     """Build one foreign2 FMU if stale (or ``force``); returns the .fmu path."""
     _check(name)
-    from fmus.build import BUILD_DIR, _keep, _Lock, _platform
+    from fmus.build_tools import BUILD_DIR, BuildLock as _Lock, keep as _keep, platform as _platform
     from fmus.foreign.build import build_description, compile_library
     with _Lock(BUILD_DIR / ".lock"):
         generate(name)
