@@ -4,10 +4,10 @@ One job: turn a recorded *reference cut* -- a dynamometer on the table, the stag
 force control at several thrust levels -- into the calibrated force constant
 ``Kt_n_cal`` [N/A] of the cutting-force observer, and write it to
 ``thrust_calibration.json``. After this one cut the dynamometer is removed; the
-observer (``controllers.keio_observer:CuttingForceObserver``) and the force controller
-(``controllers.force_control:ThrustForceController``) read the file through their
+observer (``drillcosim.controllers.keio_observer:CuttingForceObserver``) and the force controller
+(``drillcosim.controllers.force_control:ThrustForceController``) read the file through their
 ``calibration_file`` setting. Like a score function (and like the air-cut friction
-identification, :mod:`controllers.friction`) it uses only signals recorded during the run,
+identification, :mod:`drillcosim.controllers.friction`) it uses only signals recorded during the run,
 after the run: no block ever reads the dynamometer.
 
 Why it is needed. Every sensorless effort of the observer is the current times the
@@ -56,12 +56,12 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.signal_tools import moving_average
-from analysis.plotting import pyplot, save_figure
-from controllers.calibration import ThrustCalibration, load_calibration  # noqa: F401 (the file format)
-from analysis.plant_info import true_parameters
-from controllers.nominal_models import KeioNominal
-from cosim.scores import needs
+from drillcosim.analysis.signal_tools import moving_average
+from drillcosim.analysis.plotting import pyplot, save_figure
+from drillcosim.controllers.calibration import ThrustCalibration, load_calibration  # noqa: F401 (the file format)
+from drillcosim.analysis.plant_info import true_parameters
+from drillcosim.controllers.nominal_models import KeioNominal
+from drillcosim.cosim.scenario.needs import needs
 
 MODEL = ("mean F_dyn_j = gain * mean F_thrust_hat_j + intercept over the steady windows j of "
          "constant commanded force; Kt_n_cal = gain * Kt_n_reference")
@@ -178,7 +178,7 @@ def held_out_levels(x: np.ndarray, y: np.ndarray) -> dict:
 def _scenario_raw(result) -> dict:
     """The run's scenario (with its overrides, file settings made absolute), for
     provenance; {} for a Python-API run."""
-    from cosim.scenario import load_raw
+    from drillcosim.cosim.scenario.files import load_raw
 
     sc = getattr(result, "scenario", None)
     if sc is not None:
@@ -214,8 +214,8 @@ def calibration_in_use(result, block: str, raw: dict | None = None) -> dict:
 def _commissioned_constant(block: str, path) -> dict:
     """:func:`calibration_in_use` for a block on a commissioning file: its force constant,
     calibrated when the commissioning ran a reference cut."""
-    from controllers.calibration import COMMISSIONING_FORMAT
-    from controllers.friction import resolve_path
+    from drillcosim.controllers.calibration import COMMISSIONING_FORMAT
+    from drillcosim.controllers.friction import resolve_path
     doc = json.loads(Path(resolve_path(path)).read_text())
     if doc.get("format") != COMMISSIONING_FORMAT:
         raise ValueError(f"{path}: not a commissioning file (format {doc.get('format')!r})")
@@ -251,7 +251,7 @@ def thrust_constant_calibration(result, stage="stage", observer="observer", cont
     params = {**(spec.get("parameters") or {}), **(spec.get("plant_parameters") or {})}
     name = (result.summary or {}).get("scenario")
     fit["source"] = {"scenario": name, "produced_by": f"drillcosim run {name}: [[scores]] "
-                     "analysis.calibration:thrust_constant_calibration on the recorded reference cut",
+                     "drillcosim.analysis.calibration:thrust_constant_calibration on the recorded reference cut",
                      "file": (result.summary or {}).get("file"),
                      "overrides": (result.summary or {}).get("overrides") or {},
                      "seed": params.get("seed"),

@@ -1,6 +1,6 @@
 """The 24-hole detection campaign of Fang et al. (2015), Tables 3 and 5, Figs. 8 and 9.
 
-``python -m analysis.campaign_fang [--holes 4] [--out DIR] [--workers N]``
+``python -m drillcosim.analysis.campaign_fang [--holes 4] [--out DIR] [--workers N]``
 
 Every hole runs ``scenarios/fang_table5_campaign.toml`` (plant FMU, feed trajectory,
 position control, adaptive observer, interface detector) with its own overrides:
@@ -62,8 +62,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.recorder import Result
-from analysis.plotting import pyplot, save_figure
+from drillcosim.cosim.loop.recorder import Result
+from drillcosim.analysis.plotting import pyplot, save_figure
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "fang_table5_campaign.toml"
@@ -155,7 +155,7 @@ def hole_plan(holes=None, gap=0.02e-3, seed0=100):
 def run(holes=None, out_dir=None, workers=None, progress=True, gap=0.02e-3, scenario=SCENARIO,
         plots=True) -> dict:
     """Run the campaign, write CSVs, plots, summary.json; return the summary."""
-    from cosim.campaign import run_campaign
+    from drillcosim.cosim.runs.campaign import run_campaign
 
     plan = hole_plan(holes, gap=gap)
     out = Path(out_dir) if out_dir is not None else ROOT / "results" / "fang_table5_campaign"
@@ -380,7 +380,7 @@ def _print(summary) -> None:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m analysis.campaign_fang", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m drillcosim.analysis.campaign_fang", description=__doc__.split("\n")[0])
     ap.add_argument("--holes", type=int, default=24,
                     help="24 = all of Table 3; 4 = the CI variant (holes 1, 8, 17, 24); other n: n holes spread over 1..24")
     ap.add_argument("--out", default=None, help="output folder (default results/fang_table5_campaign[_N])")

@@ -4,25 +4,25 @@ Given a plant binding (or a scenario that binds one, whose observer/controller s
 then give the data sheet), it runs on the plant, through its roles only:
 
 1. an air cut (``scenarios/commissioning/air_cut_<kind>.toml``): constant-velocity segments
-   of both signs at 9-10 log-spaced feeds; :func:`analysis.identification.select_friction_model`
+   of both signs at 9-10 log-spaced feeds; :func:`drillcosim.analysis.identification.select_friction_model`
    chooses and fits friction, Stribeck, gravity offset and position ripple; the ramps
-   give the inertia (:func:`analysis.identification.identify_inertia`);
+   give the inertia (:func:`drillcosim.analysis.identification.identify_inertia`);
 2. for a drive with a dynamometer role, the thrust-constant reference cut (linear stage:
    ``scenarios/keio_thrust_constant_calibration.toml`` re-bound; ball screw:
    ``scenarios/commissioning/thrust_cut_ball_screw.toml``, a CFRP/Ti/Al block at the
    drilling feed; the observer on the air-cut friction in both): the calibrated force
    constant, and every effort identified through the data-sheet constant rescaled to it;
 3. for a linear stage, the contact (given, or the contact experiment's:
-   :mod:`analysis.contact_identification`) and the force-loop check
-   (:mod:`analysis.force_margin`) at the working point.
+   :mod:`drillcosim.analysis.contact_identification`) and the force-loop check
+   (:mod:`drillcosim.analysis.force_margin`) at the working point.
 
 It writes ``commissioning.json`` (one set of nominal parameters per drive, the friction
 model, ripple, calibration, warnings; every identified value with its 1-sigma spread and
 its check against data it was not fitted on, a failed one ``unverified`` with the reason:
-:mod:`analysis.commissioning_checks`), ``commissioning.png`` and ``summary.json``. Every
+:mod:`drillcosim.analysis.commissioning_checks`), ``commissioning.png`` and ``summary.json``. Every
 setting the target gives its plant reaches every experiment (:func:`plant_settings`). Observers
 and controllers read the file through ``commissioning_file`` (Keio) or ``friction_file``
-(any block using :func:`controllers.friction.make_friction`). Refusals
+(any block using :func:`drillcosim.controllers.friction.make_friction`). Refusals
 (:class:`CommissioningError`, nothing written as commissioning.json): a missing role, an
 air cut that touches the workpiece, an ill-conditioned fit. Warnings (in the file, the
 report and summary.json): residual far above the noise, a force loop without margin.
@@ -36,11 +36,11 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.identification import IdentificationError, identify_inertia, select_friction_model
-from analysis.experiments import plant_settings, run_experiment, write_scenario
-from analysis.plotting import pyplot, save_figure
-from controllers.calibration import COMMISSIONING_FORMAT, DATASHEET_DEFAULT, DATASHEET_SETTINGS
-from cosim.outputs import write_json_atomic
+from drillcosim.analysis.identification import IdentificationError, identify_inertia, select_friction_model
+from drillcosim.analysis.experiments import plant_settings, run_experiment, write_scenario
+from drillcosim.analysis.plotting import pyplot, save_figure
+from drillcosim.controllers.calibration import COMMISSIONING_FORMAT, DATASHEET_DEFAULT, DATASHEET_SETTINGS
+from drillcosim.cosim.runs.outputs import write_json_atomic
 
 ROOT = Path(__file__).resolve().parent.parent
 TEMPLATES = ROOT / "scenarios" / "commissioning"
@@ -58,8 +58,8 @@ class CommissioningError(ValueError):
 # --------------------------------------------------------------------------- the target
 def read_target(path) -> dict:
     """The plant binding and the data sheet from a binding file or a scenario."""
-    from cosim.plant import load_binding
-    from cosim.scenario import Origins, load_raw, read_toml
+    from drillcosim.cosim.scenario.binding import load_binding
+    from drillcosim.cosim.scenario.files import Origins, load_raw, read_toml
 
     path = Path(path).resolve()
     raw = read_toml(path)
@@ -133,11 +133,11 @@ def air_cut_settings(kind: str, given: dict) -> dict:
     """The air cut's segment settings a user gives (``drillcosim commission --air-cut
     KEY=VALUE``: a shorter stroke, other speeds), checked by name; new ``velocities``
     without ``a_max`` keep the template's two accelerations, alternating by pairs."""
-    from cosim.scenario import read_toml
+    from drillcosim.cosim.scenario.files import read_toml
     bad = sorted(set(given) - set(AIR_CUT_KEYS))
     if bad:
         raise CommissioningError(f"air cut setting(s) {', '.join(bad)} unknown (expected some of "
-                                 f"{', '.join(AIR_CUT_KEYS)}: controllers.friction:VelocitySegments)")
+                                 f"{', '.join(AIR_CUT_KEYS)}: drillcosim.controllers.friction:VelocitySegments)")
     out = dict(given)
     if "velocities" in out and "a_max" not in out:
         tmpl = read_toml(TEMPLATES / f"air_cut_{kind}.toml")["blocks"]["reference"]["settings"]["a_max"]
@@ -162,7 +162,7 @@ def fit_air_cut(result, target: dict) -> tuple:
         settle, min_dur, v_eps = 0.15, 0.25, 1e-5
     warnings = []
     if "drive.thrust_dyn" in result:
-        from analysis.identification import constant_velocity_segments
+        from drillcosim.analysis.identification import constant_velocity_segments
         for s in constant_velocity_segments(t, result["reference.v_ref"], settle=settle, min_duration=min_dur):
             F = float(np.mean(result["drive.thrust_dyn"][s]))
             if abs(F) > MAX_AIR_THRUST:
@@ -181,7 +181,7 @@ def fit_air_cut(result, target: dict) -> tuple:
         med = float(np.median(seg_res))
         bad = [j for j, r in enumerate(seg_res) if r > 5 * med and r > 3 * fm.info["noise_rms"]]
         if bad:
-            from analysis.identification import constant_velocity_segments
+            from drillcosim.analysis.identification import constant_velocity_segments
             segs = constant_velocity_segments(t, result["reference.v_ref"], settle=settle, min_duration=min_dur)
             where = ", ".join(f"{j + 1} ({pos[segs[j][0]]:.4g}..{pos[segs[j][-1]]:.4g} {units['position_unit']})"
                               for j in bad)
@@ -211,7 +211,7 @@ def current_saturation(result, kind: str) -> str | None:
     """Why the air cut's current saturated (the controller at its ``i_max``, or the plant's
     measured current falling short of the reference at the top of its range), or None. The
     effort of those samples is not what the fit takes it to be."""
-    from cosim.scenario import read_toml
+    from drillcosim.cosim.scenario.files import read_toml
     i_ref = np.abs(result["controller.i_ref"])
     i_max = float(read_toml(TEMPLATES / f"air_cut_{kind}.toml")["blocks"]["controller"]["settings"]["i_max"])
     n_lim = int(np.sum(i_ref >= 0.999 * i_max))
@@ -221,7 +221,7 @@ def current_saturation(result, kind: str) -> str | None:
     if "drive.i_meas" not in result:
         return None
     # 10 ms means: a saturation lasts, the current noise does not
-    from analysis.signal_tools import centred_mean
+    from drillcosim.analysis.signal_tools import centred_mean
     n = max(1, int(round(0.01 / float(np.median(np.diff(result.time))))))
     i_ref = centred_mean(result["controller.i_ref"], n)
     i_meas = centred_mean(result["drive.i_meas"], n)
@@ -255,7 +255,7 @@ def _cut_position_force(friction_file: Path) -> dict:
     pf = json.loads(Path(friction_file).read_text()).get("info", {}).get("position_force")
     if not pf or not any(pf.get("coefficients") or ()):
         return {}
-    from controllers.position_force import from_identification
+    from drillcosim.controllers.position_force import from_identification
     return {"blocks.observer.settings.position_force": from_identification(pf, pf["center"])}
 
 
@@ -303,8 +303,8 @@ def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: fl
     reference block (the observer runs on the data sheet's constant, pitch and eta with the
     identified inertia and the air-cut friction, so that friction which changes with speed
     does not pull the slope)."""
-    from analysis.calibration import fit_thrust_constant, window_levels
-    from cosim.scenario import read_toml
+    from drillcosim.analysis.calibration import fit_thrust_constant, window_levels
+    from drillcosim.cosim.scenario.files import read_toml
 
     ds = target["datasheet"]
     template = TEMPLATES / "thrust_cut_ball_screw.toml"
@@ -355,7 +355,7 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
     cal = thrust_calibration(target, raw_friction, mass, out)
     kt, scale = ds["force_constant"], 1.0
     if cal is not None:
-        from controllers.calibration import rescale_friction
+        from drillcosim.controllers.calibration import rescale_friction
         scale = cal["Kt_n_cal"] / ds["force_constant"]
         fm = rescale_friction(fm, scale)
         kt = cal["Kt_n_cal"]
@@ -370,22 +370,22 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
     if kind == "ball_screw":
         nominal.update(pitch=ds["pitch"], eta=ds["eta"])
     else:   # net gravity along +z, as the observer wants it, where the air cut started
-        from analysis.identification import position_force
+        from drillcosim.analysis.identification import position_force
         nominal["gravity_comp"] = -fm.offset - float(position_force(fm, travel[0]))
         if fm.info.get("position_force") and any(fm.info["position_force"]["coefficients"]):
             # the blocks add the change from there at the measured position (controllers/position_force.py)
-            from controllers.position_force import from_identification
+            from drillcosim.controllers.position_force import from_identification
             nominal["position_force"] = from_identification(fm.info["position_force"], travel[0])
     doc = {"format": FORMAT, "plant": str(target["binding_path"]), "target": str(Path(target_path).resolve()),
            "nominal": nominal, "friction": fm.to_dict(), "calibration": cal, "inertia_fit": inertia,
            "contact": None, "force_loop": None, "warnings": warnings}
-    from analysis.contact_identification import current_loop_entry
+    from drillcosim.analysis.contact_identification import current_loop_entry
     doc["current_loop"] = current_loop_entry(res, warnings)
     if kind == "linear_stage":
-        from analysis.contact_identification import contact_and_margin
+        from drillcosim.analysis.contact_identification import contact_and_margin
         contact_and_margin(doc, target, target_path, out, contact_stiffness, contact_damping)
-        from analysis.contact_identification import _target_gains
-        from analysis.force_margin import commission_gains
+        from drillcosim.analysis.contact_identification import _target_gains
+        from drillcosim.analysis.force_margin import commission_gains
         commission_gains(doc, _target_gains(target_path))      # Kf, g_thrust for the stated margin
     dest = Path(file).resolve() if file else out / "commissioning.json"
     return _finish(doc, res, fm, target, out, scale, travel, print_table, dest)
@@ -399,7 +399,7 @@ def _travel(result, kind: str) -> tuple[float, float]:
 
 def _finish(doc, res, fm, target, out: Path, scale, travel, print_table, dest: Path) -> dict:
     """Spreads and checks (``identified``, ``unverified``), then the file, figure, summary, report."""
-    from analysis.commissioning_checks import identified_entries
+    from drillcosim.analysis.commissioning_checks import identified_entries
     doc["identified"], doc["unverified"] = identified_entries(doc, fm, scale, tuple(sorted(travel)))
     for q, why in doc["unverified"].items():
         doc["warnings"].append(f"UNVERIFIED {q}: {why}")
@@ -419,8 +419,8 @@ def without_calibration(doc: dict) -> dict:
     """The commissioning file as it would be without the reference cut: the data-sheet
     force constant, and every effort (friction, gravity, mass or inertia) back in the
     data-sheet constant's units -- the uncalibrated drive, for comparison runs."""
-    from controllers.calibration import rescale_friction
-    from controllers.friction import FrictionModel
+    from drillcosim.controllers.calibration import rescale_friction
+    from drillcosim.controllers.friction import FrictionModel
     nom = dict(doc["nominal"])
     back = nom["force_constant_datasheet"] / nom["force_constant"]
     mass_key = "mass" if nom["kind"] == "linear_stage" else "inertia"
@@ -506,8 +506,8 @@ def report_table(doc: dict) -> str:
         rows += [("calibration residual", f"{c.get('residual_rms_N', float('nan')):.3g}", "", "", "N", ""),
                  ("calibration intercept (not applied)", f"{c.get('intercept_N', float('nan')):+.3g}",
                   f"+-{c.get('intercept_std_N', float('nan')):.2g}", "", "N", "")]
-    from analysis.contact_identification import contact_rows
-    from analysis.force_margin import gains_rows
+    from drillcosim.analysis.contact_identification import contact_rows
+    from drillcosim.analysis.force_margin import gains_rows
     rows += [(q, v, sd, "", u, "") for q, v, sd, u in contact_rows(doc)]
     if doc.get("force_loop"):
         m = doc["force_loop"]

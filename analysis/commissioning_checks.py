@@ -1,10 +1,10 @@
 """Every identified value of a commissioning with its 1-sigma spread and its check against
 data it was not fitted on (docs/commissioning.md, "Reading `unverified`").
 
-:func:`identified_entries` turns the fits of :mod:`analysis.commissioning` into the file's
+:func:`identified_entries` turns the fits of :mod:`drillcosim.analysis.commissioning` into the file's
 ``identified`` section and its ``unverified`` map (quantity -> reason). The blocks refuse an
 ``unverified`` quantity they read unless the scenario names it in ``accept_unverified``
-(:func:`controllers.calibration.load_commissioning`).
+(:func:`drillcosim.controllers.calibration.load_commissioning`).
 
 Checks (each stated in docs/commissioning.md):
 
@@ -12,7 +12,7 @@ Checks (each stated in docs/commissioning.md):
   value within 3 %; and for a linear stage, the contact experiment's moving mass agrees
   within 3 % + 2 sigma of its own spread;
 * force constant: each reference level left out is predicted by the others within 1 % + 0.1 N
-  (:func:`analysis.calibration.held_out_levels`); no thrust calibration is no check;
+  (:func:`drillcosim.analysis.calibration.held_out_levels`); no thrust calibration is no check;
 * friction: each held-back segment's mean effort predicted within 3 standard errors + 2 %
   of the Coulomb level by the model fitted on the other segments;
 * ripple: each term's wavelength and amplitude fitted on each half of the segments alone
@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-from analysis.identification import position_force
+from drillcosim.analysis.identification import position_force
 
 MASS_CONTACT_LIMIT = 0.03
 POSITION_FORCE_LIMIT_N = 0.5          # 1 % of the 50 N working thrust

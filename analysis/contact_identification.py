@@ -17,7 +17,7 @@ stated tolerances.
   ``D = K I_applied / Z`` (``I_applied``: ``i_ref`` through the sample hold and the current
   lag) minus the friction slope ``j w b_f`` (commissioned) is the mass and the contact with
   the process, ``-m w^2 + d jw + (k - d alpha) jw/(jw + alpha)``
-  (force-loop model of :mod:`analysis.force_margin`: ``F = k e + d (v - c')``, ``c' = alpha e``),
+  (force-loop model of :mod:`drillcosim.analysis.force_margin`: ``F = k e + d (v - c')``, ``c' = alpha e``),
   fitted by weighted least squares (weights ``1/|D|``: equal relative error), linear in
   ``m``, ``d`` and ``k - d alpha`` for each ``alpha`` of a scan. Process slope ``Kc_v = k / alpha``.
 """
@@ -277,15 +277,15 @@ def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings
     document so far, written for the observer and controller to read) and return the
     ``contact`` entry; a failed experiment adds its reason to ``warnings`` and returns an
     entry with ``error`` (no stiffness, so no margin is computed from it)."""
-    from analysis.experiments import run_experiment, write_scenario
-    from controllers.friction import FrictionModel
+    from drillcosim.analysis.experiments import run_experiment, write_scenario
+    from drillcosim.controllers.friction import FrictionModel
 
     exp = out / "experiments"
     exp.mkdir(parents=True, exist_ok=True)
     com = exp / "commissioning_air_cut.json"
     com.write_text(json.dumps(doc, indent=1))
     steps = schedule()
-    from analysis.experiments import plant_settings
+    from drillcosim.analysis.experiments import plant_settings
     tables = {"scenario": {"extends": str(TEMPLATE), "description":
                            f"commissioning contact experiment of {Path(target['binding_path']).name}"},
               "fmus.drive": {"plant": str(target["binding_path"])}, **plant_settings(target),
@@ -294,7 +294,7 @@ def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings
               "[[events]]": [{"time": steps[0][0] - SETTLE, "set": "excitation.amplitude", "value": AMPLITUDE}]
               + [{"time": t0, "set": "excitation.frequency", "value": f} for t0, f in steps]}
     sc = write_scenario(exp / "contact.toml", tables)
-    from cosim.errors import ScenarioError
+    from drillcosim.cosim.errors import ScenarioError
     try:
         res = run_experiment(sc, out / "contact")
     except ScenarioError as e:        # e.g. a plant without the spindle_speed role cannot cut
@@ -318,7 +318,7 @@ def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings
 def _target_gains(target_path) -> dict:
     """Kf, g_dob, g_vel of the target scenario's force controller and g_thrust of its
     observer (whatever it sets; the margin model's defaults are Keio Table 2's)."""
-    from cosim.scenario import load_raw, read_toml
+    from drillcosim.cosim.scenario.files import load_raw, read_toml
     raw = read_toml(Path(target_path))
     if "plant" in raw and "roles" in raw:
         return {}
@@ -333,9 +333,9 @@ def _target_gains(target_path) -> dict:
 def contact_and_margin(doc: dict, target: dict, target_path, out: Path, contact_stiffness: float | None = None,
                        contact_damping: float | None = None) -> None:
     """``doc["contact"]`` (given, or the contact experiment's) and ``doc["force_loop"]`` (the
-    margin at the target's gains, :func:`analysis.force_margin.margin_verdict`); warnings go to
+    margin at the target's gains, :func:`drillcosim.analysis.force_margin.margin_verdict`); warnings go to
     ``doc["warnings"]``. A contact that could not be identified leaves no margin, and says so."""
-    from analysis.force_margin import commissioned_loop, margin_verdict
+    from drillcosim.analysis.force_margin import commissioned_loop, margin_verdict
 
     warnings = doc["warnings"]
     if contact_stiffness:
@@ -353,7 +353,7 @@ def contact_and_margin(doc: dict, target: dict, target_path, out: Path, contact_
     sd = c.get("confidence", {}).get("relative_std", {}).get("damping")
     if sd:       # the margin at the low end of the damping estimate (1 sigma): less damping, less margin
         import dataclasses
-        from analysis.force_margin import margins
+        from drillcosim.analysis.force_margin import margins
         low = margins(dataclasses.replace(loop, contact_damping=loop.contact_damping * (1 - sd)), n_freq=1500)
         m["gain_margin_db_low_damping"] = low["gain_margin_db"] if low["stable"] else -math.inf
         if "warning" not in m and m["gain_margin_db_low_damping"] < 6.0:

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.signal_tools import centred_mean
-from cosim.scores import needs
+from drillcosim.analysis.signal_tools import centred_mean
+from drillcosim.cosim.scenario.needs import needs
 
 EVENTS = ("entry", "interface", "exit")
 
@@ -368,7 +368,7 @@ def _located(result, detector, name, t, x_tool, td) -> dict:
        *(f"{{detector}}.{n}" for n in _LOC), "{adapt}.failsafe", "{adapt}.t_failsafe")
 def score_stack(result, plant="drive", detector="detector", adapt="adapt", materials=("cfrp", "ti"),
                 plan_windows=None, match_tolerance=1.0e-3, fail_action="hold"):
-    """Score of one hole of a hole plan (appended by :mod:`cosim.hole_plan`).
+    """Score of one hole of a hole plan (appended by :mod:`drillcosim.drilling.hole_plan`).
 
     Per event (entry, interface1.., exit; ``events`` names the materials on both sides):
     true, trigger, located time; depth error ``<event>_dz_mm`` of the *located* position

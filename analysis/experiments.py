@@ -1,6 +1,6 @@
 """The commissioning experiments' scenario files: what the target scenario gives its plant,
 a small TOML writer, and one quiet run. Shared by the air cut, the reference cut
-(:mod:`analysis.commissioning`) and the contact experiment (:mod:`analysis.contact_identification`)."""
+(:mod:`drillcosim.analysis.commissioning`) and the contact experiment (:mod:`drillcosim.analysis.contact_identification`)."""
 from __future__ import annotations
 
 import json
@@ -53,5 +53,5 @@ def write_scenario(path: Path, tables: dict) -> Path:
 
 def run_experiment(scenario: Path, out: Path):
     """Run one commissioning experiment's scenario quietly into ``out`` (no progress, no signal handlers)."""
-    from cosim.runner import run_scenario
+    from drillcosim.cosim.runs.runner import run_scenario
     return run_scenario(scenario, out_dir=out, progress=False, handle_signals=False)

@@ -43,8 +43,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from controllers.loop_gains import TABLE2_G_THRUST, TABLE2_KF
-from controllers.nominal_models import zoh
+from drillcosim.controllers.loop_gains import TABLE2_G_THRUST, TABLE2_KF
+from drillcosim.controllers.nominal_models import zoh
 
 
 @dataclasses.dataclass
@@ -237,7 +237,7 @@ def loop_from_commissioning(doc: dict, *, feed: float, contact_stiffness: float 
     ``tau_cur`` [s] as given, else from its ``contact`` entry (the contact experiment) and
     ``current_loop`` entry; ``gains``: Kf, g_thrust, g_dob, g_vel, Ts. A quantity neither
     given nor in the file is an error naming it."""
-    from controllers.friction import FrictionModel
+    from drillcosim.controllers.friction import FrictionModel
 
     nom = doc["nominal"]
     contact = doc.get("contact") or {}
@@ -268,7 +268,7 @@ def contact_mass(doc: dict) -> float:
     the one the contact experiment saw (Foreign2ZStage: 2.56 kg of 4.16 kg; predicted critical
     Kf 0.72 against 0.70-0.75 simulated, docs/force_loop.md). The blocks' nominal mass stays the
     air cut's."""
-    from analysis.commissioning_checks import MASS_CONTACT_LIMIT
+    from drillcosim.analysis.commissioning_checks import MASS_CONTACT_LIMIT
 
     m_air, seen = doc["nominal"]["mass"], (doc.get("contact") or {}).get("mass_seen")
     if seen and seen > 0 and abs(seen - m_air) > MASS_CONTACT_LIMIT * m_air:
@@ -458,8 +458,8 @@ def force_loop_margin(result, commissioning_file: str | None = None, contact_sti
     ``process_exponent`` (``F ~ v^exponent``) states the process slope as ``exponent F_cmd /
     feed`` instead of the contact experiment's. Below ``min_gain_margin_db`` the score
     carries a ``warning``; a loop predicted unstable fails (``passed: false``)."""
-    from analysis.calibration import _scenario_raw
-    from controllers.calibration import load_commissioning
+    from drillcosim.analysis.calibration import _scenario_raw
+    from drillcosim.controllers.calibration import load_commissioning
 
     raw = _scenario_raw(result)
     cs = (raw.get("blocks", {}).get(controller, {}) or {}).get("settings") or {}

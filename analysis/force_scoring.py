@@ -1,6 +1,6 @@
 """Scores and figures of the thrust-force-control scenarios (Keio Figs. 4 and 7).
 
-One job: judge a recorded run of :class:`controllers.force_control.ThrustForceController`
+One job: judge a recorded run of :class:`drillcosim.controllers.force_control.ThrustForceController`
 against its command, per layer of the stack, with the dynamometer (``F_meas``, a
 scoring-only plant output), and draw the paper-like figure.
 
@@ -32,10 +32,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.calibration import calibration_in_use
-from analysis.plotting import pyplot, save_figure
-from analysis.signal_tools import moving_average
-from cosim.scores import needs
+from drillcosim.analysis.calibration import calibration_in_use
+from drillcosim.analysis.plotting import pyplot, save_figure
+from drillcosim.analysis.signal_tools import moving_average
+from drillcosim.cosim.scenario.needs import needs
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:

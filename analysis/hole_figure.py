@@ -15,9 +15,9 @@ import math
 
 import numpy as np
 
-from analysis.detector_scoring import stack_transitions
-from analysis.plotting import pyplot, save_figure
-from cosim.scores import needs
+from drillcosim.analysis.detector_scoring import stack_transitions
+from drillcosim.analysis.plotting import pyplot, save_figure
+from drillcosim.cosim.scenario.needs import needs
 
 EVENT_STYLE = {"entry": "tab:green", "interface": "tab:orange", "exit": "tab:red"}
 # Fang Table 5, worst depth errors [mm] of the 24-hole campaign (the paper's numbers)
@@ -111,7 +111,7 @@ def print_table5(result, hole: str = "score_hole", print_table: bool = True) -> 
     depth error [mm] of each event against the paper's worst, printed and returned."""
     scores = (getattr(result, "summary", None) or {}).get("scores", {}).get(hole)
     if scores is None:
-        raise KeyError(f"no score '{hole}' before print_table5: list analysis.detector_scoring:score_hole "
+        raise KeyError(f"no score '{hole}' before print_table5: list drillcosim.analysis.detector_scoring:score_hole "
                        "first in [[scores]]")
     rows = []
     for key, label in (("entry", "entry"), ("interface", "interface"), ("exit_paper", "exit (paper, thd3)"),

@@ -49,7 +49,7 @@ import math
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from controllers.friction import FrictionModel
+from drillcosim.controllers.friction import FrictionModel
 
 
 class IdentificationError(ValueError):
@@ -511,7 +511,7 @@ def identify_inertia(time, position, effort, fm: FrictionModel, a_ref, *, window
     ``INERTIA_REL_LIMIT`` (a compliance, an unmodelled force or a current limit shows as an
     inertia that depends on the acceleration). Returns ``value``, ``std`` (the larger of the
     standard error and the groups' spread), ``groups``, ``check`` and ``ok`` (std below 5 %)."""
-    from analysis.signal_tools import centred_mean
+    from drillcosim.analysis.signal_tools import centred_mean
     t = np.asarray(time, float)
     dt = float(np.median(np.diff(t)))
     n = max(1, int(round(window / dt)))

@@ -24,12 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.identification import identify_friction
-from analysis.plant_info import plant_kind, true_parameters
-from cosim.scores import needs
-from controllers.nominal_models import FangNominal, KeioNominal
-from analysis.plotting import pyplot, save_figure
-from analysis.signal_tools import centred_mean
+from drillcosim.analysis.identification import identify_friction
+from drillcosim.analysis.plant_info import plant_kind, true_parameters
+from drillcosim.cosim.scenario.needs import needs
+from drillcosim.controllers.nominal_models import FangNominal, KeioNominal
+from drillcosim.analysis.plotting import pyplot, save_figure
+from drillcosim.analysis.signal_tools import centred_mean
 
 MATERIALS = {0: "air", 1: "CFRP", 2: "Ti-6Al-4V", 3: "aluminium"}
 

@@ -6,7 +6,7 @@ which seed), and carries its units in the header (``stage.thrust_dyn [N]``), so 
 alone. Values are written as the shortest digits that read back bit for bit, so a replay
 of the recording reproduces the run's observers exactly. ``.csv.gz`` compresses.
 
-    python -m analysis.recording RESULT_DIR OUT.csv[.gz] --signals stage.table_position ... \
+    python -m drillcosim.analysis.recording RESULT_DIR OUT.csv[.gz] --signals stage.table_position ... \
         --note "simulated: ..." [--every N]
 """
 from __future__ import annotations
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.recorder import Result, format_chunk
+from drillcosim.cosim.loop.recorder import Result, format_chunk
 
 
 def export_recording(result: Result, out, signals: list[str], notes: list[str], every: int = 1) -> Path:
@@ -46,7 +46,7 @@ def export_recording(result: Result, out, signals: list[str], notes: list[str], 
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m analysis.recording", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="python -m drillcosim.analysis.recording", description=__doc__.split("\n\n")[0])
     p.add_argument("result_dir", help="a run's folder (its data.csv)")
     p.add_argument("out", help="the recording: .csv or .csv.gz")
     p.add_argument("--signals", nargs="+", required=True, help="the columns to export (instance.signal)")
@@ -56,7 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         path = export_recording(Result.from_csv(args.result_dir), args.out, args.signals, args.note, args.every)
     except (OSError, KeyError, ValueError) as e:
-        print(f"analysis.recording: {e}", file=sys.stderr)
+        print(f"drillcosim.analysis.recording: {e}", file=sys.stderr)
         return 1
     print(f"recording: {path} ({path.stat().st_size / 1e6:.2f} MB)")
     return 0

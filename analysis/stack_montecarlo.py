@@ -13,13 +13,13 @@ nominal stack and processes) and draws around it:
 * tool wear: 0 .. 40 holes; noise seed.
 
 The plan itself (the nominal stack) is not changed: the detector must find the drawn
-stack from the plan alone. The holes run as one campaign (:mod:`cosim.campaign`: Dask,
+stack from the plan alone. The holes run as one campaign (:mod:`drillcosim.cosim.runs.campaign`: Dask,
 each hole supervised, so a crashing FMU costs one row); the result is one row per hole
 (``score_stack``) and, per stack type, the worst and 95th-percentile |depth error| of
 entry, interfaces and exit, the counts of missed / false events and of false fails,
 against the bars (0 / 0 / 0; entry <= 0.094 mm, every interface <= 0.073 mm, exit <= 0.2 mm).
 
-    python -m analysis.stack_montecarlo --holes 200 --workers 2     # the table + figure in docs/
+    python -m drillcosim.analysis.stack_montecarlo --holes 200 --workers 2     # the table + figure in docs/
 
 ``--draw wide`` (issue 23) draws the plan itself too, on a plant of ``--plant`` (the
 project's ball-screw drive, or the foreign one of fmus/foreign): 1-4 layers of any of
@@ -64,12 +64,12 @@ RANGES = {"thickness": 0.10, "gap_m": (0.0, 0.5e-3), "feed_mm_min": (6.0, 24.0),
 
 def plan_of(stack_type: str) -> dict:
     """The merged [hole] of a shipped stack scenario (nominal stack and processes)."""
-    from cosim.scenario import load_raw
+    from drillcosim.cosim.scenario.files import load_raw
     return load_raw(STACKS / f"{stack_type}.toml")["hole"]
 
 
 def draw_hole(stack_type: str, rng: np.random.Generator, feed_range=RANGES["feed_mm_min"]) -> dict:
-    """Overrides of one drawn hole (dotted keys for :func:`cosim.run_scenario`)."""
+    """Overrides of one drawn hole (dotted keys for :func:`drillcosim.cosim.run_scenario`)."""
     plan = plan_of(stack_type)
     layers = plan["layers"]
     ov = {"fmus.drive.plant_parameters.n_layers": len(layers),
@@ -114,8 +114,8 @@ def _wide_plan(rng: np.random.Generator) -> tuple[list, dict, list]:
 
 def plan_refusal(base_plan: dict, layers: list, process: dict) -> str | None:
     """Why the hole plan refuses this drawn plan at load, or None (the same checks as the
-    scenario loader: cosim.hole_plan)."""
-    from cosim.hole_plan import DETECTOR_DT, DETECTOR_N_MIN, HolePlan
+    scenario loader: drillcosim.drilling.hole_plan)."""
+    from drillcosim.drilling.hole_plan import DETECTOR_DT, DETECTOR_N_MIN, HolePlan
 
     class Refused(Exception):
         pass
@@ -186,11 +186,11 @@ def draw_campaign(n: int, seed: int = 12, types=TYPES, feed_range=RANGES["feed_m
 
 def run_campaign(jobs, workers: int = 2, progress: bool = True, out_dir=None, scheduler: str | None = None,
                  base: Path | None = None) -> list[dict]:
-    """Run the drawn holes as one campaign (:func:`cosim.campaign.run_campaign`: Dask, each
+    """Run the drawn holes as one campaign (:func:`drillcosim.cosim.runs.campaign.run_campaign`: Dask, each
     hole supervised, a crash is a ``crashed`` row); only summaries, scores and figures are
     kept of good holes (``out_dir``, default a temporary folder). ``base``: the scenario
     of every hole (the wide draw's plant), else each hole's stack type's plan."""
-    from cosim.campaign import run_campaign as campaign
+    from drillcosim.cosim.runs.campaign import run_campaign as campaign
     scenarios = [base or STACKS / f"{stack_type}.toml" for _i, stack_type, _ov in jobs]
     with tempfile.TemporaryDirectory(prefix="stack_mc_") as tmp:
         summaries = campaign(scenarios, [ov for _i, _t, ov in jobs], out_dir=out_dir or tmp, workers=workers,
@@ -404,7 +404,7 @@ def main(argv=None) -> int:
     print(table_markdown(summary))
     if a.docs:
         write_docs(rows, summary, ROOT / "docs" / "stacks.md", ROOT / "docs" / "img" / "stack_montecarlo.png",
-                   f"python -m analysis.stack_montecarlo --holes {a.holes} --workers {a.workers} --seed {a.seed} --docs")
+                   f"python -m drillcosim.analysis.stack_montecarlo --holes {a.holes} --workers {a.workers} --seed {a.seed} --docs")
     return 0 if summary["all"]["meets_bars"] else 1
 
 
@@ -428,7 +428,7 @@ def main_wide(a, out: Path) -> int:
     print(table)
     if a.docs:
         plants = " ".join(f"--plant {p}" for p in summaries)
-        command = (f"python -m analysis.stack_montecarlo --draw wide {plants} --holes {a.holes} "
+        command = (f"python -m drillcosim.analysis.stack_montecarlo --draw wide {plants} --holes {a.holes} "
                    f"--workers {a.workers} --seed {a.seed}{' --from-runs' if a.from_runs else ''} --docs")
         img = ROOT / "docs" / "img" / "stack_montecarlo_wide.png"
         figure_wide(rows_by_plant, img)

@@ -1,12 +1,12 @@
 """The Fang Table 5 campaign on a 2-worker local Dask cluster against a plain process pool
 of 2 processes, as a ratio of wall times measured in one process.
 
-(a) ``concurrent.futures.ProcessPoolExecutor(2)`` running ``cosim.run_scenario`` in the
+(a) ``concurrent.futures.ProcessPoolExecutor(2)`` running ``drillcosim.cosim.run_scenario`` in the
     pool's processes (the campaign before issue 13: no crash isolation);
-(b) ``cosim.campaign.run_campaign(..., workers=2)``: LocalCluster on loopback, every run
+(b) ``drillcosim.cosim.runs.campaign.run_campaign(..., workers=2)``: LocalCluster on loopback, every run
     supervised in its own child process; cluster start-up and shutdown are included.
 
-HOLES holes of ``analysis.campaign_fang.hole_plan`` (default 8, spread over 1..24 like
+HOLES holes of ``drillcosim.analysis.campaign_fang.hole_plan`` (default 8, spread over 1..24 like
 ``--holes 8``; ``BENCH_CAMPAIGN_HOLES=24`` for the full campaign), full length. Each is
 timed ``BENCH_CAMPAIGN_ROUNDS`` times (default 2, in the order pool, Dask, Dask, pool) and
 the best of each counts. Target (issue 13): (b) / (a) <= 1.10.
@@ -28,7 +28,7 @@ WORKERS = 2
 
 
 def _pool_run(args):
-    from cosim.runner import run_scenario
+    from drillcosim.cosim.runs.runner import run_scenario
     path, out, ovr = args
     try:
         return run_scenario(path, out, ovr, progress=False).summary["status"]
@@ -44,14 +44,14 @@ def _time_pool(scenario, runs, out) -> tuple[float, list]:
 
 
 def _time_dask(scenario, runs, out) -> tuple[float, list]:
-    from cosim.campaign import run_campaign
+    from drillcosim.cosim.runs.campaign import run_campaign
     t0 = time.perf_counter()
     summaries = run_campaign(scenario, runs, out_dir=out, workers=WORKERS, progress=False)
     return time.perf_counter() - t0, [s["status"] for s in summaries]
 
 
 def main() -> dict:
-    from analysis import campaign_fang as cf
+    from drillcosim.analysis import campaign_fang as cf
     plan = cf.hole_plan(cf.select_holes(HOLES))
     runs = [p["overrides"] for p in plan]
     scenario = str(cf.SCENARIO)

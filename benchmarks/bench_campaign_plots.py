@@ -2,7 +2,7 @@
 local cluster as before (every hole's figure drawn) against today's default (scores only,
 figures on demand), and per hole the cost of scores + plots against the simulation.
 
-HOLES holes of ``analysis.campaign_fang.hole_plan`` (default 6, spread over 1..24;
+HOLES holes of ``drillcosim.analysis.campaign_fang.hole_plan`` (default 6, spread over 1..24;
 ``BENCH_CAMPAIGN_HOLES=24`` for the full campaign), full length, timed ``ROUNDS`` times in
 the order plots, scores, scores, plots (best of each). Each hole's ``timing_s`` (its own
 summary) gives ``scores_plots / simulate``. The score columns of the two campaigns'
@@ -29,7 +29,7 @@ TIMING_PREFIXES = ("wall_time_s", "realtime_factor", "us_per_step", "timing", "r
 
 
 def _campaign(scenario, runs, out, plots: bool) -> tuple[float, list[dict]]:
-    from cosim.campaign import run_campaign
+    from drillcosim.cosim.runs.campaign import run_campaign
     t0 = time.perf_counter()
     summaries = run_campaign(scenario, runs, out_dir=out, workers=WORKERS, progress=False, plots=plots)
     return time.perf_counter() - t0, summaries
@@ -45,7 +45,7 @@ def _ratios(summaries: list[dict]) -> list[float]:
 
 
 def main() -> dict:
-    from analysis import campaign_fang as cf
+    from drillcosim.analysis import campaign_fang as cf
     plan = cf.hole_plan(cf.select_holes(HOLES))
     runs = [p["overrides"] for p in plan]
     scenario = str(cf.SCENARIO)

@@ -1,12 +1,12 @@
 """The master's own cost per communication step, against a hand-written fmpy loop.
 
-One plant FMU (LinearStage when ``fmus.build`` is available, else the test FMU of
+One plant FMU (LinearStage when ``drillcosim.fmus.build`` is available, else the test FMU of
 ``tests/cosim_helpers.py``) and one trivial block (a P law on the position) at
 10 kHz, N steps, all in one process:
 
 (a) hand-written fmpy loop: ``fmu.getReal`` / Python law / ``fmu.setReal`` / ``fmu.doStep``
     (fmpy's public API, as in fmpy's own simulation loop);
-(b) the master (``cosim.algorithm.simulate``) with the same FMU and the law as a Block,
+(b) the master (``drillcosim.cosim.loop.algorithm.simulate``) with the same FMU and the law as a Block,
     recording nothing (the hand loop records nothing either);
 (c) the master recording 3 signals every 10th step (for information);
 (d) a raw-ctypes loop (fmpy's loaded C functions, preallocated arrays): the floor.
@@ -32,7 +32,7 @@ KP = 10.0          # A/m: i_ref = 0.1 A - KP * z, keeps the stage near its start
 def plant():
     """(path, output name, input name, label)."""
     try:
-        from fmus.build import fmu_path
+        from drillcosim.fmus.build import fmu_path
         return fmu_path("LinearStage"), "z_enc", "i_ref", "LinearStage (FMI 2.0 CS)"
     except Exception:   # noqa: BLE001 - no plant build: fall back to the test FMU
         sys.path.insert(0, str(ROOT / "tests"))
@@ -88,11 +88,11 @@ def raw_loop(path, out, inp, n):
 
 
 def master_loop(path, out, inp, n, record=False):
-    from cosim.algorithm import simulate
-    from cosim.block import Block, Port
-    from cosim.recorder import Recorder
-    from cosim.slave import load_model
-    from cosim.system import System
+    from drillcosim.cosim.loop.algorithm import simulate
+    from drillcosim.cosim.loop.block import Block, Port
+    from drillcosim.cosim.loop.recorder import Recorder
+    from drillcosim.cosim.fmi.slave import load_model
+    from drillcosim.cosim.loop.system import System
 
     model = load_model(path)
 

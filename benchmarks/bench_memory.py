@@ -22,7 +22,7 @@ STEP = 1e-4          # s, the scenario's step; decimation 1: a row per step
 
 CHILD = """
 import json, resource, sys, time
-from cosim.runner import run_scenario
+from drillcosim.cosim.runs.runner import run_scenario
 t0 = time.perf_counter()
 r = run_scenario(sys.argv[1], out_dir=sys.argv[2], progress=False,
                  overrides={"scenario.stop_time": float(sys.argv[3]), "record.decimation": 1,

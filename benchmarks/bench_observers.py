@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from cosim.block import Block, Port  # noqa: E402
+from drillcosim.cosim.loop.block import Block, Port  # noqa: E402
 
 
 class _Gain(Block):
@@ -44,8 +44,8 @@ def _per_call_us(block, inputs, n: int, repeats: int = 5) -> float:
 
 
 def main(n: int = 20000) -> list[dict]:
-    from controllers.fang_observer import AdaptiveThrustObserver
-    from controllers.keio_observer import CuttingForceObserver
+    from drillcosim.controllers.fang_observer import AdaptiveThrustObserver
+    from drillcosim.controllers.keio_observer import CuttingForceObserver
 
     inp1 = [(0.1 * math.sin(0.01 * k),) for k in range(1024)]
     inp2 = [(0.5 + 0.01 * math.sin(0.1 * k), 1e-6 * k) for k in range(1024)]

@@ -5,7 +5,7 @@ closed loop), in one process:
 
 * **run**: the scenario as ``drillcosim run`` runs it in-process (load, simulate with the
   recorder writing ``data.csv`` in a temporary folder, ``data.mat`` at the end; scores and
-  plots excluded). ``us_per_step`` is the wall time of :func:`cosim.algorithm.simulate`
+  plots excluded). ``us_per_step`` is the wall time of :func:`drillcosim.cosim.loop.algorithm.simulate`
   per communication step, ``x_real_time`` the simulated time over that wall time;
   ``startup_s`` is load + compile + FMU instantiation, ``write_s`` the final write.
 * **raw**: the floor on the same plant FMUs (every FMU of the scenario: ``fmus``), with the
@@ -13,7 +13,7 @@ closed loop), in one process:
   arrays: per FMU one ``getReal`` of every output the scenario reads, one ``setReal`` of
   every input it drives (held values), ``doStep``. ``ratio_to_raw`` = run / raw;
   ``meets_ratio``: at most :data:`TARGET_RATIO`. ``steps_in_c``: the share of steps run
-  wholly in C (cosim/fused.py) -- those can beat the raw ctypes loop, which pays ctypes
+  wholly in C (cosim/loop/fused.py) -- those can beat the raw ctypes loop, which pays ctypes
   per FMU call.
 
 The raw loop is timed ``RAW_REPEAT`` times (minimum counts, the machine may be shared);
@@ -62,7 +62,7 @@ def shipped(names=()) -> list[Path]:
 def _io(sc, slave_name: str) -> tuple[list, list]:
     """(output variables the scenario reads, input variables it drives) of one FMU, as the
     master chooses them."""
-    from cosim.algorithm import _fmu_reads
+    from drillcosim.cosim.loop.algorithm import _fmu_reads
     slave = sc.system.slaves[slave_name]
     recorded = [s for s in [*sc.record_signals, *sc.plotted_signals()]
                 if s.split(".", 1)[0] == slave_name]
@@ -110,9 +110,9 @@ def raw_loop(plants: list, h: float, n: int) -> float:
 def _timed(path: Path, sc=None):
     """One run as ``drillcosim run`` does it in-process: ``(scenario, RunInfo, load s,
     start-up s of simulate, write s)``; ``sc``: already loaded (its load time is then 0)."""
-    from cosim.algorithm import simulate
-    from cosim.recorder import Recorder
-    from cosim.runner import load
+    from drillcosim.cosim.loop.algorithm import simulate
+    from drillcosim.cosim.loop.recorder import Recorder
+    from drillcosim.cosim.runs.runner import load
 
     t0 = time.perf_counter()
     sc = sc if sc is not None else load(path)
@@ -131,8 +131,8 @@ def _timed(path: Path, sc=None):
 def run_one(path: Path) -> dict | None:
     """The row of one scenario; a scenario that does not load is a row with its error (the
     other scenarios are still measured, as `drillcosim list` still lists them)."""
-    from cosim.errors import CosimError
-    from cosim.runner import load
+    from drillcosim.cosim.errors import CosimError
+    from drillcosim.cosim.runs.runner import load
 
     t0 = time.perf_counter()
     try:
@@ -155,7 +155,7 @@ def run_one(path: Path) -> dict | None:
     raw = min(raw_loop(plants, h, RAW_STEPS) for _ in range(RAW_REPEAT)) / RAW_STEPS * 1e6
     sim_time = info.time_reached - sc.system.start_time
     blocks = ", ".join(f"{n}/{sc.system.rate(n)}" for n in sc.system.block_order())
-    from cosim.kernel_group import plan
+    from drillcosim.cosim.loop.kernel_group import plan
     in_c = " ".join("+".join(g) for g in plan(sc.system, sc.system.block_order())[1])
     return {"scenario": path.stem, "steps": info.steps, "us_per_step": round(us, 2),
             "x_real_time": round(sim_time / (us * 1e-6 * info.steps), 1),

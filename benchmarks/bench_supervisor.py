@@ -22,8 +22,8 @@ REPEAT = int(os.environ.get("BENCH_SUPERVISOR_REPEAT", "3"))
 
 
 def main() -> dict:
-    from cosim.runner import run_scenario
-    from cosim.supervisor import run_supervised
+    from drillcosim.cosim.runs.runner import run_scenario
+    from drillcosim.cosim.runs.supervisor import run_supervised
     ovr = {"scenario.stop_time": STOP_TIME}
     times = {"in_process": [], "supervised": []}
     with tempfile.TemporaryDirectory() as tmp:

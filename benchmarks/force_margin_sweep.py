@@ -1,5 +1,5 @@
 """Margin tool against simulation (issue 11): over a sweep of contact stiffness and damping,
-the critical force gain Kf that analysis.force_margin predicts from a commissioning file
+the critical force gain Kf that drillcosim.analysis.force_margin predicts from a commissioning file
 against the one found by simulating Keio Fig. 7 (bisection on the ``limit_cycle`` score:
 an oscillation of the true thrust above 1 N).
 
@@ -22,8 +22,8 @@ import json
 import tempfile
 from pathlib import Path
 
-from analysis.force_margin import critical, loop_from_commissioning, process_slope
-from cosim.runner import run_scenario
+from drillcosim.analysis.force_margin import critical, loop_from_commissioning, process_slope
+from drillcosim.cosim.runs.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 F_CMD, FEED = 50.0, 1e-3          # N, m/s: Fig. 7's command and (about) its feed in aluminium
@@ -88,8 +88,8 @@ def predicted(doc: dict, plant: Plant, k_um: float, d: float) -> float | None:
 
 def predicted_identified(doc: dict, sc: Path, tmp: Path) -> tuple[float | None, str]:
     """Critical Kf from the contact experiment run on the plant of ``sc`` (nothing stated)."""
-    from analysis.commissioning import read_target
-    from analysis.contact_identification import contact_experiment
+    from drillcosim.analysis.commissioning import read_target
+    from drillcosim.analysis.contact_identification import contact_experiment
     warnings = []
     c = contact_experiment(read_target(sc), sc, doc, tmp / f"contact_{sc.stem}", warnings)
     if "stiffness" not in c or not c["confidence"]["ok"]:
@@ -107,7 +107,7 @@ def sweep(name: str, com: Path | None, steps: int = 4, identified: bool = False)
     with tempfile.TemporaryDirectory() as t:
         tmp = Path(t)
         if com is None:
-            from analysis.commissioning import commission
+            from drillcosim.analysis.commissioning import commission
             commission(ROOT / plant.scenario, tmp / "com", print_table=False)
             com = tmp / "com" / "commissioning.json"
         doc = json.loads(Path(com).read_text())

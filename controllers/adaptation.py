@@ -18,7 +18,7 @@ stack) is answered by ``fail_action``:
 * ``"stage"`` (legacy, with ``fail_stage``): switch to the named stage;
 * ``"hold"``: switch to ``fail_parameters`` -- the most conservative set the plan
   allows (lowest feed per revolution at the lowest spindle and orbital speed of
-  any material in the stack, :mod:`cosim.hole_plan`) -- and hold it to the end,
+  any material in the stack, :mod:`drillcosim.drilling.hole_plan`) -- and hold it to the end,
   whatever the flag does afterwards. A fail means the detector's idea of the
   material under the tool is not trustworthy, so it must never pick another
   material's parameters (Ti's larger chip in CFRP delaminates it);
@@ -57,9 +57,9 @@ import ctypes
 import math
 from typing import Sequence
 
-from cosim.block import Block, Port
-from controllers.kernels import KernelBlock
-from controllers.kernels.structs import fill
+from drillcosim.cosim.loop.block import Block, Port
+from drillcosim.controllers.kernels import KernelBlock
+from drillcosim.controllers.kernels.structs import fill
 
 PARAMS = ("feed_rate", "spindle_speed", "orbital_speed")
 FAIL_ACTIONS = ("none", "stage", "hold", "retract")

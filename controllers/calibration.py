@@ -1,7 +1,7 @@
 """The thrust-calibration file that the cutting-force observer and the force controller read.
 
 A loader only: the commissioning fit that writes the file (``thrust_calibration.json``)
-is offline analysis, :mod:`analysis.calibration`, which also explains the model.
+is offline analysis, :mod:`drillcosim.analysis.calibration`, which also explains the model.
 """
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import dataclasses
 import json
 from pathlib import Path
 
-from controllers.friction import FrictionModel, resolve_path
-from controllers.nominal_models import FangNominal, KeioNominal
+from drillcosim.controllers.friction import FrictionModel, resolve_path
+from drillcosim.controllers.nominal_models import FangNominal, KeioNominal
 
 
 @dataclasses.dataclass

@@ -1,7 +1,7 @@
 """Localisation of a detected stack event: *where* it happened, after the detector has
 decided *that* it happened (issue 23).
 
-The moving regression of :mod:`controllers.interface_detector` fires once the prediction
+The moving regression of :mod:`drillcosim.controllers.interface_detector` fires once the prediction
 error has grown past its threshold, i.e. some way into the thrust's change: every entry
 was found 0.025-0.06 mm late, and a change that is slow against the window (a thinning
 layer) is found at its start instead of at the free face. Once an event has fired, the

@@ -68,7 +68,7 @@ Implementation choices (the paper leaves them open)
   ``orbital_speed`` [rpm] whose phase is integrated sample by sample, as the plant does
   (same phase as ``2 pi f t`` while the speed is constant from t = 0). Connect the
   *commanded* speed (scenarios/fang_table5_hole.toml: the adaptation's output, one sample
-  late through ``controllers.adaptation:OneStepDelay``). After a speed change theta
+  late through ``drillcosim.controllers.adaptation:OneStepDelay``). After a speed change theta
   re-converges within a few 1/lambda (measured 120 -> 60 rpm: ripple amplitude within
   20 % ~6 s, within 5 % ~8 s after the switch): Gamma, sized for the old frequency's
   regressor, has to forget it first.
@@ -95,11 +95,15 @@ import warnings
 import numpy as np
 import scipy.linalg
 
-from cosim.block import Port
-from controllers.calibration import load_commissioning
-from controllers.friction import make_friction, resolve_path
-from controllers.nominal_models import (DiscretisedBlock, FangNominal, FangObserverTuning, fang_model,
-                                        zoh, check_observable)
+from drillcosim.cosim.loop.block import Port
+from drillcosim.controllers.calibration import load_commissioning
+from drillcosim.controllers.friction import make_friction, resolve_path
+from drillcosim.controllers.nominal_models import (DiscretisedBlock,
+    FangNominal,
+    FangObserverTuning,
+    fang_model,
+    zoh,
+    check_observable)
 
 _UNITS = {"m": 1.0, "mm": 1e3, "um": 1e6}
 TWO_PI = 2.0 * math.pi
@@ -234,7 +238,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
             if kernel == "c":
                 raise ValueError(f"AdaptiveThrustObserver: the C kernel holds {MAX_RIPPLE} tau_ripple rows")
             return None
-        from controllers.kernels import Kernel, KernelUnavailable, library
+        from drillcosim.controllers.kernels import Kernel, KernelUnavailable, library
         try:
             library("fang_observer")
         except KernelUnavailable as e:
@@ -255,7 +259,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         names = [p.name for p in self.inputs]
         k.k_theta = names.index("theta") if "theta" in names else -1
         k.k_orbital = names.index("orbital_speed") if "orbital_speed" in names else -1
-        # one sample: self.c_kernel.step; the master may also run it in a group (cosim/kernel_group.py)
+        # one sample: self.c_kernel.step; the master may also run it in a group (cosim/loop/kernel_group.py)
         self.c_kernel = Kernel("fang_observer", "fang_observer_step", k, len(self.inputs), len(self.outputs))
         return k
 

@@ -3,7 +3,7 @@
 One job: decide the acceleration reference of the feed axis -- position control on
 the approach, P force control while cutting, position control again to retract --
 and hand it to the robust acceleration control (disturbance compensator) shared with
-:mod:`controllers.position_control`.
+:mod:`drillcosim.controllers.position_control`.
 
 Force control law
 -----------------
@@ -46,7 +46,7 @@ near ``g*Kf = 2 rad/s`` in the stiff regime: the thrust creeps toward the comman
 seconds, which the paper's Figs. 4 and 7 do not show. The dimensionless force-servo
 reading is the one of the acceleration-control school the paper builds on (its ref.
 [4]). ``Kp`` [1/s] and ``Kv`` [1/s] are the table's 25 and 100 (see
-:mod:`controllers.position_control`); the position loop runs on approach and retract,
+:mod:`drillcosim.controllers.position_control`); the position loop runs on approach and retract,
 where the axis moves in air and the DOB makes it the nominal mass.
 
 Against the cutting process the Table 2 position loop is soft: in the stiff regime the
@@ -58,7 +58,7 @@ That is one more reason to cut under force control; a constant-feed reference ru
 The switch
 ----------
 ``mode`` 0 *approach* -- position control on the trajectory inputs (``z_ref``,
-``v_ref``, ``a_ref``, e.g. from :class:`controllers.trajectory.FeedTrajectory`).
+``v_ref``, ``a_ref``, e.g. from :class:`drillcosim.controllers.trajectory.FeedTrajectory`).
 Contact is detected from the cutting-force observer, never from the plant's truth:
 ``F_thrust_hat > F_contact`` for ``t_confirm`` seconds -> ``mode`` 1 *force*; it is
 armed from ``z >= z_contact_min`` on (set it at the end of the fast approach: at the
@@ -81,7 +81,7 @@ While cutting, ``v_max`` (if finite) caps the feed rate through the velocity loo
 Calibration
 -----------
 ``calibration_file`` (a ``thrust_calibration.json`` of the commissioning reference cut,
-scenario keio_thrust_constant_calibration, :mod:`controllers.calibration`): its
+scenario keio_thrust_constant_calibration, :mod:`drillcosim.controllers.calibration`): its
 ``Kt_n_cal`` replaces ``force_constant_nominal`` in the current computation and the DOB.
 The mean thrust does not depend on it (the loop's integrator makes the *observer's*
 estimate exact, so the observer must get the same file); it makes the loop gain and the
@@ -92,9 +92,9 @@ error of a static force.
 force constant and gravity compensation replace ``mass_nominal``,
 ``force_constant_nominal`` and ``F_bias``, its ``position_force`` (a spring-type compensator:
 the static force changes with the stroke) the ``position_force`` setting, evaluated at the
-measured position each sample (:mod:`controllers.position_force`) -- the set the cutting-force observer reads from
+measured position each sample (:mod:`drillcosim.controllers.position_force`) -- the set the cutting-force observer reads from
 the same file, so the two never disagree. ``Kf`` comes from its ``force_loop_gains`` (tuned
-for the stated gain margin on that plant, :mod:`controllers.loop_gains`) unless the
+for the stated gain margin on that plant, :mod:`drillcosim.controllers.loop_gains`) unless the
 scenario pins it; a pinned Kf that leaves less than the margin at the commissioned
 g_thrust is a load warning (``load_warnings``, in summary.json). ``accept_unverified``: the quantities of that file marked
 ``unverified`` it may use anyway (else it refuses them).
@@ -107,14 +107,17 @@ from __future__ import annotations
 import math
 from typing import Sequence
 
-from cosim.block import Block, Port
-from controllers.calibration import load_calibration, load_commissioning
-from controllers.kernels import KernelBlock
-from controllers.loop_gains import TABLE2_KF, commissioned_gains, pinned_gain_warning
-from controllers.kernels import structs
-from controllers.position_control import (CORE_PORTS, ENCODER_PORT, TRAJECTORY_PORTS, RobustAcceleration,
-                                          pd_feedforward)
-from controllers.trajectory import profile_step
+from drillcosim.cosim.loop.block import Block, Port
+from drillcosim.controllers.calibration import load_calibration, load_commissioning
+from drillcosim.controllers.kernels import KernelBlock
+from drillcosim.controllers.loop_gains import TABLE2_KF, commissioned_gains, pinned_gain_warning
+from drillcosim.controllers.kernels import structs
+from drillcosim.controllers.position_control import (CORE_PORTS,
+    ENCODER_PORT,
+    TRAJECTORY_PORTS,
+    RobustAcceleration,
+    pd_feedforward)
+from drillcosim.controllers.trajectory import profile_step
 
 MODE_APPROACH, MODE_FORCE, MODE_RETRACT = 0, 1, 2
 

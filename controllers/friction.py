@@ -19,10 +19,10 @@ force, gravity minus compensator); it is not part of ``force(v)``.
 Position-periodic effort (motor cogging, ball-screw torque ripple) is part of the same
 "drive loss" model: ``position_ripple(p)`` with harmonics ``k`` of the drive position.
 
-Identification (offline) lives in :mod:`analysis.identification`; this module only
+Identification (offline) lives in :mod:`drillcosim.analysis.identification`; this module only
 evaluates the model inside the loop. :class:`VelocitySegments` is the block that commands such a run (scenarios
 ``air_cut_friction_identification*.toml``; the score function
-``analysis.observer_scoring:air_cut_friction`` fits and writes ``friction.json``).
+``drillcosim.analysis.observer_scoring:air_cut_friction`` fits and writes ``friction.json``).
 """
 from __future__ import annotations
 
@@ -33,9 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.block import Block, Port
-from controllers.kernels import KernelBlock
-from controllers.kernels import structs
+from drillcosim.cosim.loop.block import Block, Port
+from drillcosim.controllers.kernels import KernelBlock
+from drillcosim.controllers.kernels import structs
 
 
 @dataclass
@@ -136,7 +136,7 @@ class FrictionModel:
 def resolve_path(path):
     """A settings path as given: a scenario file's loader has made it absolute already
     (relative to the scenario file); by hand it is relative to the working directory
-    (cosim/paths.py, the one rule)."""
+    (cosim/scenario/paths.py, the one rule)."""
     return Path(path) if path else path
 
 

@@ -95,8 +95,8 @@ from typing import Sequence
 
 import numpy as np
 
-from controllers.event_locator import locate, time_at
-from cosim.block import Block, Port
+from drillcosim.controllers.event_locator import locate, time_at
+from drillcosim.cosim.loop.block import Block, Port
 
 NAN = float("nan")
 
@@ -261,7 +261,7 @@ class InterfaceDetector(Block):
     step_signs: per interface, +1 when the next layer cuts harder (thrust rises), -1
         softer; default from ``kc`` when given, else +1 (Fang's CFRP over Ti).
 
-    Localisation (``controllers.event_locator``; docs/stacks.md): after each event
+    Localisation (``drillcosim.controllers.event_locator``; docs/stacks.md): after each event
     the samples around it are fitted by straight-line segments against the encoder
     position, which gives the event's position without the regression's lag
     (outputs ``x_/t_/dx_/tknown_<event>_loc``); the flag, and so the adaptation,
@@ -407,7 +407,7 @@ class InterfaceDetector(Block):
         self.rearm_level = 0.5 * self.thd_min if rearm_level is None else float(rearm_level)
 
     def _set_localisation(self, localise, locate_margin, push_out, observer_delay) -> None:
-        """The localisation settings (``controllers.event_locator``), checked."""
+        """The localisation settings (``drillcosim.controllers.event_locator``), checked."""
         self.localise = bool(localise)
         for name, v in (("locate_margin", locate_margin), ("push_out", push_out)):
             if not v > 0.0:

@@ -36,7 +36,7 @@ when given (``F_ripple``). ``v_hat`` is ``v`` low-passed by the same g.
 F_ref (eq. 2) has no inertia term and no filter: ``Kt_n I_ref - F_fric(v_hat) + F_grav_comp``.
 
 A spring-type gravity compensator makes the gravity term depend on the stroke: with
-``position_force`` (:mod:`controllers.position_force`) it is ``F_grav_comp + sum_k c_k (z -
+``position_force`` (:mod:`drillcosim.controllers.position_force`) it is ``F_grav_comp + sum_k c_k (z -
 z0)^k`` at the measured ``z`` of each sample, in ``d`` and in ``F_ref`` alike.
 
 Settings: ``M_n`` [kg], ``Kt_n`` [N/A], ``g_thrust`` [rad/s], ``F_grav_comp`` [N],
@@ -46,14 +46,14 @@ Settings: ``M_n`` [kg], ``Kt_n`` [N/A], ``g_thrust`` [rad/s], ``F_grav_comp`` [N
 ``friction_file`` (friction.json of air_cut_friction_identification_keio: when given it
 replaces the friction settings *and* F_grav_comp, by its identified offset),
 ``calibration_file`` (thrust_calibration.json of keio_thrust_constant_calibration, see
-:mod:`controllers.calibration`: when given its ``Kt_n_cal`` replaces ``Kt_n``, and the
+:mod:`drillcosim.controllers.calibration`: when given its ``Kt_n_cal`` replaces ``Kt_n``, and the
 friction, cogging and gravity efforts -- identified through the uncalibrated constant, the
 friction file's ``force_constant_nominal`` or else the ``Kt_n`` setting -- are scaled by
 ``Kt_n_cal`` over that constant), ``commissioning_file`` (commissioning.json of ``drillcosim commission``: when given, its
 nominal mass, force constant, gravity compensation (with its ``position_force``) and friction model replace ``M_n``,
 ``Kt_n``, ``F_grav_comp``, the friction settings and both files above -- the same set the
 force controller reads; its tuned ``force_loop_gains`` give ``g_thrust`` unless the scenario
-pins it, :mod:`controllers.loop_gains`), ``accept_unverified`` (the quantities of that file
+pins it, :mod:`drillcosim.controllers.loop_gains`), ``accept_unverified`` (the quantities of that file
 marked ``unverified`` it may use anyway; else it refuses them), ``i_ref_timing``, ``sample_period`` [s] (> 0).
 
 Timing of ``i_ref``: the motion seen between the previous and this encoder sample was
@@ -68,14 +68,14 @@ sample (100 us) of misalignment, the order of the plant's own current-loop lag.
 """
 from __future__ import annotations
 
-from cosim.block import Port
-from controllers.calibration import load_calibration, load_commissioning, rescale_friction
-from controllers.friction import FrictionModel, make_friction, resolve_path
-from controllers.kernels import KernelBlock
-from controllers.loop_gains import commissioned_g_thrust
-from controllers.kernels import structs
-from controllers.position_force import MAX_TERMS, parse as parse_position_force, static_force
-from controllers.nominal_models import DiscretisedBlock, KeioNominal, keio_model, zoh
+from drillcosim.cosim.loop.block import Port
+from drillcosim.controllers.calibration import load_calibration, load_commissioning, rescale_friction
+from drillcosim.controllers.friction import FrictionModel, make_friction, resolve_path
+from drillcosim.controllers.kernels import KernelBlock
+from drillcosim.controllers.loop_gains import commissioned_g_thrust
+from drillcosim.controllers.kernels import structs
+from drillcosim.controllers.position_force import MAX_TERMS, parse as parse_position_force, static_force
+from drillcosim.controllers.nominal_models import DiscretisedBlock, KeioNominal, keio_model, zoh
 
 
 class CuttingForceObserver(KernelBlock, DiscretisedBlock):

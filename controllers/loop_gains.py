@@ -1,7 +1,7 @@
 """The force-loop gains a commissioning file carries, as the Keio blocks read them.
 
 ``drillcosim commission`` tunes Kf (force controller) and g_thrust (cutting-force observer)
-for a stated gain margin on the commissioned plant (:func:`analysis.force_margin.tune_gains`)
+for a stated gain margin on the commissioned plant (:func:`drillcosim.analysis.force_margin.tune_gains`)
 and writes them, with the table of the largest Kf that keeps the margin at each g_thrust,
 under ``force_loop_gains`` in commissioning.json. A block that reads the file takes its gain
 from there unless the scenario pins it; a pinned gain is checked against the table when the
@@ -16,7 +16,7 @@ import json
 import math
 from pathlib import Path
 
-from controllers.friction import resolve_path
+from drillcosim.controllers.friction import resolve_path
 
 # Keio Table 2: the data sheet the gains start from when no commissioning file gives them
 TABLE2_KF = 0.45             # 1, force-servo gain

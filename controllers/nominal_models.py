@@ -35,7 +35,7 @@ import casadi as ca
 import numpy as np
 import scipy.linalg
 
-from cosim.block import Block
+from drillcosim.cosim.loop.block import Block
 
 
 # --------------------------------------------------------------------------- parameters

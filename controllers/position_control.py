@@ -64,10 +64,10 @@ from typing import Sequence
 
 import numpy as np
 
-from cosim.block import Block, Port
-from controllers.kernels import KernelBlock
-from controllers.kernels import structs
-from controllers.position_force import parse as parse_position_force, static_force
+from drillcosim.cosim.loop.block import Block, Port
+from drillcosim.controllers.kernels import KernelBlock
+from drillcosim.controllers.kernels import structs
+from drillcosim.controllers.position_force import parse as parse_position_force, static_force
 
 
 def nominal_loop_poles(Kp: float, Kv: float) -> np.ndarray:
@@ -216,7 +216,7 @@ class PositionController(KernelBlock, Block):
                  accept_unverified=(), position_force=None):
         super().__init__(sample_period)
         if commissioning_file:      # the drive's one nominal set (docs/commissioning.md)
-            from controllers.calibration import load_commissioning
+            from drillcosim.controllers.calibration import load_commissioning
             nom = load_commissioning(commissioning_file, "linear_stage", accept_unverified)["nominal"]
             mass_nominal, force_constant_nominal, F_bias = nom["mass"], nom["force_constant"], nom["gravity_comp"]
             position_force = nom.get("position_force")
@@ -287,7 +287,7 @@ class BallScrewPositionController(PositionController):
     def __init__(self, J_en: float = 0.0003, K_Tn: float = 1.10, K_pitch: float = 0.637e-3,
                  eta: float = 0.95, commissioning_file: str | None = None, accept_unverified=(), **kw):
         if commissioning_file:
-            from controllers.calibration import load_commissioning
+            from drillcosim.controllers.calibration import load_commissioning
             nom = load_commissioning(commissioning_file, "ball_screw", accept_unverified)["nominal"]
             J_en, K_Tn, K_pitch, eta = (nom[k] for k in ("inertia", "force_constant", "pitch", "eta"))
         kw["mass_nominal"], kw["force_constant_nominal"] = ball_screw_linear(J_en, K_Tn, K_pitch)

@@ -1,7 +1,7 @@
 """Feed-axis reference trajectory for a drilling cycle (approach, feed, retract).
 
 One job: generate the position / velocity / acceleration reference ``z_ref``,
-``v_ref``, ``a_ref`` that a position controller (``controllers.position_control``)
+``v_ref``, ``a_ref`` that a position controller (``drillcosim.controllers.position_control``)
 follows, with the velocity changed only at a bounded acceleration so the drive
 never sees a step in velocity.
 
@@ -28,9 +28,9 @@ from __future__ import annotations
 import math
 from typing import Sequence
 
-from cosim.block import Block, Port
-from controllers.kernels import KernelBlock
-from controllers.kernels import structs
+from drillcosim.cosim.loop.block import Block, Port
+from drillcosim.controllers.kernels import KernelBlock
+from drillcosim.controllers.kernels import structs
 
 PHASE_WAIT, PHASE_APPROACH, PHASE_FEED, PHASE_RETRACT, PHASE_DONE = 0, 1, 2, 3, 4
 

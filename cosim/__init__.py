@@ -1,35 +1,35 @@
 """drillcosim co-simulation master: FMU slaves, Python blocks, algorithm, recording, scenarios.
 
-Public API (imported lazily, so ``from cosim.block import Block`` stays light)::
+Public API (imported lazily, so ``from drillcosim.cosim.loop.block import Block`` stays light)::
 
     from cosim import load_scenario, run_scenario
     result = run_scenario("scenarios/x.toml", out_dir="results/x", progress=False)
 
-Seams: :mod:`cosim.slave` (FMU instances), :mod:`cosim.block` (Python blocks),
-:mod:`cosim.system` + :mod:`cosim.connections` (what is connected to what),
-:mod:`cosim.algorithm` (the fixed-step master loop), :mod:`cosim.recorder` (observer),
-:mod:`cosim.manipulators` (events), :mod:`cosim.scenario` (TOML files).
+Seams: :mod:`drillcosim.cosim.fmi.slave` (FMU instances), :mod:`drillcosim.cosim.loop.block` (Python blocks),
+:mod:`drillcosim.cosim.loop.system` + :mod:`drillcosim.cosim.loop.connections` (what is connected to what),
+:mod:`drillcosim.cosim.loop.algorithm` (the fixed-step master loop), :mod:`drillcosim.cosim.loop.recorder` (observer),
+:mod:`drillcosim.cosim.loop.manipulators` (events), :mod:`drillcosim.cosim.scenario.loader` (TOML files).
 """
 from importlib import import_module
 
 _EXPORTS = {
-    "load_scenario": "cosim.scenario",
-    "Scenario": "cosim.scenario",
-    "run_scenario": "cosim.runner",
-    "run_campaign": "cosim.campaign",
-    "System": "cosim.system",
-    "FMUSlave": "cosim.slave",
-    "Recorder": "cosim.recorder",
-    "Result": "cosim.recorder",
-    "Event": "cosim.manipulators",
-    "simulate": "cosim.algorithm",
-    "run": "cosim.algorithm",
-    "Block": "cosim.block",
-    "Port": "cosim.block",
-    "CosimError": "cosim.errors",
-    "ScenarioError": "cosim.errors",
-    "AlgebraicLoopError": "cosim.errors",
-    "SimulationError": "cosim.errors",
+    "load_scenario": "drillcosim.cosim.scenario.loader",
+    "Scenario": "drillcosim.cosim.scenario.build",
+    "run_scenario": "drillcosim.cosim.runs.runner",
+    "run_campaign": "drillcosim.cosim.runs.campaign",
+    "System": "drillcosim.cosim.loop.system",
+    "FMUSlave": "drillcosim.cosim.fmi.slave",
+    "Recorder": "drillcosim.cosim.loop.recorder",
+    "Result": "drillcosim.cosim.loop.recorder",
+    "Event": "drillcosim.cosim.loop.manipulators",
+    "simulate": "drillcosim.cosim.loop.algorithm",
+    "run": "drillcosim.cosim.loop.algorithm",
+    "Block": "drillcosim.cosim.loop.block",
+    "Port": "drillcosim.cosim.loop.block",
+    "CosimError": "drillcosim.cosim.errors",
+    "ScenarioError": "drillcosim.cosim.errors",
+    "AlgebraicLoopError": "drillcosim.cosim.errors",
+    "SimulationError": "drillcosim.cosim.errors",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -30,7 +30,7 @@ class SimulationError(CosimError, RuntimeError):
 
     ``time`` [s] is the communication point at which it happened, ``instance`` the FMU
     or block instance name, ``fmu_message`` the FMU's own last log message (if any).
-    ``result`` is set by the runner to the partial :class:`cosim.recorder.Result`.
+    ``result`` is set by the runner to the partial :class:`drillcosim.cosim.loop.recorder.Result`.
     """
 
     def __init__(self, message: str, time: float | None = None, instance: str | None = None,

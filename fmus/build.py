@@ -1,6 +1,6 @@
-"""Build the plant FMUs: ``python -m fmus.build [--force] [name ...]``.
+"""Build the plant FMUs: ``python -m drillcosim.fmus.build [--force] [name ...]``.
 
-Each model in :data:`fmus.spec.MODELS` is built twice from the same C sources, as an
+Each model in :data:`drillcosim.fmus.spec.MODELS` is built twice from the same C sources, as an
 FMI 2.0 co-simulation FMU ``<Model>`` and as an FMI 3.0 one ``<Model>3`` (see
 :data:`VARIANTS`).  For each FMU this
 
@@ -29,15 +29,21 @@ import zipfile
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
-from . import spec
-from .build_tools import BUILD_DIR, BuildLock as _Lock, fmi_include as _fmi_include, keep as _keep, \
-    platform as _platform, write_if_changed as _write_if_changed
+from drillcosim.fmus import spec
+from drillcosim.fmus import BUILD_DIR
+from drillcosim.cosim.fmi.build_tools import (
+    FRAME_CORE,
+    FRAME_DIR,
+    FRAME_HEADERS,
+    FRAME_SOURCES,
+    BuildLock as _Lock,
+    fmi_include as _fmi_include,
+    keep as _keep,
+    platform as _platform,
+    write_if_changed as _write_if_changed)
 
 HERE = Path(__file__).resolve().parent
-COMMON = HERE / "common"
-FRAME_SOURCES = {2: "fmi2_frame.c", 3: "fmi3_frame.c"}
-CORE_SOURCES = ["frame_core.c", "drill.c"]
-COMMON_HEADERS = ["model_api.h", "frame_core.h", "drill.h"]
+COMMON = HERE / "common"          # the drill, stack and ripple shared by both plants
 
 # FMU name -> (model in spec.MODELS, FMI major version)
 VARIANTS: dict[str, tuple[str, int]] = {
@@ -58,7 +64,12 @@ def _variant(name: str) -> tuple[str, int]:
 
 
 def _common_sources(fmi: int) -> list[str]:
-    return [FRAME_SOURCES[fmi]] + CORE_SOURCES
+    return [FRAME_SOURCES[fmi], *FRAME_CORE, "drill.c"]
+
+
+def _common_path(name: str) -> Path:
+    """The FMI frame is the master's (cosim/fmi/frame/), the drill the plants' own."""
+    return (COMMON if name.startswith("drill.") else FRAME_DIR) / name
 
 
 # ----------------------------------------------------------------------------- generation
@@ -256,8 +267,8 @@ def generate(name: str) -> list[Path]:
 def _sources(name: str) -> tuple[list[Path], list[Path]]:
     model, fmi = _variant(name)
     d = HERE / model
-    return ([d / f"{model}.c"] + [COMMON / s for s in _common_sources(fmi)],
-            [d / f"{model}_vars.h"] + [COMMON / h for h in COMMON_HEADERS])
+    return ([d / f"{model}.c"] + [_common_path(s) for s in _common_sources(fmi)],
+            [d / f"{model}_vars.h"] + [_common_path(h) for h in (*FRAME_HEADERS, "drill.h")])
 
 
 def _inputs(name: str) -> list[Path]:
@@ -297,7 +308,7 @@ def build(name: str, force: bool = False, verbose: bool = True) -> Path:
             lib = tmp / f"{name}{ext}"
             cmd = [cc, "-O2", "-shared", "-fPIC", "-std=gnu11", "-Wall", "-Wextra",
                    "-Wno-unused-parameter", "-fvisibility=default",
-                   f"-I{_fmi_include()}", f"-I{COMMON}", f"-I{d}",
+                   f"-I{_fmi_include()}", f"-I{FRAME_DIR}", f"-I{COMMON}", f"-I{d}",
                    "-o", str(lib)] + [str(s) for s in sources] + ["-lm"]
             res = subprocess.run(cmd, capture_output=True, text=True)
             if res.returncode != 0:
@@ -325,8 +336,8 @@ def build(name: str, force: bool = False, verbose: bool = True) -> Path:
 def build_all(force: bool = False, verbose: bool = True) -> dict[str, Path]:
     """Build every plant FMU (FMI 2.0 and 3.0, and the foreign-plant fixture of
     fmus/foreign/) that is stale (or all with ``force``); returns name -> .fmu path."""
-    from .foreign import build as foreign
-    from .foreign2 import build as foreign2
+    from drillcosim.fmus.foreign import build as foreign
+    from drillcosim.fmus.foreign2 import build as foreign2
     return {**{name: build(name, force=force, verbose=verbose) for name in VARIANTS},
             **foreign.build_all(force=force, verbose=verbose), **foreign2.build_all(force=force, verbose=verbose)}
 
@@ -335,8 +346,8 @@ def fmu_path(name: str) -> Path:
     """Path of the built-in FMU ``name`` ("LinearStage", "BallScrewDrive" for FMI 2.0,
     "LinearStage3", "BallScrewDrive3" for FMI 3.0, "ForeignBallScrew", "ForeignZStage" for
     the foreign-plant fixture, "Foreign2ZStage", "Foreign2BallScrew" for the second pair), building it when missing or stale."""
-    from .foreign import build as foreign
-    from .foreign2 import build as foreign2
+    from drillcosim.fmus.foreign import build as foreign
+    from drillcosim.fmus.foreign2 import build as foreign2
     if name in foreign.FOREIGN:
         return foreign.fmu_path(name)
     if name in foreign2.FOREIGN2:
@@ -349,19 +360,19 @@ def fmu_path(name: str) -> Path:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m fmus.build", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m drillcosim.fmus.build", description=__doc__.splitlines()[0])
     ap.add_argument("names", nargs="*", help=f"FMUs to build (default: all of {', '.join(VARIANTS)} and "
                     "the foreign fixture)")
     ap.add_argument("--force", action="store_true", help="rebuild even when up to date")
     args = ap.parse_args(argv)
-    from .foreign import build as foreign
-    from .foreign2 import build as foreign2
+    from drillcosim.fmus.foreign import build as foreign
+    from drillcosim.fmus.foreign2 import build as foreign2
     for n in args.names or list(VARIANTS) + list(foreign.FOREIGN) + list(foreign2.FOREIGN2):
         (foreign.build if n in foreign.FOREIGN else foreign2.build if n in foreign2.FOREIGN2 else build)(
             n, force=args.force)
     if not args.names:          # the master's C (cosim/native) and the blocks' kernels (controllers/kernels)
-        from controllers.kernels import build_all as build_kernels
-        from cosim.native import build_all as build_native
+        from drillcosim.controllers.kernels import build_all as build_kernels
+        from drillcosim.cosim.loop.native import build_all as build_native
         build_native(force=args.force)
         build_kernels(force=args.force)
     return 0

@@ -1,6 +1,6 @@
 """Single source of truth for the variables of the plant FMUs.
 
-`python -m fmus.build` generates from these tables, for each model,
+`python -m drillcosim.fmus.build` generates from these tables, for each model,
 ``fmus/<Model>/modelDescription.xml`` and ``fmus/<Model>/<Model>_vars.h`` (the C
 struct of all variables and the value-reference table whose start values are the C
 defaults), so that the XML and the C code cannot disagree.  Both generated files are

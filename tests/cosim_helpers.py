@@ -324,7 +324,7 @@ def build_mass_fmu(out_dir: str | os.PathLike, fmi_version: int = 2, fault: str 
 
 
 # --- blocks used by the tests (scenario files import them as cosim_helpers:Name) -------
-from cosim.block import Block, Port  # noqa: E402
+from drillcosim.cosim.loop.block import Block, Port  # noqa: E402
 
 
 class Probe(Block):
@@ -404,7 +404,7 @@ def final_position_score(result, scale=1000.0):
 
 def plot_function(result, out_dir, name="custom.png"):
     """A [[plots]] function."""
-    from cosim.plots import plot_groups
+    from drillcosim.cosim.runs.plots import plot_groups
     return plot_groups(result, [["mass.v"]], out_dir / name, "custom")
 
 
@@ -424,7 +424,7 @@ n_sub = 2
 frozen = false
 
 [blocks.force]
-class = "cosim.sources:Step"
+class = "drillcosim.cosim.blocks.sources:Step"
 [blocks.force.settings]
 step_time = 0.02
 final = 2.0

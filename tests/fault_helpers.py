@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import time
 
-from cosim.block import Block, Port
+from drillcosim.cosim.loop.block import Block, Port
 
 
 class Busy(Block):

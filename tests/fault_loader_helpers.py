@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 import math
 
-from cosim.block import Block, Port
+from drillcosim.cosim.loop.block import Block, Port
 
 
 class NeedsFile(Block):

@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from fmus.build import build_all, fmu_path  # noqa: E402
+from drillcosim.fmus.build import build_all, fmu_path  # noqa: E402
 
 
 class LogCapture:

@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from controllers.adaptation import CuttingParameterAdaptation, OneStepDelay
+from drillcosim.controllers.adaptation import CuttingParameterAdaptation, OneStepDelay
 
 STAGES = [
     dict(flag=0, name="cfrp", feed_rate=2.0e-4, spindle_speed=2000.0, orbital_speed=120.0),

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim.campaign import _one_run, _place, run_campaign
+from drillcosim.cosim.runs.campaign import _one_run, _place, run_campaign
 from test_faults_run import ROOT, fault_fmu, scenario  # noqa: F401
 
 DASK = Path(sys.executable).with_name("dask")

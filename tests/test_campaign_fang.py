@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis import campaign_fang as cf
+from drillcosim.analysis import campaign_fang as cf
 
 REF = Path("/work/shared/reference")
 
@@ -47,7 +47,7 @@ def test_wear_calibration_follows_table3_climb():
         o = p["overrides"]
         assert o["fmus.drive.plant_parameters.wear_holes"] == p["hole"] - 1
         assert all(".plant_parameters." in k for k in o)
-    from cosim.scenario import tomllib   # tomllib, or tomli on Python 3.10
+    from drillcosim.cosim.scenario.files import tomllib   # tomllib, or tomli on Python 3.10
     raw = tomllib.loads((cf.SCENARIO).read_text())["fmus"]["drive"]["parameters"]
     assert raw["wear_cfrp"] == pytest.approx(wc, rel=1e-9) and raw["wear_ti"] == pytest.approx(wt, rel=1e-9)
     assert cf.select_holes(4) == [1, 8, 17, 24]

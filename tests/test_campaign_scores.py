@@ -8,8 +8,8 @@ import warnings
 
 import pytest
 
-from cosim import cli
-from cosim.campaign import connect, write_campaign_csv
+from drillcosim import cli
+from drillcosim.cosim.runs.campaign import connect, write_campaign_csv
 
 
 def test_campaign_csv_flattens_every_numeric_score(tmp_path):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from cosim.cli import main
+from drillcosim.cli import main
 from cosim_helpers import BASE_SCENARIO
 
 
@@ -39,7 +39,7 @@ def test_block_name_typo_in_set(scenario_file, capsys):
 
 def test_a_new_block_given_whole_is_no_typo(scenario_file, tmp_path, capsys):
     assert main(["run", str(scenario_file), "--quiet", "--out", str(tmp_path / "o"),
-                 "--set", "blocks.extra.class=\"cosim.sources:Constant\"",
+                 "--set", "blocks.extra.class=\"drillcosim.cosim.blocks.sources:Constant\"",
                  "--set", "blocks.extra.settings.value=2"]) == 0
 
 
@@ -62,7 +62,7 @@ def test_the_issue_s_kf_typo_names_kf(capsys):
 def test_a_list_where_a_number_is_the_default_is_the_blocks_to_judge():
     """InterfaceDetector's thickness_tolerances defaults to 0.0 and takes a list per layer:
     only text (or a bool) where a number is the default is refused before the block."""
-    from cosim.scenario import load_scenario
+    from drillcosim.cosim.scenario.loader import load_scenario
     sc = load_scenario("scenarios/stacks/cfrp_ti.toml")
     assert list(sc.system.blocks["detector"].thickness_tolerances) == list(
         sc.raw["blocks"]["detector"]["settings"]["thickness_tolerances"])

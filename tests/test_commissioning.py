@@ -19,12 +19,12 @@ import numpy as np
 import pytest
 from tests.air_cut_helpers import air_cut_record
 
-from analysis.commissioning import CommissioningError, fit_air_cut, read_target
-from analysis.force_margin import ForceLoop, critical, margins, tune
-from analysis.force_scoring import layer_scores, oscillation
-from analysis.identification import IdentificationError, select_friction_model
-from controllers.friction import FrictionModel
-from cosim.recorder import Result
+from drillcosim.analysis.commissioning import CommissioningError, fit_air_cut, read_target
+from drillcosim.analysis.force_margin import ForceLoop, critical, margins, tune
+from drillcosim.analysis.force_scoring import layer_scores, oscillation
+from drillcosim.analysis.identification import IdentificationError, select_friction_model
+from drillcosim.controllers.friction import FrictionModel
+from drillcosim.cosim.loop.recorder import Result
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -152,7 +152,7 @@ def test_margin_tool_sees_what_removes_the_limit_cycle():
 # --------------------------------------------------------------------------- on the plants (long)
 @pytest.fixture(scope="module")
 def commissioned_zstage(tmp_path_factory):
-    from analysis.commissioning import commission
+    from drillcosim.analysis.commissioning import commission
     out = tmp_path_factory.mktemp("com_fz")
     # the foreign air-cut twin holds the stage's data sheet (the experiments read the committed file)
     return out, commission(ROOT / "scenarios/foreign/air_cut_friction_identification_keio.toml", out, print_table=False)
@@ -178,7 +178,7 @@ def test_commission_foreign_zstage_recovers_its_plant(commissioned_zstage):
 
 @pytest.mark.long
 def test_commissioned_fig7_on_foreign_zstage_passes(commissioned_zstage, tmp_path):
-    from cosim.runner import run_scenario
+    from drillcosim.cosim.runs.runner import run_scenario
     out, _ = commissioned_zstage
     sc = tmp_path / "fig7.toml"
     sc.write_text(f'[scenario]\nextends = "{ROOT}/scenarios/foreign/keio_fig7_aluminium_force_control.toml"\n'
@@ -194,8 +194,8 @@ def test_commissioned_fig7_on_foreign_zstage_passes(commissioned_zstage, tmp_pat
 def test_scenario_gains_without_margin_warn_in_the_summary(tmp_path):
     """force_loop_margin (a [[scores]] function) reads Kf / g_thrust from the run's scenario
     and warns, with a tuned suggestion, when the gain margin is below the stated 6 dB."""
-    from analysis.force_margin import force_loop_margin
-    from controllers.calibration import COMMISSIONING_FORMAT
+    from drillcosim.analysis.force_margin import force_loop_margin
+    from drillcosim.controllers.calibration import COMMISSIONING_FORMAT
     com = {"format": COMMISSIONING_FORMAT,
            "nominal": {"kind": "linear_stage", "mass": 4.3, "force_constant": 24.6, "gravity_comp": 4.2},
            "friction": FrictionModel(coulomb=6.0, viscous=45.0, stribeck=3.5, v_stribeck=3e-3,

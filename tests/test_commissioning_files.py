@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.calibration import fit_thrust_constant, window_levels
-from controllers.calibration import load_commissioning
+from drillcosim.analysis.calibration import fit_thrust_constant, window_levels
+from drillcosim.controllers.calibration import load_commissioning
 
 ROOT = Path(__file__).resolve().parents[1]
 COM = ROOT / "scenarios" / "commissioning"
@@ -33,7 +33,7 @@ def _shipped():
 
 @pytest.mark.parametrize("path", _shipped(), ids=lambda p: f"{p.parent.name}/{p.name}")
 def test_shipped_scenarios_read_one_commissioning_file_per_drive(path):
-    from cosim.scenario import load_scenario
+    from drillcosim.cosim.scenario.loader import load_scenario
     sc = load_scenario(path)
     plant = {Path(b.file).resolve() for b in sc.system.bindings.values()}
     seen = set()
@@ -56,8 +56,8 @@ def test_shipped_scenarios_read_one_commissioning_file_per_drive(path):
 
 
 def test_fang_observer_and_position_controller_take_the_commissioning_file():
-    from controllers.fang_observer import AdaptiveThrustObserver
-    from controllers.position_control import BallScrewPositionController, ball_screw_linear
+    from drillcosim.controllers.fang_observer import AdaptiveThrustObserver
+    from drillcosim.controllers.position_control import BallScrewPositionController, ball_screw_linear
     f = COM / "foreign_ballscrew.json"
     com = load_commissioning(f, "ball_screw")
     nom = com["nominal"]
@@ -118,6 +118,6 @@ def _close(new: dict, old: dict):
 def test_recommissioning_reproduces_the_committed_file(name, target, tmp_path):
     """`drillcosim commission` on the project's plants gives the committed file again (same
     seeds: the same numbers; the test holds it to the stated identification tolerances)."""
-    from analysis.commissioning import commission
+    from drillcosim.analysis.commissioning import commission
     new = commission(ROOT / target, tmp_path, print_table=False)
     _close(json.loads(json.dumps(new)), json.loads((COM / f"{name}.json").read_text()))

@@ -66,7 +66,7 @@ def test_committed_file_is_right_about_its_plant_or_says_so(name):
 @pytest.mark.long
 @pytest.mark.parametrize("name", sorted(TRUTH))
 def test_commission_is_right_about_its_plant_or_says_so(name, tmp_path):      # 10-25 s each
-    from analysis.commissioning import commission
+    from drillcosim.analysis.commissioning import commission
     doc = commission(ROOT / TARGETS[name], tmp_path, print_table=False)
     assert_within_or_unverified(json.loads(json.dumps(doc)), TRUTH[name])
     assert "/" + str(tmp_path).strip("/") not in (tmp_path / "commissioning.json").read_text()

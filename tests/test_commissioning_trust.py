@@ -14,13 +14,13 @@ import numpy as np
 import pytest
 from tests.air_cut_helpers import air_cut_record
 
-from analysis.calibration import held_out_levels
-from analysis.commissioning import _file_relative, fit_air_cut, read_target, report_table
-from analysis.commissioning_checks import identified_entries
-from analysis.identification import position_force, select_friction_model
-from controllers.calibration import COMMISSIONING_FORMAT, load_commissioning
-from controllers.friction import FrictionModel
-from cosim.recorder import Result
+from drillcosim.analysis.calibration import held_out_levels
+from drillcosim.analysis.commissioning import _file_relative, fit_air_cut, read_target, report_table
+from drillcosim.analysis.commissioning_checks import identified_entries
+from drillcosim.analysis.identification import position_force, select_friction_model
+from drillcosim.controllers.calibration import COMMISSIONING_FORMAT, load_commissioning
+from drillcosim.controllers.friction import FrictionModel
+from drillcosim.cosim.loop.recorder import Result
 
 ROOT = Path(__file__).resolve().parent.parent
 COM = ROOT / "scenarios" / "commissioning"
@@ -93,7 +93,7 @@ def _doc(unverified: dict) -> dict:
 
 
 def test_blocks_refuse_an_unverified_value_unless_the_scenario_accepts_it(tmp_path):
-    from controllers.keio_observer import CuttingForceObserver
+    from drillcosim.controllers.keio_observer import CuttingForceObserver
     f = tmp_path / "commissioning.json"
     f.write_text(json.dumps(_doc({"mass": "ramps of different accelerations give different inertias"})))
     with pytest.raises(ValueError, match=r"unverified value\(s\) mass .*different inertias.*accept_unverified"):
@@ -109,8 +109,8 @@ def test_blocks_refuse_an_unverified_value_unless_the_scenario_accepts_it(tmp_pa
 
 
 def test_scenario_names_the_refused_value_at_load(tmp_path):
-    from cosim.errors import ScenarioError
-    from cosim.scenario import load_scenario
+    from drillcosim.cosim.errors import ScenarioError
+    from drillcosim.cosim.scenario.loader import load_scenario
     f = tmp_path / "commissioning.json"
     f.write_text(json.dumps(_doc({"force_constant": "a level left out is not predicted by the others"})))
     sc = tmp_path / "fig7.toml"
@@ -175,7 +175,7 @@ def _result(t, signals: dict) -> Result:
 
 
 def test_a_saturating_current_is_named():
-    from analysis.commissioning import current_saturation
+    from drillcosim.analysis.commissioning import current_saturation
     t = np.arange(0, 2.0, 1e-3)
     i_ref = 3.0 * np.sin(2 * math.pi * t)
     ok = _result(t, {"controller.i_ref": i_ref, "drive.i_meas": 1.012 * i_ref})      # a sensor gain is not saturation
@@ -189,7 +189,7 @@ def test_a_saturating_current_is_named():
 def test_too_short_an_air_cut_is_refused_with_its_cause(tmp_path):
     """An air cut set (``--air-cut``) to one speed there and back cannot separate Coulomb
     from viscous friction: a clear error, no commissioning file."""
-    from analysis.commissioning import CommissioningError, commission
+    from drillcosim.analysis.commissioning import CommissioningError, commission
     with pytest.raises(CommissioningError, match="unknown.*velocities"):
         commission(ROOT / "scenarios/plants/linear_stage.toml", tmp_path, air_cut_overrides={"speeds": [1e-3]})
     with pytest.raises(CommissioningError, match="two different speeds"):
@@ -218,8 +218,8 @@ def test_a_position_force_the_blocks_apply_is_no_reason_to_unverify():
     along +z), the blocks apply it, so the 2.6 N change over the stroke no longer unverifies
     gravity_comp; without the entry it does again, and a significant reference-cut offset
     still does."""
-    from controllers.keio_observer import CuttingForceObserver
-    from controllers.position_force import parse, static_force
+    from drillcosim.controllers.keio_observer import CuttingForceObserver
+    from drillcosim.controllers.position_force import parse, static_force
     doc = json.loads((COM / "foreign2_zstage.json").read_text())
     fm = FrictionModel.from_dict(doc["friction"])
     nom = doc["nominal"]

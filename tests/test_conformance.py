@@ -3,7 +3,7 @@
 The Reference-FMUs are built once per archive (CMake, FMI 2 and 3) by a session
 fixture into fmus/build/reference/ (cached); without the source archive or cmake the
 tests skip and say why. Every FMU x FMI version x interface (CS; ME rk4; ME cvode) is
-compared with fmpy.simulate_fmu at the tolerances of cosim.conformance.TOLERANCE:
+compared with fmpy.simulate_fmu at the tolerances of drillcosim.cosim.fmi.conformance.TOLERANCE:
 CS 1e-9 of the output's range (same FMU code, same grid), ME rk4 2e-3 and ME cvode
 1e-4 against fmpy's CVODE at rel_tol 1e-10.
 """
@@ -14,12 +14,12 @@ import json
 import numpy as np
 import pytest
 
-from cosim import conformance as conf
-from cosim.algorithm import run
-from cosim.errors import ScenarioError, SimulationError
-from cosim.model_exchange import create_slave
-from cosim.recorder import Recorder, Result
-from cosim.system import System
+from drillcosim.cosim.fmi import conformance as conf
+from drillcosim.cosim.loop.algorithm import run
+from drillcosim.cosim.errors import ScenarioError, SimulationError
+from drillcosim.cosim.fmi.model_exchange import create_slave
+from drillcosim.cosim.loop.recorder import Recorder, Result
+from drillcosim.cosim.loop.system import System
 
 
 @pytest.fixture(scope="session")
@@ -46,7 +46,7 @@ def test_matches_fmpy(ref_fmus, fmi, model, interface, solver):
 
 
 def test_clocks_is_refused_naming_scheduled_execution(ref_fmus, capsys):
-    from cosim.cli import main
+    from drillcosim.cli import main
     path = ref_fmus[(3, "Clocks")]
     row = conf.run_case(path, conf.Case("Clocks", 3, "SE"))
     assert row.status == "unsupported" and "Scheduled Execution" in row.detail

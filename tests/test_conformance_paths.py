@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-import cosim.conformance as conf
-from cosim.cli import main
+import drillcosim.cosim.fmi.conformance as conf
+from drillcosim.cli import main
 
 
 @pytest.fixture

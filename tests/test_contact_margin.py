@@ -17,11 +17,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.contact_identification import (ContactIdentificationError, fit_contact, identify_contact,
-                                             identify_current_lag, schedule)
-from analysis.force_margin import ForceLoop, critical, loop_from_commissioning, process_slope
-from controllers.friction import FrictionModel
-from cosim.recorder import Result
+from drillcosim.analysis.contact_identification import (ContactIdentificationError,
+    fit_contact,
+    identify_contact,
+    identify_current_lag,
+    schedule)
+from drillcosim.analysis.force_margin import ForceLoop, critical, loop_from_commissioning, process_slope
+from drillcosim.controllers.friction import FrictionModel
+from drillcosim.cosim.loop.recorder import Result
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -104,7 +107,7 @@ PLANTS = {"foreign": ("scenarios/foreign/keio_fig7_aluminium_force_control.toml"
 
 @pytest.fixture(scope="module", params=sorted(PLANTS))
 def commissioned(request, tmp_path_factory):
-    from analysis.commissioning import commission
+    from drillcosim.analysis.commissioning import commission
     out = tmp_path_factory.mktemp(f"com_{request.param}")
     doc = commission(ROOT / PLANTS[request.param][0], out, print_table=False)
     return request.param, out, doc
@@ -113,12 +116,12 @@ def commissioned(request, tmp_path_factory):
 @pytest.mark.long
 def test_contact_experiment_estimates_within_tolerance(commissioned):
     """Only roles go in; the truth (binding's true parameters, fmus/*/README) is compared."""
-    from cosim.runner import run_scenario
+    from drillcosim.cosim.runs.runner import run_scenario
     name, out, doc = commissioned
     c, lag = doc["contact"], doc["current_loop"]["lag"]
     res = run_scenario(out / "experiments" / "contact.toml", out_dir=out / "contact_truth", progress=False,
                        handle_signals=False, overrides={"scenario.stop_time": 0.01})
-    from analysis.plant_info import true_parameters
+    from drillcosim.analysis.plant_info import true_parameters
     true = true_parameters(res, "drive")
     assert lag == pytest.approx({"foreign": 1.2e-4, "project": 1.5e-4}[name], rel=0.05)
     assert c["confidence"]["ok"], c
@@ -141,7 +144,7 @@ def _fig7(name: str, com: Path, tmp: Path, k_si: float | None = None, d: float |
 
 
 def _brackets(sc: Path, K_crit: float, tmp: Path) -> None:
-    from cosim.runner import run_scenario
+    from drillcosim.cosim.runs.runner import run_scenario
     for factor, cycle in ((0.8, False), (1.2, True)):
         res = run_scenario(sc, out_dir=tmp / f"run{factor}", progress=False, handle_signals=False,
                            overrides={"blocks.controller.settings.Kf": factor * K_crit})
@@ -178,8 +181,8 @@ def test_margin_boundary_matches_simulation_over_contacts(commissioned, tmp_path
 def test_contact_experiment_that_misses_the_workpiece_warns_and_computes_no_margin(tmp_path, monkeypatch):
     """A workpiece out of reach: the file gets the reason instead of a contact, the report and
     summary.json say it, and no margin is computed from nothing."""
-    import analysis.contact_identification as ci
-    from analysis.commissioning import commission, report_table
+    import drillcosim.analysis.contact_identification as ci
+    from drillcosim.analysis.commissioning import commission, report_table
     far = tmp_path / "contact_far.toml"
     far.write_text(f'[scenario]\nextends = "{ci.TEMPLATE}"\n[fmus.drive.plant_parameters]\nsurface = 0.05\n')
     monkeypatch.setattr(ci, "TEMPLATE", far)
@@ -197,7 +200,7 @@ def test_commissioned_gains_report_and_run_margin_agree(commissioned, tmp_path):
     Fig. 7 run takes them from the file, and its force_loop_margin score -- the same model at
     the feed the run cut at -- agrees with the report's within 1 dB (measured: 0.002 dB on
     both stages); the run passes (mean error <= 1 %, raw peak <= 5 N, no limit cycle)."""
-    from cosim.runner import run_scenario
+    from drillcosim.cosim.runs.runner import run_scenario
     name, out, doc = commissioned
     g = doc["force_loop_gains"]
     assert g["found"] and g["gain_margin_db"] >= g["required_gain_margin_db"]
@@ -224,7 +227,7 @@ def test_compliant_mount_margin_matches_the_simulated_boundary():
     the simulated bracket widened by the 10 % the brief allows; the gain margin at Kf 0.45 is
     the upper one and agrees with that Kf ratio within 0.5 dB (Kf is not the only gain in the
     loop: the DOB path is not scaled)."""
-    from analysis.force_margin import commissioned_loop, margins
+    from drillcosim.analysis.force_margin import commissioned_loop, margins
     doc = json.loads(FOREIGN2_FILE.read_text())
     loop = commissioned_loop(doc, {"Kf": 0.45})
     assert loop.mass == pytest.approx(doc["contact"]["mass_seen"]) and loop.mass_nominal == doc["nominal"]["mass"]
@@ -239,7 +242,7 @@ def test_compliant_mount_margin_matches_the_simulated_boundary():
 def test_air_cut_mass_stays_when_the_contact_agrees():
     """A contact experiment whose moving mass agrees with the air cut (the two other stages:
     0.2 % and 0.06 %) leaves the single-mass model as it was."""
-    from analysis.force_margin import contact_mass
+    from drillcosim.analysis.force_margin import contact_mass
     doc = {"nominal": {"mass": 4.3}, "contact": {"mass_seen": 4.3 * 1.02}}
     assert contact_mass(doc) == 4.3
     doc["contact"]["mass_seen"] = 2.6
@@ -251,8 +254,8 @@ def test_compliant_mount_boundary_in_simulation(tmp_path):
     """Fig. 7 (2 s) at 0.9 and 1.2 x the predicted critical Kf: quiet below (< 0.1 N on the
     true thrust, measured 0.008 N at 0.7), a sustained oscillation above (> 0.3 N, measured
     0.65 N at 0.8; the friction bounds it below the score's 1 N limit-cycle threshold)."""
-    from analysis.force_margin import commissioned_loop
-    from cosim.runner import run_scenario
+    from drillcosim.analysis.force_margin import commissioned_loop
+    from drillcosim.cosim.runs.runner import run_scenario
     K_crit = critical(commissioned_loop(json.loads(FOREIGN2_FILE.read_text()), {}), "Kf", 0.02, 8.0)
     for factor, quiet in ((0.9, True), (1.2, False)):
         res = run_scenario(FOREIGN2_FIG7, out_dir=tmp_path / f"run{factor}", progress=False, handle_signals=False,

@@ -5,8 +5,8 @@ import json
 
 import pytest
 
-from cosim.campaign import run_campaign
-from cosim.cli import main
+from drillcosim.cosim.runs.campaign import run_campaign
+from drillcosim.cli import main
 from cosim_helpers import BASE_SCENARIO as BASE
 
 
@@ -73,10 +73,10 @@ def test_campaign_two_runs_one_failing(scenario_file, tmp_path):
 
 def test_open_loop_linear_stage_smoke(tmp_path):
     """The shipped open-loop scenario on the real plant FMU (built by fmus/build.py)."""
-    pytest.importorskip("fmus.build")
-    from cosim import run_scenario
-    from cosim.cli import scenario_dir
-    r = run_scenario(scenario_dir() / "open_loop_linear_stage.toml", out_dir=tmp_path / "ol",
+    pytest.importorskip("drillcosim.fmus.build")
+    from drillcosim.cosim import run_scenario
+    from drillcosim.cosim.scenario.paths import scenario_path
+    r = run_scenario(scenario_path("open_loop_linear_stage"), out_dir=tmp_path / "ol",
                      overrides={"scenario.stop_time": 0.15}, progress=False)
     assert r.summary["status"] == "completed" and len(r.time) == 151
     assert r["stage.table_position"].max() > 1e-3          # 0.6 A overcomes the friction: it moves

@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from cosim import AlgebraicLoopError, ScenarioError, SimulationError
-from cosim.algorithm import run
-from cosim.manipulators import Event
-from cosim.recorder import Recorder, Result
-from cosim.slave import FMUSlave, load_model
-from cosim.sources import Constant, PiecewiseLinear, Ramp, Sine, Step
-from cosim.system import System
+from drillcosim.cosim import AlgebraicLoopError, ScenarioError, SimulationError
+from drillcosim.cosim.loop.algorithm import run
+from drillcosim.cosim.loop.manipulators import Event
+from drillcosim.cosim.loop.recorder import Recorder, Result
+from drillcosim.cosim.fmi.slave import FMUSlave, load_model
+from drillcosim.cosim.blocks.sources import Constant, PiecewiseLinear, Ramp, Sine, Step
+from drillcosim.cosim.loop.system import System
 from cosim_helpers import Gain, Probe, Raiser, Scorer
 
 

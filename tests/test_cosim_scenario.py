@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import scipy.io
 
-from cosim import AlgebraicLoopError, ScenarioError, SimulationError, load_scenario, run_scenario
-from cosim.recorder import Result
+from drillcosim.cosim import AlgebraicLoopError, ScenarioError, SimulationError, load_scenario, run_scenario
+from drillcosim.cosim.loop.recorder import Result
 from cosim_helpers import BASE_SCENARIO as BASE
 
 
@@ -98,7 +98,7 @@ def test_wrong_types(scenario_file, overrides, key, fragments):
 def test_class_not_importable_and_bad_settings(scenario_file):
     expect_error(scenario_file, {"blocks.probe.class": "nowhere.module:Nope"}, "blocks.probe.class",
                  "cannot import 'nowhere.module:Nope'", "module:Class")
-    expect_error(scenario_file, {"blocks.probe.class": "cosim.sources:Nope"}, "blocks.probe.class",
+    expect_error(scenario_file, {"blocks.probe.class": "drillcosim.cosim.blocks.sources:Nope"}, "blocks.probe.class",
                  "cannot import")
     expect_error(scenario_file, {"blocks.force.settings.stp_time": 1.0}, "blocks.force.settings",
                  "refused the settings", "stp_time")
@@ -211,7 +211,7 @@ path = "{fmu}"
 {parameters}
 
 [blocks.push]
-class = "cosim.sources:Constant"
+class = "drillcosim.cosim.blocks.sources:Constant"
 [blocks.push.settings]
 value = {u}
 unit = "m/s2"
@@ -239,7 +239,7 @@ def ball_scenario(tmp_path, fmu, h=0.01, stop=0.3, u=0.0, parameters="", **scena
 
 @pytest.mark.parametrize("solver", [{"solver": "rk4", "solver_step": 1e-3}, {"solver": "cvode", "rel_tol": 1e-8}])
 def test_model_exchange_fmu_with_solver_keys(ball_fmus, tmp_path, solver):
-    from cosim.model_exchange import ModelExchangeSlave
+    from drillcosim.cosim.fmi.model_exchange import ModelExchangeSlave
     path = ball_scenario(tmp_path, ball_fmus["both"], interface="ME", **solver)
     sc = load_scenario(path)
     assert isinstance(sc.system.slaves["ball"], ModelExchangeSlave)
@@ -320,7 +320,7 @@ signals = ["mass.v"]
 
 
 def test_extends_merges_tables_appends_arrays_replaces_values(base_tree):
-    from cosim.scenario import Origins, load_raw
+    from drillcosim.cosim.scenario.files import Origins, load_raw
     ext = base_tree / "runs" / "heavy.toml"
     ext.write_text(EXTENDS)
     sc = load_scenario(ext)
@@ -398,7 +398,7 @@ def test_extends_errors_name_the_file_that_wrote_the_key(base_tree):
 def test_extends_fmu_path_relative_to_the_base(base_tree):
     """A relative FMU path written in a base resolves against the base, one written in the
     extending file against the extending file, an override against the working directory
-    (cosim/paths.py: the one rule)."""
+    (cosim/scenario/paths.py: the one rule)."""
     ext = base_tree / "runs" / "heavy.toml"
     ext.write_text(EXTENDS)
     assert load_scenario(ext).system.slaves["mass"].model.path.parent == base_tree / "fmus"

@@ -1,4 +1,4 @@
-"""Localisation after detection (issue 23): the segmented fit of controllers.event_locator
+"""Localisation after detection (issue 23): the segmented fit of drillcosim.controllers.event_locator
 on exact piecewise-linear profiles, and the detector's located positions on Fig.-3-shaped
 synthetic holes (no FMU). Tolerances: the trigger of the moving regression is
 0.025-0.06 mm late on these holes; the located position must come within 0.01 mm on a
@@ -11,9 +11,9 @@ import math
 import numpy as np
 import pytest
 
-from analysis.detector_scoring import SyntheticHole, run_block_on_trace
-from controllers.event_locator import air_run, locate, time_at
-from controllers.interface_detector import InterfaceDetector
+from drillcosim.analysis.detector_scoring import SyntheticHole, run_block_on_trace
+from drillcosim.controllers.event_locator import air_run, locate, time_at
+from drillcosim.controllers.interface_detector import InterfaceDetector
 
 MM = 1e-3
 
@@ -173,7 +173,7 @@ def test_exit_air_level_from_its_own_samples():
     the exit on a wide-draw hole); an aluminium push-out of 9 N fitted down to the entry's
     level was located 0.25 mm past its face. The exit's air level is fitted on the samples
     after the face."""
-    from controllers.event_locator import locate
+    from drillcosim.controllers.event_locator import locate
     rng = np.random.default_rng(5)
     x = np.arange(-1.0e-3, 0.45e-3, 5e-6)
     face, L = 0.0, 0.3e-3

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.detector_scoring import REGRESSION_REACH, threshold_warnings
+from drillcosim.analysis.detector_scoring import REGRESSION_REACH, threshold_warnings
 
 T = np.arange(0.0, 10.0, 0.02)
 FLAG = np.where(T < 4.0, 0.0, np.where(T < 7.0, 1.0, 2.0))

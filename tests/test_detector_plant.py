@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim import run_scenario
+from drillcosim.cosim import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 CAMPAIGN_HOLE = ROOT / "scenarios" / "fang_table5_campaign.toml"
@@ -81,7 +81,7 @@ def test_observer_ripple_follows_the_adapted_orbital_speed(adapt_hole):
     1 Hz: over the last 10 s of the Ti plateau (before the exit thinning) its amplitude is
     within 20 % of the dynamometer's 1 Hz component in every 2-s window, its phase within
     20 degrees, and its ripple output follows the dynamometer's AC part."""
-    from analysis.observer_scoring import fit_sinusoid, orbital_reference
+    from drillcosim.analysis.observer_scoring import fit_sinusoid, orbital_reference
 
     res = adapt_hole
     t, F_dyn, dc, rpm, _, phi = orbital_reference(res, "drive", orbital_speed_signal="drive.orbital_speed")

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from controllers.adaptation import CuttingParameterAdaptation
-from analysis.detector_scoring import SyntheticHole, run_block_on_trace
-from controllers.interface_detector import InterfaceDetector, regression_weights
+from drillcosim.controllers.adaptation import CuttingParameterAdaptation
+from drillcosim.analysis.detector_scoring import SyntheticHole, run_block_on_trace
+from drillcosim.controllers.interface_detector import InterfaceDetector, regression_weights
 
 MM = 1e-3
 

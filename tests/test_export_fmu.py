@@ -1,7 +1,7 @@
 """Issue #21: blocks with a C step exported as FMUs (``drillcosim export-fmu``).
 
 * a shipped closed loop with its blocks replaced by their exported FMUs (run as
-  cosim.fmu_block.FMUBlock in the blocks' places) records the same doubles (Keio Fig. 7
+  drillcosim.cosim.blocks.fmu_block.FMUBlock in the blocks' places) records the same doubles (Keio Fig. 7
   for 0.5 s here; every shipped closed loop, whole, under ``-m long``);
 * the exported Keio observer driven by fmpy alone (``simulate_fmu``) from a recorded plant
   run reproduces the observer output of that run;
@@ -17,11 +17,11 @@ import pytest
 from fmpy import simulate_fmu
 from fmpy.validation import validate_fmu
 
-from controllers.adaptation import OneStepDelay
-from cosim.algorithm import run
-from cosim.export_fmu import ExportError, export_blocks, has_c_step, with_exported_blocks
-from cosim.recorder import Recorder
-from cosim.scenario import load_scenario
+from drillcosim.controllers.adaptation import OneStepDelay
+from drillcosim.cosim.loop.algorithm import run
+from drillcosim.cosim.fmi.export_fmu import ExportError, export_blocks, has_c_step, with_exported_blocks
+from drillcosim.cosim.loop.recorder import Recorder
+from drillcosim.cosim.scenario.loader import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 FIG7 = ROOT / "scenarios" / "keio_fig7_aluminium_force_control.toml"

@@ -7,10 +7,10 @@ import json
 
 import pytest
 
-from cosim import cli
-from cosim.campaign import run_campaign
-from cosim.errors import CosimError, ScenarioError
-from cosim.sweep import expand, load_sweep
+from drillcosim import cli
+from drillcosim.cosim.runs.campaign import run_campaign
+from drillcosim.cosim.errors import CosimError, ScenarioError
+from drillcosim.cosim.scenario.sweep import expand, load_sweep
 from test_faults_run import fault_fmu, scenario  # noqa: F401 - the fixture and the scenario writer
 
 
@@ -77,11 +77,11 @@ def test_sweep_errors_name_the_key(raw, key):
 def test_fork_server_preloads_blocks_scores_and_plots_of_a_campaign_scenario():
     """A campaign's runs come from a fork server: what they import (blocks, score and plot
     modules, pyplot when the scenario plots) is imported there once, not per run."""
-    from cosim.supervisor import _modules_of
-    raw = {"blocks": {"a": {"class": "controllers.trajectory:FeedTrajectory"}, "b": {"settings": {}}},
-           "scores": [{"function": "analysis.observer_scoring:fang_fig7"}],
-           "plots": [{"function": "analysis.observer_scoring:fang_fig7"}, {"y": ["x"]}]}
-    assert _modules_of(raw) == ["controllers.trajectory", "analysis.observer_scoring", "matplotlib.pyplot"]
+    from drillcosim.cosim.runs.supervisor import _modules_of
+    raw = {"blocks": {"a": {"class": "drillcosim.controllers.trajectory:FeedTrajectory"}, "b": {"settings": {}}},
+           "scores": [{"function": "drillcosim.analysis.observer_scoring:fang_fig7"}],
+           "plots": [{"function": "drillcosim.analysis.observer_scoring:fang_fig7"}, {"y": ["x"]}]}
+    assert _modules_of(raw) == ["drillcosim.controllers.trajectory", "drillcosim.analysis.observer_scoring", "matplotlib.pyplot"]
     assert _modules_of({"blocks": {}}) == []
 
 
@@ -96,8 +96,8 @@ def test_run_server_keeps_one_warm_child_and_replaces_a_crashed_one(tmp_path, fa
     that crashes it is reported crashed and the next run gets a new child."""
     import threading
 
-    from cosim.run_server import RunServer
-    from cosim.supervisor import run_supervised
+    from drillcosim.cosim.runs.run_server import RunServer
+    from drillcosim.cosim.runs.supervisor import run_supervised
     ok = scenario(tmp_path, fault_fmu("segfault"), fail=-1, stop=0.05, name="ok.toml")
     crash = scenario(tmp_path, fault_fmu("segfault"), fail=0.02, stop=0.05, name="crash.toml")
     hold = threading.Event()

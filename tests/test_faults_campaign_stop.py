@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from cosim import cli
-from cosim.outputs import alive, process_start
+from drillcosim import cli
+from drillcosim.cosim.runs.outputs import alive, process_start
 from test_faults_orphans import ORPHAN_LIMIT_S
 from test_faults_run import BUSY, ROOT, fault_fmu, scenario  # noqa: F401
 
@@ -30,7 +30,7 @@ def sweep_file(tmp_path: Path, n: int) -> Path:
 
 def start_driver(path: Path, sweep: Path, out: Path, *extra: str) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(ROOT / "tests")])}
-    return subprocess.Popen([sys.executable, "-m", "cosim.cli", "campaign", str(path), "--sweep", str(sweep),
+    return subprocess.Popen([sys.executable, "-m", "drillcosim.cli", "campaign", str(path), "--sweep", str(sweep),
                              "--out", str(out), "--workers", "2", "--quiet", *extra],
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
@@ -125,7 +125,7 @@ def test_a_second_campaign_into_a_campaign_folder_is_refused(tmp_path, mass_fmu,
     assert "is not this one" in capsys.readouterr().err
     assert cli.main(args + ["--resume"]) == 0
     assert "2 runs: 2 completed (2 kept from the earlier campaign)" in capsys.readouterr().out
-    from cosim.campaign import run_campaign        # a tool regenerating its own folder says so
+    from drillcosim.cosim.runs.campaign import run_campaign        # a tool regenerating its own folder says so
     again = run_campaign(path, [{"fmus.mass.parameters.m": 9.0}], out_dir=out, workers=1, progress=False,
                          replace=True)
     assert again[0]["status"] == "completed" and not again[0]["reused"]
@@ -162,8 +162,8 @@ def test_kill_9_of_the_campaign_driver_leaves_no_process_and_no_stale_lock(tmp_p
 
 def test_resume_keeps_finished_runs_and_reruns_the_rest(tmp_path):
     """The short version of the SIGINT/--resume test: which earlier runs --resume keeps."""
-    from cosim.campaign import plan_resume
-    from cosim.errors import CosimError
+    from drillcosim.cosim.runs.campaign import plan_resume
+    from drillcosim.cosim.errors import CosimError
     out = tmp_path / "camp"
     kept_status = {"completed": True, "stopped": True, "incomplete": True, "failed": True, "interrupted": False,
                    "crashed": False, "timeout": False, "orphaned": False, "running": False, "cancelled": False}
@@ -192,7 +192,7 @@ def test_resume_keeps_finished_runs_and_reruns_the_rest(tmp_path):
 def test_a_second_stop_request_kills_a_run_stuck_in_c_at_once(tmp_path, fault_fmu):
     """A campaign's run hears the driver's signals through ``stop``: the first asks it to
     stop (a run stuck in C cannot), the second kills it without waiting for the grace."""
-    from cosim.supervisor import run_supervised
+    from drillcosim.cosim.runs.supervisor import run_supervised
     path = scenario(tmp_path, fault_fmu("hang"), fail=0.02, stop=5.0)
     t0 = time.monotonic()
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from analysis import fang_sweep
-from analysis.fang_sweep import cf
-from cosim.sweep import load_sweep
+from drillcosim.analysis import fang_sweep
+from drillcosim.analysis.fang_sweep import cf
+from drillcosim.cosim.scenario.sweep import load_sweep
 
 
 def test_sweep_file_is_the_hole_plan():
@@ -26,7 +26,7 @@ def test_rows_rebuilt_from_overrides():
 
 @pytest.mark.long
 def test_two_holes_through_drillcosim_campaign(tmp_path):
-    from cosim import cli
+    from drillcosim import cli
     sweep = tmp_path / "two.toml"
     text = fang_sweep.SWEEP.read_text().split("[[runs]]")
     sweep.write_text("[[runs]]".join([text[0], text[1], text[8]]))       # holes 1 and 8

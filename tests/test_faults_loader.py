@@ -6,14 +6,15 @@ from __future__ import annotations
 
 import copy
 import os
-from cosim.scenario import tomllib   # tomllib, or tomli on Python 3.10
+from drillcosim.cosim.scenario.files import tomllib   # tomllib, or tomli on Python 3.10
 
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cosim.errors import ScenarioError
-from cosim.scenario import build, load_scenario
+from drillcosim.cosim.errors import ScenarioError
+from drillcosim.cosim.scenario.build import build
+from drillcosim.cosim.scenario.loader import load_scenario
 from cosim_helpers import BASE_SCENARIO
 
 FUZZ_EXAMPLES = int(os.environ.get("DRILLCOSIM_FUZZ_EXAMPLES", "150"))
@@ -33,7 +34,7 @@ def _load_text(tmp_path, text: str | bytes, overrides=None, name="s.toml"):
 @pytest.mark.parametrize("old, new, key", [
     ("stop_time = 0.1", "stop_time = inf", "scenario.stop_time"),
     ("step_size = 1e-3", "step_size = 1e-300", "scenario.step_size"),
-    ('class = "cosim.sources:Step"', 'class = ".sources:Step"', "blocks.force.class"),
+    ('class = "drillcosim.cosim.blocks.sources:Step"', 'class = ".sources:Step"', "blocks.force.class"),
     ("n_sub = 2", "n_sub = 4294967298", "fmus.mass.parameters.n_sub"),
     ("n_sub = 2", "n_sub = -2147483649", "fmus.mass.parameters.n_sub"),
     ("m = 1.0", "m = nan", "fmus.mass.parameters.m"),
@@ -57,7 +58,7 @@ def test_non_utf8_file(tmp_path, base_text, capsys):
     with pytest.raises(ScenarioError, match="not UTF-8") as e:
         _load_text(tmp_path, bad)
     assert e.value.file.endswith("s.toml")
-    from cosim import cli
+    from drillcosim import cli
     (tmp_path / "ok.toml").write_text(base_text)
     assert cli.main(["list", "--dir", str(tmp_path)]) == 0          # one bad file does not stop the listing
     out = capsys.readouterr().out
@@ -83,7 +84,7 @@ def test_missing_file_and_failing_assertion_in_block_settings(tmp_path, base_tex
 
 
 def test_detector_window_is_bounded():
-    from controllers.interface_detector import N_MAX, InterfaceDetector
+    from drillcosim.controllers.interface_detector import N_MAX, InterfaceDetector
     with pytest.raises(ValueError, match=f"N must be <= {N_MAX}"):
         InterfaceDetector(N=8000)
 

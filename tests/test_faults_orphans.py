@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from cosim import cli
-from cosim.outputs import LOCK_NAME, FolderLock, alive, claim, process_start
+from drillcosim import cli
+from drillcosim.cosim.runs.outputs import LOCK_NAME, FolderLock, alive, claim, process_start
 from test_faults_run import BUSY, ROOT, _start_cli, _wait_for_rows, scenario
 
 ORPHAN_LIMIT_S = 2.0      # s: the issue's bound for a child to die with its parent
@@ -22,7 +22,7 @@ ORPHAN_LIMIT_S = 2.0      # s: the issue's bound for a child to die with its par
 
 def lock_owners(out: Path) -> dict:
     """{"owner": (pid, start), "child": (pid, start)} as the lock file names them."""
-    from cosim.outputs import _parse_owner
+    from drillcosim.cosim.runs.outputs import _parse_owner
     return _parse_owner((out / LOCK_NAME).read_text())
 
 
@@ -89,7 +89,7 @@ def test_lock_held_by_an_orphan_of_a_dead_owner_is_taken_over(tmp_path):
 def test_a_live_owner_is_never_taken_over(tmp_path):
     out = tmp_path / "out"
     with claim(out):
-        from cosim.outputs import OutputError
+        from drillcosim.cosim.runs.outputs import OutputError
         with pytest.raises(OutputError, match=f"another run \\(pid {os.getpid()}\\)"):
             FolderLock(out)
     with claim(out) as lock:            # released cleanly: no take-over
@@ -104,7 +104,7 @@ def test_a_reused_pid_is_not_the_owner():
 FULL_DISK = """
 set -e
 mount -t tmpfs -o size={size} tmpfs {mnt}
-{python} -m cosim.cli run {scenario} --out {mnt}/out --quiet > {log} 2>&1 || echo "exit $?" >> {log}
+{python} -m drillcosim.cli run {scenario} --out {mnt}/out --quiet > {log} 2>&1 || echo "exit $?" >> {log}
 cp {mnt}/out/summary.json {keep}/summary.json
 cp {mnt}/out/data.csv {keep}/data.csv
 """

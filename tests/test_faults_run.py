@@ -16,12 +16,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim import cli
-from cosim.errors import SimulationError
-from cosim.outputs import OutputError, claim
-from cosim.recorder import Result
-from cosim.runner import RunEnded, run_scenario
-from cosim.supervisor import EXIT_CRASHED, run_supervised
+from drillcosim import cli
+from drillcosim.cosim.errors import SimulationError
+from drillcosim.cosim.runs.outputs import OutputError, claim
+from drillcosim.cosim.loop.recorder import Result
+from drillcosim.cosim.runs.runner import RunEnded, run_scenario
+from drillcosim.cosim.runs.supervisor import EXIT_CRASHED, run_supervised
 from cosim_helpers import build_mass_fmu
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -40,7 +40,7 @@ path = "{fmu}"
 fail_time = {fail}
 
 [blocks.force]
-class = "cosim.sources:Constant"
+class = "drillcosim.cosim.blocks.sources:Constant"
 [blocks.force.settings]
 value = 1.0
 unit = "N"
@@ -145,7 +145,7 @@ def test_max_steps(tmp_path, mass_fmu):
 
 def _start_cli(path: Path, out: Path) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(ROOT / "tests")])}
-    return subprocess.Popen([sys.executable, "-m", "cosim.cli", "run", str(path), "--out", str(out), "--quiet"],
+    return subprocess.Popen([sys.executable, "-m", "drillcosim.cli", "run", str(path), "--out", str(out), "--quiet"],
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -244,8 +244,8 @@ FULL_DISK = """
 import resource, signal, sys
 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)      # else the kernel kills at the limit
 resource.setrlimit(resource.RLIMIT_FSIZE, (30000, 30000))
-from cosim.runner import run_scenario
-from cosim.errors import CosimError
+from drillcosim.cosim.runs.runner import run_scenario
+from drillcosim.cosim.errors import CosimError
 try:
     run_scenario(sys.argv[1], sys.argv[2], progress=False)
 except CosimError as e:

@@ -1,5 +1,5 @@
 """Thrust-force control: unit tests on the numpy stand-in, then the must-show tests on the
-LinearStage FMU through the master (cosim.run_scenario), each a few seconds."""
+LinearStage FMU through the master (drillcosim.cosim.run_scenario), each a few seconds."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.calibration import fit_thrust_constant, steady_levels
-from controllers.calibration import load_calibration
-from controllers.force_control import ThrustForceController
-from analysis.force_scoring import layer_scores, moving_average
-from controllers.trajectory import FeedTrajectory
+from drillcosim.analysis.calibration import fit_thrust_constant, steady_levels
+from drillcosim.controllers.calibration import load_calibration
+from drillcosim.controllers.force_control import ThrustForceController
+from drillcosim.analysis.force_scoring import layer_scores, moving_average
+from drillcosim.controllers.trajectory import FeedTrajectory
 from test_position_control_toyplant import ToyForceObserver, ToyStage, run_loop
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,7 +25,7 @@ COMMISSIONED = ROOT / "scenarios" / "commissioning" / "linear_stage.json"
 def uncalibrated(tmp_path) -> dict:
     """Overrides that run the shipped drive without its reference cut (data-sheet Kt)."""
     import json
-    from analysis.commissioning import without_calibration
+    from drillcosim.analysis.commissioning import without_calibration
     f = tmp_path / "uncalibrated.json"
     f.write_text(json.dumps(without_calibration(json.loads(COMMISSIONED.read_text()))))
     return {"blocks.observer.settings.commissioning_file": str(f),
@@ -99,7 +99,7 @@ def test_force_control_off_keeps_position_control():
 def test_kf_readings_table2():
     """Kf = 0.45 read as a force-servo gain (a = Kf*e/M_n) settles a layer change in tens
     of ms; read in (mm/s2)/N it is ~500x too slow; read in (m/s2)/N (4x higher) it passes
-    more observer noise to the current (module docstring of controllers.force_control)."""
+    more observer noise to the current (module docstring of drillcosim.controllers.force_control)."""
     def settle_and_noise(Kf):
         r, _ = _toy_run(T=1.6, fc_kw={"Kf": Kf}, obs_kw={"noise": 1.0})
         sc = layer_scores(r["t"], r["F_thrust"], r["fc.F_cmd_out"], r["layer"], r["fc.mode"] == 1,
@@ -122,7 +122,7 @@ def test_kf_readings_table2():
 # ----------------------------------------------------------------- thrust-constant calibration
 def _true_Kt() -> float:
     """Scoring only: the plant's Kt, the start value in the FMU's model description."""
-    from cosim.slave import load_model, resolve_fmu_path
+    from drillcosim.cosim.fmi.slave import load_model, resolve_fmu_path
     return float(load_model(resolve_fmu_path("LinearStage", ROOT / "scenarios")).variables["Kt"].start)
 
 
@@ -145,7 +145,7 @@ def test_calibration_fit_keeps_offsets_out_of_the_gain():
 
 
 def test_observer_and_controller_take_the_calibration_file():
-    from controllers.keio_observer import CuttingForceObserver
+    from drillcosim.controllers.keio_observer import CuttingForceObserver
     cal = load_calibration(CAL_FILE)
     kw = dict(F_coulomb=8.0, b_viscous=30.0, F_grav_comp=0.7, F_ripple=[[392.7, -1.0, 0.0]])
     nominal = CuttingForceObserver(**kw)
@@ -161,7 +161,7 @@ def test_observer_and_controller_take_the_calibration_file():
 
 def test_no_block_reads_the_dynamometer():
     """Calibration and control are sensorless: only scores / plots see F_dyn and the truth."""
-    from cosim.scenario import tomllib   # tomllib, or tomli on Python 3.10
+    from drillcosim.cosim.scenario.files import tomllib   # tomllib, or tomli on Python 3.10
     for path in (CAL, FIG7, FIG4):
         raw = tomllib.loads(path.read_text())
         for c in raw["connections"]:
@@ -170,7 +170,7 @@ def test_no_block_reads_the_dynamometer():
 
 @pytest.fixture(scope="module")
 def calibration_run(tmp_path_factory):
-    from cosim import run_scenario
+    from drillcosim.cosim import run_scenario
     out = tmp_path_factory.mktemp("cal")
     return run_scenario(CAL, out_dir=out, progress=False), out
 
@@ -197,7 +197,7 @@ def test_calibration_reference_cut_reproduces_the_shipped_constant(calibration_r
 
 # ----------------------------------------------------------------- on the plant FMU (must show)
 def _run(path, tmp_path, **overrides):
-    from cosim import run_scenario
+    from drillcosim.cosim import run_scenario
     return run_scenario(path, out_dir=tmp_path, overrides=overrides or None, progress=False)
 
 

@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from cosim.errors import ScenarioError
-from cosim.runner import load
+from drillcosim.cosim.errors import ScenarioError
+from drillcosim.cosim.runs.runner import load
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -13,7 +13,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
-from fmus.foreign.build import FOREIGN, HERE, fmu_path
+from drillcosim.fmus.foreign.build import FOREIGN, HERE, fmu_path
 
 try:
     from plant_helpers import ExtractedPlant, plant_maker
@@ -143,7 +143,7 @@ def test_start_values_match_xml(name, plants):
 
 
 def test_master_loads_them():
-    from cosim.slave import load_model
+    from drillcosim.cosim.fmi.slave import load_model
     for name, unit in (("ForeignBallScrew", {"scale_pos": "mm", "motor_angle": "deg", "orbit_f": "Hz"}),
                        ("ForeignZStage", {"z_meas": "um", "iq_cmd": "mA"})):
         m = load_model(fmu_path(name))
@@ -527,8 +527,8 @@ def test_binding_files_name_real_variables_in_convertible_units(binding, name):
     """scenarios/plants/<binding>.toml, through the master's binding loader, binds every role
     the FMU has to a variable that exists with a unit that converts to the contract's SI
     unit (or a stated scale); parameter roles name parameters. Spot checks of the factors."""
-    from cosim.plant import load_binding
-    from cosim.slave import load_model
+    from drillcosim.cosim.scenario.binding import load_binding
+    from drillcosim.cosim.fmi.slave import load_model
     root = HERE.parent.parent
     b = load_binding(root / "scenarios" / "plants" / f"{binding}.toml")
     assert b.path == name

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim import load_scenario, run_scenario
+from drillcosim.cosim import load_scenario, run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 TWINS = sorted((ROOT / "scenarios" / "foreign").glob("*.toml"))

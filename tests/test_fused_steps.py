@@ -1,4 +1,4 @@
-"""Whole steps in C (cosim/fused.py, issue #15): the same run as the Python loop, bit for
+"""Whole steps in C (cosim/loop/fused.py, issue #15): the same run as the Python loop, bit for
 bit, and the same answer when an FMU fails, asks to stop or crashes inside a C step."""
 from __future__ import annotations
 
@@ -7,14 +7,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import cosim.fused as fused
-from cosim.algorithm import run
-from cosim.errors import SimulationError
-from cosim.manipulators import Event
-from cosim.recorder import Recorder
-from cosim.scenario import load_scenario
-from cosim.supervisor import EXIT_CRASHED, run_supervised
-from cosim.system import System
+import drillcosim.cosim.loop.fused as fused
+from drillcosim.cosim.loop.algorithm import run
+from drillcosim.cosim.errors import SimulationError
+from drillcosim.cosim.loop.manipulators import Event
+from drillcosim.cosim.loop.recorder import Recorder
+from drillcosim.cosim.scenario.loader import load_scenario
+from drillcosim.cosim.runs.supervisor import EXIT_CRASHED, run_supervised
+from drillcosim.cosim.loop.system import System
 from test_faults_run import fault_fmu  # noqa: F401 - the fixture of the faulty test FMUs
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -140,7 +140,7 @@ def test_a_crash_inside_a_c_step_names_the_fmu_and_time(tmp_path, fault_fmu):
     assert s["status"] == "crashed" and s["signal"] == "SIGSEGV"
     assert s["crashed_instance"] == "mass" and s["phase"] == "doStep"
     assert s["time_reached"] == pytest.approx(1.0, abs=0.5e-3)
-    from cosim.supervisor import exit_code
+    from drillcosim.cosim.runs.supervisor import exit_code
     assert exit_code(s) == EXIT_CRASHED
 
 
@@ -161,7 +161,7 @@ def test_an_event_on_a_setting_of_a_block_stepping_in_c_reaches_its_c_state(monk
 
 
 def test_a_sample_period_cannot_change_during_a_run():
-    from cosim.manipulators import setter_for
+    from drillcosim.cosim.loop.manipulators import setter_for
     sc = load_scenario(FIG4)
     with pytest.raises(ValueError, match="sample period is fixed before the run"):
         setter_for(sc.system, "controller.sample_period")
@@ -178,7 +178,7 @@ def test_rows_recorded_by_c_steps_are_the_python_loops(mass_fmu, monkeypatch, fu
     """A Python source at 1/10 of the steps drives the plant in kN (a connection factor of
     1000): the other nine steps are C steps, whose rows -- with the connection's scale on
     the recorded FMU input -- the C records itself."""
-    from cosim.sources import Sine
+    from drillcosim.cosim.blocks.sources import Sine
 
     def system():
         s = System(step_size=1e-3)

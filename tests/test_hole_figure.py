@@ -9,10 +9,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-import analysis.hole_figure as hf
-import analysis.observer_scoring as obs
-from cosim.recorder import Result
-from cosim.scenario import load_scenario
+import drillcosim.analysis.hole_figure as hf
+import drillcosim.analysis.observer_scoring as obs
+from drillcosim.cosim.loop.recorder import Result
+from drillcosim.cosim.scenario.loader import load_scenario
 
 T_TRUE = {"entry": 3.2, "interface": 28.2, "exit": 58.1}
 T_DET = {"t_entry": 3.5, "t_interface": 28.4, "t_exit_paper": 55.8, "t_exit_thinning": 57.7}
@@ -51,7 +51,7 @@ def figures(monkeypatch):
     monkeypatch.setattr(hf, "save_figure", keep)
     monkeypatch.setattr(obs, "save_figure", keep)
     yield kept
-    from analysis.plotting import pyplot
+    from drillcosim.analysis.plotting import pyplot
     for f in kept:
         pyplot().close(f)
 
@@ -97,4 +97,4 @@ def test_ac_zoom_has_a_y_label(figures, tmp_path):
 def test_the_hole_scenario_uses_them():
     sc = load_scenario("fang_table5_hole")
     assert [name for _, _, _, name in sc.scores][-2:] == ["score_adaptation", "print_table5"]
-    assert any(p.get("spec") == "analysis.hole_figure:fang_hole_figure" for p in sc.plots)
+    assert any(p.get("spec") == "drillcosim.analysis.hole_figure:fang_hole_figure" for p in sc.plots)

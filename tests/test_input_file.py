@@ -1,4 +1,4 @@
-"""Input files, FMPy's way (cosim/input_file.py): `drillcosim simulate --input-file` and the
+"""Input files, FMPy's way (cosim/blocks/input_file.py): `drillcosim simulate --input-file` and the
 InputFile source block of a scenario; its interpolation, units and bad input."""
 from __future__ import annotations
 
@@ -8,11 +8,11 @@ import re
 import numpy as np
 import pytest
 
-from cosim import load_scenario, run_scenario
-from cosim.cli import main
-from cosim.errors import ScenarioError
-from cosim.input_file import Player, read_input_csv
-from cosim.recorder import Result
+from drillcosim.cosim import load_scenario, run_scenario
+from drillcosim.cli import main
+from drillcosim.cosim.errors import ScenarioError
+from drillcosim.cosim.blocks.input_file import Player, read_input_csv
+from drillcosim.cosim.loop.recorder import Result
 from cosim_helpers import BASE_SCENARIO
 
 
@@ -123,7 +123,7 @@ def test_not_numbers_name_the_file(tmp_path):
 
 INPUT_BLOCK = """
 [blocks.trace]
-class = "cosim.sources:InputFile"
+class = "drillcosim.cosim.blocks.sources:InputFile"
 [blocks.trace.settings]
 input_file = "force.csv"
 interpolation = "hold"

@@ -46,7 +46,7 @@ def _project_plant_names() -> set[str]:
     code must reach every plant through its roles instead."""
     from fmpy.model_description import read_model_description
 
-    from cosim.plant import CONTRACT_PARAMETERS, ROLES, TRUE_PARAMETERS
+    from drillcosim.drilling.roles import CONTRACT_PARAMETERS, ROLES, TRUE_PARAMETERS
     names = set()
     for xml in (ROOT / "fmus").glob("*/modelDescription.xml"):
         names |= {v.name for v in read_model_description(str(xml)).modelVariables}

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from controllers.force_control import ThrustForceController
-from controllers.keio_observer import CuttingForceObserver
-from controllers.loop_gains import TABLE2_G_THRUST, TABLE2_KF, kf_max_at
+from drillcosim.controllers.force_control import ThrustForceController
+from drillcosim.controllers.keio_observer import CuttingForceObserver
+from drillcosim.controllers.loop_gains import TABLE2_G_THRUST, TABLE2_KF, kf_max_at
 
 ROOT = Path(__file__).resolve().parent.parent
 FOREIGN = ROOT / "scenarios" / "commissioning" / "foreign_zstage.json"
@@ -86,7 +86,7 @@ def test_report_margin_and_run_score_agree(tmp_path, name, com):
     """The file's margin at the gains it chose (the report's) against the run's
     force_loop_margin score at the feed the run really cut at: within 1 dB (measured
     0.001 dB on both); the run passes its scores at those gains. Shortened Fig. 7 (1.2 s)."""
-    from cosim.runner import run_scenario
+    from drillcosim.cosim.runs.runner import run_scenario
     scenario = {"foreign": "scenarios/foreign/keio_fig7_aluminium_force_control.toml",
                 "foreign2": "scenarios/foreign2/keio_fig7_aluminium_force_control.toml",
                 "project": "scenarios/keio_fig7_aluminium_force_control.toml"}[name]
@@ -104,7 +104,7 @@ def test_report_margin_and_run_score_agree(tmp_path, name, com):
 @pytest.mark.long
 def test_committed_gains_are_what_commissioning_tunes():
     """The committed files' force_loop_gains are tune_gains' answer on their own contents."""
-    from analysis.force_margin import tune_gains
+    from drillcosim.analysis.force_margin import tune_gains
     for com in (FOREIGN, PROJECT, FOREIGN2):
         doc = json.loads(com.read_text())
         g = tune_gains(doc)

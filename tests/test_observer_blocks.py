@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from controllers.fang_observer import AdaptiveThrustObserver
-from controllers.keio_observer import CuttingForceObserver
+from drillcosim.controllers.fang_observer import AdaptiveThrustObserver
+from drillcosim.controllers.keio_observer import CuttingForceObserver
 
 
 def _keio_run(T=0.6, h=1e-4, seed=0):

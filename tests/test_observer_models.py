@@ -8,11 +8,19 @@ import math
 import numpy as np
 import pytest
 
-from analysis.identification import identify_friction
-from controllers.friction import FrictionModel, make_friction, VelocitySegments
-from controllers.nominal_models import (FangNominal, KeioNominal, ObservabilityError, StateSpace,
-                                        check_observable, discretise, fang_model,
-                                        fang_physical_dynamics, keio_model, linearise, zoh)
+from drillcosim.analysis.identification import identify_friction
+from drillcosim.controllers.friction import FrictionModel, make_friction, VelocitySegments
+from drillcosim.controllers.nominal_models import (FangNominal,
+    KeioNominal,
+    ObservabilityError,
+    StateSpace,
+    check_observable,
+    discretise,
+    fang_model,
+    fang_physical_dynamics,
+    keio_model,
+    linearise,
+    zoh)
 
 
 # --------------------------------------------------------------------------- models
@@ -131,8 +139,8 @@ def test_true_parameters_come_from_the_binding_and_follow_inheritance():
     # in the base file, and the run's parameter overrides count.
     from types import SimpleNamespace
 
-    from analysis.plant_info import true_parameters
-    from cosim import load_scenario
+    from drillcosim.analysis.plant_info import true_parameters
+    from drillcosim.cosim import load_scenario
 
     sc = load_scenario("scenarios/fang_table5_campaign.toml", {"fmus.drive.parameters.tau_coulomb": 0.05})
     p = true_parameters(SimpleNamespace(system=sc.system), "drive")

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from cosim import load_scenario, run_scenario
-from cosim.errors import ScenarioError
+from drillcosim.cosim import load_scenario, run_scenario
+from drillcosim.cosim.errors import ScenarioError
 
 ROOT = Path(__file__).resolve().parent.parent
 SCEN = ROOT / "scenarios"

@@ -40,7 +40,7 @@ class Slave3:
     (status, message) in ``self.messages`` (or the list passed as ``messages``)."""
 
     def __init__(self, name, params=None, start_time=0.0, messages=None):
-        from fmus.build import fmu_path
+        from drillcosim.fmus.build import fmu_path
         path = str(fmu_path(name))
         self.md = read_model_description(path)
         self.vars = {v.name: v for v in self.md.modelVariables}

@@ -49,7 +49,7 @@ def test_fmu_archive_layout(plant_fmus, name):
 
 
 def test_build_is_incremental(plant_fmus):
-    from fmus.build import build_all, fmu_path
+    from drillcosim.fmus.build import build_all, fmu_path
     before = {n: p.stat().st_mtime_ns for n, p in plant_fmus.items()}
     again = build_all(verbose=False)
     assert {n: p.stat().st_mtime_ns for n, p in again.items()} == before

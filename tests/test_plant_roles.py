@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from cosim import load_scenario
-from cosim.errors import ScenarioError
+from drillcosim.cosim import load_scenario
+from drillcosim.cosim.errors import ScenarioError
 
 ROOT = Path(__file__).resolve().parents[1]
 SCEN = ROOT / "scenarios"
@@ -141,8 +141,8 @@ def test_friction_identified_through_roles_does_not_depend_on_the_fmus_units(tmp
     same C model and noise, fmus/foreign/build.py:build_si_twin) give the same friction fit
     in SI, within 1 % (issue 10; before roles the degree encoder made the viscous term 57x
     too small)."""
-    from cosim import run_scenario
-    from fmus.foreign.build import build_si_twin
+    from drillcosim.cosim import run_scenario
+    from drillcosim.fmus.foreign.build import build_si_twin
 
     si_fmu = build_si_twin("ForeignBallScrew", tmp_path)
     si_binding = _binding_copy(tmp_path, FOREIGN_BS, lambda t: t.replace('path = "ForeignBallScrew"',
@@ -164,11 +164,11 @@ def test_friction_identified_through_roles_does_not_depend_on_the_fmus_units(tmp
 def test_extends_removes_scores_and_plots(tmp_path):
     f = tmp_path / "ext.toml"
     f.write_text(f'[scenario]\nextends = "{SCEN / "keio_fig7_aluminium_force_control.toml"}"\n'
-                 '[[scores]]\nfunction = "analysis.force_scoring:force_scores"\nname = "force_control"\nremove = true\n'
-                 '[[plots]]\nfunction = "analysis.force_scoring:force_figure"\nremove = true\n')
+                 '[[scores]]\nfunction = "drillcosim.analysis.force_scoring:force_scores"\nname = "force_control"\nremove = true\n'
+                 '[[plots]]\nfunction = "drillcosim.analysis.force_scoring:force_figure"\nremove = true\n')
     sc = load_scenario(f)
     assert [name for *_x, name in sc.scores] == ["force_loop_margin"] and sc.plots == []
     f.write_text(f'[scenario]\nextends = "{SCEN / "keio_fig7_aluminium_force_control.toml"}"\n'
-                 '[[scores]]\nfunction = "analysis.force_scoring:nothing"\nremove = true\n')
+                 '[[scores]]\nfunction = "drillcosim.analysis.force_scoring:nothing"\nremove = true\n')
     with pytest.raises(ScenarioError, match=r"scores\[0\]\.remove: removes no score"):
         load_scenario(f)

@@ -6,9 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from controllers.position_control import (BallScrewPositionController, PositionController,
-                                          nominal_loop_poles)
-from controllers.trajectory import FeedTrajectory, profile_step
+from drillcosim.controllers.position_control import (BallScrewPositionController,
+    PositionController,
+    nominal_loop_poles)
+from drillcosim.controllers.trajectory import FeedTrajectory, profile_step
 from test_position_control_toyplant import ToyStage, run_loop
 
 F_BIAS_NOMINAL = 3.95 * 9.81 - 40.0   # nominal gravity minus compensator (true: 4.15 kg)

@@ -147,7 +147,7 @@ def run_loop(plant, blocks, wiring, T, h=1e-4, record=()):
     return {k: np.asarray(v) for k, v in rec.items()}
 
 
-from cosim.block import Block, Port  # noqa: E402
+from drillcosim.cosim.loop.block import Block, Port  # noqa: E402
 
 
 class ToyForceObserver(Block):

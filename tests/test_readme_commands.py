@@ -101,8 +101,8 @@ def test_every_documented_command_parses_and_names_existing_files(where, cmd):
     """All documented drillcosim lines, the long runs too, as written: the CLI accepts the
     subcommand and its options, and the scenario, binding and sweep files they name exist
     (what they write under results/, and placeholders in capitals, excepted)."""
-    from cosim.cli import build_parser
-    from cosim.paths import scenario_path
+    from drillcosim.cli import build_parser
+    from drillcosim.cosim.scenario.paths import scenario_path
     words = shlex.split(cmd)[1:]
     if not words or words[0] == "--version":
         return

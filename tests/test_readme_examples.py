@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim import run_scenario
-from cosim.cli import _parse_set
-from cosim.paths import scenario_path
-from cosim.scenario import load_raw
+from drillcosim.cosim import run_scenario
+from drillcosim.cli import _parse_set
+from drillcosim.cosim.scenario.paths import scenario_path
+from drillcosim.cosim.scenario.files import load_raw
 
 REPO = Path(__file__).resolve().parent.parent
 README = (REPO / "README.md").read_text()

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.io import loadmat
 
-import cosim.recorder as rec
-from cosim.recorder import SPILL_NAME, Recorder, Result, write_mat_file
+import drillcosim.cosim.loop.recorder as rec
+from drillcosim.cosim.loop.recorder import SPILL_NAME, Recorder, Result, write_mat_file
 from test_faults_run import fault_fmu  # noqa: F401 - the faulty FMUs
 
 COLUMNS = ["stage.x", "stage.velocity", "observer.F_hat"]
@@ -48,7 +48,7 @@ def test_streamed_mat_equals_the_compressed_one(tmp_path, monkeypatch):
 
 
 def test_a_crashed_runs_mat_comes_from_its_spilled_rows(tmp_path, fault_fmu):
-    from cosim.supervisor import run_supervised
+    from drillcosim.cosim.runs.supervisor import run_supervised
     from test_faults_run import scenario
     path = scenario(tmp_path, fault_fmu("segfault"), fail=0.3, stop=1.0)
     s = run_supervised(path, tmp_path / "out", progress=False)

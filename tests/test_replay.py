@@ -1,4 +1,4 @@
-"""`drillcosim replay` (cosim/replay.py, cosim/playback.py): a scenario's blocks and scores
+"""`drillcosim replay` (cosim/runs/replay.py, cosim/blocks/playback.py): a scenario's blocks and scores
 on a recording instead of its plant FMU."""
 from __future__ import annotations
 
@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.recording import export_recording
-from cosim import run_scenario
-from cosim.cli import main
-from cosim.errors import ScenarioError
-from cosim.replay import replay_scenario
+from drillcosim.analysis.recording import export_recording
+from drillcosim.cosim import run_scenario
+from drillcosim.cli import main
+from drillcosim.cosim.errors import ScenarioError
+from drillcosim.cosim.runs.replay import replay_scenario
 from cosim_helpers import BASE_SCENARIO
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -38,7 +38,7 @@ def _numbers_equal(a, b, rtol=1e-9, path="scores"):
 
 def test_shipped_recording_is_declared_simulated_and_small():
     assert RECORDING.stat().st_size < 2e6
-    from cosim.input_file import read_input_csv
+    from drillcosim.cosim.blocks.input_file import read_input_csv
     table = read_input_csv(RECORDING)
     assert table.comments[0].startswith("SIMULATED, not measured")
     assert table.units["stage.table_position"] == "m" and table.units["stage.thrust_dyn"] == "N"
@@ -54,7 +54,7 @@ def test_replay_reproduces_the_run_it_came_from(tmp_path, stop):
     run = run_scenario(FIG7, out_dir=tmp_path / "run", progress=False, overrides=over)
     assert main(["replay", str(FIG7), "--measurement", str(RECORDING), "--out", str(tmp_path / "replay"),
                  "--set", f"scenario.stop_time={stop}", "--quiet"]) == 0
-    from cosim.recorder import Result
+    from drillcosim.cosim.loop.recorder import Result
     rep = Result.from_csv(tmp_path / "replay")
     np.testing.assert_array_equal(rep.time, run.time)
     for sig in ("observer.F_thrust_hat", "controller.i_ref", "controller.mode"):
@@ -141,7 +141,7 @@ def test_fang_hole_detector_and_adaptation_replay(tmp_path):
     """The Fang hole's observer, interface detector and cutting-parameter adaptation on a
     recording of its own first 4 s (encoder, motor angle, current, dynamometer at 10 kHz):
     the same outputs bit for bit; the plant inputs (current, spindle, orbit) go nowhere."""
-    from cosim.scenario import load_raw
+    from drillcosim.cosim.scenario.files import load_raw
     raw = load_raw(ROOT / "scenarios" / "fang_table5_hole.toml")
     over = {"scenario.stop_time": 4.0, "record.decimation": 1,
             "record.signals": raw["record"]["signals"] + ["drive.motor_angle"]}
@@ -160,7 +160,7 @@ def test_fang_hole_detector_and_adaptation_replay(tmp_path):
 def test_without_a_dynamometer_column_the_thrust_score_is_left_out(tmp_path):
     """A machine's recording of the encoder only (mapped, in mm): the observer and the
     controller run, the thrust score that needs the dynamometer is dropped and said so."""
-    from cosim.input_file import read_input_csv
+    from drillcosim.cosim.blocks.input_file import read_input_csv
     table = read_input_csv(RECORDING)
     t, z = table.time[:5001], table.column("stage.table_position")[:5001] * 1e3
     rec = tmp_path / "encoder.csv"
@@ -170,7 +170,7 @@ def test_without_a_dynamometer_column_the_thrust_score_is_left_out(tmp_path):
     sc, info = replay_scenario(FIG7, rec, mapping, {"scenario.stop_time": 0.5})
     assert info["signals"] == {"table_position": "z"}
     assert [d.split(" (")[0] for d in info["dropped"] if d.startswith(("score", "plot"))] == [
-        "score force_control", "plot analysis.force_scoring:force_figure"]
+        "score force_control", "plot drillcosim.analysis.force_scoring:force_figure"]
     assert [name for *_, name in sc.scores] == ["force_loop_margin"]
     assert sc.system.blocks["stage"].outputs[0].unit == "m"
 
@@ -197,10 +197,10 @@ def test_a_machine_clock_recording_with_its_start_time(tmp_path, mass_run):
 
 @pytest.mark.parametrize("suffix", [".csv", ".csv.gz"])
 def test_export_recording_round_trip(tmp_path, mass_run, suffix, capsys):
-    """analysis.recording writes what replay reads: the '#' declaration, units in the
+    """drillcosim.analysis.recording writes what replay reads: the '#' declaration, units in the
     header, every value bit for bit; --every decimates; the same run gives the same bytes."""
-    from analysis.recording import main as export_main
-    from cosim.input_file import read_input_csv
+    from drillcosim.analysis.recording import main as export_main
+    from drillcosim.cosim.blocks.input_file import read_input_csv
     _, run = mass_run
     out = tmp_path / f"rec{suffix}"
     assert export_main([str(run.out_dir), str(out), "--signals", "mass.x", "force.y", "--note", "SIMULATED: test",

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import pytest
 
-from cosim import conformance as conf
-from cosim.algorithm import run
-from cosim.model_exchange import create_slave
-from cosim.recorder import Recorder
-from cosim.system import System
+from drillcosim.cosim.fmi import conformance as conf
+from drillcosim.cosim.loop.algorithm import run
+from drillcosim.cosim.fmi.model_exchange import create_slave
+from drillcosim.cosim.loop.recorder import Recorder
+from drillcosim.cosim.loop.system import System
 
 
 @pytest.fixture(scope="module")

@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.detector_scoring import layer_thrust_stats
-from analysis.observer_scoring import fang_table3
-from cosim.recorder import Result
+from drillcosim.analysis.detector_scoring import layer_thrust_stats
+from drillcosim.analysis.observer_scoring import fang_table3
+from drillcosim.cosim.loop.recorder import Result
 
 ROOT = Path(__file__).resolve().parent.parent
 MARGINS = dict(entry_margin=0.2e-3, end_margin=0.2e-3, exit_margin=1.4e-3)
@@ -66,7 +66,7 @@ def test_the_depth_window_needs_all_three_margins():
 def test_both_scores_of_the_shipped_hole_agree(tmp_path):
     """The shipped Fang hole (26 s): per layer, within 0.05 percentage points (measured: equal
     to the printed two decimals, CFRP 1.48 %, Ti 2.49 %)."""
-    from cosim.runner import run_scenario
+    from drillcosim.cosim.runs.runner import run_scenario
     s = run_scenario(ROOT / "scenarios" / "fang_table5_hole.toml", out_dir=tmp_path, progress=False,
                      handle_signals=False).summary["scores"]
     t3, hole = s["fang_table3"], s["score_hole"]

@@ -14,8 +14,12 @@ from pathlib import Path
 
 import pytest
 
-from cosim.runner import scores_verdict
-from cosim.supervisor import EXIT_CRASHED, EXIT_FAILED, EXIT_SCORES_FAILED, EXIT_TIMEOUT, exit_code
+from drillcosim.cosim.runs.runner import scores_verdict
+from drillcosim.cosim.runs.supervisor import (EXIT_CRASHED,
+    EXIT_FAILED,
+    EXIT_SCORES_FAILED,
+    EXIT_TIMEOUT,
+    exit_code)
 
 ROOT = Path(__file__).resolve().parent.parent
 FIG7 = ROOT / "scenarios" / "keio_fig7_aluminium_force_control.toml"
@@ -49,7 +53,7 @@ def test_exit_codes_are_distinct():
 
 
 def _run(tmp_path, **overrides):
-    from cosim.runner import run_scenario
+    from drillcosim.cosim.runs.runner import run_scenario
     r = run_scenario(FIG7, out_dir=tmp_path, progress=False, handle_signals=False,
                      overrides={"scenario.stop_time": 1.2, **overrides})
     return r.summary
@@ -79,7 +83,7 @@ def test_shipped_fig7_passes(tmp_path):
 @pytest.mark.long
 def test_limit_cycling_run_exits_nonzero_from_the_cli(tmp_path):
     out = tmp_path / "cycle"
-    r = subprocess.run([sys.executable, "-m", "cosim.cli", "run", str(FIG7), "--out", str(out), "--quiet",
+    r = subprocess.run([sys.executable, "-m", "drillcosim.cli", "run", str(FIG7), "--out", str(out), "--quiet",
                         "--set", "blocks.controller.settings.Kf=3.0", "--set", "scenario.stop_time=1.2"],
                        cwd=ROOT, capture_output=True, text=True, timeout=300)
     s = json.loads((out / "summary.json").read_text())
@@ -104,15 +108,15 @@ def _aluminium_only_stage(tmp_path: Path, optional: str = "") -> Path:
 
 
 def test_plant_without_the_experiments_stack_is_refused_at_load(tmp_path):
-    from cosim.errors import ScenarioError
-    from cosim.scenario import load_scenario
+    from drillcosim.cosim.errors import ScenarioError
+    from drillcosim.cosim.scenario.loader import load_scenario
     with pytest.raises(ScenarioError, match=r"fmus\.stage\.plant_parameters\.layer1_material.*no contract "
                                             r"parameter 'layer1_material', 'layer2_material', 'layer3_material'"):
         load_scenario(_aluminium_only_stage(tmp_path))
 
 
 def test_optional_parameters_let_it_load_and_are_reported(tmp_path):
-    from cosim.scenario import load_scenario
+    from drillcosim.cosim.scenario.loader import load_scenario
     sc = load_scenario(_aluminium_only_stage(
         tmp_path, 'optional_parameters = ["layer1_material", "layer2_material", "layer3_material"]\n'))
     assert set(sc.system.bindings["stage"].unbound_parameters) == {"layer1_material", "layer2_material",
@@ -122,7 +126,7 @@ def test_optional_parameters_let_it_load_and_are_reported(tmp_path):
 def test_a_neutral_value_needs_no_parameter(tmp_path):
     """A gap of 0 (the ball-screw reference cut sets layer1_gap = 0) is what a plant without
     that parameter has: the foreign ball screw, which binds no layer1_gap, loads it."""
-    from cosim.scenario import load_scenario
+    from drillcosim.cosim.scenario.loader import load_scenario
     sc = tmp_path / "gap0.toml"
     sc.write_text(f'[scenario]\nextends = "{ROOT / "scenarios" / "foreign" / "fang_orbital_cfrp_ti.toml"}"\n'
                   "[fmus.drive.plant_parameters]\nlayer1_gap = 0.0\n")
@@ -140,7 +144,7 @@ def _force_run(amplitude: float):
 
     import numpy as np
 
-    from cosim.recorder import Result
+    from drillcosim.cosim.loop.recorder import Result
     t = np.arange(0.0, 1.5, 2e-4)
     rng = np.random.default_rng(4)
     F = 50.0 + amplitude * np.sin(2 * math.pi * 440.0 * t) + rng.standard_normal(len(t))
@@ -154,7 +158,7 @@ def test_a_limit_cycle_is_caught_on_the_dynamometer_alone():
     """A plant without a true-thrust role used to get passed: None (a limit cycle could not
     be excluded); the oscillation is now judged on the dynamometer, whose 1 N white noise puts
     a few hundredths of a newton into one spectral line."""
-    from analysis.force_scoring import force_scores
+    from drillcosim.analysis.force_scoring import force_scores
     quiet, cycling = force_scores(_force_run(0.0)), force_scores(_force_run(6.9))
     assert quiet["oscillation_signal"] == "thrust_dyn" and quiet["oscillation_amplitude_N"] < 0.1
     assert quiet["passed"] is True and not quiet["limit_cycle"]

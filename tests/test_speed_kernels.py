@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from controllers.fang_observer import AdaptiveThrustObserver
-from cosim.algorithm import MAX_SCHEDULE, _DueAt, _reader, _schedule
+from drillcosim.controllers.fang_observer import AdaptiveThrustObserver
+from drillcosim.cosim.loop.algorithm import MAX_SCHEDULE, _DueAt, _reader, _schedule
 
 
 def _inputs(n: int, names: list[str], seed: int = 1):
@@ -131,7 +131,7 @@ def _encoder(t: float) -> float:
 
 
 def test_trajectory_kernel_matches_python_step():
-    from controllers.trajectory import FeedTrajectory
+    from drillcosim.controllers.trajectory import FeedTrajectory
 
     def inputs():                         # approach, feed at the setting then a command, a retract
         for k in range(9000):
@@ -147,7 +147,7 @@ SPRING = {"reference_position": 0.002, "coefficients": [-40.0, 300.0, -2.0e4]}
 
 
 def test_position_kernels_match_python_step():
-    from controllers.position_control import BallScrewPositionController, PositionController
+    from drillcosim.controllers.position_control import BallScrewPositionController, PositionController
 
     def inputs():
         for k in range(8000):
@@ -159,7 +159,7 @@ def test_position_kernels_match_python_step():
 
 
 def test_force_control_kernel_matches_python_step():
-    from controllers.force_control import ThrustForceController
+    from drillcosim.controllers.force_control import ThrustForceController
 
     def inputs():                         # contact at 0.1 s, exit (thrust lost) at 0.5 s
         for k in range(9000):
@@ -173,7 +173,7 @@ def test_force_control_kernel_matches_python_step():
 
 
 def test_keio_observer_kernel_matches_python_step():
-    from controllers.keio_observer import CuttingForceObserver
+    from drillcosim.controllers.keio_observer import CuttingForceObserver
 
     def inputs():
         for k in range(8000):
@@ -188,8 +188,8 @@ def test_keio_observer_kernel_matches_python_step():
 
 def test_position_force_kernels_are_bit_identical_to_python():
     """The position force is Horner's rule in the same order in C and Python: equal doubles."""
-    from controllers.force_control import ThrustForceController
-    from controllers.keio_observer import CuttingForceObserver
+    from drillcosim.controllers.force_control import ThrustForceController
+    from drillcosim.controllers.keio_observer import CuttingForceObserver
     for make, u_of in ((lambda: CuttingForceObserver(F_coulomb=8.0, F_grav_comp=0.7, position_force=SPRING),
                         lambda t: (2.0 + math.sin(50 * t), _encoder(t))),
                        (lambda: ThrustForceController(F_bias=0.7, z_contact_min=0.0, position_force=SPRING),
@@ -209,7 +209,7 @@ def test_kernel_groups_keep_the_order_of_connected_blocks():
     """Group members become adjacent only by moving blocks connected to none of the
     members they pass; a Python block stays where it was."""
     from types import SimpleNamespace as NS
-    from cosim import kernel_group
+    from drillcosim.cosim.loop import kernel_group
 
     class K:
         def __init__(self, kernel=True):
@@ -233,9 +233,9 @@ def test_grouped_scenario_gives_the_python_blocks_results(tmp_path):
     and the Python reference steps record the same doubles."""
     from pathlib import Path
 
-    from cosim.algorithm import simulate
-    from cosim.recorder import Recorder
-    from cosim.runner import load
+    from drillcosim.cosim.loop.algorithm import simulate
+    from drillcosim.cosim.loop.recorder import Recorder
+    from drillcosim.cosim.runs.runner import load
     path = Path(__file__).resolve().parent.parent / "scenarios" / "keio_fig7_aluminium_force_control.toml"
     results = []
     for kernel in ("auto", "python"):
@@ -251,14 +251,14 @@ def test_grouped_scenario_gives_the_python_blocks_results(tmp_path):
     for s in p.signals:
         assert np.array_equal(c[s], p[s], equal_nan=True), s
     # the CSV reads back to the same doubles (format_chunk)
-    from cosim.recorder import Result
+    from drillcosim.cosim.loop.recorder import Result
     back = Result.from_csv(tmp_path / "auto" / "data.csv")
     for s in c.signals:
         assert np.array_equal(back[s], c[s], equal_nan=True), s
 
 
 def test_csv_chunk_text_reads_back_bit_for_bit():
-    from cosim.recorder import format_chunk
+    from drillcosim.cosim.loop.recorder import format_chunk
     rng = np.random.default_rng(3)
     v = rng.standard_normal(4000) * 10.0 ** rng.integers(-300, 300, 4000)
     v[::7] = np.nan
@@ -272,8 +272,8 @@ def test_csv_chunk_text_reads_back_bit_for_bit():
 
 
 def test_condition_check_is_the_loops_comparison():
-    from cosim.algorithm import _any_fires
-    from cosim.manipulators import OPERATORS
+    from drillcosim.cosim.loop.algorithm import _any_fires
+    from drillcosim.cosim.loop.manipulators import OPERATORS
     bus = [0.0, 2.5, -1.0]
     for text, op in OPERATORS.items():
         for i, s, o, number in ((1, 1.0, 0.0, 2.5), (2, -2.0, 0.5, 2.5), (0, 1.0, 0.0, 1.0)):
@@ -283,7 +283,7 @@ def test_condition_check_is_the_loops_comparison():
 
 
 def test_velocity_segments_kernel_matches_python_step():
-    from controllers.friction import VelocitySegments
+    from drillcosim.controllers.friction import VelocitySegments
 
     def inputs():                         # before the start, every ramp and hold, after the end
         for k in range(0, 140000, 7):

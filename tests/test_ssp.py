@@ -18,13 +18,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim.algorithm import run
-from cosim.errors import ScenarioError
-from cosim.export_fmu import ExportError
-from cosim.recorder import Recorder
-from cosim.scenario import load_scenario
-from cosim.ssp.reader import SSPError
-from cosim.ssp.writer import export_ssp
+from drillcosim.cosim.loop.algorithm import run
+from drillcosim.cosim.errors import ScenarioError
+from drillcosim.cosim.fmi.export_fmu import ExportError
+from drillcosim.cosim.loop.recorder import Recorder
+from drillcosim.cosim.scenario.loader import load_scenario
+from drillcosim.cosim.ssp.reader import SSPError
+from drillcosim.cosim.ssp.writer import export_ssp
 
 ROOT = Path(__file__).resolve().parents[1]
 THIRD = ROOT / "tests" / "third_party" / "ssp"
@@ -97,7 +97,7 @@ def test_fig7_ssp_whole_run_in_libcosim(fig7_ssp):
 
 
 def test_fig7_ssp_runs_in_drillcosim_with_its_record_list(fig7_ssp, tmp_path):
-    from cosim.runner import run_scenario
+    from drillcosim.cosim.runs.runner import run_scenario
     res = run_scenario(fig7_ssp, out_dir=tmp_path / "r", progress=False)
     s = res.summary
     assert s["status"] == "completed" and s["steps"] == 30000 and s["steps_in_c"] == 30000
@@ -210,13 +210,13 @@ def test_export_ssp_lists_what_it_leaves_out(tmp_path):
 def test_cli_runs_another_tools_package_and_refuses_a_python_block(tmp_path, capsys):
     import json
 
-    from cosim.cli import main
+    from drillcosim.cli import main
     ssd = THIRD / "omsimulator_linear_transformation" / "SystemStructure.ssd"
     assert main(["run", str(ssd), "--out", str(tmp_path / "r"), "--quiet"]) == 0       # supervised, as a TOML
     s = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert s["status"] == "completed" and s["scenario"] == "omsimulator_linear_transformation"
     assert main(["export-fmu", "fang_table5_hole", "detector", "--out", str(tmp_path / "f")]) == 2
-    assert "block 'detector' (controllers.interface_detector:InterfaceDetector) has no C step" in capsys.readouterr().err
+    assert "block 'detector' (drillcosim.controllers.interface_detector:InterfaceDetector) has no C step" in capsys.readouterr().err
 
 
 def test_supervised_ssp_run_from_a_threaded_process(tmp_path):
@@ -224,7 +224,7 @@ def test_supervised_ssp_run_from_a_threaded_process(tmp_path):
     reads only the facts a summary needs: an SSD is not TOML, so it is loaded by its reader."""
     import threading
 
-    from cosim.cli import main
+    from drillcosim.cli import main
     hold = threading.Event()
     t = threading.Thread(target=hold.wait, args=(30,))
     t.start()

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from analysis.detector_scoring import run_block_on_trace
-from controllers.adaptation import CuttingParameterAdaptation
-from controllers.interface_detector import InterfaceDetector
-from cosim.errors import ScenarioError
-from cosim.scenario import load_scenario
+from drillcosim.analysis.detector_scoring import run_block_on_trace
+from drillcosim.controllers.adaptation import CuttingParameterAdaptation
+from drillcosim.controllers.interface_detector import InterfaceDetector
+from drillcosim.cosim.errors import ScenarioError
+from drillcosim.cosim.scenario.loader import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 STACKS = ROOT / "scenarios" / "stacks"
@@ -98,7 +98,7 @@ def test_plan_derives_trajectory_detector_adaptation_stop_time():
     assert ad["fail_parameters"] == pytest.approx({"feed_rate": 1e-4, "spindle_speed": 1000.0, "orbital_speed": 60.0})
     # stop: the wait + the whole travel at 6 mm/min + 5 s
     assert sc.stop_time == pytest.approx(0.5 + (traj["z_end"] - 0.0) / 1e-4 + 5.0)
-    assert any(s[0] == "analysis.detector_scoring:score_stack" for s in sc.scores)
+    assert any(s[0] == "drillcosim.analysis.detector_scoring:score_stack" for s in sc.scores)
 
 
 # ------------------------------------------------------------------ n-layer detector
@@ -202,7 +202,7 @@ def test_fail_holds_conservative_set_never_another_material(action, retract):
 def test_incomplete_hole_fails_the_cli(tmp_path):
     """The true CFRP is 1.5 mm thicker than the plan's 2 +- 0.2 mm: the interface window closes,
     the fail-safe retracts, the exit is never found: status incomplete, exit code non-zero."""
-    from cosim.cli import main
+    from drillcosim.cli import main
     sets = ["hole.layers[0].thickness=2.0e-3", "hole.layers[0].tolerance=0.2e-3",
             "hole.layers[1].thickness=1.5e-3", "hole.layers[1].tolerance=0.1e-3",   # room for the windows
             "hole.fail_action=\"retract\"", "hole.process.cfrp.feed_rate=4e-4",
@@ -222,7 +222,7 @@ def test_incomplete_hole_fails_the_cli(tmp_path):
 # ------------------------------------------------------------------ Monte Carlo
 def test_montecarlo_short():
     """Two drawn holes (the full >= 200-hole campaign is test_montecarlo_full, long)."""
-    from analysis import stack_montecarlo as mc
+    from drillcosim.analysis import stack_montecarlo as mc
     jobs = mc.draw_campaign(2, seed=5, types=("cfrp_al_ti", "ti_cfrp"), feed_range=(16.0, 24.0))
     rows = mc.run_campaign(jobs, workers=2, progress=False)
     s = mc.summarize(rows)
@@ -235,7 +235,7 @@ def test_montecarlo_short():
 
 @pytest.mark.long
 def test_montecarlo_full():
-    from analysis import stack_montecarlo as mc
+    from drillcosim.analysis import stack_montecarlo as mc
     rows = mc.run_campaign(mc.draw_campaign(200), workers=2, progress=False)
     assert mc.summarize(rows)["all"]["meets_bars"], mc.table_markdown(mc.summarize(rows))
 
@@ -243,7 +243,7 @@ def test_montecarlo_full():
 def test_montecarlo_wide_draw_and_refusals():
     """Issue 23's draw: 1-4 layers, no equal neighbours, per-material processes in range;
     a plan the loader refuses is redrawn and counted, every drawn plan loads."""
-    from analysis import stack_montecarlo as mc
+    from drillcosim.analysis import stack_montecarlo as mc
     jobs, refused = mc.draw_wide_campaign(30, seed=3)
     base = mc.plan_of("cfrp_ti")
     for _i, stack, ov in jobs:
@@ -262,7 +262,7 @@ def test_montecarlo_wide_draw_and_refusals():
 def test_montecarlo_wide_short():
     """Two holes of the wide draw on the project's drive (the >= 200-hole run per plant is
     test_montecarlo_wide_full, long): every event found is located, within the bars."""
-    from analysis import stack_montecarlo as mc
+    from drillcosim.analysis import stack_montecarlo as mc
     jobs, refused = mc.draw_wide_campaign(2, seed=5)
     rows = mc.run_campaign(jobs, workers=1, progress=False, base=STACKS / mc.PLANTS["project"])
     s = mc.summarize_wide(rows, refused)
@@ -275,7 +275,7 @@ def test_montecarlo_wide_short():
 @pytest.mark.long
 @pytest.mark.parametrize("plant", ["project", "foreign_ballscrew"])
 def test_montecarlo_wide_full(plant):
-    from analysis import stack_montecarlo as mc
+    from drillcosim.analysis import stack_montecarlo as mc
     jobs, refused = mc.draw_wide_campaign(200, seed=23, plant=plant)
     s = mc.summarize_wide(mc.run_campaign(jobs, workers=2, progress=False, base=STACKS / mc.PLANTS[plant]), refused)
     assert s["refused_share"] < 0.05 and s["meets_bars"], mc.table_wide_markdown({plant: s})

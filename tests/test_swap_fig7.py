@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim import run_scenario
-from cosim.validate import compare_signal
+from drillcosim.cosim import run_scenario
+from drillcosim.cosim.runs.validate import compare_signal
 from tests.third_party import swap
 
 ABS_TOL, REL_TOL, DX = 0.5, 0.01, 1e-3
@@ -35,7 +35,7 @@ STEADY_MAX, MEAN_MAX = 0.1, 0.05
 
 @pytest.fixture(scope="module")
 def c_run(tmp_path_factory):
-    from cosim.slave import resolve_fmu_path
+    from drillcosim.cosim.fmi.slave import resolve_fmu_path
     try:
         resolve_fmu_path("LinearStage")
     except Exception as e:
@@ -111,7 +111,7 @@ def test_fig7_pythonfmu_cosimulation(c_run, pythonfmu_fmu, tmp_path):
 def test_swap_without_scale_is_refused_for_undeclared_mismatch(casadi_fmu, tmp_path):
     """mm -> m is converted from the declared units; a dimension mismatch is an error
     naming the connection (here: the FMU's position in mm into the current input)."""
-    from cosim.errors import ScenarioError
+    from drillcosim.cosim.errors import ScenarioError
     ov = swap.swap_overrides("casadi", casadi_fmu)
     ov["connections"] = ov["connections"] + [{"from": "stage.position_mm", "to": "observer.i_ref"}]
     ov["connections"] = [c for c in ov["connections"]

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cosim.block import Block, Port
+from drillcosim.cosim.loop.block import Block, Port
 
 H = 1e-4            # s
 N = 3000            # steps (0.3 s): approach, contact with the aluminium plate, retract
@@ -45,17 +45,17 @@ class Profile(Block):
 
 @pytest.fixture(scope="module")
 def fmu_path():
-    from cosim.slave import resolve_fmu_path
+    from drillcosim.cosim.fmi.slave import resolve_fmu_path
     try:
         return resolve_fmu_path("LinearStage")
     except Exception as e:
-        pytest.skip(f"C LinearStage FMU not available (build it with `python -m fmus.build`): {e}")
+        pytest.skip(f"C LinearStage FMU not available (build it with `python -m drillcosim.fmus.build`): {e}")
 
 
 def run_ours(path):
-    from cosim.algorithm import run
-    from cosim.recorder import Recorder
-    from cosim.system import System
+    from drillcosim.cosim.loop.algorithm import run
+    from drillcosim.cosim.loop.recorder import Recorder
+    from drillcosim.cosim.loop.system import System
     s = System(step_size=H)
     s.add_fmu("stage", path, PARAMS)
     s.add_block("profile", Profile())

@@ -11,9 +11,9 @@ import math
 
 import pytest
 
-from cosim.errors import CosimError
-from cosim.model_exchange import ModelExchangeSlave, create_slave, fmu_kinds
-from cosim.slave import FMUSlave
+from drillcosim.cosim.errors import CosimError
+from drillcosim.cosim.fmi.model_exchange import ModelExchangeSlave, create_slave, fmu_kinds
+from drillcosim.cosim.fmi.slave import FMUSlave
 
 G1, G2, E, T_SWITCH = 9.81, 3.0, 0.8, 0.5
 

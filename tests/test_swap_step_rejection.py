@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import pytest
 
-from cosim.errors import SimulationError
-from cosim.slave import FMUSlave
-from cosim.step_rejection import StepRejectedError, StepRejection, member_for
+from drillcosim.cosim.errors import SimulationError
+from drillcosim.cosim.fmi.slave import FMUSlave
+from drillcosim.cosim.loop.step_rejection import StepRejectedError, StepRejection, member_for
 
 H = 0.1          # communication step [s]
 N = 10
@@ -110,8 +110,8 @@ def test_bare_fmpy_slave(cs_fmu):
                     modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bare")
     # fmpy's default FMI 2.0 callbacks share fmpy's one native logger pointer with every
     # other FMI 2.0 instance of the process; give this one the dispatcher (see
-    # cosim.model_exchange.fmi2_callbacks) so that its Discard message is kept
-    from cosim.model_exchange import fmi2_callbacks
+    # drillcosim.cosim.fmi.model_exchange.fmi2_callbacks) so that its Discard message is kept
+    from drillcosim.cosim.fmi.model_exchange import fmi2_callbacks
 
     class Log:
         messages = []

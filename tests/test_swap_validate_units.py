@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from cosim import validate
-from cosim.units import UnitDef, UnitError, connection_conversion, conversion, resolve_unit
+from drillcosim.cosim.runs import validate
+from drillcosim.cosim.fmi.units import UnitDef, UnitError, connection_conversion, conversion, resolve_unit
 
 
 # ----------------------------------------------------------------------------- validate
@@ -139,7 +139,7 @@ def test_unit_declared_without_base_unit_is_not_dimensionless():
     """Regression: a bare <Unit name="m/s"/> was taken as dimensionless with factor 1, so
     m/s -> m passed as identity. Declared without definition, the table of known names
     decides (strict: refused)."""
-    from cosim.connections import unit_conversion
+    from drillcosim.cosim.loop.connections import unit_conversion
     md = _BareMD("m/s", "mm/s", "furlong")
     assert UnitDef.from_fmpy(md.unitDefinitions[0]) is None
     assert resolve_unit("m/s", [md]) == resolve_unit("m/s")            # the builtin definition
@@ -162,7 +162,7 @@ def test_unit_declared_without_base_unit_is_not_dimensionless():
 
 def test_plant_fmu_units_convert(tmp_path):
     """The project's own plant declares rpm through a BaseUnit: rpm -> rad/s from it."""
-    from cosim.slave import resolve_fmu_path
+    from drillcosim.cosim.fmi.slave import resolve_fmu_path
     try:
         import fmpy
         md = fmpy.read_model_description(str(resolve_fmu_path("LinearStage")))

@@ -35,5 +35,5 @@ def test_wheel_has_sources_not_build_products(tmp_path):
     assert not [n for n in names if n.startswith("fmus/build/")], "build products in the wheel"
     for need in ("fmus/build.py", "fmus/LinearStage/LinearStage.c", "fmus/common/fmi2_frame.c",
                  "fmus/foreign/ForeignZStage/ForeignZStage.c", "fmus/foreign/ForeignZStage/README.md",
-                 "cosim/native/fused_steps.c", "controllers/kernels/drive_control.c", "cosim/input_file.py"):
+                 "cosim/loop/native/fused_steps.c", "controllers/kernels/drive_control.c", "cosim/blocks/input_file.py"):
         assert need in names, need

@@ -3,25 +3,25 @@
 A kernel is one C file here with the same arithmetic as its block's Python step (the
 Python stays as the readable reference; tests compare the two). :func:`library` builds
 the shared library when it is missing or older than its source and loads it with ctypes
-(:mod:`cosim.native`: compiler, flags, when it is built). The master runs a block's
+(:mod:`drillcosim.cosim.loop.native`: compiler, flags, when it is built). The master runs a block's
 kernel through ``c_kernel`` (:class:`Kernel`): alone, in a group of C blocks, or in whole
-C steps (cosim/kernel_group.py, cosim/fused.py).
+C steps (cosim/loop/kernel_group.py, cosim/loop/fused.py).
 """
 from __future__ import annotations
 
 import ctypes
 from pathlib import Path
 
-from cosim.native import NativeUnavailable as KernelUnavailable
-from cosim.native import build as _build
-from cosim.native import load
+from drillcosim.cosim.loop.native import NativeUnavailable as KernelUnavailable
+from drillcosim.cosim.loop.native import build as _build
+from drillcosim.cosim.loop.native import load
 
 HERE = Path(__file__).resolve().parent
 KERNELS = ("fang_observer", "drive_control", "adaptation")
 
 
 def build(name: str, force: bool = False, verbose: bool = False) -> Path:
-    """Compile kernel ``name`` (``<name>.c`` here) when stale; see :mod:`cosim.native`."""
+    """Compile kernel ``name`` (``<name>.c`` here) when stale; see :mod:`drillcosim.cosim.loop.native`."""
     return _build(HERE / f"{name}.c", force=force, verbose=verbose)
 
 
@@ -42,13 +42,13 @@ class Kernel:
     """One block's per-sample C step on its own state struct.
 
     ``step(t, u)`` runs one sample (it becomes the block's ``step``); for the master's
-    groups (cosim/kernel_group.py) ``address`` is the C function
+    groups (cosim/loop/kernel_group.py) ``address`` is the C function
     ``void f(state *, double t, const double *u, double *y)`` and ``state_address`` its state."""
 
     def __init__(self, lib_name: str, fn_name: str, state, n_in: int, n_out: int):
         fn = getattr(library(lib_name), fn_name)
         fn.argtypes, fn.restype = [_P, _D, _P, _P], None
-        self.source, self.function = HERE / f"{lib_name}.c", fn_name   # for export-fmu (cosim/export_fmu.py)
+        self.source, self.function = HERE / f"{lib_name}.c", fn_name   # for export-fmu (cosim/fmi/export_fmu.py)
         self.state = state
         self.n_in, self.n_out = n_in, n_out
         self.address = ctypes.cast(fn, _P).value
@@ -76,7 +76,7 @@ class KernelBlock:
     kernel = "auto"
     c_kernel = None
     c_step: tuple | None = None
-    # for ``drillcosim export-fmu`` (cosim/export_fmu.py): the struct fields that are the
+    # for ``drillcosim export-fmu`` (cosim/fmi/export_fmu.py): the struct fields that are the
     # block's constants (field or array name -> unit, or (unit, description)); they become
     # the FMU's parameters, every other field is state. Settings the block reads from a
     # file *during the run* (none of the shipped blocks: their files are read by the

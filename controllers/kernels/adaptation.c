@@ -1,4 +1,4 @@
-/* One sample of controllers.adaptation.CuttingParameterAdaptation and OneStepDelay, in C
+/* One sample of drillcosim.controllers.adaptation.CuttingParameterAdaptation and OneStepDelay, in C
  * (issue #21).
  *
  * The same arithmetic as the Python steps, operation for operation (compiled with

@@ -1,9 +1,9 @@
 /* One sample of the Keio / ball-screw drive blocks, in C (issue #15):
  *
- *   trajectory_step      controllers.trajectory.FeedTrajectory.step
- *   position_step        controllers.position_control.PositionController.step
- *   force_control_step   controllers.force_control.ThrustForceController.step
- *   keio_observer_step   controllers.keio_observer.CuttingForceObserver.step
+ *   trajectory_step      drillcosim.controllers.trajectory.FeedTrajectory.step
+ *   position_step        drillcosim.controllers.position_control.PositionController.step
+ *   force_control_step   drillcosim.controllers.force_control.ThrustForceController.step
+ *   keio_observer_step   drillcosim.controllers.keio_observer.CuttingForceObserver.step
  *
  * The same arithmetic as the Python steps, operation for operation (compiled with
  * -ffp-contract=off: no fused multiply-adds), so both give the same doubles; the Python
@@ -21,7 +21,7 @@
 
 /* ---------------------------------------------------------------- shared pieces */
 
-/* controllers.trajectory.profile_step */
+/* drillcosim.controllers.trajectory.profile_step */
 static void profile_step(double z, double v, double z_target, double v_max, double a_max,
                          double dt, double v_next, double *z_o, double *v_o, double *a_o)
 {
@@ -44,7 +44,7 @@ static void profile_step(double z, double v, double z_target, double v_max, doub
     *a_o = a;
 }
 
-/* controllers.position_force: a static force that changes with the stroke (a spring-type
+/* drillcosim.controllers.position_force: a static force that changes with the stroke (a spring-type
  * gravity compensator), F0 + sum_k c[k-1] (z - z0)^k by Horner in the Python order; with no
  * terms F0 itself, so a drive without one computes exactly what it did before */
 #define POSITION_FORCE_TERMS 6          /* controllers/position_force.py MAX_TERMS */
@@ -61,7 +61,7 @@ static double static_force(double F0, double n, double z0, const double *c, doub
     return F0 + acc * y;
 }
 
-/* controllers.position_control.RobustAcceleration */
+/* drillcosim.controllers.position_control.RobustAcceleration */
 typedef struct {
     double M, Kt, g_dob, g_vel, i_max, F_bias, dt0;
     double has_prev, z_prev, t_prev, v, a, F_dis, i, i_unsat, dt;
@@ -105,14 +105,14 @@ static double robust_current(Robust *c, double a_ref)
     return c->i;
 }
 
-/* controllers.position_control.pd_feedforward */
+/* drillcosim.controllers.position_control.pd_feedforward */
 static double pd_feedforward(double Kp, double Kv, double z_ref, double z, double v_ff,
                              double v_hat, double a_ff)
 {
     return a_ff + Kv * (Kp * (z_ref - z) + v_ff - v_hat);
 }
 
-/* controllers.friction.FrictionModel.force and .position_ripple */
+/* drillcosim.controllers.friction.FrictionModel.force and .position_ripple */
 typedef struct {
     double coulomb, viscous, stribeck, v_stribeck, exponent, v_eps;
     double n_ripple, ripple[3 * MAX_RIPPLE];      /* rows [k, a_sin, a_cos] */
@@ -231,7 +231,7 @@ typedef struct {
     Robust core;
 } Force;
 
-/* controllers.force_control.held_for: 1 once `cond` has held for `duration` s */
+/* drillcosim.controllers.force_control.held_for: 1 once `cond` has held for `duration` s */
 static int held_for(int cond, double t, double *has_since, double *since, double duration)
 {
     if (!cond) {
@@ -370,7 +370,7 @@ typedef struct {
     double ph[6 * MAX_PHASES];    /* rows [t0, duration, a, v0, z0, segment] */
 } Segments;
 
-/* controllers.friction.VelocitySegments.step: no inputs; y: z_ref, v_ref, a_ref, segment */
+/* drillcosim.controllers.friction.VelocitySegments.step: no inputs; y: z_ref, v_ref, a_ref, segment */
 void segments_step(Segments *s, double t, const double *u, double *y)
 {
     (void)u;

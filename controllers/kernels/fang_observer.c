@@ -1,4 +1,4 @@
-/* One sample of controllers.fang_observer.AdaptiveThrustObserver, in C (issue #15).
+/* One sample of drillcosim.controllers.fang_observer.AdaptiveThrustObserver, in C (issue #15).
  *
  * The same arithmetic as the Python step (AdaptiveThrustObserver._step_python), in the
  * same order, so that both give the same doubles (compiled with -ffp-contract=off:

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import ctypes
 
-from controllers.position_force import MAX_TERMS as MAX_PF      # drive_control.c POSITION_FORCE_TERMS
+from drillcosim.controllers.position_force import MAX_TERMS as MAX_PF      # drive_control.c POSITION_FORCE_TERMS
 
 _D = ctypes.c_double
 MAX_RIPPLE = 8          # rows of a friction ripple the C side holds (drive_control.c)
@@ -64,7 +64,7 @@ def fill(struct, **values) -> None:
 
 
 def fill_robust(c: Robust, core) -> None:
-    """controllers.position_control.RobustAcceleration -> its struct (settings and state)."""
+    """drillcosim.controllers.position_control.RobustAcceleration -> its struct (settings and state)."""
     fill(c, M=core.M, Kt=core.Kt, g_dob=core.g_dob, g_vel=core.g_vel, i_max=core.i_max, F_bias=core.F_bias,
          dt0=core.dt0, has_prev=core.z_prev is not None, z_prev=core.z_prev, t_prev=core.t_prev, v=core.v,
          a=core.a, F_dis=core.F_dis, i=core.i, i_unsat=core.i_unsat, dt=core.dt,
@@ -82,7 +82,7 @@ def fill_position_force(c, z0: float, coeffs) -> None:
 
 
 def fill_friction(f: Friction, model) -> bool:
-    """controllers.friction.FrictionModel -> its struct; False when C cannot hold it."""
+    """drillcosim.controllers.friction.FrictionModel -> its struct; False when C cannot hold it."""
     if len(model.ripple) > MAX_RIPPLE:
         return False
     fill(f, coulomb=model.coulomb, viscous=model.viscous, stribeck=model.stribeck, v_stribeck=model.v_stribeck,

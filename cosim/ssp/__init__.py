@@ -1,12 +1,12 @@
 """SSP 1.0 (System Structure and Parameterization): scenarios out, other tools' systems in.
 
-* :func:`cosim.ssp.writer.export_ssp` (``drillcosim export-ssp``): a scenario as an SSP
+* :func:`drillcosim.cosim.ssp.writer.export_ssp` (``drillcosim export-ssp``): a scenario as an SSP
   package -- ``SystemStructure.ssd``, the plant FMUs and the exported block FMUs in
   ``resources/``, parameter values in SSV files, connections with their unit conversion
   as ``ssc:LinearTransformation``; what SSP cannot say is refused or listed;
-* :func:`cosim.ssp.reader.load_ssp` (``drillcosim run X.ssp``): an SSP package written by
+* :func:`drillcosim.cosim.ssp.reader.load_ssp` (``drillcosim run X.ssp``): an SSP package written by
   another tool, validated against the SSP schema (``schema/``), translated into the same
-  :class:`cosim.scenario.Scenario` a TOML file gives, so it runs with the same
+  :class:`drillcosim.cosim.scenario.build.Scenario` a TOML file gives, so it runs with the same
   supervision, recording and summary.
 
 The SSP 1.0 XSDs in ``schema/`` (and the SSP 2.0 ones in ``schema/2.0/``, for SSDs that

@@ -2,7 +2,7 @@
 
 The SSD is validated against the SSP schema of the version it declares (``schema/``: 1.0;
 ``schema/2.0/`` for an SSD that says version 2.0), then translated into the raw scenario
-dict a TOML file gives and built by :func:`cosim.scenario.build`, so the run has the same
+dict a TOML file gives and built by :func:`drillcosim.cosim.scenario.build.build`, so the run has the same
 checks, supervision, recording (every output, ``record = ["*"]``, unless the package
 was written by ``export-ssp``, whose annotation keeps the scenario's list) and summary.
 
@@ -24,9 +24,9 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from ..errors import ScenarioError
-from ..units import UnitDef, UnitError, conversion
-from . import DRILLCOSIM_NS, NS
+from drillcosim.cosim.errors import ScenarioError
+from drillcosim.cosim.fmi.units import UnitDef, UnitError, conversion
+from drillcosim.cosim.ssp import DRILLCOSIM_NS, NS
 
 HERE = Path(__file__).resolve().parent
 DEFAULT_STEP = None
@@ -232,9 +232,10 @@ def ssp_raw(path) -> dict:
 
 
 def load_ssp(path, overrides: dict | None = None):
-    """SSP package ``path`` as a :class:`cosim.scenario.Scenario` (``overrides``: dotted keys
+    """SSP package ``path`` as a :class:`drillcosim.cosim.scenario.build.Scenario` (``overrides``: dotted keys
     as for a TOML scenario, e.g. ``scenario.step_size``)."""
-    from ..scenario import apply_overrides, build
+    from drillcosim.cosim.scenario.files import apply_overrides
+    from drillcosim.cosim.scenario.build import build
     path = Path(path)
     raw = apply_overrides(ssp_raw(path), overrides, str(path))
     name = path.parent.resolve().name if path.name == "SystemStructure.ssd" else path.stem

@@ -1,7 +1,7 @@
 """``drillcosim export-ssp SCENARIO --out X.ssp``: a scenario as an SSP 1.0 package.
 
 * every FMU of the scenario is a component (its .fmu copied to ``resources/``), every block
-  with a C step is exported as an FMU (:mod:`cosim.export_fmu`) and is a component too;
+  with a C step is exported as an FMU (:mod:`drillcosim.cosim.fmi.export_fmu`) and is a component too;
 * parameter values (the scenario's, a plant binding's) go to ``resources/<instance>.ssv``,
   bound to the component;
 * each connection is an ``ssd:Connection``; a unit conversion or a stated scale/offset
@@ -24,9 +24,9 @@ import zipfile
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
-from ..export_fmu import ExportError, _xml_num, describe_block, has_c_step, write_fmu
-from ..units import BUILTIN_UNITS
-from . import DRILLCOSIM_NS, NS
+from drillcosim.cosim.fmi.export_fmu import ExportError, _xml_num, describe_block, has_c_step, write_fmu
+from drillcosim.cosim.fmi.units import BUILTIN_UNITS
+from drillcosim.cosim.ssp import DRILLCOSIM_NS, NS
 
 
 def _split(wire: str) -> tuple[str, str]:
@@ -174,7 +174,7 @@ def ssd_text(sc, models: dict, parameters: dict, conns, missing) -> str:
 def export_ssp(sc, out, fmi: int = 2, allow_missing: bool = False) -> tuple[Path, list]:
     """Write scenario ``sc`` (a loaded Scenario) as the SSP package ``out``; returns (path,
     not-carried list). Block FMUs are FMI ``fmi`` (2.0 by default: what libcosim runs)."""
-    from ..slave import load_model
+    from drillcosim.cosim.fmi.slave import load_model
     c_blocks, missing = _not_carried(sc, allow_missing)
     exports = [describe_block(sc, n) for n in c_blocks]      # all checked before anything is built
     kept = set(sc.system.slaves) | set(c_blocks)

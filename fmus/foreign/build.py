@@ -1,10 +1,10 @@
-"""Build the foreign-plant FMUs (issue 10 fixture): ``python -m fmus.foreign.build [--force]``.
+"""Build the foreign-plant FMUs (issue 10 fixture): ``python -m drillcosim.fmus.foreign.build [--force]``.
 
 Each ``fmus/foreign/<Name>/`` holds a hand-written FMI 3.0 co-simulation model:
 ``<Name>.c`` + ``modelDescription.xml``; both share ``fglue.c`` (the FMI 3.0 API) and
 ``cut.c`` (drill and stack), and nothing of ``fmus/common``. Compiled against the FMI 3.0
 headers shipped with fmpy and packed as ``fmus/build/<Name>.fmu``; skipped when the .fmu is
-newer than every input. ``python -m fmus.build`` builds them too.
+newer than every input. ``python -m drillcosim.fmus.build`` builds them too.
 """
 from __future__ import annotations
 
@@ -51,7 +51,7 @@ def build_description(name: str, sources: list[Path]) -> str:
 def compile_library(name: str, lib: Path, sources: list[Path], include_dirs: list[Path], defines=()) -> str:
     """Compile ``sources`` into the shared library ``lib`` against fmpy's FMI headers and
     ``include_dirs`` (fmus/foreign2 too); raises RuntimeError on failure, returns the warnings."""
-    from fmus.build_tools import fmi_include as _fmi_include
+    from drillcosim.cosim.fmi.build_tools import fmi_include as _fmi_include
     cmd = [os.environ.get("CC", "gcc"), "-O2", "-shared", "-fPIC", "-std=gnu11", "-Wall", "-Wextra",
            "-Wno-unused-parameter", f"-I{_fmi_include()}"] + [f"-I{d}" for d in include_dirs] + ["-o", str(lib)]
     cmd += list(defines) + [str(s) for s in sources] + ["-lm"]
@@ -74,7 +74,7 @@ def cli(argv, prog: str, doc: str, names, build_one) -> int:
 
 
 def _fmu_file(name: str) -> Path:
-    from fmus.build_tools import BUILD_DIR
+    from drillcosim.fmus import BUILD_DIR
     return BUILD_DIR / f"{name}.fmu"
 
 
@@ -115,7 +115,8 @@ def build(name: str, force: bool = False, verbose: bool = True, si_twin_dir: Pat
     """Build one foreign FMU if stale (or ``force``); returns the .fmu path."""
     _check(name)
     import fmpy
-    from fmus.build_tools import BUILD_DIR, BuildLock as _Lock, keep as _keep
+    from drillcosim.cosim.fmi.build_tools import BuildLock as _Lock, keep as _keep
+    from drillcosim.fmus import BUILD_DIR
     with _Lock(BUILD_DIR / ".lock"):
         fmu = _fmu_file(name) if si_twin_dir is None else si_twin_dir / f"{name}SI.fmu"
         if _keep(name, fmu, force, verbose, lambda: _up_to_date(name)):
@@ -155,7 +156,7 @@ def fmu_path(name: str) -> Path:
 
 
 def main(argv=None) -> int:
-    return cli(argv, "python -m fmus.foreign.build", __doc__, FOREIGN, build)
+    return cli(argv, "python -m drillcosim.fmus.foreign.build", __doc__, FOREIGN, build)
 
 
 if __name__ == "__main__":

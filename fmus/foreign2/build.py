@@ -1,12 +1,12 @@
-"""Build the second foreign-plant pair (issue 20): ``python -m fmus.foreign2.build [--force] [name ...]``.
+"""Build the second foreign-plant pair (issue 20): ``python -m drillcosim.fmus.foreign2.build [--force] [name ...]``.
 
 ``fmus/foreign2/<Name>/<Name>.c`` is a plant model over its own FMI glue: ``f2core.c`` with
 ``f2fmi2.c`` (FMI 2.0 CS, Foreign2ZStage) or ``f2fmi3.c`` (FMI 3.0 CS, Foreign2BallScrew), and
 ``f2stack.c`` (drill and stack) and ``f2drive.c`` (amplifier, friction, sub-steps); nothing of ``fmus/common`` or ``fmus/foreign``. Their
-variables are one table each (:mod:`fmus.foreign2.variables`), from which this writes
+variables are one table each (:mod:`drillcosim.fmus.foreign2.variables`), from which this writes
 ``<Name>/modelDescription.xml`` and ``<Name>/<Name>_vars.h`` (only when their content changes),
 compiles against the FMI headers shipped with fmpy and packs ``fmus/build/<Name>.fmu``;
-skipped when the .fmu is newer than every input. ``python -m fmus.build`` builds them too.
+skipped when the .fmu is newer than every input. ``python -m drillcosim.fmus.build`` builds them too.
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import zipfile
 from pathlib import Path
 from xml.sax.saxutils import escape, quoteattr
 
-from .variables import PLANTS, UNITS
+from drillcosim.fmus.foreign2.variables import PLANTS, UNITS
 
 HERE = Path(__file__).resolve().parent
 GLUE = {2: "f2fmi2.c", 3: "f2fmi3.c"}
@@ -136,7 +136,7 @@ def vars_header(name: str) -> str:
 
 
 def generate(name: str) -> None:
-    from fmus.build_tools import write_if_changed as _write_if_changed
+    from drillcosim.cosim.fmi.build_tools import write_if_changed as _write_if_changed
     _check(name)
     _write_if_changed(HERE / name / "modelDescription.xml", model_description(name))
     _write_if_changed(HERE / name / f"{name}_vars.h", vars_header(name))
@@ -157,7 +157,7 @@ def _inputs(name: str) -> list[Path]:
 
 
 def _fmu_file(name: str) -> Path:
-    from fmus.build_tools import BUILD_DIR
+    from drillcosim.fmus import BUILD_DIR
     return BUILD_DIR / f"{name}.fmu"
 
 
@@ -169,8 +169,12 @@ def _up_to_date(name: str) -> bool:
 def build(name: str, force: bool = False, verbose: bool = True) -> Path:
     """Build one foreign2 FMU if stale (or ``force``); returns the .fmu path."""
     _check(name)
-    from fmus.build_tools import BUILD_DIR, BuildLock as _Lock, keep as _keep, platform as _platform
-    from fmus.foreign.build import build_description, compile_library
+    from drillcosim.fmus import BUILD_DIR
+    from drillcosim.cosim.fmi.build_tools import (
+        BuildLock as _Lock,
+        keep as _keep,
+        platform as _platform)
+    from drillcosim.fmus.foreign.build import build_description, compile_library
     with _Lock(BUILD_DIR / ".lock"):
         generate(name)
         fmu = _fmu_file(name)
@@ -209,8 +213,8 @@ def fmu_path(name: str) -> Path:
 
 
 def main(argv=None) -> int:
-    from fmus.foreign.build import cli
-    return cli(argv, "python -m fmus.foreign2.build", __doc__, FOREIGN2, build)
+    from drillcosim.fmus.foreign.build import cli
+    return cli(argv, "python -m drillcosim.fmus.foreign2.build", __doc__, FOREIGN2, build)
 
 
 if __name__ == "__main__":

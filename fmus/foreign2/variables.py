@@ -1,12 +1,12 @@
 """The variables of the foreign2 plants: one table per plant, from which
-:mod:`fmus.foreign2.build` writes each plant's ``modelDescription.xml`` and the C header
+:mod:`drillcosim.fmus.foreign2.build` writes each plant's ``modelDescription.xml`` and the C header
 ``<Name>_vars.h`` (value references and the range-checked start values), so the two cannot
 disagree. Defaults are the plants' TRUE values (the data sheet is in each README.md).
 
 Row: ``(name, value reference, type "r"/"i", kind, start, unit, min, max, description)`` with
 kind ``input``, ``output``, ``discrete`` (an output that only jumps), ``fixed`` or ``tunable``.
 True outputs that no role of the binding covers start their description with "Scoring only:",
-which the master's honest-physics guard honours for any FMU (cosim/system.py).
+which the master's honest-physics guard honours for any FMU (cosim/loop/system.py).
 """
 from __future__ import annotations
 

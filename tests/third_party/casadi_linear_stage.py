@@ -76,7 +76,7 @@ def default_parameters() -> dict[str, float]:
 
 def _spec_defaults() -> dict[str, float]:
     try:
-        from fmus.spec import LINEAR_STAGE
+        from drillcosim.fmus.spec import LINEAR_STAGE
         return {v.name: v.start for v in LINEAR_STAGE}
     except ImportError:   # the plant spec is the source; these are its values at the time of writing
         return dict(M=3.95 * 1.05, Kt=24.0 * 0.97, g=9.81, F_gc=40.0, F_coulomb=8.0, b_viscous=30.0,

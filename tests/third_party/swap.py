@@ -7,7 +7,7 @@ units), the recorded signals. ``run_scenario(FIG7, overrides=swap_overrides(...)
 """
 from __future__ import annotations
 
-from cosim.scenario import tomllib   # tomllib, or tomli on Python 3.10
+from drillcosim.cosim.scenario.files import tomllib   # tomllib, or tomli on Python 3.10
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -69,7 +69,7 @@ def swap_overrides(tool: str, fmu_path, raw: dict | None = None, solver: dict | 
         stage.update(ME_SOLVER if solver is None else solver)
         # spindle speed in rpm from a source block into the FMU's rad/s input: converted
         # by the declared units
-        blocks["spindle"] = {"class": "cosim.sources:Constant", "settings": {"value": spindle_rpm, "unit": "rpm"}}
+        blocks["spindle"] = {"class": "drillcosim.cosim.blocks.sources:Constant", "settings": {"value": spindle_rpm, "unit": "rpm"}}
         conns.append({"from": "spindle.y", "to": "stage.spindle_omega"})
     else:
         stage["parameters"]["spindle_rps"] = spindle_rpm / 60.0   # input start value, rev/s

@@ -1,0 +1,48 @@
+"""One rule for relative paths, everywhere (docs/scenario_format.md, "Paths").
+
+* In a file -- a scenario, a plant binding, a sweep -- a relative path resolves against
+  the folder of **the file that wrote it** (with ``extends``, the base file's folder for
+  the keys the base wrote). That covers ``[fmus.x] path`` and ``plant``, ``extends``, and
+  every block setting whose name ends in ``_file`` (``friction_file``,
+  ``calibration_file``): the loader hands the block an absolute path.
+* On the command line and in the Python API -- arguments, ``--set`` and ``overrides=``
+  values, a block built by hand -- a relative path resolves against the **working
+  directory**.
+* A scenario given by name rather than by an existing path (``keio_fig7_...``, with or
+  without ``.toml``) is looked up in ``scenarios/`` (the working directory's, else the
+  one shipped with the package). Built-in FMU names (``LinearStage``) are names, not paths.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+PATH_SETTING = re.compile(r"_file$")      # block settings that are paths
+
+
+def resolve(path, base_dir=None) -> Path:
+    """``path`` made absolute against ``base_dir`` (default: the working directory)."""
+    p = Path(path).expanduser()
+    if not p.is_absolute():
+        p = Path(base_dir if base_dir is not None else Path.cwd()) / p
+    return p
+
+
+def scenario_dirs() -> list[Path]:
+    """Where scenario names are looked up: ``scenarios/`` of the working directory, then
+    the folders plug-ins register, each once."""
+    from drillcosim.cosim.scenario.plugins import registry
+    dirs = [Path("scenarios").resolve()] if Path("scenarios").is_dir() else []
+    return list(dict.fromkeys(dirs + [d.resolve() for d in registry().scenario_dirs]))
+
+
+def scenario_path(name) -> Path:
+    """A scenario file as given, else its name in a scenario folder (with or without ``.toml``)."""
+    path = Path(name)
+    if path.exists():
+        return path
+    for d in scenario_dirs():
+        for cand in (d / path, d / f"{path}.toml"):
+            if cand.is_file():
+                return cand
+    return path

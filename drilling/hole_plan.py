@@ -1,0 +1,342 @@
+"""The hole plan: one scenario section ``[hole]`` describes the *nominal* stack and the
+process per material; the trajectory, the detector's windows and thresholds, the
+adaptation's stages and fail-safe, the stop time and the hole's score are derived from it
+(docs/stacks.md). The simulated plant's *true* stack is set on its own
+(``[fmus.<plant>.plant_parameters]``), so a campaign can draw true stacks around the plan.
+
+::
+
+    [hole]
+    surface = 1.0e-3            # m, nominal top surface (encoder coordinates)
+    gap_tolerance = 0.5e-3      # m, largest gap expected between two layers
+    fail_action = "hold"        # or "retract"
+    layers = [
+      { material = "cfrp", thickness = 5.0e-3, tolerance = 0.5e-3 },
+      { material = "ti",   thickness = 4.5e-3, tolerance = 0.45e-3 },
+    ]
+    [hole.process.cfrp]         # feed_rate [m/s], spindle_speed [rpm], orbital_speed [rpm]
+    feed_rate = 2.0e-4          # (kc [N/(m/rev)]: nominal new-tool thrust coefficient,
+    spindle_speed = 2000.0      #  default the material preset of docs/plants.md)
+    orbital_speed = 120.0
+
+Keys the plan derives must not be written anywhere else in the (merged) scenario: there is
+one place to change a stack. Everything is checked before the run; errors name the file
+and the key.
+"""
+from __future__ import annotations
+
+import copy
+
+MATERIALS = {"cfrp": 1, "ti": 2, "al": 3}          # contract material codes (docs/signal_contract.md)
+NOMINAL_KC = {"cfrp": 2.0e7, "ti": 6.5e7, "al": 2.5e6}   # N/(m/rev), new tool (docs/plants.md presets)
+MAX_LAYERS = 4
+FAIL_ACTIONS = ("hold", "retract")
+PROCESS_KEYS = ("feed_rate", "spindle_speed", "orbital_speed")
+DETECTOR_TOLERANCE = 0.5e-3    # m, the detector's window half-width (InterfaceDetector tolerance)
+# Time in air before the entry window opens: the adaptive observer's start-up and the
+# approach's deceleration ring for about 2 s, and its ripple regressor needs a few orbits
+# (a 200-hole Monte Carlo with a fixed 0.6 mm approach found false entries 0.42-0.50 mm
+# above the surface: slow feeds, and 1 Hz orbits with a worn tool)
+OBSERVER_SETTLE_S = 3.0
+OBSERVER_SETTLE_ORBITS = 6.0
+
+HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "approach", "breakthrough",
+             "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
+             "match_tolerance", "locate_margin", "push_out"}
+# Localisation (controllers/event_locator.py): travel on either side of an event that holds its
+# change and a stretch of level (engagement up to ~0.35 mm on the drives measured, and the
+# trigger up to ~0.1 mm into it: with 0.3 mm, Ti entries with a 0.22 mm engagement were
+# located 0.2-0.25 mm early, the window holding no plateau after the ramp), and the
+# longest push-out of a last layer (0.4 mm on the project's drive)
+LOCATE_MARGIN = 0.45e-3
+PUSH_OUT = 0.5e-3
+# the observer must see this many orbits in a layer to tell its ripple from its level
+ORBITS_PER_LAYER = 2.0
+# a layer's observed level over the one above's, against the plan's (kc f) ratio: wear moves it
+# by up to ~2.7 (Al / Ti, 80 holes), another drive by ~0.8; a wrong order by ~10 (CFRP/Ti) or more
+MISMATCH_FACTOR = 4.0
+DETECTOR_DT, DETECTOR_N_MIN = 0.02, 25  # InterfaceDetector defaults (Table 4's dt, its shortest window)
+LAYER_KEYS = {"material", "thickness", "tolerance"}
+
+
+def _num(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def feed_per_rev(process: dict) -> float:
+    """Feed per revolution [m/rev] of a process (feed_rate [m/s], spindle_speed [rpm])."""
+    return process["feed_rate"] / (process["spindle_speed"] / 60.0)
+
+
+class HolePlan:
+    """The checked plan; ``error(key, message)`` makes the loader's ScenarioError."""
+
+    def __init__(self, hole: dict, error):
+        self.error = error
+        if not isinstance(hole, dict):
+            raise error("hole", "expected a table [hole]")
+        for k in hole:
+            if k not in HOLE_KEYS:
+                raise error(f"hole.{k}", f"unknown key '{k}' (expected one of: {', '.join(sorted(HOLE_KEYS))})")
+        self.surface = self._number(hole, "surface", required=True)
+        self.gap_tolerance = self._number(hole, "gap_tolerance", 0.0, minimum=0.0)
+        # None: derived from the first layer's feed (trajectory())
+        self.approach = self._number(hole, "approach", None, positive=True) if "approach" in hole else None
+        self.breakthrough = self._number(hole, "breakthrough", 0.3e-3, positive=True)
+        self.stop_margin = self._number(hole, "stop_margin", 5.0, positive=True)
+        self.match_tolerance = self._number(hole, "match_tolerance", 1.0e-3, positive=True)
+        self.locate_margin = self._number(hole, "locate_margin", LOCATE_MARGIN, positive=True)
+        self.push_out = self._number(hole, "push_out", PUSH_OUT, positive=True)
+        self.fail_action = hole.get("fail_action", "hold")
+        if self.fail_action not in FAIL_ACTIONS:
+            raise error("hole.fail_action", f"expected one of {FAIL_ACTIONS}, got {self.fail_action!r}")
+        self.names = {r: hole.get(r, r) for r in ("detector", "adapt", "trajectory")}
+        self.names.update(plant=hole.get("plant", "drive"), observer=hole.get("observer", "observer"),
+                          orbit_delay=hole.get("orbit_delay", "orbit_cmd"))
+        self.scored = hole.get("score", True)
+        self.layers = self._layers(hole.get("layers"))
+        self.process = self._process(hole.get("process"))
+
+    # ------------------------------------------------------------------ checks
+    def _number(self, d, key, default=None, *, required=False, positive=False, minimum=None, where="hole"):
+        if key not in d:
+            if required:
+                raise self.error(f"{where}.{key}", "missing required key (a number, SI)")
+            return default
+        v = d[key]
+        if not _num(v):
+            raise self.error(f"{where}.{key}", f"expected a number, got {v!r}")
+        if positive and not v > 0:
+            raise self.error(f"{where}.{key}", f"expected a number > 0, got {v!r}")
+        if minimum is not None and v < minimum:
+            raise self.error(f"{where}.{key}", f"expected a number >= {minimum}, got {v!r}")
+        return float(v)
+
+    def _layers(self, layers):
+        if not isinstance(layers, list) or not layers:
+            raise self.error("hole.layers", "expected a list of 1..4 layers {material, thickness, tolerance}")
+        if len(layers) > MAX_LAYERS:
+            raise self.error("hole.layers", f"{len(layers)} layers: at most {MAX_LAYERS} (what the plants model)")
+        out = []
+        for i, layer in enumerate(layers):
+            where = f"hole.layers[{i}]"
+            if not isinstance(layer, dict):
+                raise self.error(where, f"expected a table {{material, thickness, tolerance}}, got {layer!r}")
+            for k in layer:
+                if k not in LAYER_KEYS:
+                    raise self.error(f"{where}.{k}", f"unknown key '{k}' (expected one of: {', '.join(sorted(LAYER_KEYS))})")
+            mat = layer.get("material")
+            if mat not in MATERIALS:
+                raise self.error(f"{where}.material", f"unknown material {mat!r} (expected one of: {', '.join(MATERIALS)})")
+            thick = self._number(layer, "thickness", required=True, positive=True, where=where)
+            tol = self._number(layer, "tolerance", 0.0, minimum=0.0, where=where)
+            if tol >= thick:
+                raise self.error(f"{where}.tolerance", f"tolerance {tol:g} m is not smaller than the "
+                                                       f"thickness {thick:g} m")
+            out.append({"material": mat, "thickness": thick, "tolerance": tol})
+        return out
+
+    def _process(self, process):
+        if not isinstance(process, dict):
+            raise self.error("hole.process", "expected a table [hole.process.<material>] per material of the stack")
+        out = {}
+        for mat in dict.fromkeys(layer["material"] for layer in self.layers):
+            if mat not in process:
+                raise self.error(f"hole.process.{mat}", f"missing: the stack has {mat} but no process "
+                                                        f"(feed_rate [m/s], spindle_speed, orbital_speed [rpm]) for it")
+            p = process[mat]
+            where = f"hole.process.{mat}"
+            if not isinstance(p, dict):
+                raise self.error(where, f"expected a table, got {p!r}")
+            for k in p:
+                if k not in (*PROCESS_KEYS, "kc"):
+                    raise self.error(f"{where}.{k}", f"unknown key '{k}' (expected one of: {', '.join(PROCESS_KEYS)}, kc)")
+            out[mat] = {k: self._number(p, k, required=True, positive=True, where=where) for k in PROCESS_KEYS}
+            out[mat]["kc"] = self._number(p, "kc", NOMINAL_KC[mat], positive=True, where=where)
+        for mat in process:
+            if mat not in MATERIALS:
+                raise self.error(f"hole.process.{mat}", f"unknown material {mat!r} (expected one of: {', '.join(MATERIALS)})")
+        return out
+
+    def check_windows(self, window_s: float) -> None:
+        """Each layer, at its thinnest, must hold what the detector needs in it (errors
+        name the layer): its regression window at the layer's feed after the engagement
+        (``window_s`` [s]: the detector restarts its window once the event is located
+        and arms once N_min samples of it are quiet: 2 N_min dt),
+        ORBITS_PER_LAYER orbits (the observer tells the ripple from the level), and each
+        localisation window reaching into it (after the event above: locate_margin, plus
+        gap_tolerance after an interface; before the exit: push_out + locate_margin)."""
+        n = len(self.layers)
+        for k, layer in enumerate(self.layers):
+            where, mat = f"hole.layers[{k}]", layer["material"]
+            p = self.process[mat]
+            thin = layer["thickness"] - layer["tolerance"]
+            need = window_s * p["feed_rate"] + self.locate_margin
+            if thin < need:
+                raise self.error(f"{where}.thickness", f"{mat} layer {k + 1} is {1e3 * thin:.2f} mm at its thinnest, "
+                                 f"shorter than the detector needs at its feed: the regression window {window_s:g} s x "
+                                 f"{6e4 * p['feed_rate']:.1f} mm/min + {1e3 * self.locate_margin:.2f} mm of engagement "
+                                 f"= {1e3 * need:.2f} mm (slower hole.process.{mat}.feed_rate, or a shorter window)")
+            orbits = thin / p["feed_rate"] * p["orbital_speed"] / 60.0
+            if orbits < ORBITS_PER_LAYER:
+                raise self.error(f"hole.process.{mat}.orbital_speed",
+                                 f"{p['orbital_speed']:g} rpm is too slow for layer {k + 1} ({mat}, {1e3 * thin:.2f} mm "
+                                 f"at its thinnest): {orbits:.2f} orbits in it, the observer needs "
+                                 f"{ORBITS_PER_LAYER:g} to tell its orbital ripple from its thrust")
+            # the window after the event above it, the exit's before it (each is clipped at
+            # the event before it, so only a window longer than the layer is wrong)
+            loc = max(self.locate_margin + (self.gap_tolerance if k > 0 else 0.0),
+                      self.push_out + self.locate_margin if k == n - 1 else 0.0)
+            if thin < loc:
+                raise self.error(f"{where}.thickness", f"{mat} layer {k + 1} is {1e3 * thin:.2f} mm at its thinnest, "
+                                 f"shorter than a localisation window that reaches into it ({1e3 * loc:.2f} mm: "
+                                 f"hole.locate_margin, hole.gap_tolerance, hole.push_out)")
+
+    # ------------------------------------------------------------------ derived
+    def layer_process(self, k: int) -> dict:
+        return self.process[self.layers[k]["material"]]
+
+    def conservative(self) -> dict:
+        """The fail-safe parameter set: the lowest feed per revolution of any material's
+        process at the lowest spindle speed (so the lowest thrust and cutting speed any
+        layer is drilled with), and the lowest orbital speed. Not any one material's
+        set unless that set is the gentlest in every respect."""
+        procs = list(self.process.values())
+        spindle = min(p["spindle_speed"] for p in procs)
+        fpr = min(feed_per_rev(p) for p in procs)
+        return {"feed_rate": fpr * spindle / 60.0, "spindle_speed": spindle,
+                "orbital_speed": min(p["orbital_speed"] for p in procs)}
+
+    def bottom(self) -> float:
+        """Deepest nominal bottom of the stack [m]: every layer at its upper tolerance,
+        every gap at its tolerance."""
+        return (self.surface + sum(L["thickness"] + L["tolerance"] for L in self.layers)
+                + (len(self.layers) - 1) * self.gap_tolerance)
+
+    def trajectory(self, base: dict) -> dict:
+        z_start = float(base.get("z_start", 0.0))
+        approach, wait = self.approach, 0.0
+        first = self.layer_process(0)
+        if approach is None:    # the entry window opens only once the observer has settled
+            settle = max(OBSERVER_SETTLE_S, OBSERVER_SETTLE_ORBITS * 60.0 / first["orbital_speed"])
+            approach = DETECTOR_TOLERANCE + settle * first["feed_rate"]
+            if approach > self.surface - z_start:     # not that much room: feed from the start,
+                approach = self.surface - z_start     # after a wait for the rest of the time
+                wait = settle - (approach - DETECTOR_TOLERANCE) / first["feed_rate"]
+        z_app = self.surface - approach
+        if z_app < z_start:
+            raise self.error("hole.approach", f"the feed would start at {z_app:g} m, before the trajectory's "
+                                              f"z_start {z_start:g} m")
+        # past the end of the exit window (detector tolerance), so that a missing exit is a
+        # fail while the tool still feeds, not a hole that just ends
+        out = {"z_approach_end": z_app, "feed_rate": first["feed_rate"],
+               "z_end": self.bottom() + DETECTOR_TOLERANCE + self.breakthrough}
+        if wait > 0:
+            out["t_start"] = float(base.get("t_start", 0.0)) + wait
+        return out
+
+    def stop_time(self, traj: dict) -> float:
+        """Time to the deepest point at the slowest feed the plan may command, approach
+        at its speed, plus the margin: the hole is over by then, whatever happens."""
+        slowest = min(self.conservative()["feed_rate"], *(p["feed_rate"] for p in self.process.values()))
+        z_start = float(traj.get("z_start", 0.0))
+        t_approach = (traj["z_approach_end"] - z_start) / float(traj.get("v_approach", 5e-3))
+        t_feed = (traj["z_end"] - traj["z_approach_end"]) / slowest
+        return float(traj.get("t_start", 0.0)) + t_approach + t_feed + self.stop_margin
+
+    def detector(self) -> dict:
+        fprs = [feed_per_rev(self.layer_process(k)) for k in range(len(self.layers))]
+        cons = self.conservative()
+        return {
+            "surface": self.surface,
+            "thicknesses": [L["thickness"] for L in self.layers],
+            "thickness_tolerances": [L["tolerance"] for L in self.layers],
+            "max_gap": self.gap_tolerance,
+            "kc": [self.layer_process(k)["kc"] for k in range(len(self.layers))],
+            "feed_per_rev": fprs,
+            "feed_per_rev_min": min(fprs + [feed_per_rev(cons)]),
+            "feed_rate": min(cons["feed_rate"], *(p["feed_rate"] for p in self.process.values())),
+            "exit_criterion": "thinning",
+            "tolerance": DETECTOR_TOLERANCE,
+            "fail_disarms": True,
+            "locate_margin": self.locate_margin,
+            "push_out": self.push_out,
+            "mismatch_factor": MISMATCH_FACTOR,
+            "restart": True,
+            "entry_confirm": True,
+        }
+
+    def stages(self) -> list[dict]:
+        """Flag 0: the first layer's process; flag k (k >= 2): layer k's."""
+        out = []
+        for k, layer in enumerate(self.layers):
+            p = self.layer_process(k)
+            out.append({"flag": 0 if k == 0 else k + 1, "name": layer["material"],
+                        **{q: p[q] for q in PROCESS_KEYS}})
+        return out
+
+    def adaptation(self) -> dict:
+        return {"stages": self.stages(), "fail_action": self.fail_action, "fail_parameters": self.conservative()}
+
+    def event_windows(self) -> list[list[float]]:
+        """Encoder positions [m] where each true event may lie if the stack is within the
+        plan (each thickness within its tolerance, each gap within gap_tolerance)."""
+        lo, hi, out = self.surface, self.surface, [[self.surface, self.surface]]
+        for k, L in enumerate(self.layers):
+            lo += L["thickness"] - L["tolerance"]
+            hi += L["thickness"] + L["tolerance"] + (self.gap_tolerance if k else 0.0)
+            out.append([lo, hi])
+        return out
+
+    def score(self) -> dict:
+        return {"function": "drillcosim.analysis.detector_scoring:score_stack", "settings": {
+            "plant": self.names["plant"], "detector": self.names["detector"], "adapt": self.names["adapt"],
+            "materials": [L["material"] for L in self.layers], "plan_windows": self.event_windows(),
+            "match_tolerance": self.match_tolerance, "fail_action": self.fail_action}}
+
+
+def _derive(raw: dict, path: str, value, error, origin) -> None:
+    """Set the derived ``path`` (dotted) in raw; a value written by the scenario is an error."""
+    *parents, leaf = path.split(".")
+    cur = raw
+    for p in parents:
+        cur = cur.setdefault(p, {})
+        if not isinstance(cur, dict):
+            raise error(path, f"expected a table on the way to a key the hole plan derives")
+    if leaf in cur:
+        raise error(path, f"is derived from [hole] (in {origin}); remove it here, the plan is the one place "
+                          f"to change the stack or the process")
+    cur[leaf] = value
+
+
+def expand(raw: dict, error, origin: str = "[hole]") -> dict:
+    """A copy of the scenario ``raw`` with everything the plan derives filled in."""
+    raw = copy.deepcopy(raw)
+    hole = raw.pop("hole")
+    plan = HolePlan(hole, error)
+    blocks = raw.get("blocks", {})
+    for role in ("detector", "adapt", "trajectory"):
+        if plan.names[role] not in blocks:
+            raise error(f"hole.{role}" if role in hole else "hole",
+                        f"the plan drives block '{plan.names[role]}' ({role}), which the scenario does not have")
+    tname, dname, aname = (plan.names[r] for r in ("trajectory", "detector", "adapt"))
+    # the detector restarts its regression once an event is located, and arms after N_min
+    # quiet samples of it: a layer must hold twice its shortest window after the engagement
+    dblock = blocks[dname] if isinstance(blocks[dname], dict) else {}
+    dt, n_min = dblock.get("sample_period", DETECTOR_DT), (dblock.get("settings") or {}).get("N_min", DETECTOR_N_MIN)
+    plan.check_windows(2.0 * float(n_min) * float(dt) if _num(dt) and _num(n_min) else 2 * DETECTOR_N_MIN * DETECTOR_DT)
+    tset = blocks[tname].get("settings", {})
+    traj = plan.trajectory(tset)
+    for k, v in traj.items():
+        _derive(raw, f"blocks.{tname}.settings.{k}", v, error, origin)
+    for k, v in plan.detector().items():
+        _derive(raw, f"blocks.{dname}.settings.{k}", v, error, origin)
+    for k, v in plan.adaptation().items():
+        _derive(raw, f"blocks.{aname}.settings.{k}", v, error, origin)
+    if plan.names["orbit_delay"] in blocks:      # the delayed orbit command starts where the adaptation does
+        _derive(raw, f"blocks.{plan.names['orbit_delay']}.settings.initial",
+                plan.layer_process(0)["orbital_speed"], error, origin)
+    _derive(raw, "scenario.stop_time", plan.stop_time({**tset, **traj}), error, origin)
+    if plan.scored:
+        raw.setdefault("scores", []).append(plan.score())
+    return raw
