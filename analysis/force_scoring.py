@@ -279,6 +279,45 @@ def _verdict(steady: list[dict], true_thrust: bool, max_mean_error_pct: float, m
 @needs("{stage}.thrust_dyn", "{stage}.layer_index", "{controller}.mode", "{controller}.F_cmd_out",
        "{controller}.v_hat", "{controller}.i_ref", "{observer}.F_thrust_hat?", "{compare_stage}.thrust_dyn?",
        "{compare_stage}.layer_index?", "{compare_controller}.v_hat?")
+def _mark_layer_changes(axes, t, layer, mode, result, compare_stage=None, compare_controller=None) -> None:
+    """Marks (A), (B), ... where the layer changes while drilling (not on the retract back
+    up through the stack); the constant-feed run's changes too, in its colour."""
+    changes = [k for k in range(1, len(layer)) if layer[k] != layer[k - 1] and layer[k - 1] > 0
+               and layer[k] > 0 and mode[k] == 1]
+    for j, k in enumerate(changes):
+        for a in axes:
+            a.axvline(t[k], color="C1", lw=0.8, ls=":")
+        axes[0].annotate(f"({chr(ord('A') + j)})", (t[k], 1.0), xycoords=("data", "axes fraction"),
+                         xytext=(3, -12), textcoords="offset points", color="C1")
+    if not compare_stage:
+        return
+    cl = result[f"{compare_stage}.layer_index"]
+    fwd = (result[f"{compare_controller}.v_hat"] > 1e-5 if compare_controller
+           and f"{compare_controller}.v_hat" in result else np.ones(len(cl), bool))
+    for k in range(1, len(cl)):
+        if cl[k] != cl[k - 1] and cl[k - 1] > 0 and cl[k] > 0 and fwd[k]:
+            for a in axes:
+                a.axvline(t[k], color="C3", lw=0.6, ls=":")
+
+
+def _score_lines(summ: dict | None) -> list[str]:
+    """The force-control score as the figure's caption lines."""
+    if not summ:
+        return []
+    txt = []
+    for x in summ.get("layers", []):
+        if x.get("mean_error_pct") is not None:
+            txt.append(f"layer {x['layer']}: mean {x['mean_error_pct']:+.2f} %, peak {x['peak_error_N']:.1f} N, "
+                       f"settled in {x['settling_time_s'] * 1e3:.0f} ms")
+    if summ.get("constant_feed_jumps_N"):
+        txt.append("constant-feed jumps: " + ", ".join(f"{j:+.0f} N" for j in summ["constant_feed_jumps_N"]))
+    tc = summ.get("thrust_constant")
+    if tc:
+        txt.append(f"observer Kt_n {tc['Kt_n']:.3f} N/A ({'calibrated' if tc['calibrated'] else 'nominal'})")
+    txt.append(f"max |i_ref| {summ['i_ref_max_A']:.2f} A" + (" (saturated)" if summ["saturated"] else ""))
+    return txt
+
+
 def force_figure(result, out_dir, stage="stage", controller="controller", observer="observer",
                  compare_stage=None, compare_controller=None, file="thrust_force_control.png",
                  title="Thrust force control", filter_time=0.005, score="force_control"):
@@ -307,40 +346,12 @@ def force_figure(result, out_dir, stage="stage", controller="controller", observ
     if compare_stage:
         ax.plot(t, moving_average(result[f"{compare_stage}.thrust_dyn"], n), color="C3", lw=1.0,
                 label="constant feed, force control off")
-    # layer marks (A), (B), ...
-    # layer changes while drilling (not the retract back up through the stack)
-    changes = [k for k in range(1, len(layer)) if layer[k] != layer[k - 1] and layer[k - 1] > 0
-               and layer[k] > 0 and mode[k] == 1]
-    for j, k in enumerate(changes):
-        lab = f"({chr(ord('A') + j)})"
-        for a in axes:
-            a.axvline(t[k], color="C1", lw=0.8, ls=":")
-        ax.annotate(lab, (t[k], 1.0), xycoords=("data", "axes fraction"), xytext=(3, -12),
-                    textcoords="offset points", color="C1")
-    if compare_stage:
-        cl = result[f"{compare_stage}.layer_index"]
-        fwd = (result[f"{compare_controller}.v_hat"] > 1e-5 if compare_controller
-               and f"{compare_controller}.v_hat" in result else np.ones(len(cl), bool))
-        for k in range(1, len(cl)):
-            if cl[k] != cl[k - 1] and cl[k - 1] > 0 and cl[k] > 0 and fwd[k]:
-                for a in axes:
-                    a.axvline(t[k], color="C3", lw=0.6, ls=":")
+    _mark_layer_changes(axes, t, layer, mode, result, compare_stage, compare_controller)
     ax.set_ylabel("thrust [N]")
     ax.legend(loc="upper left", fontsize=8)
     ax.grid(alpha=0.3)
-    summ = ((result.summary or {}).get("scores") or {}).get(score)     # the named [[scores]] entry
-    if summ:
-        txt = []
-        for x in summ.get("layers", []):
-            if x.get("mean_error_pct") is not None:
-                txt.append(f"layer {x['layer']}: mean {x['mean_error_pct']:+.2f} %, peak {x['peak_error_N']:.1f} N, "
-                           f"settled in {x['settling_time_s'] * 1e3:.0f} ms")
-        if summ.get("constant_feed_jumps_N"):
-            txt.append("constant-feed jumps: " + ", ".join(f"{j:+.0f} N" for j in summ["constant_feed_jumps_N"]))
-        tc = summ.get("thrust_constant")
-        if tc:
-            txt.append(f"observer Kt_n {tc['Kt_n']:.3f} N/A ({'calibrated' if tc['calibrated'] else 'nominal'})")
-        txt.append(f"max |i_ref| {summ['i_ref_max_A']:.2f} A" + (" (saturated)" if summ["saturated"] else ""))
+    txt = _score_lines(((result.summary or {}).get("scores") or {}).get(score))    # the named [[scores]] entry
+    if txt:
         ax.text(0.99, 0.02, "\n".join(txt), transform=ax.transAxes, ha="right", va="bottom", fontsize=7,
                 bbox=dict(facecolor="white", alpha=0.8, edgecolor="0.8"))
     ax = axes[1]

@@ -153,7 +153,7 @@ def coverage_gap(time, t_first: float, t_last: float) -> str | None:
     return None
 
 
-class Player:
+class Sampler:
     """Values of chosen columns of an :class:`InputTable` at increasing times (a cursor,
     so a step costs O(1), with a bisection when time jumps back, e.g. after a reset)."""
 
@@ -210,18 +210,18 @@ class InputFile(Block):
         if missing:
             raise ValueError(f"{self.table.path}: no column {missing} (columns: {', '.join(self.table.names)})")
         self.into = into
-        self.player = Player(self.table, names, interpolation)
+        self.sampler = Sampler(self.table, names, interpolation)
         self.outputs = tuple(Port(n, self.table.units.get(n), f"column '{n}' of {self.table.path.name}")
                              for n in names)
 
     def step(self, t, u):
-        return self.player.at(t)
+        return self.sampler.at(t)
 
 
 def check_span(block: InputFile, start_time: float, stop_time: float, step_size: float) -> str | None:
     """Why ``block``'s file does not cover a run from ``start_time`` to ``stop_time`` [s]."""
     last = start_time + (math.ceil((stop_time - start_time) / step_size - 1e-9) - 1) * step_size
-    return block.player.covers(start_time, max(start_time, last))
+    return block.sampler.covers(start_time, max(start_time, last))
 
 
 def connect_columns(system, name: str, block: InputFile) -> None:

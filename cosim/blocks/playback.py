@@ -2,7 +2,7 @@
 
 ``drillcosim replay`` (:mod:`drillcosim.cosim.runs.replay`) removes a scenario's plant FMU and adds a
 Playback block under the same instance name, whose outputs carry the plant's signal
-names (its roles: ``stage.table_position``, ``stage.thrust_dyn``, ...). Every connection,
+names (its roles: ``stage.table_position``, ``stage.i_meas``, ...). Every connection,
 recorded signal, event condition and score that read the plant reads the recording the
 same way, so the master loop, the blocks and the scores are the ones of a plant run.
 
@@ -14,7 +14,7 @@ not applied at all, so a drillcosim recording plays back bit for bit.
 from __future__ import annotations
 
 from drillcosim.cosim.loop.block import Block, Port
-from drillcosim.cosim.blocks.input_file import Player, read_input_csv
+from drillcosim.cosim.blocks.input_file import Sampler, read_input_csv
 
 
 class Playback(Block):
@@ -41,7 +41,7 @@ class Playback(Block):
         missing = [c for c in columns if c not in self.table.names]
         if missing:
             raise ValueError(f"{self.table.path}: no column {missing} (columns: {', '.join(self.table.names)})")
-        self.player = Player(self.table, columns, "hold")
+        self.sampler = Sampler(self.table, columns, "hold")
         self.outputs = tuple(Port(name, spec.get("unit"), spec.get("description") or
                                   f"recorded column '{spec['column']}' of {self.table.path.name}")
                              for name, spec in signals.items())
@@ -49,7 +49,7 @@ class Playback(Block):
         self._conv = None if all(c == (1.0, 0.0) for c in conv) else conv
 
     def step(self, t, u):
-        row = self.player.at(t)
+        row = self.sampler.at(t)
         if self._conv is None:
             return row
         return tuple(s * v + o for v, (s, o) in zip(row, self._conv))

@@ -1,6 +1,6 @@
 """One FMU instance (FMI 2.0 or 3.0 co-simulation) driven through fmpy.
 
-Two layers, as in libcosim:
+Two levels, as in libcosim:
 
 * :class:`FMUModel` -- what ``modelDescription.xml`` says (names, value references,
   types, units, causality, start values, descriptions). Read once per file, cached;
@@ -403,7 +403,7 @@ class FMUSlave:
                     self.terminated_at = last.value if flags[2].value else t + h
                     return TERMINATE_REQUESTED
                 return status
-            do_step.raw = raw_step      # whole C steps (cosim/loop/fused.py) call it with the same flags
+            do_step.raw = raw_step      # entire C steps (cosim/loop/fused.py) call it with the same flags
         else:
             raw_step = funcs["fmi2DoStep"]
             get_bool_status = funcs["fmi2GetBooleanStatus"]

@@ -116,7 +116,7 @@ class _Bus:
 
 
 def _fmu_reads(system, extra_signals) -> dict[str, list[str]]:
-    """Per FMU, the variables read each step (whole variables, in the slave's typed I/O
+    """Per FMU, the variables read each step (entire variables, in the slave's typed I/O
     order): connection sources, recorded, conditions."""
     reads: dict[str, list[str]] = {name: [] for name in system.slaves}
     wanted = [c.src for c in system.connections] + list(extra_signals)
@@ -240,13 +240,13 @@ class _Plan:
 
 def _write_plan(system, bus, read_plan) -> list:
     """Per FMU with driven inputs: (slave, input names, reader of their bus slots, slots).
-    An array input is written whole: its undriven elements hold their start values."""
+    An array input is written in full: its undriven elements hold their start values."""
     write_plan = []
     for slave, *_ in read_plan:
         in_vars = slave.io_order([v for v in slave.variables.values() if v.causality == "input"
                                   and any(system.driven_by(f"{slave.name}.{e}") for e in v.elements)])
         in_signals = []
-        for v in in_vars:              # an array input is written whole: undriven elements hold start
+        for v in in_vars:              # an array input is written in full: undriven elements hold start
             for e, start in zip(v.elements, v.start_values()):
                 sig = f"{slave.name}.{e}"
                 if not system.driven_by(sig):
@@ -519,7 +519,7 @@ class _Loop:
 
     def _run_fused(self, n: int, n_end: int) -> tuple[int, bool]:
         """:meth:`run` with the steps that need no Python in C (cosim/loop/fused.py): runs of
-        whole C steps (their rows recorded by the C) up to the next step that runs a Python
+        entire C steps (their rows recorded by the C) up to the next step that runs a Python
         block, fires a time event or is the last, which :meth:`_python_step` takes; and a
         C step in which a condition event holds is handed over after its blocks."""
         f, g = self.fused, self.grid

@@ -1,4 +1,4 @@
-"""Whole steps in C when none of a step's work needs Python (issue #15).
+"""Entire steps in C when none of a step's work needs Python (issue #15).
 
 A system whose blocks (if any) all run in C (cosim/loop/kernel_group.py) and whose FMUs are
 FMI 2.0 or 3.0 co-simulation slaves with Real / Float64 inputs and outputs spends most of a step in the

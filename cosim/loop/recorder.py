@@ -250,7 +250,7 @@ class Recorder:
                 self._spill = _Spill(self.out_dir / SPILL_NAME, len(columns) + 1)
 
     def _append(self, text: str) -> None:
-        """Write whole lines or nothing: on an I/O error (full disk) the file is cut back
+        """Write complete lines or nothing: on an I/O error (full disk) the file is cut back
         to its last complete row and an :class:`OutputError` says what failed."""
         f = self._file
         end = f.tell()
@@ -372,7 +372,7 @@ class _Spill:
         """The rows as a (rows, width) array backed by the file, and the open (unlinked) file
         for reads that should not touch the mapping (:func:`_write_mat_streamed`)."""
         try:
-            rows = os.fstat(self.f.fileno()).st_size // (8 * self.width)   # whole rows only
+            rows = os.fstat(self.f.fileno()).st_size // (8 * self.width)   # complete rows only
             # copy-on-write: a scorer that writes into a column changes its own pages, never the file
             data = (np.memmap(self.f, dtype=np.float64, mode="c", shape=(rows, self.width)) if rows
                     else np.zeros((0, self.width)))

@@ -17,7 +17,7 @@ for the step size, ...). Most masters stop there (FMPy #353; libcosim has no ret
    the FMU, the time and the smallest step tried, when a half step would go below the
    floor, or when the discarding FMU cannot save its state (it could not be retried).
 
-Inputs are held over the whole communication step (the blocks run at communication
+Inputs are held over the entire communication step (the blocks run at communication
 points only), so an FMU that cannot save its state and already completed ``[t, t+h]``
 keeps its result: it saw the same inputs it would see in the retry. Optionally an
 ``exchange(t)`` callback is called between half steps so that a master may propagate

@@ -39,8 +39,8 @@ class Signal:
     description: str = ""
     scoring_only: bool = False
     type: str = "Real"       # FMI type of an FMU variable; block ports carry reals
-    size: int = 1            # elements: > 1 for a whole FMI 3.0 array ("inst.y")
-    elements: tuple = ()     # element signals of a whole array, row-major
+    size: int = 1            # elements: > 1 for an entire FMI 3.0 array ("inst.y")
+    elements: tuple = ()     # element signals of an entire array, row-major
     raw: str = ""        # a plant role: the FMU variable ("drive.x_enc") that plays it ...
     scale: float = 1.0   # ... and value = scale * raw value + offset, in the role's SI unit
     offset: float = 0.0
@@ -135,7 +135,7 @@ class System:
         """
         a = self._resolve(src, "from", want="output")
         b = self._resolve(dst, "to", want="input")
-        if a.size > 1 or b.size > 1:       # a whole array: element by element, same shape
+        if a.size > 1 or b.size > 1:       # an entire array: element by element, same shape
             if a.size != b.size:
                 raise ScenarioError(f"{a.signal} has {a.size} elements but {b.signal} has {b.size}; "
                                     "connect arrays of the same size or single elements "
@@ -260,7 +260,7 @@ class System:
         return self._resolve(signal, None, want="output")
 
     def elements(self, signal: str) -> list[str]:
-        """A whole FMI 3.0 array ``inst.y`` as its element signals; any other: itself."""
+        """An entire FMI 3.0 array ``inst.y`` as its element signals; any other: itself."""
         inst = signal.split(".", 1)[0]
         if inst in self.slaves:
             sig = self.source(signal)
@@ -403,7 +403,7 @@ def _fmu_signal(signal: str, inst: str, v, element, key) -> Signal:
     why = unsupported_reason(v.type)
     if why:
         raise ScenarioError(f"'{signal}': {why}", key=key)
-    whole = bool(v.dims) and element is None
+    entire = bool(v.dims) and element is None
     return Signal(signal, "fmu", inst, v.name, v.causality, v.unit, v.description, v.scoring_only,
-                  v.type, v.size if whole else 1,
-                  tuple(f"{inst}.{e}" for e in v.elements) if whole else ())
+                  v.type, v.size if entire else 1,
+                  tuple(f"{inst}.{e}" for e in v.elements) if entire else ())

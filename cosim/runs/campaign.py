@@ -205,7 +205,7 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
                  gather: bool = False, plots: bool = False, replace: bool = False) -> list[dict]:
     """Run ``scenario`` (a path) once per overrides dict; summaries in input order.
 
-    ``scenario`` may also be a list of paths, one per run (a campaign over several stacks).
+    ``scenario`` may also be a list of paths, one per run (a campaign over several scenarios).
     ``workers``: workers of the local cluster (default: cores; threads of this process, or
     processes if ``processes``, see :func:`connect`); ``scheduler``: address of an
     existing cluster instead; ``client``: an existing :class:`distributed.Client`.
@@ -218,7 +218,7 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
     campaign cleanly: :class:`CampaignStopped` once campaign.csv/json are written.
     ``gather``: each run in its worker's own folder, its files sent back to ``out_dir``
     (workers on machines that do not share ``out_dir``'s file system). ``plots``: draw each
-    run's figures (off by default: ~1-2 s a run, as much as a hole's simulation; ``drillcosim
+    run's figures (off by default: ~1-2 s a run, often as much as the simulation; ``drillcosim
     plot RUN_FOLDER`` draws them for the runs one looks at).
     """
     from drillcosim.cosim.runs.outputs import FolderLock

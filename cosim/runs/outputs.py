@@ -296,7 +296,7 @@ def jsonable(v):
 
 
 def write_json_atomic(path: Path, content) -> Path:
-    """Write-to-temporary, fsync, rename: a reader sees the old file or the whole new one."""
+    """Write-to-temporary, fsync, rename: a reader sees the old file or the complete new one."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     text = json.dumps(jsonable(content), indent=2) + "\n"

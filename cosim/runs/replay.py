@@ -7,7 +7,7 @@ connections, events, the recorder and the scores are those of a plant run, uncha
 Connections *into* the plant (its current reference) go nowhere: a recording does not
 answer. What cannot be replayed is dropped and said so in ``summary.json`` (``replay``):
 a score or plot that needs a plant signal the recording lacks (e.g. no dynamometer
-column: no thrust score), an event on such a signal, a recorded plant input.
+column: no score that reads it), an event on such a signal, a recorded plant input.
 
 Which column is which signal (the **mapping**):
 
@@ -21,13 +21,13 @@ Which column is which signal (the **mapping**):
       recording_start = 12.3          # optional [s]: the recording's time at the scenario's start
       [columns]
       table_position = { column = "z_enc", unit = "mm" }    # -> m
-      thrust_dyn = { column = "Fz", unit = "N" }
+      i_ref = { column = "I_cmd", unit = "mA" }             # -> A
       i_meas = "i_q"                                         # unit from the file
 
 Checks before anything runs, each naming the file and the column or block: a column or
 role that does not exist, a unit that does not convert to the signal's, time that goes
 backwards, a recording shorter than the scenario, and a sample period that the blocks
-reading the plant cannot use (each block's period must be a whole multiple of it, and
+reading the plant cannot use (each block's period must be an integer multiple of it, and
 the rows must fall on the blocks' sample times).
 """
 from __future__ import annotations
@@ -143,7 +143,7 @@ def _readers(original, plant: str) -> dict:
 
 def _check_rate(original, plant: str, table: InputTable) -> float:
     """The recording's sample period [s]; every block that reads the plant samples at a
-    whole multiple of it, on its rows."""
+    integer multiple of it, on its rows."""
     t = table.time
     if len(t) < 2:
         raise ScenarioError("a recording needs at least two rows", str(table.path))
@@ -162,7 +162,7 @@ def _check_rate(original, plant: str, table: InputTable) -> float:
         if abs(k - round(k)) > RATE_TOL * k or round(k) < 1:
             raise ScenarioError(f"block '{block}' reads {', '.join(reads)} every {period:g} s ({1 / period:g} Hz); "
                                 f"the recording is sampled every {dt:g} s ({1 / dt:g} Hz): expected a recording "
-                                f"at {1 / period:g} Hz or a whole multiple of it", str(table.path))
+                                f"at {1 / period:g} Hz or an integer multiple of it", str(table.path))
     off = (original.start_time - float(t[0])) / dt
     if abs(off - round(off)) > RATE_TOL * max(1.0, abs(off)):
         raise ScenarioError(f"the rows (from {float(t[0])!r} s every {dt:g} s) miss the scenario's start time "

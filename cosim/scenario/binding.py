@@ -158,7 +158,7 @@ class PlantBinding:
             raise self.error(f"{key}.unit", f"the FMU declares '{v.name}' in [{v.unit}], the binding says "
                              f"[{spec['unit']}]; leave the unit out or make them agree")
         k, c = float(spec.get("scale", 1.0)), float(spec.get("offset", 0.0))
-        if "scale" in spec or "offset" in spec:      # stated: it is the whole conversion (as on a connection)
+        if "scale" in spec or "offset" in spec:      # stated: it is the entire conversion (as on a connection)
             return Bound(role, v.name, si_unit, k, c, scoring_only)
         try:
             s, o, _ = connection_conversion(fmu_unit, si_unit, [md], where=f"role '{role}' ({v.name})")
@@ -176,8 +176,8 @@ class PlantBinding:
 
     def parameter_values(self, contract_values: dict, key: str = "plant_parameters") -> dict:
         """Contract parameters and start values of input roles (SI) as FMU start values;
-        errors name ``key``. A contract parameter the plant does not have (a one-layer test
-        rig has no ``layer2_thickness``, an FMU without noise no ``seed``) is left out and
+        errors name ``key``. A contract parameter the plant does not have (a test rig may
+        lack one the contract knows, an FMU without noise its ``seed``) is left out and
         kept in :attr:`unbound_parameters`, which the run's summary reports."""
         out = {}
         for name, value in contract_values.items():

@@ -229,7 +229,7 @@ def _override_path(key: str) -> str:
 
 def _check_override_targets(raw: dict, overrides: dict | None, file: str) -> None:
     """An override below ``fmus.<x>`` / ``blocks.<x>`` needs that FMU / block, unless the
-    overrides create it whole (with its ``path`` or ``plant`` / its ``class``): a typo in
+    overrides create it in full (with its ``path`` or ``plant`` / its ``class``): a typo in
     the instance name is named as such, not as a missing key of a new table."""
     keys = [_override_path(k) for k in overrides or {}]
     for section, needs in (("fmus", ("path", "plant")), ("blocks", ("class",))):
@@ -239,7 +239,7 @@ def _check_override_targets(raw: dict, overrides: dict | None, file: str) -> Non
             if parts[0] != section or len(parts) < 3 or parts[1] in have:
                 continue
             if any(f"{section}.{parts[1]}.{n}" in keys for n in needs):
-                continue                     # a new instance, given whole
+                continue                     # a new instance, given in full
             kind = "FMU" if section == "fmus" else "block"
             raise ScenarioError(f"no {kind} named '{parts[1]}' for the override {k} ({kind}s here: "
                                 f"{', '.join(have) or 'none'})", file, "overrides")

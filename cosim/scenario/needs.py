@@ -7,7 +7,7 @@ loads, so that a typo or a plant without a needed role fails before any FMU runs
 * the settings bind to the function's signature (an unknown or missing setting names
   the scenario file and the ``scores[i].settings`` key);
 * the signals it reads, declared with :func:`needs` as templates over its settings
-  (``"{plant}.thrust_dyn"``), exist -- for a plant role, that the plant's binding binds
+  (``"{plant}.i_meas"``), exist -- for a plant role, that the plant's binding binds
   it -- and they are recorded whatever ``[record] signals`` says. A template ending in
   ``?`` is optional: read when it exists, skipped otherwise.
 """

@@ -8,9 +8,10 @@
 * On the command line and in the Python API -- arguments, ``--set`` and ``overrides=``
   values, a block built by hand -- a relative path resolves against the **working
   directory**.
-* A scenario given by name rather than by an existing path (``keio_fig7_...``, with or
-  without ``.toml``) is looked up in ``scenarios/`` (the working directory's, else the
-  one shipped with the package). Built-in FMU names (``LinearStage``) are names, not paths.
+* A scenario given by name rather than by an existing path (``name`` or ``folder/name``,
+  with or without ``.toml``) is looked up in ``scenarios/`` of the working directory, then
+  in the scenario folders plug-ins register (:mod:`drillcosim.cosim.scenario.plugins`:
+  those an installed package ships). FMU catalogue names are names, not paths.
 """
 from __future__ import annotations
 

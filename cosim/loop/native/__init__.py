@@ -7,7 +7,7 @@ builds them all with the FMUs, a run would otherwise build one on first use -- a
 flags ``-O2 -ffp-contract=off`` (no fused multiply-adds, so C and Python round alike).
 
 The master's C lives here: ``kernel_group.c`` (C blocks of one rate in one call) and
-``fused_steps.c`` (whole steps of a system whose blocks all run in C). Why C through
+``fused_steps.c`` (entire steps of a system whose blocks all run in C). Why C through
 ctypes and not numba: docs/performance.md.
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-/* Whole co-simulation steps in C (cosim/loop/fused.py): the steps in which only C blocks run.
+/* Entire co-simulation steps in C (cosim/loop/fused.py): the steps in which only C blocks run.
  *
  * The Python loop (cosim/loop/algorithm.py) pays a ctypes call and a copy for every FMU read,
  * write and doStep and for every block group: ~7 us per step of Keio Fig. 4's two plants
@@ -157,7 +157,7 @@ static int fires(const Fused *f)
     return 0;
 }
 
-/* steps n0 .. n1 - 1, each whole (its row into rec_buf: room for them is the caller's);
+/* steps n0 .. n1 - 1, each complete (its row into rec_buf: room for them is the caller's);
  * 0, or the status that stopped it (at_n, at_pos): an FMI status, or FIRES after the
  * blocks of a step in which a condition event holds (its row not recorded) */
 int fused_run(Fused *f, long n0, long n1)

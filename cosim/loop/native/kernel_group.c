@@ -6,7 +6,7 @@
  * y_off. The outputs stay in buf between calls, so a member reading a later member's
  * output sees the previous sample's value -- as it would on the master's bus.
  * `buf` is the group's own [t, the group's inputs from the bus..., every member's outputs...]
- * (kernel_group_step), or the whole bus of a fused loop (fused_steps.c).
+ * (kernel_group_step), or the entire bus of a fused loop (fused_steps.c).
  */
 #define GROUP_MAX_IN 32
 
