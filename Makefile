@@ -20,7 +20,7 @@ $(VENV)/.installed: pyproject.toml
 venv: $(VENV)/.installed
 
 fmus: $(VENV)/.installed
-	$(PY) -m drillcosim.fmus.build
+	$(PY) -m drillcosim.build
 
 demo: fmus
 	$(VENV)/bin/drillcosim run $(DEMO_SCENARIO) --out $(DEMO_OUT)

@@ -276,9 +276,6 @@ def _verdict(steady: list[dict], true_thrust: bool, max_mean_error_pct: float, m
 
 
 # ----------------------------------------------------------------------------- figures
-@needs("{stage}.thrust_dyn", "{stage}.layer_index", "{controller}.mode", "{controller}.F_cmd_out",
-       "{controller}.v_hat", "{controller}.i_ref", "{observer}.F_thrust_hat?", "{compare_stage}.thrust_dyn?",
-       "{compare_stage}.layer_index?", "{compare_controller}.v_hat?")
 def _mark_layer_changes(axes, t, layer, mode, result, compare_stage=None, compare_controller=None) -> None:
     """Marks (A), (B), ... where the layer changes while drilling (not on the retract back
     up through the stack); the constant-feed run's changes too, in its colour."""
@@ -318,6 +315,9 @@ def _score_lines(summ: dict | None) -> list[str]:
     return txt
 
 
+@needs("{stage}.thrust_dyn", "{stage}.layer_index", "{controller}.mode", "{controller}.F_cmd_out",
+       "{controller}.v_hat", "{controller}.i_ref", "{observer}.F_thrust_hat?", "{compare_stage}.thrust_dyn?",
+       "{compare_stage}.layer_index?", "{compare_controller}.v_hat?")
 def force_figure(result, out_dir, stage="stage", controller="controller", observer="observer",
                  compare_stage=None, compare_controller=None, file="thrust_force_control.png",
                  title="Thrust force control", filter_time=0.005, score="force_control"):

@@ -2,7 +2,7 @@
 
 Public API (imported lazily, so ``from drillcosim.cosim.loop.block import Block`` stays light)::
 
-    from cosim import load_scenario, run_scenario
+    from drillcosim.cosim import load_scenario, run_scenario
     result = run_scenario("scenarios/x.toml", out_dir="results/x", progress=False)
 
 Seams: :mod:`drillcosim.cosim.fmi.slave` (FMU instances), :mod:`drillcosim.cosim.loop.block` (Python blocks),

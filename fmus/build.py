@@ -370,11 +370,6 @@ def main(argv=None) -> int:
     for n in args.names or list(VARIANTS) + list(foreign.FOREIGN) + list(foreign2.FOREIGN2):
         (foreign.build if n in foreign.FOREIGN else foreign2.build if n in foreign2.FOREIGN2 else build)(
             n, force=args.force)
-    if not args.names:          # the master's C (cosim/native) and the blocks' kernels (controllers/kernels)
-        from drillcosim.controllers.kernels import build_all as build_kernels
-        from drillcosim.cosim.loop.native import build_all as build_native
-        build_native(force=args.force)
-        build_kernels(force=args.force)
     return 0
 
 

@@ -178,3 +178,29 @@ def test_no_module_imports_a_top_level_name_the_install_lacks(folder):
                      [node.module] if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module else [])
             bad += [f"{path.relative_to(ROOT)}: {n}" for n in names if n.split(".")[0] in bare]
     assert not bad, bad
+
+
+# what each layer's modules may import of the package (docs/architecture.md, "The layers")
+ALLOWED = {
+    "drillcosim.cosim": {"drillcosim.cosim"},
+    "drillcosim.fmus": {"drillcosim.fmus", "drillcosim.cosim"},
+    "drillcosim.drilling": {"drillcosim.drilling", "drillcosim.cosim", "drillcosim.fmus", "drillcosim.scenarios"},
+    "drillcosim.controllers": {"drillcosim.controllers", "drillcosim.cosim"},
+    "drillcosim.analysis": {"drillcosim.analysis", "drillcosim.controllers", "drillcosim.drilling",
+                            "drillcosim.cosim", "drillcosim.fmus"},
+}
+
+
+def _layer(module: str) -> str:
+    return next((p for p in sorted(PACKAGES, key=len, reverse=True) if module == p or module.startswith(p + ".")),
+                module)
+
+
+@pytest.mark.parametrize("layer", sorted(ALLOWED))
+def test_layers_import_only_the_layers_below(layer):
+    bad = []
+    for name, path in MODULES.items():
+        if _layer(name) != layer:
+            continue
+        bad += [f"{name} -> {m}" for m in _imports(name, path) if _layer(m) not in ALLOWED[layer]]
+    assert not bad, bad

@@ -11,7 +11,7 @@ import pytest
 from drillcosim.cosim import load_scenario, run_scenario
 from drillcosim.cli import main
 from drillcosim.cosim.errors import ScenarioError
-from drillcosim.cosim.blocks.input_file import Player, read_input_csv
+from drillcosim.cosim.blocks.input_file import Sampler, read_input_csv
 from drillcosim.cosim.loop.recorder import Result
 from cosim_helpers import BASE_SCENARIO
 
@@ -82,7 +82,7 @@ def test_a_recorded_result_plays_back_with_its_sidecar_units(tmp_path):
 def test_player_hold_linear_and_jumps(tmp_path):
     csv = _write(tmp_path / "p.csv", "time,y", [0.0, 1.0, 1.0, 2.0], [0.0, 10.0, 20.0, 40.0])
     table = read_input_csv(csv)
-    lin, hold = Player(table, ["y"], "linear"), Player(table, ["y"], "hold")
+    lin, hold = Sampler(table, ["y"], "linear"), Sampler(table, ["y"], "hold")
     assert lin.at(0.5) == (5.0,) and hold.at(0.5) == (0.0,)
     assert lin.at(1.0) == (20.0,) and hold.at(1.0) == (20.0,)      # a repeated time is a jump
     assert lin.at(1.5) == (30.0,) and hold.at(1.5) == (20.0,)
@@ -90,7 +90,7 @@ def test_player_hold_linear_and_jumps(tmp_path):
     with pytest.raises(ValueError, match="ends at 2.0 s"):
         lin.at(2.5)
     with pytest.raises(ValueError, match="interpolation must be one of"):
-        Player(table, ["y"], "cubic")
+        Sampler(table, ["y"], "cubic")
 
 
 @pytest.mark.parametrize("header,times,values,stop,expected", [

@@ -109,7 +109,7 @@ def test_bad_recordings_are_refused_before_the_run(tmp_path, mass_run):
     scenario, run = mass_run
     with pytest.raises(ScenarioError, match=r"rec20.csv: block 'probe' reads mass.x every 0.01 s \(100 Hz\); "
                                             r"the recording is sampled every 0.02 s \(50 Hz\): expected a "
-                                            r"recording at 100 Hz or a whole multiple of it"):
+                                            r"recording at 100 Hz or an integer multiple of it"):
         replay_scenario(scenario, _mm_recording(run, tmp_path / "rec20.csv", 20), _mapping(tmp_path))
     with pytest.raises(ScenarioError, match=r"short.csv: the file ends at 0.05 s, before the last time it is "
                                             r"played, 0.099"):

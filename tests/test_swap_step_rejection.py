@@ -110,8 +110,8 @@ def test_bare_fmpy_slave(cs_fmu):
                     modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bare")
     # fmpy's default FMI 2.0 callbacks share fmpy's one native logger pointer with every
     # other FMI 2.0 instance of the process; give this one the dispatcher (see
-    # drillcosim.cosim.fmi.model_exchange.fmi2_callbacks) so that its Discard message is kept
-    from drillcosim.cosim.fmi.model_exchange import fmi2_callbacks
+    # drillcosim.cosim.fmi.log_callbacks.fmi2_callbacks) so that its Discard message is kept
+    from drillcosim.cosim.fmi.log_callbacks import fmi2_callbacks
 
     class Log:
         messages = []

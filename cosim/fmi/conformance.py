@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]     # the checkout (or the installed package)
 ARCHIVE_GLOB = "Reference-FMUs-*.tar.gz"
 ENV = "DRILLCOSIM_REFERENCE_FMUS"
 CACHE = REPO / "fmus" / "build" / "reference"

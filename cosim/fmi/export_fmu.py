@@ -141,7 +141,7 @@ def _check_settings(scenario, name: str, block, spec: dict) -> list[tuple[str, s
 
 
 def has_c_step(block, t0: float) -> bool:
-    """Whether ``block`` (reset at ``t0``) steps in C: a ``c_kernel`` (drillcosim.controllers.kernels.Kernel)."""
+    """Whether ``block`` (reset at ``t0``) steps in C: a ``c_kernel`` (its step as a C function)."""
     if getattr(block, "c_step", None) is None and not hasattr(block, "c_kernel"):
         return False
     block.reset(t0)

@@ -34,7 +34,7 @@ Rules the master relies on
 * Per-step code is plain Python/numpy on floats: derive models (casadi) in the
   constructor, never per step.
 * Optional, for speed: a block may also offer its step in C, an attribute ``c_kernel``
-  whose ``step`` is the block's ``step`` (``drillcosim.controllers.kernels.Kernel``); the master
+  whose ``step`` is the block's ``step`` (a C function over a struct of its state); the master
   then runs it, with the other such blocks due at the same steps, in one C call
   (:mod:`drillcosim.cosim.loop.kernel_group`). A plain block needs none of this.
 """

@@ -33,8 +33,11 @@ def scenario_dirs() -> list[Path]:
     """Where scenario names are looked up: ``scenarios/`` of the working directory, then
     the folders plug-ins register, each once."""
     from drillcosim.cosim.scenario.plugins import registry
-    dirs = [Path("scenarios").resolve()] if Path("scenarios").is_dir() else []
-    return list(dict.fromkeys(dirs + [d.resolve() for d in registry().scenario_dirs]))
+    dirs = [Path("scenarios")] if Path("scenarios").is_dir() else []     # kept relative, as given
+    for d in registry().scenario_dirs:
+        if d.resolve() not in [x.resolve() for x in dirs]:
+            dirs.append(d)
+    return dirs
 
 
 def scenario_path(name) -> Path:

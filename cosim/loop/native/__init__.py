@@ -1,8 +1,8 @@
 """C built at run time with the system compiler: the master's own C and the blocks' kernels.
 
 :func:`build` compiles one ``.c`` file into a shared library beside it (``build/``) when
-the library is missing or older than its source -- ``python -m drillcosim.fmus.build`` (``make fmus``)
-builds them all with the FMUs, a run would otherwise build one on first use -- and
+the library is missing or older than its source -- :func:`build_all` builds them ahead of
+a run (``make fmus`` does), a run would otherwise build one on first use -- and
 :func:`load` opens it with ctypes. The compiler is ``$CC`` or ``gcc``, as for the FMUs;
 flags ``-O2 -ffp-contract=off`` (no fused multiply-adds, so C and Python round alike).
 
