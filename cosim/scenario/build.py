@@ -7,6 +7,7 @@ the key path (``connections[3].to``) and what was expected. Then the :class:`Sce
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import inspect
 import re
 from dataclasses import dataclass, field
@@ -38,7 +39,14 @@ def import_object(spec: str):
         raise ImportError(f"expected 'module:Name', got {spec!r}")
     if mod.startswith("."):
         raise ImportError(f"expected an absolute module path (package.module:Name), got {spec!r}")
-    obj = importlib.import_module(mod)
+    try:
+        obj = importlib.import_module(mod)
+    except ModuleNotFoundError as e:
+        package = __name__.split(".")[0]        # a file written before the one namespace
+        if e.name == mod.split(".")[0] and importlib.util.find_spec(f"{package}.{mod.split('.')[0]}"):
+            raise ModuleNotFoundError(f"{e}; the module is now {package}.{mod} (write "
+                                      f"'{package}.{spec}')", name=e.name) from None
+        raise
     for a in attr.split("."):
         obj = getattr(obj, a)
     return obj
