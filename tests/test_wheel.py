@@ -32,8 +32,13 @@ def test_wheel_has_sources_not_build_products(tmp_path):
                        capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr[-2000:]
     names = zipfile.ZipFile(next((tmp_path / "w").glob("*.whl"))).namelist()
-    assert not [n for n in names if n.startswith("fmus/build/")], "build products in the wheel"
-    for need in ("fmus/build.py", "fmus/LinearStage/LinearStage.c", "fmus/common/fmi2_frame.c",
-                 "fmus/foreign/ForeignZStage/ForeignZStage.c", "fmus/foreign/ForeignZStage/README.md",
-                 "cosim/loop/native/fused_steps.c", "controllers/kernels/drive_control.c", "cosim/blocks/input_file.py"):
+    assert not [n for n in names if n.startswith("drillcosim/fmus/build/")], "build products in the wheel"
+    assert {n.split("/")[0] for n in names if ".dist-info/" not in n} == {"drillcosim"}    # one namespace
+    for need in ("drillcosim/fmus/build.py", "drillcosim/fmus/LinearStage/LinearStage.c",
+                 "drillcosim/cosim/fmi/frame/fmi2_frame.c", "drillcosim/fmus/common/drill.c",
+                 "drillcosim/fmus/foreign/ForeignZStage/ForeignZStage.c", "drillcosim/fmus/foreign/ForeignZStage/README.md",
+                 "drillcosim/cosim/loop/native/fused_steps.c", "drillcosim/controllers/kernels/drive_control.c",
+                 "drillcosim/cosim/blocks/input_file.py", "drillcosim/scenarios/keio_fig7_aluminium_force_control.toml",
+                 "drillcosim/scenarios/plants/linear_stage.toml", "drillcosim/scenarios/commissioning/linear_stage.json",
+                 "drillcosim/scenarios/recordings/keio_fig7_aluminium.csv.gz"):
         assert need in names, need
