@@ -1,14 +1,18 @@
-"""drillcosim co-simulation master: FMU slaves, Python blocks, algorithm, recording, scenarios.
+"""A generic FMI co-simulation master: FMU slaves, Python blocks, the fixed-step algorithm,
+recording, scenarios, runs. It knows no application domain; a domain reaches it as
+plug-ins (:mod:`drillcosim.cosim.scenario.plugins`).
 
 Public API (imported lazily, so ``from drillcosim.cosim.loop.block import Block`` stays light)::
 
     from drillcosim.cosim import load_scenario, run_scenario
     result = run_scenario("scenarios/x.toml", out_dir="results/x", progress=False)
 
-Seams: :mod:`drillcosim.cosim.fmi.slave` (FMU instances), :mod:`drillcosim.cosim.loop.block` (Python blocks),
-:mod:`drillcosim.cosim.loop.system` + :mod:`drillcosim.cosim.loop.connections` (what is connected to what),
-:mod:`drillcosim.cosim.loop.algorithm` (the fixed-step master loop), :mod:`drillcosim.cosim.loop.recorder` (observer),
-:mod:`drillcosim.cosim.loop.manipulators` (events), :mod:`drillcosim.cosim.scenario.loader` (TOML files).
+Sub-packages, along libcosim's seams: :mod:`~drillcosim.cosim.fmi` (slaves: one FMU
+instance, its types and units), :mod:`~drillcosim.cosim.loop` (the system, the algorithm,
+its C steps, the recorder -- libcosim's observer -- and the manipulators),
+:mod:`~drillcosim.cosim.blocks` (ready-made blocks), :mod:`~drillcosim.cosim.scenario`
+(files, checks, build, bindings, plug-ins, sweeps), :mod:`~drillcosim.cosim.runs` (runner,
+supervisor, campaigns, replays) and :mod:`~drillcosim.cosim.ssp`.
 """
 from importlib import import_module
 
