@@ -85,6 +85,14 @@ test re-arms once the window lies on the new plateau (on the plant with the adap
 observer, whose ripple estimate rings for a few seconds after a layer change, about
 1 mm of feed), so a layer must be thicker than that for its exit to be seen --
 otherwise the fail indicator fires.
+
+Speed (issues #21, #24): the step also exists in C (``controllers/kernels/interface_detector.c``,
+operation for operation, bit-identical: tests/test_detector_kernel.py), so the master runs the
+detector in its C groups and whole C steps (the Fang hole: every step in C). The regression's
+dot product is numpy's own BLAS ddot and the once-per-event localisation fit is this module's
+numpy, called back from the C step (``controllers/detector_kernel.py``); where either cannot be
+matched to the bit, the block keeps this Python step (``kernel = "python"`` selects it). The C
+step is not exported (``export-fmu``, SSP): its fit needs Python.
 """
 from __future__ import annotations
 
