@@ -119,9 +119,11 @@ CASES = {
     "plan_noise_delay": (dict(PLAN, thd_noise_factor=3.0, observer_delay=0.05, step_signs=[1.0, -1.0]),
                          dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.0, 0.3))),
     "plan_mismatch_fails": (dict(PLAN, thicknesses=(3 * MM, 2.5 * MM), kc=[1.2e7, 4.0e7], feed_per_rev=[5e-6, 4e-6],
-                                 mismatch_factor=1.5), dict(levels=(60.0, 500.0), thick_mm=(3.0, 2.5), gaps_mm=(0, 0))),
+                                 mismatch_factor=1.5),
+                            dict(levels=(60.0, 500.0), thick_mm=(3.0, 2.5), gaps_mm=(0, 0))),
     "one_layer_short_window": (dict(N=20, N_min=5, thicknesses=(4 * MM,), localise=False),
-                               dict(levels=(150.0,), thick_mm=(4.0,), gaps_mm=(0.0,), engage_mm=0.02, thinning_mm=0.05)),
+                               dict(levels=(150.0,), thick_mm=(4.0,), gaps_mm=(0.0,), engage_mm=0.02,
+                                    thinning_mm=0.05)),
     "four_layers": (dict(thicknesses=(2 * MM, 2 * MM, 2 * MM, 2 * MM), thd2=30.0, N=60, N_min=10, rearm_samples=40),
                     dict(levels=(120.0, 300.0, 150.0, 350.0), thick_mm=(2.0, 2.0, 2.0, 2.0), gaps_mm=(0, 0, 0, 0),
                          engage_mm=0.02, thinning_mm=0.05)),
@@ -237,4 +239,5 @@ def test_wide_stack_holes_are_bit_identical(tmp_path, monkeypatch, seed, hole):
     assert summaries[0]["steps_in_c"] == summaries[0]["steps"]
     # entry (confirmed: the hole plan's detector), the interface across the gap, the exit
     assert sc_c["final_flag"] == 3 and sc_c["missed_events"] == 0 and sc_c["fail"] == 0, stack
-    assert all(math.isfinite(sc_c[f"{ev}_{q}_mm"]) for ev in ("entry", "interface1", "exit") for q in ("dz", "trigger_dz"))
+    assert all(math.isfinite(sc_c[f"{ev}_{q}_mm"])
+               for ev in ("entry", "interface1", "exit") for q in ("dz", "trigger_dz"))

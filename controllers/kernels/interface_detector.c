@@ -311,7 +311,10 @@ static void locate(Detector *s, int k, double x_trig, double before, double afte
     if (k > 0 && isfinite(s->x_ev[k - 1]))
         lo = MAX(lo, s->x_ev[k - 1] + s->locate_margin);
     double air = isfinite(s->F_air) ? s->F_air : 0.0;
-    s->locate(k, x_trig, lo, x_trig + after, s->h_n, air, out);
+    if (s->locate == NULL)      /* a state the block did not fill (it always sets the callback) */
+        out[0] = out[1] = out[2] = out[3] = NAN;
+    else
+        s->locate(k, x_trig, lo, x_trig + after, s->h_n, air, out);
     int name = k == 0 ? 0 : k == n ? DET_EVENTS - 1 : k;
     s->loc[4 * name] = out[0];
     s->loc[4 * name + 1] = out[1];
