@@ -768,9 +768,8 @@ class InterfaceDetector(KernelBlock, Block):
     # state lives in its struct: the attributes below are read from there (``__getattr__``),
     # the window, the history and the weights are these numpy arrays, shared by pointer.
     c_step = ("interface_detector", "interface_detector_step", _DetectorState, 2, len(_OUTPUTS))
-    # not for export-fmu / SSP: the once-per-event localisation fit is numpy, called back
-    # into this process (an FMU has no Python); localise = False would be exportable but
-    # is a different detector, so none is
+    # not for export-fmu / SSP: the struct points at this process's numpy arrays, its BLAS
+    # and the localisation fit called back in Python (an FMU has neither)
     c_exportable = False
 
     def _c_supports(self) -> bool:
@@ -779,7 +778,7 @@ class InterfaceDetector(KernelBlock, Block):
 
     def _c_fill(self, c) -> None:
         """Settings and the reset state -> the C struct (``_c_attach`` runs at the end of
-        ``reset``); from then on the attributes of _C_STATE are the struct's."""
+        ``reset``); from then on the attributes of _C_SCALARS and _C_LISTS are the struct's."""
         if self.h_n or self.pending or self.cand is not None or self.err_hist:
             raise RuntimeError("InterfaceDetector: the C step starts from the reset state only")
         n = self.n
