@@ -27,7 +27,10 @@ by less than one residual variance (the one-parameter likelihood interval), at l
 the grid step. About 0.2-1 s once per event, never per sample.
 
 Plain numpy, no state: the detector hands over its history when the window after the
-event is complete (``InterfaceDetector``); a C port needs the same sums over the window.
+event is complete (``InterfaceDetector``). Its C step (kernels/interface_detector.c) calls
+this same fit back in Python, once per event: the fit's doubles come from numpy's BLAS and
+LAPACK (batched solves), which a C port would have to reproduce call for call to stay
+bit-identical.
 """
 from __future__ import annotations
 

@@ -85,17 +85,31 @@ test re-arms once the window lies on the new plateau (on the plant with the adap
 observer, whose ripple estimate rings for a few seconds after a layer change, about
 1 mm of feed), so a layer must be thicker than that for its exit to be seen --
 otherwise the fail indicator fires.
+
+Speed (issues #21, #24): the step also exists in C (``controllers/kernels/interface_detector.c``,
+operation for operation, bit-identical: tests/test_detector_kernel.py), so the master runs the
+detector in its C groups and whole C steps (the Fang hole: every step in C). The regression's
+dot product is numpy's own BLAS ddot and the once-per-event localisation fit is this module's
+numpy, called back from the C step (``controllers/detector_kernel.py``); where either cannot be
+matched to the bit, the block keeps this Python step (``kernel = "python"`` selects it). The C
+step is not exported (``export-fmu``, SSP): its fit needs Python.
 """
 from __future__ import annotations
 
+import ctypes
 import math
+import warnings
 from collections import deque
 from itertools import islice
 from typing import Sequence
 
 import numpy as np
 
+from drillcosim.controllers import detector_kernel
 from drillcosim.controllers.event_locator import locate, time_at
+from drillcosim.controllers.kernels import KernelBlock
+from drillcosim.controllers.kernels.structs import Detector as _DetectorState
+from drillcosim.controllers.kernels.structs import fill
 from drillcosim.cosim.loop.block import Block, Port
 
 NAN = float("nan")
@@ -203,7 +217,7 @@ def _step_signs(step_signs, kc, n: int) -> list[float]:
     return signs
 
 
-class InterfaceDetector(Block):
+class InterfaceDetector(KernelBlock, Block):
     """Moving-linear-regression detector of tool entry, every interface and exit.
 
     Settings (SI units).
@@ -381,6 +395,7 @@ class InterfaceDetector(Block):
         if self.N_min < 3:
             raise ValueError(f"InterfaceDetector: N_min must be >= 3, got {N_min}")
         self.W = {n_: regression_weights(n_) for n_ in range(self.N_min, self.N + 1)}
+        self._W_flat = np.concatenate([self.W[n_] for n_ in range(self.N_min, self.N + 1)])
 
     def _set_thresholds(self, kc, feed_per_rev, feed_per_rev_min, entry_fraction, step_fraction,
                         engage_fraction, thd_min, rearm_level) -> None:
@@ -483,6 +498,7 @@ class InterfaceDetector(Block):
         self.levels = [NAN] * self.n   # observed level of each layer when its tests armed
         self.mismatch = NAN         # last observed/plan level ratio between two layers
         self.loc = {ev: [NAN] * len(LOC_QUANTITIES) for ev in LOC_EVENTS}
+        self._c_attach()
 
     def _check_level(self, t: float, x: float) -> None:
         """The first quiet level of a layer (the statistics its tests arm on; any
@@ -644,10 +660,10 @@ class InterfaceDetector(Block):
         return self._outputs()
 
     # ------------------------------------------------------------------ localisation
-    def _history(self):
-        """(t, x, F) of the kept samples, oldest first."""
-        n = min(self.h_n, HISTORY)
-        idx = (self.h_n - n + np.arange(n)) % HISTORY
+    def _history(self, h_n: int):
+        """(t, x, F) of the samples kept when ``h_n`` had been written, oldest first."""
+        n = min(h_n, HISTORY)
+        idx = (h_n - n + np.arange(n)) % HISTORY
         return self.h_t[idx], self.h_x[idx], self.h_F[idx]
 
     def _locate_due(self, t: float, x: float) -> None:
@@ -662,27 +678,38 @@ class InterfaceDetector(Block):
             self._locate(k, x_trig, before, after, t)
 
     def _locate(self, k: int, x_trig: float, before: float, after: float, t_now: float) -> None:
-        ht, hx, hF = self._history()
         lo = x_trig - before
         if k > 0 and math.isfinite(self.x_ev[k - 1]):    # not into the previous event's change
             lo = max(lo, self.x_ev[k - 1] + self.locate_margin)
-        # each force sample against where the tool was when the observer saw it
-        xs = np.interp(ht - self.observer_delay, ht, hx) if self.observer_delay > 0 else hx
-        sel = (xs >= lo) & (xs <= x_trig + after)
-        name = LOC_EVENTS[0] if k == 0 else LOC_EVENTS[-1] if k == self.n else f"interface{k}"
-        kind = "entry" if k == 0 else "exit" if k == self.n else "interface"
         air = self.F_air if math.isfinite(self.F_air) else 0.0
-        x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig)
+        x_loc, t_loc, dx, F_air = self._fit(k, x_trig, lo, x_trig + after, self.h_n, air)
         if k == 0 and math.isfinite(x_loc):
-            in_air = sel & (xs < x_loc - 0.5 * self.locate_margin)
-            self.F_air = float(np.mean(hF[in_air])) if in_air.any() else NAN
-        self.loc[name] = [x_loc, time_at(ht, hx, x_loc), dx, t_now]
+            self.F_air = F_air
+        name = LOC_EVENTS[0] if k == 0 else LOC_EVENTS[-1] if k == self.n else f"interface{k}"
+        self.loc[name] = [x_loc, t_loc, dx, t_now]
         if self.restart and k == self.flag - 1 and k < self.n and not self.armed:
             # the window after the event holds its engagement ramp: from here on the tool
             # is on the new level, so the regression restarts here and the tests arm as
             # soon as its N_min samples are quiet, instead of once a full window of N has
             # left the ramp (issue 23: thin layers at high feeds were never armed)
             self.n_buf, self.quiet, self.need = 0, 0, self.N_min
+
+    def _fit(self, k: int, x_trig: float, lo: float, hi: float, h_n: int, air: float):
+        """Event k's located position [m], the time the encoder passed it [s], its
+        uncertainty [m] (event_locator.locate on the history's samples with x in [lo, hi]
+        when ``h_n`` had been written) and, for the entry, the mean thrust in air before it
+        [N]. Both steps call it (the C step through a callback)."""
+        ht, hx, hF = self._history(h_n)
+        # each force sample against where the tool was when the observer saw it
+        xs = np.interp(ht - self.observer_delay, ht, hx) if self.observer_delay > 0 else hx
+        sel = (xs >= lo) & (xs <= hi)
+        kind = "entry" if k == 0 else "exit" if k == self.n else "interface"
+        x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig)
+        F_air = NAN
+        if k == 0 and math.isfinite(x_loc):
+            in_air = sel & (xs < x_loc - 0.5 * self.locate_margin)
+            F_air = float(np.mean(hF[in_air])) if in_air.any() else NAN
+        return x_loc, time_at(ht, hx, x_loc), dx, F_air
 
     def _exit_tests(self, t, x, F, F_pred, e):
         if not self.drop:
@@ -734,3 +761,89 @@ class InterfaceDetector(Block):
             self.t_fail, self.x_fail, self.thd, float(self.n), self.mismatch,
             *(v for ev in LOC_EVENTS for v in self.loc[ev]),
         )
+
+    # ------------------------------------------------------------------ the C step
+    # kernels/interface_detector.c mirrors ``step`` operation for operation (issue #21, #24);
+    # this Python stays the reference (tests/test_detector_kernel.py). With the C step the
+    # state lives in its struct: the attributes below are read from there (``__getattr__``),
+    # the window, the history and the weights are these numpy arrays, shared by pointer.
+    c_step = ("interface_detector", "interface_detector_step", _DetectorState, 2, len(_OUTPUTS))
+    # not for export-fmu / SSP: the struct points at this process's numpy arrays, its BLAS
+    # and the localisation fit called back in Python (an FMU has neither)
+    c_exportable = False
+
+    def _c_supports(self) -> bool:
+        return (detector_kernel.blas_ddot() is not None and detector_kernel.sums_like_python()
+                and detector_kernel.state_size() == ctypes.sizeof(_DetectorState))
+
+    def _c_fill(self, c) -> None:
+        """Settings and the reset state -> the C struct (``_c_attach`` runs at the end of
+        ``reset``); from then on the attributes of _C_SCALARS and _C_LISTS are the struct's."""
+        if self.h_n or self.pending or self.cand is not None or self.err_hist:
+            raise RuntimeError("InterfaceDetector: the C step starts from the reset state only")
+        n = self.n
+        fill(c, n=n, N=self.N, N_min=self.N_min, thd1=self.thd1, thd2=self.thd2, thd3=self.thd3,
+             exit_thinning=self.exit_criterion == "thinning", exit_ratio=self.exit_ratio,
+             rearm_samples=self.rearm_samples, rearm_level=self.rearm_level, has_windows=self.windows is not None,
+             feed_rate=self.feed_rate, time_margin=self.time_margin, fail_disarms=self.fail_disarms,
+             mismatch_factor=self.mismatch_factor, restart=self.restart, thd_min=self.thd_min,
+             thd_noise_factor=self.thd_noise_factor, entry_confirm=self.entry_confirm, relative=self.relative,
+             thd_entry=getattr(self, "thd_entry", 0.0), exit_gain=getattr(self, "exit_gain", 0.0),
+             localise=self.localise, locate_margin=self.locate_margin, push_out=self.push_out,
+             max_gap=self.max_gap, py_sum_comp=detector_kernel.PY_SUM_COMPENSATED)
+        if self.windows is not None:
+            c.win_lo[:n + 1] = [float(w[0]) for w in self.windows]
+            c.win_hi[:n + 1] = [float(w[1]) for w in self.windows]
+        c.step_signs[:n - 1] = self.step_signs
+        if self.relative:
+            c.step_gain[:n - 1], c.floor[:n], c.level_plan[:n] = self.step_gain, self.floor, self.level_plan
+        fill(c, **{name: getattr(self, name) for name in _C_SCALARS})
+        c.t_ev[:n + 1], c.x_ev[:n + 1], c.levels[:n] = self.t_ev, self.x_ev, self.levels
+        c.loc[:] = [v for ev in LOC_EVENTS for v in self.loc[ev]]
+        fill(c, err_n=0, err_pos=0, cand=0, cand_n=0, cand_e_n=0, cand_e_pos=0, n_pending=0)
+        self._c_err = np.zeros(2 * self.N)       # |F~| of the last 2 N samples (a ring)
+        self._c_locate_cb = detector_kernel.LOCATE_CALLBACK(self._c_locate)
+        c.W, c.buf, c.err = self._W_flat.ctypes.data, self.buf.ctypes.data, self._c_err.ctypes.data
+        c.h_t, c.h_x, c.h_F = self.h_t.ctypes.data, self.h_x.ctypes.data, self.h_F.ctypes.data
+        c.dot = detector_kernel.blas_ddot()
+        c.locate = ctypes.cast(self._c_locate_cb, ctypes.c_void_p).value
+        for name in (*_C_SCALARS, *_C_LISTS):
+            self.__dict__.pop(name, None)
+
+    def _c_locate(self, k, x_trig, lo, hi, h_n, air, out) -> None:
+        """The C step's localisation callback: :meth:`_fit` into ``out``."""
+        try:
+            out[0], out[1], out[2], out[3] = self._fit(int(k), x_trig, lo, hi, int(h_n), air)
+        except Exception as exc:    # noqa: BLE001 -- a ctypes callback cannot raise into C: NaN, said loudly
+            out[0] = out[1] = out[2] = out[3] = NAN
+            warnings.warn(f"InterfaceDetector: the localisation of event {int(k)} failed, its outputs stay "
+                          f"NaN: {exc!r}", RuntimeWarning, stacklevel=1)
+
+    def __getattr__(self, name):
+        # only called for what is not in the instance's dict: the state the C step holds
+        c = self.__dict__.get("c_kernel")
+        if c is None or name not in _C_SCALARS and name not in _C_LISTS:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        s, n = c.state, self.__dict__["n"]
+        if name in _C_SCALARS:
+            return _C_SCALARS[name](getattr(s, name))
+        if name in ("t_ev", "x_ev"):
+            return list(getattr(s, name)[:n + 1])
+        if name == "levels":
+            return list(s.levels[:n])
+        if name == "loc":
+            return {ev: list(s.loc[4 * j:4 * j + 4]) for j, ev in enumerate(LOC_EVENTS)}
+        if name == "pending":
+            return [(int(s.pend_k[j]), s.pend_x[j], int(s.pend_i[j])) for j in range(int(s.n_pending))]
+        if name == "cand":
+            return None if not s.cand else (s.cand_t, s.cand_x, s.cand_level, int(s.cand_i))
+        raise AttributeError(f"InterfaceDetector.{name}: kept in the C step's state only "
+                             "(kernel = 'python' to inspect it)")
+
+
+# the C step's state readable as the Python step's attributes (InterfaceDetector.__getattr__)
+_C_SCALARS = {**{name: int for name in "n_buf flag quiet need h_n fail fail_code".split()},
+              **{name: bool for name in "armed drop exit_armed".split()},
+              **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last "
+                                         "F_pred F_err F_level thd F_air mismatch".split()}}
+_C_LISTS = ("t_ev", "x_ev", "levels", "loc", "pending", "cand", "err_hist", "cand_F", "cand_e")

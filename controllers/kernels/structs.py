@@ -116,3 +116,27 @@ ROBUST_PARAMETERS = {
 def nested(prefix: str, table: dict) -> dict:
     """``table`` with its names under ``prefix.`` (a nested struct's fields)."""
     return {f"{prefix}.{k}": v for k, v in table.items()}
+
+
+DET_LAYERS, DET_EVENTS, DET_SWING = 4, 5, 5     # interface_detector.c DET_MAX_LAYERS, DET_EVENTS, DET_ENTRY_SWING
+
+
+class Detector(ctypes.Structure):
+    """Mirror of ``Detector`` in interface_detector.c: doubles, then the block's arrays and
+    the two functions it calls (BLAS ddot, the localisation callback) by address."""
+    _fields_ = _doubles("n N N_min thd1 thd2 thd3 exit_thinning exit_ratio rearm_samples rearm_level "
+                        "has_windows") + [("win_lo", _D * DET_EVENTS), ("win_hi", _D * DET_EVENTS)] + \
+        _doubles("feed_rate time_margin fail_disarms mismatch_factor restart thd_min thd_noise_factor "
+                 "entry_confirm") + [("step_signs", _D * (DET_LAYERS - 1))] + _doubles("relative thd_entry") + \
+        [("step_gain", _D * (DET_LAYERS - 1)), ("exit_gain", _D), ("floor", _D * DET_LAYERS),
+         ("level_plan", _D * DET_LAYERS)] + \
+        _doubles("localise locate_margin push_out max_gap py_sum_comp n_buf flag") + \
+        [("t_ev", _D * DET_EVENTS), ("x_ev", _D * DET_EVENTS)] + \
+        _doubles("t_paper x_paper t_thin x_thin F_ref drop exit_armed quiet need err_n err_pos "
+                 "cand cand_t cand_x cand_level cand_i cand_n cand_sum cand_comp") + \
+        [("cand_e", _D * DET_SWING)] + \
+        _doubles("cand_e_n cand_e_pos armed fail fail_code t_fail x_fail t_last x_last F_pred F_err F_level "
+                 "thd h_n n_pending") + \
+        [("pend_k", _D * DET_EVENTS), ("pend_x", _D * DET_EVENTS), ("pend_i", _D * DET_EVENTS), ("F_air", _D),
+         ("levels", _D * DET_LAYERS), ("mismatch", _D), ("loc", _D * (4 * DET_EVENTS))] + \
+        [(n, ctypes.c_void_p) for n in "W buf h_t h_x h_F err dot locate".split()]

@@ -145,7 +145,8 @@ def has_c_step(block, t0: float) -> bool:
     if getattr(block, "c_step", None) is None and not hasattr(block, "c_kernel"):
         return False
     block.reset(t0)
-    return getattr(block, "c_kernel", None) is not None
+    # c_exportable = False: a C step that calls back into Python (the detector's localisation)
+    return getattr(block, "c_kernel", None) is not None and getattr(block, "c_exportable", True)
 
 
 def _kernel_of(scenario, name: str, block):

@@ -72,8 +72,11 @@ def plan(system, order: list[str]) -> tuple[list[str], list[list[str]]]:
             else:
                 between.append(rest.pop(0))
         rest = between + rest            # not moved: they follow the group as before
+        # the blocks moved ahead are grouped among themselves too (a kernel block among them,
+        # the Fang hole's orbit_cmd, ran as a Python block and kept 10 % of its steps out of C)
+        ahead, ahead_groups = plan(system, ahead) if ahead else ([], [])
         out += ahead + group
-        groups.append(group)
+        groups += ahead_groups + [group]
     return out, groups
 
 

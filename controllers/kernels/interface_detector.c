@@ -1,0 +1,441 @@
+/* One sample of drillcosim.controllers.interface_detector.InterfaceDetector in C (issues #21, #24).
+ *
+ * The same arithmetic as the Python step, operation for operation (compiled with
+ * -ffp-contract=off), so both give the same doubles; the Python stays the readable
+ * reference and documents every choice (tests/test_detector_kernel.py compares them).
+ * Three things are not plain C arithmetic and are handed in by the block, so that the
+ * doubles stay those of the Python step:
+ *   - the regression's prediction is numpy's ``W @ buf``, i.e. the BLAS ddot numpy calls
+ *     (OpenBLAS sums with FMA in SIMD lanes: no C loop rounds like it): ``dot``;
+ *   - Python's ``sum`` of floats is a plain left sum up to 3.11 and Neumaier-compensated
+ *     from 3.12: ``py_sum_comp`` says which;
+ *   - the once-per-event localisation fit (controllers/event_locator.py: numpy, LAPACK)
+ *     runs in Python through ``locate``, a ctypes callback, from inside the C step: a few
+ *     calls per hole, each ~0.2-1 s of numpy, so every step stays a C step.
+ * Scalars are doubles (flags and counts as 0.0 / 1.0 / n); the long arrays (regression
+ * weights, window, history, |F~| ring) are the block's numpy arrays, by pointer.
+ * Mirrored field for field by controllers/kernels/structs.py:Detector.
+ */
+#include <math.h>
+#include <string.h>
+
+#define MAX(a, b) ((b) > (a) ? (b) : (a))   /* Python's max(a, b): a unless b > a */
+#define MIN(a, b) ((b) < (a) ? (b) : (a))   /* Python's min(a, b): a unless b < a */
+#define DET_MAX_LAYERS 4
+#define DET_EVENTS (DET_MAX_LAYERS + 1)      /* entry, interfaces, exit */
+#define DET_HISTORY 4096                     /* interface_detector.py HISTORY */
+#define DET_ENTRY_SWING 5                    /* interface_detector.py ENTRY_SWING */
+#define DET_N_OUT 48
+
+typedef double (*dot_fn)(long n, const double *x, long incx, const double *y, long incy);
+/* k, x_trig, lo, hi [m], samples written, air level [N] -> out: x_loc, t_loc, dx, F_air */
+typedef void (*locate_fn)(double k, double x_trig, double lo, double hi, double h_n, double air, double *out);
+
+typedef struct {
+    /* settings */
+    double n, N, N_min, thd1, thd2, thd3, exit_thinning, exit_ratio, rearm_samples, rearm_level;
+    double has_windows, win_lo[DET_EVENTS], win_hi[DET_EVENTS], feed_rate, time_margin;
+    double fail_disarms, mismatch_factor, restart, thd_min, thd_noise_factor, entry_confirm;
+    double step_signs[DET_MAX_LAYERS - 1], relative, thd_entry, step_gain[DET_MAX_LAYERS - 1], exit_gain;
+    double floor[DET_MAX_LAYERS], level_plan[DET_MAX_LAYERS], localise, locate_margin, push_out, max_gap;
+    double py_sum_comp;
+    /* state */
+    double n_buf, flag, t_ev[DET_EVENTS], x_ev[DET_EVENTS], t_paper, x_paper, t_thin, x_thin, F_ref;
+    double drop, exit_armed, quiet, need, err_n, err_pos;
+    double cand, cand_t, cand_x, cand_level, cand_i, cand_n, cand_sum, cand_comp;
+    double cand_e[DET_ENTRY_SWING], cand_e_n, cand_e_pos;
+    double armed, fail, fail_code, t_fail, x_fail, t_last, x_last, F_pred, F_err, F_level, thd, h_n;
+    double n_pending, pend_k[DET_EVENTS], pend_x[DET_EVENTS], pend_i[DET_EVENTS];
+    double F_air, levels[DET_MAX_LAYERS], mismatch, loc[4 * DET_EVENTS];
+    /* the block's arrays and functions */
+    const double *W;            /* weights of every window length N_min..N, one after the other */
+    double *buf, *h_t, *h_x, *h_F, *err;
+    dot_fn dot;
+    locate_fn locate;
+} Detector;
+
+/* Python's sum() of floats, folded one term at a time: (sum, compensation) */
+static void py_sum_add(const Detector *s, double *f, double *c, double x)
+{
+    if (s->py_sum_comp == 0.0) {
+        *f += x;
+        return;
+    }
+    double t = *f + x;
+    if (fabs(*f) >= fabs(x))
+        *c += (*f - t) + x;
+    else
+        *c += (x - t) + *f;
+    *f = t;
+}
+
+static double py_sum_end(double f, double c)
+{
+    return (c != 0.0 && isfinite(c)) ? f + c : f;
+}
+
+/* exported for the block's check that this build sums as the running Python does */
+double detector_py_sum(double compensated, const double *x, long n)
+{
+    Detector s;
+    s.py_sum_comp = compensated;
+    double f = 0.0, c = 0.0;
+    for (long i = 0; i < n; i++)
+        py_sum_add(&s, &f, &c, x[i]);
+    return py_sum_end(f, c);
+}
+
+static double thd_interface(const Detector *s, int k, double F_pred)
+{
+    if (s->relative == 0.0)
+        return s->thd2;
+    return MAX(s->thd_min, s->step_gain[k - 1] * F_pred);
+}
+
+static double thd_exit(const Detector *s, double F_pred)
+{
+    if (s->relative == 0.0)
+        return s->thd3;
+    return -MAX(s->thd_min, s->exit_gain * F_pred);
+}
+
+static double thd_onset(const Detector *s, int k, double e, double thd)
+{
+    long n2 = 2 * (long)s->N;
+    if (s->thd_noise_factor <= 0.0 || e * s->step_signs[k - 1] <= 0.0 || s->err_n < n2)
+        return thd;
+    /* the oldest N of the last 2 N |F~| (the ring is full: the oldest is at err_pos) */
+    long p = (long)s->err_pos;
+    double noise = s->err[p];
+    for (long j = 1; j < (long)s->N; j++) {
+        double v = s->err[(p + j) % n2];
+        if (v > noise)
+            noise = v;
+    }
+    return MIN(thd, MAX(s->thd_min, s->thd_noise_factor * noise));
+}
+
+static double rearm_level(const Detector *s, double F_pred)
+{
+    if (s->relative == 0.0)
+        return s->rearm_level;
+    int flag = (int)s->flag;
+    double thd = (1 <= flag && flag < (int)s->n) ? thd_interface(s, flag, F_pred) : -thd_exit(s, F_pred);
+    return MAX(s->rearm_level, 0.5 * thd);
+}
+
+static double min_of(const double *v, int from, int to)
+{
+    double m = v[from];
+    for (int i = from + 1; i < to; i++)
+        if (v[i] < m)
+            m = v[i];
+    return m;
+}
+
+static int engaged(const Detector *s, double F_pred)
+{
+    int flag = (int)s->flag, n = (int)s->n;
+    if (s->relative == 0.0 || !(1 <= flag && flag <= n))
+        return 1;
+    return F_pred >= (s->fail != 0.0 ? min_of(s->floor, flag - 1, n) : s->floor[flag - 1]);
+}
+
+static int may_arm(const Detector *s, double x)
+{
+    if (s->flag == 0.0)
+        return s->has_windows == 0.0 || x >= s->win_lo[0];
+    return s->quiet >= s->need && engaged(s, s->F_level);
+}
+
+static void set_fail(Detector *s, int code, double t, double x)
+{
+    if (s->fail != 0.0)
+        return;
+    s->fail = 1.0;
+    s->fail_code = code;
+    s->t_fail = t;
+    s->x_fail = x;
+    if (s->fail_disarms != 0.0 && s->flag <= s->n) {
+        s->armed = 0.0;
+        s->quiet = 0.0;
+    }
+}
+
+static void check_level(Detector *s, double t, double x)
+{
+    int k = (int)s->flag - 1;
+    s->levels[k] = s->F_level;
+    if (!(s->mismatch_factor > 0.0 && k >= 1 && s->levels[k - 1] > 0.0))
+        return;
+    double ratio = (s->levels[k] / s->levels[k - 1]) / (s->level_plan[k] / s->level_plan[k - 1]);
+    s->mismatch = ratio;
+    if (!(1.0 / s->mismatch_factor <= ratio && ratio <= s->mismatch_factor))
+        set_fail(s, (int)s->n + 2, t, x);
+}
+
+/* i_hist < 0: the latest sample */
+static void event(Detector *s, int k, double t, double x, double i_hist)
+{
+    s->t_ev[k] = t;
+    s->x_ev[k] = x;
+    s->flag = k + 1;
+    s->armed = 0.0;
+    s->quiet = 0.0;
+    s->need = s->rearm_samples;
+    s->t_last = t;
+    s->x_last = x;
+    if (s->localise != 0.0) {
+        int j = (int)s->n_pending;
+        s->pend_k[j] = k;
+        s->pend_x[j] = x;
+        s->pend_i[j] = i_hist < 0.0 ? s->h_n : i_hist;
+        s->n_pending = j + 1;
+    }
+    if (s->has_windows != 0.0 && x < s->win_lo[k])
+        set_fail(s, k + 1, t, x);
+}
+
+static void entry_confirm(Detector *s, double t, double x, double F, double F_pred, double e)
+{
+    if (s->cand == 0.0) {
+        if (e > s->thd) {
+            s->cand = 1.0;
+            s->cand_t = t;
+            s->cand_x = x;
+            s->cand_level = F_pred;
+            s->cand_i = s->h_n - 1.0;
+            s->cand_n = 1.0;
+            s->cand_sum = 0.0;
+            s->cand_comp = 0.0;
+            py_sum_add(s, &s->cand_sum, &s->cand_comp, F);
+            s->cand_e[0] = e;
+            s->cand_e_n = 1.0;
+            s->cand_e_pos = 1.0;
+        }
+        return;
+    }
+    s->cand_n += 1.0;
+    py_sum_add(s, &s->cand_sum, &s->cand_comp, F);
+    int p = (int)s->cand_e_pos;
+    s->cand_e[p] = e;
+    s->cand_e_pos = (p + 1) % DET_ENTRY_SWING;
+    if (s->cand_e_n < DET_ENTRY_SWING)
+        s->cand_e_n += 1.0;
+    /* sum of the last ENTRY_SWING F~, oldest first */
+    int m = (int)s->cand_e_n, first = m < DET_ENTRY_SWING ? 0 : (int)s->cand_e_pos;
+    double f = 0.0, c = 0.0;
+    for (int j = 0; j < m; j++)
+        py_sum_add(s, &f, &c, s->cand_e[(first + j) % DET_ENTRY_SWING]);
+    if (py_sum_end(f, c) < 0.0) {
+        s->cand = 0.0;
+    } else if (s->cand_n >= s->N_min
+               && py_sum_end(s->cand_sum, s->cand_comp) / s->cand_n > s->cand_level + s->thd) {
+        s->cand = 0.0;
+        event(s, 0, s->cand_t, s->cand_x, s->cand_i);
+    }
+}
+
+static void exit_tests(Detector *s, double t, double x, double F, double F_pred, double e)
+{
+    int n = (int)s->n;
+    if (s->drop == 0.0) {
+        s->F_ref = isnan(s->F_ref) ? F_pred : MAX(s->F_ref, F_pred);
+        if (e < thd_exit(s, s->F_level)) {
+            s->drop = 1.0;
+            s->t_paper = t;
+            s->x_paper = x;
+            if (s->exit_thinning == 0.0 && (int)s->flag == n)
+                event(s, n, t, x, -1.0);
+        }
+    }
+    if (isnan(s->t_thin) && F < s->exit_ratio * s->F_ref) {
+        s->t_thin = t;
+        s->x_thin = x;
+        if (s->exit_thinning != 0.0 && (int)s->flag == n)
+            event(s, n, t, x, -1.0);
+    }
+}
+
+/* the prediction error's bookkeeping and the armed test of one sample */
+static void tests(Detector *s, double t, double x, double F, double F_pred)
+{
+    double e = F - F_pred;
+    int n = (int)s->n, flag;
+    s->F_pred = F_pred;
+    s->F_err = e;
+    if (isnan(s->F_level))
+        s->F_level = F_pred;
+    if (fabs(e) < rearm_level(s, s->F_level)) {
+        s->quiet += 1.0;
+        s->F_level = F_pred;
+    } else {
+        s->quiet = 0.0;
+    }
+    if (s->thd_noise_factor > 0.0) {
+        long n2 = 2 * (long)s->N, p = (long)s->err_pos;
+        s->err[p] = fabs(e);
+        s->err_pos = (p + 1) % n2;
+        if (s->err_n < n2)
+            s->err_n += 1.0;
+    }
+    flag = (int)s->flag;
+    if (s->relative != 0.0 && 1 <= flag && flag <= n && isnan(s->levels[flag - 1])
+            && s->quiet >= s->need && s->F_level >= min_of(s->floor, 0, n))
+        check_level(s, t, x);
+    if (s->armed == 0.0 && may_arm(s, x))
+        s->armed = 1.0;
+    s->thd = NAN;
+    flag = (int)s->flag;
+    if (flag == 0 && s->armed != 0.0) {
+        s->thd = s->relative == 0.0 ? s->thd1 : s->thd_entry;
+        if (s->entry_confirm != 0.0)
+            entry_confirm(s, t, x, F, F_pred, e);
+        else if (e > s->thd)
+            event(s, 0, t, x, -1.0);
+    } else if (flag < n && s->armed != 0.0) {
+        s->thd = thd_interface(s, flag, s->F_level);
+        if (fabs(e) > thd_onset(s, flag, e, s->thd))
+            event(s, flag, t, x, -1.0);
+    } else if (flag >= n && (s->armed != 0.0 || s->exit_armed != 0.0)) {
+        s->exit_armed = 1.0;
+        s->thd = -thd_exit(s, s->F_level);
+        exit_tests(s, t, x, F, F_pred, e);
+    }
+}
+
+static void locate(Detector *s, int k, double x_trig, double before, double after, double t_now)
+{
+    int n = (int)s->n;
+    double lo = x_trig - before, out[4];
+    if (k > 0 && isfinite(s->x_ev[k - 1]))
+        lo = MAX(lo, s->x_ev[k - 1] + s->locate_margin);
+    double air = isfinite(s->F_air) ? s->F_air : 0.0;
+    if (s->locate == NULL)      /* a state the block did not fill (it always sets the callback) */
+        out[0] = out[1] = out[2] = out[3] = NAN;
+    else
+        s->locate(k, x_trig, lo, x_trig + after, s->h_n, air, out);
+    int name = k == 0 ? 0 : k == n ? DET_EVENTS - 1 : k;
+    s->loc[4 * name] = out[0];
+    s->loc[4 * name + 1] = out[1];
+    s->loc[4 * name + 2] = out[2];
+    s->loc[4 * name + 3] = t_now;
+    if (k == 0 && isfinite(out[0]))
+        s->F_air = out[3];
+    if (s->restart != 0.0 && k == (int)s->flag - 1 && k < n && s->armed == 0.0) {
+        s->n_buf = 0.0;
+        s->quiet = 0.0;
+        s->need = s->N_min;
+    }
+}
+
+static void locate_due(Detector *s, double t, double x)
+{
+    int kept = 0, m = (int)s->n_pending, n = (int)s->n;
+    for (int j = 0; j < m; j++) {
+        int k = (int)s->pend_k[j];
+        double x_trig = s->pend_x[j], i_trig = s->pend_i[j];
+        double m_ = s->locate_margin, before, after;
+        if (k == 0) {
+            before = m_;
+            after = m_;
+        } else if (k == n) {
+            before = s->push_out + m_;
+            after = m_;
+        } else {
+            before = s->max_gap + m_;
+            after = s->max_gap + m_;
+        }
+        if (x < x_trig + after && s->h_n - i_trig < DET_HISTORY / 2) {
+            s->pend_k[kept] = k;
+            s->pend_x[kept] = x_trig;
+            s->pend_i[kept] = i_trig;
+            kept++;
+            continue;
+        }
+        locate(s, k, x_trig, before, after, t);
+    }
+    s->n_pending = kept;
+}
+
+static void check_windows(Detector *s, double t, double x)
+{
+    if (s->has_windows == 0.0 || s->flag > s->n || s->fail != 0.0)
+        return;
+    int k = (int)s->flag;
+    double hi = s->win_hi[k];
+    if (x > hi) {
+        set_fail(s, k + 1, t, x);
+    } else if (s->feed_rate > 0.0 && k >= 1 && !isnan(s->x_last)) {
+        double t_max = s->time_margin * MAX(hi - s->x_last, 0.0) / s->feed_rate;
+        if (t - s->t_last > t_max)
+            set_fail(s, k + 1, t, x);
+    }
+}
+
+static void outputs(const Detector *s, double *y)
+{
+    int n = (int)s->n;
+    double t_if[DET_MAX_LAYERS - 1], x_if[DET_MAX_LAYERS - 1];
+    for (int j = 0; j < DET_MAX_LAYERS - 1; j++) {
+        t_if[j] = j < n - 1 ? s->t_ev[1 + j] : NAN;
+        x_if[j] = j < n - 1 ? s->x_ev[1 + j] : NAN;
+    }
+    double head[] = {s->flag, s->t_ev[0], t_if[0], s->t_ev[n], s->x_ev[0], x_if[0], s->x_ev[n],
+                     s->fail, s->fail_code, s->F_pred, s->F_err, s->armed,
+                     s->t_paper, s->x_paper, s->t_thin, s->x_thin, s->F_ref};
+    int j = 0;
+    for (unsigned i = 0; i < sizeof head / sizeof head[0]; i++)
+        y[j++] = head[i];
+    for (int i = 0; i < DET_MAX_LAYERS - 1; i++)
+        y[j++] = t_if[i];
+    for (int i = 0; i < DET_MAX_LAYERS - 1; i++)
+        y[j++] = x_if[i];
+    y[j++] = s->t_fail;
+    y[j++] = s->x_fail;
+    y[j++] = s->thd;
+    y[j++] = s->n;
+    y[j++] = s->mismatch;
+    for (int i = 0; i < 4 * DET_EVENTS; i++)
+        y[j++] = s->loc[i];
+}
+
+/* u: F [N], x [m]; y: the block's outputs in its order (interface_detector.py _OUTPUTS) */
+void interface_detector_step(Detector *s, double t, const double *u, double *y)
+{
+    double F = u[0], x = u[1];
+    if (!isfinite(F)) {
+        /* no usable force sample: keep the window and the state, only watch the windows */
+        check_windows(s, t, x);
+        outputs(s, y);
+        return;
+    }
+    long i = (long)s->h_n % DET_HISTORY;
+    s->h_t[i] = t;
+    s->h_x[i] = x;
+    s->h_F[i] = F;
+    s->h_n += 1.0;
+    long nb = (long)s->n_buf, N = (long)s->N, Nm = (long)s->N_min;
+    if (nb >= Nm) {
+        /* weights of length nb start after those of N_min .. nb - 1 */
+        const double *w = s->W + (nb * (nb - 1) - Nm * (Nm - 1)) / 2;
+        tests(s, t, x, F, s->dot(nb, w, 1, s->buf, 1));
+    }
+    if (nb < N) {               /* shift the regression window (oldest first) */
+        s->buf[nb] = F;
+        s->n_buf = nb + 1;
+    } else {
+        memmove(s->buf, s->buf + 1, (size_t)(N - 1) * sizeof(double));
+        s->buf[N - 1] = F;
+    }
+    if (s->n_pending > 0.0)
+        locate_due(s, t, x);
+    check_windows(s, t, x);
+    outputs(s, y);
+}
+
+/* sizeof(Detector), for the block's check of its ctypes mirror */
+long interface_detector_state_size(void)
+{
+    return (long)sizeof(Detector);
+}

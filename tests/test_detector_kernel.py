@@ -1,0 +1,243 @@
+"""Issues #21, #24: the InterfaceDetector steps in C (controllers/kernels/interface_detector.c),
+bit-identical to its Python reference step.
+
+* Block level: synthetic thrust traces (air with ringing, layers with engagement ramps, a gap,
+  a thinning exit, the 2 Hz orbital ripple, noise, NaN samples) through both steps under the
+  settings that switch branches (Table 4's fixed thresholds, the hole plan's process-following
+  ones with entry confirmation, noise threshold, restart, mismatch and fail disarming, 1 to 4
+  layers, localisation off): every output of every sample has the same bits, and the state the
+  C step holds reads back as the Python step's attributes.
+* Closed loop: the Fang hole (fang_table5_hole) and two holes of the wide stack draw
+  (drillcosim.analysis.stack_montecarlo) with the C and with the Python detector record the same doubles
+  in every signal, and the same scores (``<event>_dz_mm``, ``<event>_trigger_dz_mm``, ...);
+  the Fang hole runs every step in C.
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drillcosim.controllers import detector_kernel
+from drillcosim.controllers.interface_detector import InterfaceDetector
+
+ROOT = Path(__file__).resolve().parent.parent
+MM = 1e-3
+DT = 0.02
+
+
+def _trace(levels, thick_mm, gaps_mm, feed_mm_min=12.0, surface_mm=1.0, start_mm=0.2, engage_mm=0.1,
+           thinning_mm=0.4, ringing=0.0, seed=5, nan_every=0):
+    """(t, x, F) at the detector's 0.02 s: the tool fed at ``feed_mm_min`` from ``start_mm``,
+    layer k's thrust ``levels[k]`` [N] rising over ``engage_mm`` after its top face (after
+    ``gaps_mm[k]`` of air below the layer above), the last layer's thrust falling linearly
+    over its last ``thinning_mm``; an air offset with a burst of ``ringing`` [N] 0.3 mm above
+    the surface (an observer ringing in air), the orbital ripple, noise; every ``nan_every``-th
+    sample NaN."""
+    rng = np.random.default_rng(seed)
+    tops, z = [], surface_mm
+    for th, gap in zip(thick_mm, gaps_mm):
+        z += gap
+        tops.append(z)
+        z += th
+    end = z
+    t = np.arange(0.0, (end + 1.0 - start_mm) / (feed_mm_min / 60.0), DT)
+    x_mm = start_mm + feed_mm_min / 60.0 * t
+    cut = np.zeros(t.size)
+    for top, th, level in zip(tops, thick_mm, levels):
+        inside = (x_mm > top) & (x_mm < top + th)
+        cut += np.where(inside, level * np.clip((x_mm - top) / engage_mm, 0.0, 1.0), 0.0)
+    F = 3.0 + cut * np.clip((end - x_mm) / thinning_mm, 0.0, 1.0)
+    F += ringing * np.exp(-((x_mm - surface_mm + 0.3) / 0.15) ** 2) * np.sin(2 * np.pi * 1.3 * t)
+    F += 0.02 * F * np.sin(2 * np.pi * 2.0 * t) + rng.normal(0.0, 0.8, t.size)
+    if nan_every:
+        F[nan_every::nan_every] = np.nan
+    return t, x_mm * MM, F
+
+
+def _pair(**kw):
+    c, p = InterfaceDetector(**kw), InterfaceDetector(**kw)
+    p.kernel = "python"
+    p.reset(0.0)
+    assert c.c_kernel is not None and c.step == c.c_kernel.step and p.c_kernel is None
+    return c, p
+
+
+def _bits(y) -> bytes:
+    return np.asarray(y, dtype=float).tobytes()
+
+
+MIRRORED = ("flag", "armed", "n_buf", "quiet", "need", "fail", "fail_code", "F_level", "F_ref", "F_air",
+            "t_ev", "x_ev", "levels", "loc", "pending", "cand")
+
+
+def _same(a, b) -> bool:
+    """Equal, NaN equal to NaN, in nested lists / tuples / dicts."""
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(_same(u, v) for u, v in zip(a, b))
+    if isinstance(a, float) or isinstance(b, float):
+        return _bits([a]) == _bits([b])
+    return a == b
+
+
+def _run_both(c, p, t, x, F):
+    """Steps both detectors through the trace, comparing outputs and the mirrored state at
+    every sample; returns the Python step's outputs and how many entry candidates it dropped."""
+    ys, dropped, had = [], 0, None
+    for ti, xi, Fi in zip(t, x, F):
+        yc, yp = c.step(ti, [Fi, xi]), p.step(ti, [Fi, xi])
+        assert _bits(yc) == _bits(yp), (ti, [(n, a, b) for n, a, b in zip(c.output_names(), yc, yp)
+                                              if _bits([a]) != _bits([b])])
+        dropped += had is not None and p.cand is None and p.flag == 0
+        had = p.cand
+        ys.append(yp)
+    for name in MIRRORED:
+        assert _same(getattr(c, name), getattr(p, name)), name
+    return np.array(ys), dropped
+
+
+def _out(det, ys, name):
+    return ys[:, det.output_names().index(name)]
+
+
+FANG = dict(levels=(110.0, 380.0), thick_mm=(5.0, 4.5), gaps_mm=(0.0, 0.05))
+PLAN = dict(surface=1.0 * MM, thicknesses=(3 * MM, 2 * MM, 2.5 * MM), thickness_tolerances=0.3 * MM,
+            max_gap=0.5 * MM, kc=[1.2e7, 4.0e7, 1.5e7], feed_per_rev=[5e-6, 4e-6, 5e-6], exit_criterion="thinning",
+            fail_disarms=True, mismatch_factor=3.0, restart=True, entry_confirm=True, locate_margin=0.3 * MM,
+            push_out=0.5 * MM)
+CASES = {
+    "table4": (dict(surface=1.0 * MM, thicknesses=(5 * MM, 4.5 * MM), max_gap=0.05 * MM, feed_rate=1.5e-4), FANG),
+    "table4_nan_thinning": (dict(exit_criterion="thinning", surface=1.0 * MM, thicknesses=(5 * MM, 4.5 * MM)),
+                            dict(FANG, nan_every=37)),
+    "plan_gap_confirm": (PLAN, dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.4, 0.0),
+                                    ringing=25.0, feed_mm_min=15.0)),
+    "plan_noise_delay": (dict(PLAN, thd_noise_factor=3.0, observer_delay=0.05, step_signs=[1.0, -1.0]),
+                         dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.0, 0.3))),
+    "plan_mismatch_fails": (dict(PLAN, thicknesses=(3 * MM, 2.5 * MM), kc=[1.2e7, 4.0e7], feed_per_rev=[5e-6, 4e-6],
+                                 mismatch_factor=1.5),
+                            dict(levels=(60.0, 500.0), thick_mm=(3.0, 2.5), gaps_mm=(0, 0))),
+    "one_layer_short_window": (dict(N=20, N_min=5, thicknesses=(4 * MM,), localise=False),
+                               dict(levels=(150.0,), thick_mm=(4.0,), gaps_mm=(0.0,), engage_mm=0.02,
+                                    thinning_mm=0.05)),
+    "four_layers": (dict(thicknesses=(2 * MM, 2 * MM, 2 * MM, 2 * MM), thd2=30.0, N=60, N_min=10, rearm_samples=40),
+                    dict(levels=(120.0, 300.0, 150.0, 350.0), thick_mm=(2.0, 2.0, 2.0, 2.0), gaps_mm=(0, 0, 0, 0),
+                         engage_mm=0.02, thinning_mm=0.05)),
+}
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_c_step_is_bit_identical_to_the_python_step(case):
+    settings, trace = CASES[case]
+    c, p = _pair(**settings)
+    t, x, F = _trace(**trace)
+    for _run in range(2):                       # the second run checks the reset
+        c.reset(0.0)
+        p.reset(0.0)
+        ys, dropped = _run_both(c, p, t, x, F)
+    n = p.n
+    if case == "plan_mismatch_fails":           # Ti drilled where the plan says a softer layer
+        assert p.fail == 1 and p.fail_code == n + 2
+        return
+    assert p.flag == n + 1 and not p.fail, (p.flag, p.fail_code)     # entry, every interface, the exit
+    assert np.isfinite(p.x_ev).all()
+    if p.localise:
+        assert all(math.isfinite(p.loc[ev][0]) for ev in ("entry", "exit"))
+    if case == "plan_gap_confirm":
+        assert dropped >= 1                      # the ringing made candidates, the confirmation dropped them
+        assert math.isfinite(p.loc["interface1"][0]) and abs(p.loc["interface1"][0] - 4.2 * MM) < 0.25 * MM
+    if case == "table4_nan_thinning":
+        assert np.isnan(F).sum() > 10 and np.isfinite(_out(p, ys, "t_exit_thinning")[-1])
+
+
+def test_the_python_step_is_kept_when_numpy_s_dot_is_not_found(monkeypatch):
+    """No ddot that gives numpy's ``@`` to the bit: the detector keeps its Python step."""
+    monkeypatch.setattr(detector_kernel, "blas_ddot", lambda: None)
+    det = InterfaceDetector()
+    assert det.c_kernel is None and det.step.__func__ is InterfaceDetector.step
+    with pytest.raises(ValueError, match="no C kernel"):
+        det.kernel = "c"
+        det.reset(0.0)
+
+
+def test_the_c_sum_is_python_s_sum():
+    """Python's sum of floats (plain up to 3.11, compensated from 3.12) as the C step sums."""
+    assert detector_kernel.sums_like_python()
+    assert detector_kernel.blas_ddot() is not None
+
+
+# ---------------------------------------------------------------- closed loop
+def _simulate(path, overrides, kernel, tmp, stop_time=None):
+    """Every signal of a run with the detector's ``kernel``, and the run info."""
+    from drillcosim.cosim.loop.algorithm import simulate
+    from drillcosim.cosim.loop.recorder import Recorder
+    from drillcosim.cosim.runs.runner import load
+    sc = load(path, overrides)
+    det = sc.system.blocks["detector"]
+    det.kernel = kernel
+    det.reset(0.0)
+    assert (det.c_kernel is not None) == (kernel == "auto")
+    rec = Recorder(["*"], sc.decimation, tmp / kernel)
+    info = simulate(sc.system, stop_time or sc.stop_time, rec, sc.events)
+    return rec.finish(write_mat=False), info
+
+
+def _assert_same_records(a, b):
+    assert a.signals == b.signals
+    for s in a.signals:
+        assert _bits(a[s]) == _bits(b[s]), s
+
+
+def _fang_hole(tmp_path, stop_time):
+    path = ROOT / "scenarios" / "fang_table5_hole.toml"
+    (c, ic), (p, _ip) = (_simulate(path, {}, k, tmp_path, stop_time) for k in ("auto", "python"))
+    _assert_same_records(c, p)
+    assert ic.steps_in_c == ic.steps > 0         # every step in C, the detector's too
+    return c
+
+
+def test_fang_hole_start_is_bit_identical_and_all_in_c(tmp_path):
+    """The approach, the entry (3.54 s) and its localisation (known 0.3 mm later)."""
+    c = _fang_hole(tmp_path, 6.0)
+    assert c["detector.flag"][-1] == 1 and np.isfinite(c["detector.x_entry_loc"][-1])
+
+
+@pytest.mark.long
+def test_fang_hole_is_bit_identical_and_all_in_c(tmp_path):
+    c = _fang_hole(tmp_path, None)
+    assert c["detector.flag"][-1] == 3 and c["detector.fail"][-1] == 0
+    assert np.isfinite([c[f"detector.x_{ev}_loc"][-1] for ev in ("entry", "interface1", "exit")]).all()
+
+
+def _wide_hole(seed: int, hole: int):
+    from drillcosim.analysis.stack_montecarlo import PLANTS, STACKS, draw_wide_campaign
+    jobs, _refused = draw_wide_campaign(hole + 1, seed=seed)
+    _i, stack, ov = jobs[hole]
+    return STACKS / PLANTS["project"], stack, ov
+
+
+@pytest.mark.long
+@pytest.mark.parametrize("seed,hole", [(23, 3), (24, 0)])
+def test_wide_stack_holes_are_bit_identical(tmp_path, monkeypatch, seed, hole):
+    """Two holes of the wide draw with a gap (ti/cfrp, 0.13 mm; cfrp/al, 0.71 mm): the same
+    records and the same scores (located and trigger depth errors) with either step."""
+    from drillcosim.cosim.runs.runner import run_scenario
+    path, stack, ov = _wide_hole(seed, hole)
+    summaries, results = [], []
+    for kernel in ("auto", "python"):
+        monkeypatch.setattr(InterfaceDetector, "kernel", kernel)
+        out = tmp_path / kernel
+        results.append(run_scenario(path, out, ov, progress=False, handle_signals=False, plots=False))
+        summaries.append(json.loads((out / "summary.json").read_text()))
+    _assert_same_records(*results)
+    sc_c, sc_p = (s["scores"]["score_stack"] for s in summaries)
+    assert json.dumps(sc_c, sort_keys=True) == json.dumps(sc_p, sort_keys=True)
+    assert summaries[0]["steps_in_c"] == summaries[0]["steps"]
+    # entry (confirmed: the hole plan's detector), the interface across the gap, the exit
+    assert sc_c["final_flag"] == 3 and sc_c["missed_events"] == 0 and sc_c["fail"] == 0, stack
+    assert all(math.isfinite(sc_c[f"{ev}_{q}_mm"])
+               for ev in ("entry", "interface1", "exit") for q in ("dz", "trigger_dz"))
