@@ -90,3 +90,12 @@ def test_another_package_registers_a_scenario_section(tmp_path):
             build(tomllib.loads(BASE_SCENARIO.format(fmu=fmu) + '\n[push]\nforce_N = "a"\n'), "x.toml", tmp_path)
     finally:
         del reg.expanders["push"]
+
+
+def test_a_scenario_name_no_folder_has_is_named_with_the_folders_searched(tmp_path, monkeypatch):
+    from drillcosim.cosim.scenario.loader import load_scenario
+    monkeypatch.chdir(tmp_path)                   # no scenarios/ here: only the shipped folder
+    with pytest.raises(ScenarioError, match=r"no scenario of that name in .*scenarios.*drillcosim list") as e:
+        load_scenario("keio_fig7_aluminum_force_control")     # a typo
+    assert e.value.file == "keio_fig7_aluminum_force_control"
+    assert load_scenario("foreign/keio_fig7_aluminium_force_control").name == "keio_fig7_aluminium_force_control"

@@ -13,13 +13,17 @@ from pathlib import Path
 from drillcosim.cosim.errors import ScenarioError
 from drillcosim.cosim.scenario.build import Scenario, build
 from drillcosim.cosim.scenario.files import Origins, load_raw, read_toml
-from drillcosim.cosim.scenario.paths import scenario_path
+from drillcosim.cosim.scenario.paths import scenario_dirs, scenario_path
 from drillcosim.cosim.ssp.reader import load_ssp
 
 def load_scenario(path, overrides: dict | None = None) -> Scenario:
     """Load and fully validate a scenario file (a path, or a name in ``scenarios/``);
     ``overrides`` are dotted keys set first."""
-    path = scenario_path(path)
+    given, path = path, scenario_path(path)
+    if not path.exists():
+        where = ", ".join(str(d) for d in scenario_dirs()) or "no scenario folder"
+        raise ScenarioError(f"no such scenario file, and no scenario of that name in {where} "
+                            "(`drillcosim list` shows the names)", str(given))
     if path.suffix.lower() in (".ssp", ".ssd"):    # an SSP package from another tool (cosim/ssp/reader.py)
         return load_ssp(path, overrides)
     origins = Origins()
