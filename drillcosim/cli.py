@@ -128,7 +128,7 @@ def cmd_campaign(args) -> int:
                                  progress=not args.quiet, scheduler=args.scheduler,
                                  wall_timeout=args.timeout, max_steps=args.max_steps,
                                  keep_data=not args.drop_data, processes=args.worker_processes,
-                                 resume=args.resume, gather=args.gather, plots=args.plots)
+                                 resume=args.resume, gather=args.gather, plots=args.plots, mats=args.mat)
     except CampaignStopped as e:
         stopped, summaries = e, e.summaries
     except (CosimError, ValueError, OSError) as e:
@@ -471,6 +471,9 @@ def _add_campaign_parser(sub) -> None:
     c.add_argument("--plots", action="store_true",
                    help="draw every run's figures (off by default: they cost as much as a run; "
                         "`drillcosim plot RUN_FOLDER` draws one run's)")
+    c.add_argument("--mat", action="store_true",
+                   help="write every good run's data.mat and data_res.mat too (off by default: data.csv holds "
+                        "every row, and a run that went wrong always gets its data.mat)")
     c.add_argument("--resume", action="store_true",
                    help="complete the campaign in --out: keep its finished runs, run the interrupted, crashed "
                         "and missing ones again (a folder holding a campaign is refused without it)")

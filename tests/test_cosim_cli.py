@@ -69,6 +69,17 @@ def test_campaign_two_runs_one_failing(scenario_file, tmp_path):
     assert [s["run"] for s in saved] == [0, 1]
     # what each worker printed is kept per run, not interleaved on the terminal
     assert all((tmp_path / "camp" / f"run_{i:03d}" / "log.txt").exists() for i in (0, 1))
+    # a good run's rows are in data.csv only; the failed one keeps its data.mat as evidence
+    assert (tmp_path / "camp" / "run_000" / "data.csv").exists()
+    assert not (tmp_path / "camp" / "run_000" / "data.mat").exists()
+    assert (tmp_path / "camp" / "run_001" / "data.mat").exists()
+
+
+def test_campaign_writes_mat_files_on_request(scenario_file, tmp_path):
+    (s,) = run_campaign(scenario_file, [{"fmus.mass.parameters.m": 2.0}], out_dir=tmp_path / "camp",
+                        progress=False, mats=True)
+    assert s["status"] == "completed"
+    assert {"data.mat", "data_res.mat"} <= {f.name for f in (tmp_path / "camp" / "run_000").iterdir()}
 
 
 def test_open_loop_linear_stage_smoke(tmp_path):

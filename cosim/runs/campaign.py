@@ -45,21 +45,23 @@ GOOD = ("completed", "stopped")
 
 def _one_run(path: str, out_dir: str, overrides: dict, index: int, wall_timeout=None, max_steps=None,
              keep_data: bool = True, stop_name: str | None = None, gather: bool = False,
-             plots: bool = False) -> dict:
+             plots: bool = False, mats: bool = False) -> dict:
     """A Dask task: one supervised run; never raises (its summary says what happened).
     ``keep_data=False``: a good run's data files are deleted once it is scored (its summary,
     scores and figures stay); a run that went wrong keeps them, they are the evidence.
     ``stop_name``: the campaign's stop request (:class:`_StopRequest`). ``gather``: run in
     this worker's own working folder and send the run's files back with the summary (a
     worker on another machine, no shared file system); the driver writes them to ``out_dir``.
-    ``plots``: draw the scenario's plots (off: ``drillcosim plot RUN`` draws them on demand)."""
+    ``plots``: draw the scenario's plots (off: ``drillcosim plot RUN`` draws them on demand).
+    ``mats``: write a good run's data.mat and data_res.mat too (off: data.csv holds every
+    row; a run that went wrong always gets its data.mat)."""
     stop = _stop_check(stop_name)
     if stop is not None and stop():
         return {"status": "cancelled", "stop_reason": "the campaign was stopped before this run started",
                 "run": index, "overrides": overrides, "out_dir": out_dir}
     worker = _this_worker()
     out = _worker_folder(worker, stop_name, index) if gather else Path(out_dir)
-    summary = _run_here(path, out, overrides, (wall_timeout, max_steps, plots, keep_data), stop)
+    summary = _run_here(path, out, overrides, (wall_timeout, max_steps, plots, keep_data and mats), stop)
     summary.update(run=index, overrides=overrides, out_dir=str(out))
     if worker is not None:
         summary["worker"] = worker.address
@@ -202,7 +204,7 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
                  progress: bool = True, scheduler: str | None = None, wall_timeout: float | None = None,
                  max_steps: int | None = None, retries: int = 0, client=None,
                  keep_data: bool = True, processes: bool = False, resume: bool = False,
-                 gather: bool = False, plots: bool = False, replace: bool = False) -> list[dict]:
+                 gather: bool = False, plots: bool = False, replace: bool = False, mats: bool = False) -> list[dict]:
     """Run ``scenario`` (a path) once per overrides dict; summaries in input order.
 
     ``scenario`` may also be a list of paths, one per run (a campaign over several scenarios).
@@ -219,7 +221,9 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
     ``gather``: each run in its worker's own folder, its files sent back to ``out_dir``
     (workers on machines that do not share ``out_dir``'s file system). ``plots``: draw each
     run's figures (off by default: ~1-2 s a run, often as much as the simulation; ``drillcosim
-    plot RUN_FOLDER`` draws them for the runs one looks at).
+    plot RUN_FOLDER`` draws them for the runs one looks at). ``mats``: each good run's data.mat
+    and data_res.mat (off by default: writing them costs a third of a Fang hole's simulation,
+    and data.csv holds every row).
     """
     from drillcosim.cosim.runs.outputs import FolderLock
     from drillcosim.cosim.scenario.loader import load_scenario
@@ -245,7 +249,7 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
         opts = dict(workers=workers, scheduler=scheduler, client=client, processes=processes,
                     retries=retries, progress=progress)
         t0 = time.perf_counter()
-        summaries, signum = _run_jobs(todo, len(jobs), (wall_timeout, max_steps, keep_data), opts, (gather, plots))
+        summaries, signum = _run_jobs(todo, len(jobs), (wall_timeout, max_steps, keep_data), opts, (gather, plots, mats))
         for i, s in reused.items():
             summaries[i] = {**s, "reused": True}
         for s in summaries:
@@ -298,8 +302,8 @@ def plan_resume(out: Path, jobs: list, resume: bool) -> dict[int, dict]:
     return kept
 
 
-def _run_jobs(todo: list, n_runs: int, limits: tuple, opts: dict, how: tuple = (False, False)) -> tuple[list, int | None]:
-    """Run ``todo`` on Dask (``how``: gather, plots); (summaries of all ``n_runs``, None for the
+def _run_jobs(todo: list, n_runs: int, limits: tuple, opts: dict, how: tuple = (False, False, False)) -> tuple[list, int | None]:
+    """Run ``todo`` on Dask (``how``: gather, plots, mats); (summaries of all ``n_runs``, None for the
     runs not in ``todo``; the signal that stopped the campaign, or None)."""
     summaries: list = [None] * n_runs
     if not todo:
