@@ -2,6 +2,8 @@
 without importing the others."""
 from __future__ import annotations
 
+import errno
+
 
 class CosimError(Exception):
     """Base class of every error raised by the master."""
@@ -47,3 +49,14 @@ class SimulationError(CosimError, RuntimeError):
         if fmu_message:
             parts.append(f"FMU says: {fmu_message}")
         super().__init__(": ".join(parts))
+
+
+class OutputError(CosimError, OSError):
+    """The output folder cannot be created, claimed or written (permissions, full disk)."""
+
+
+def io_problem(what: str, path, e: OSError) -> OutputError:
+    """``cannot write data.csv (/x/data.csv): No space left on device [ENOSPC]``."""
+    code = errno.errorcode.get(e.errno, "") if e.errno else ""
+    reason = e.strerror or str(e)
+    return OutputError(f"cannot {what} {path}: {reason}" + (f" [{code}]" if code else ""))

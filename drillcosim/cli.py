@@ -204,7 +204,7 @@ def cmd_list(args) -> int:
 def cmd_info(args) -> int:
     from drillcosim.cosim.errors import CosimError
     from drillcosim.cosim.fmi.model_exchange import load_any_model
-    from drillcosim.cosim.fmi.slave import resolve_fmu_path
+    from drillcosim.cosim.scenario.paths import resolve_fmu_path
     try:
         model = load_any_model(resolve_fmu_path(args.fmu, Path.cwd()))   # co-simulation or Model Exchange
     except (CosimError, OSError) as e:
@@ -336,7 +336,7 @@ def _simulate_system(args):
     from fmpy import read_model_description
     from drillcosim.cosim.errors import ScenarioError
     from drillcosim.cosim.fmi.model_exchange import create_slave
-    from drillcosim.cosim.fmi.slave import resolve_fmu_path
+    from drillcosim.cosim.scenario.paths import resolve_fmu_path
     from drillcosim.cosim.loop.system import System
     path = resolve_fmu_path(args.fmu, Path.cwd())
     de = read_model_description(str(path), validate=False).defaultExperiment
@@ -376,7 +376,7 @@ def _identifier(name: str) -> str:
 
 
 def cmd_conformance(args) -> int:
-    from drillcosim.cosim.fmi.conformance import main as conformance_main
+    from drillcosim.cosim.runs.conformance import main as conformance_main
     return conformance_main((["--no-write"] if args.no_write else [])
                             + (["--reference-fmus", args.reference_fmus] if args.reference_fmus else []))
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-import drillcosim.cosim.fmi.conformance as conf
+import drillcosim.cosim.runs.conformance as conf
 from drillcosim.cli import main
 
 

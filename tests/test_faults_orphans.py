@@ -89,7 +89,7 @@ def test_lock_held_by_an_orphan_of_a_dead_owner_is_taken_over(tmp_path):
 def test_a_live_owner_is_never_taken_over(tmp_path):
     out = tmp_path / "out"
     with claim(out):
-        from drillcosim.cosim.runs.outputs import OutputError
+        from drillcosim.cosim.errors import OutputError
         with pytest.raises(OutputError, match=f"another run \\(pid {os.getpid()}\\)"):
             FolderLock(out)
     with claim(out) as lock:            # released cleanly: no take-over

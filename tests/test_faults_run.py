@@ -18,7 +18,8 @@ import pytest
 
 from drillcosim import cli
 from drillcosim.cosim.errors import SimulationError
-from drillcosim.cosim.runs.outputs import OutputError, claim
+from drillcosim.cosim.errors import OutputError
+from drillcosim.cosim.runs.outputs import claim
 from drillcosim.cosim.loop.recorder import Result
 from drillcosim.cosim.runs.runner import RunEnded, run_scenario
 from drillcosim.cosim.runs.supervisor import EXIT_CRASHED, run_supervised

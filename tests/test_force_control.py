@@ -122,7 +122,8 @@ def test_kf_readings_table2():
 # ----------------------------------------------------------------- thrust-constant calibration
 def _true_Kt() -> float:
     """Scoring only: the plant's Kt, the start value in the FMU's model description."""
-    from drillcosim.cosim.fmi.slave import load_model, resolve_fmu_path
+    from drillcosim.cosim.fmi.slave import load_model
+    from drillcosim.cosim.scenario.paths import resolve_fmu_path
     return float(load_model(resolve_fmu_path("LinearStage", ROOT / "scenarios")).variables["Kt"].start)
 
 

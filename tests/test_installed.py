@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import sysconfig
@@ -31,9 +32,14 @@ def _run(cmd, cwd, timeout=600, **kw):
 def installed(tmp_path_factory):
     """A fresh venv with the package installed from a wheel built from this checkout."""
     tmp = tmp_path_factory.mktemp("installed")
+    # from a copy: setuptools builds in the source tree (build/lib), never removes a stale file
+    # there, and other tests run beside this one
+    src = tmp / "src"
+    shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(".venv", ".git", "results", "build", "dist",
+                                                             "__pycache__", "*.egg-info", ".pytest_cache"))
     wheels = tmp / "wheels"
     _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(wheels),
-          str(ROOT)], cwd=tmp)
+          str(src)], cwd=tmp)
     env_dir = tmp / "venv"
     venv.EnvBuilder(with_pip=True).create(env_dir)
     py = env_dir / "bin" / "python"

@@ -1,4 +1,4 @@
-"""The Dymola/OpenModelica result layout (cosim/runs/modelica_mat.py), read by DyMat as a
+"""The Dymola/OpenModelica result layout (cosim/loop/modelica_mat.py), read by DyMat as a
 Modelica user would read an OpenModelica ``*_res.mat``."""
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ def test_layout_is_the_openmodelica_one(tmp_path):
     """The variables and shapes OpenModelica writes (MATLAB v4, binTrans)."""
     r = Result(np.array([0.0, 0.1, 0.2]), ["a.x", "a.flag"], [np.array([1.0, 2.0, 3.0]), np.array([0, 1, 1])],
                {"a.x": "m", "a.flag": "1"})
-    from drillcosim.cosim.runs.modelica_mat import write_modelica_mat
+    from drillcosim.cosim.loop.modelica_mat import write_modelica_mat
     m = scipy.io.loadmat(str(write_modelica_mat(r, tmp_path / "r_res.mat")), chars_as_strings=False)
     assert ["".join(row).rstrip() for row in m["Aclass"]] == ["Atrajectory", "1.1", "", "binTrans"]
     assert ["".join(c).rstrip() for c in zip(*m["name"])] == ["time", "a.x", "a.flag"]

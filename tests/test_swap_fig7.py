@@ -35,7 +35,7 @@ STEADY_MAX, MEAN_MAX = 0.1, 0.05
 
 @pytest.fixture(scope="module")
 def c_run(tmp_path_factory):
-    from drillcosim.cosim.fmi.slave import resolve_fmu_path
+    from drillcosim.cosim.scenario.paths import resolve_fmu_path
     try:
         resolve_fmu_path("LinearStage")
     except Exception as e:

@@ -45,7 +45,7 @@ class Profile(Block):
 
 @pytest.fixture(scope="module")
 def fmu_path():
-    from drillcosim.cosim.fmi.slave import resolve_fmu_path
+    from drillcosim.cosim.scenario.paths import resolve_fmu_path
     try:
         return resolve_fmu_path("LinearStage")
     except Exception as e:

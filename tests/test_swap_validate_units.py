@@ -162,7 +162,7 @@ def test_unit_declared_without_base_unit_is_not_dimensionless():
 
 def test_plant_fmu_units_convert(tmp_path):
     """The project's own plant declares rpm through a BaseUnit: rpm -> rad/s from it."""
-    from drillcosim.cosim.fmi.slave import resolve_fmu_path
+    from drillcosim.cosim.scenario.paths import resolve_fmu_path
     try:
         import fmpy
         md = fmpy.read_model_description(str(resolve_fmu_path("LinearStage")))

@@ -82,28 +82,6 @@ class Variable:
         return self.description.startswith("Scoring only:")
 
 
-def resolve_fmu_path(spec: str, base_dir: str | os.PathLike | None = None) -> Path:
-    """A name of an FMU catalogue (:mod:`drillcosim.cosim.scenario.plugins`; built on first
-    use by the catalogue's owner) or a path to a ``.fmu`` file."""
-    from drillcosim.cosim.scenario.plugins import registry
-    reg = registry()
-    try:
-        built = reg.catalogue_fmu(spec)
-    except Exception as e:        # the catalogue's build failed: say which name and why
-        raise CosimError(f"catalogue FMU '{spec}' could not be built: {type(e).__name__}: {e}") from e
-    if built is not None:
-        return built
-    p = Path(spec).expanduser()
-    if not p.is_absolute() and base_dir is not None:
-        p = Path(base_dir) / p
-    names = ", ".join(reg.catalogue_names()) or "none registered"
-    if not p.exists():
-        raise CosimError(f"FMU file '{p}' does not exist (catalogue names: {names})")
-    if p.is_dir():
-        raise CosimError(f"'{p}' is a folder; expected a .fmu file or a catalogue name ({names})")
-    return p.resolve()
-
-
 def _dimensions(v, by_vr: dict) -> tuple:
     """Array dimensions: fixed ``start`` or the start value of the structural parameter."""
     dims = []

@@ -42,7 +42,7 @@ from drillcosim.cosim.loop import kernel_group
 from drillcosim.cosim.errors import ScenarioError, SimulationError
 from drillcosim.cosim.loop.fused import FIRES, FusedSteps
 from drillcosim.cosim.loop.manipulators import OPERATORS, Event, fire_step, parse_condition, setter_for
-from drillcosim.cosim.runs.outputs import OutputError
+from drillcosim.cosim.errors import OutputError
 from drillcosim.cosim.loop.recorder import Recorder, Result
 from drillcosim.cosim.fmi.slave import TERMINATE_REQUESTED, status_name
 from drillcosim.cosim.loop.step_rejection import StepRejection, member_for

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from drillcosim.cosim.errors import SimulationError
-from drillcosim.cosim.runs.outputs import io_problem
+from drillcosim.cosim.errors import io_problem
 
 try:                       # the fast exact float formatting of the CSV (format_chunk)
     import orjson as _orjson
@@ -313,7 +313,7 @@ class Recorder:
         self._finished = result             # a second finish (data.mat failed: the disk is full) has the rows
         if write_mat and self.out_dir is not None:
             write_mat_file(result, self.out_dir / "data.mat")
-            from drillcosim.cosim.runs.modelica_mat import write_modelica_mat      # OMEdit, DyMat, buildingspy read this one
+            from drillcosim.cosim.loop.modelica_mat import write_modelica_mat      # OMEdit, DyMat, buildingspy read this one
             write_modelica_mat(result, self.out_dir / "data_res.mat")
         return result
 

@@ -222,7 +222,7 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
     (workers on machines that do not share ``out_dir``'s file system). ``plots``: draw each
     run's figures (off by default: ~1-2 s a run, often as much as the simulation; ``drillcosim
     plot RUN_FOLDER`` draws them for the runs one looks at). ``mats``: each good run's data.mat
-    and data_res.mat (off by default: writing them costs a third of a Fang hole's simulation,
+    and data_res.mat (off by default: writing them can cost a third of the simulation,
     and data.csv holds every row).
     """
     from drillcosim.cosim.runs.outputs import FolderLock

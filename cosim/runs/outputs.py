@@ -18,7 +18,6 @@ mistaken for this run's output.
 """
 from __future__ import annotations
 
-import errno
 import json
 import math
 import os
@@ -26,7 +25,7 @@ import signal
 import time
 from pathlib import Path
 
-from drillcosim.cosim.errors import CosimError
+from drillcosim.cosim.errors import OutputError, io_problem
 
 LOCK_NAME = ".drillcosim.lock"
 HEARTBEAT_NAME = ".heartbeat"
@@ -37,17 +36,6 @@ PRODUCED = ("data.csv", "data.columns.json", "data.mat", "data_res.mat", "summar
 PRODUCED_GLOBS = ("*.png", ".summary.json.*.tmp")
 SUMMARY_RESERVE = 16384      # bytes held for summary.json from the start (a failed run's: 1-6 kB)
 TAKEOVER_WAIT_S = 3.0        # s to wait for an orphaned child's lock after killing the child
-
-
-class OutputError(CosimError, OSError):
-    """The output folder cannot be created, claimed or written (permissions, full disk)."""
-
-
-def io_problem(what: str, path, e: OSError) -> OutputError:
-    """``cannot write data.csv (/x/data.csv): No space left on device [ENOSPC]``."""
-    code = errno.errorcode.get(e.errno, "") if e.errno else ""
-    reason = e.strerror or str(e)
-    return OutputError(f"cannot {what} {path}: {reason}" + (f" [{code}]" if code else ""))
 
 
 def process_start(pid: int) -> int | None:

@@ -19,7 +19,8 @@ from pathlib import Path
 
 from drillcosim.cosim.loop.algorithm import simulate
 from drillcosim.cosim.errors import CosimError, SimulationError
-from drillcosim.cosim.runs.outputs import OutputError, claim, jsonable, write_summary
+from drillcosim.cosim.errors import OutputError
+from drillcosim.cosim.runs.outputs import claim, jsonable, write_summary
 from drillcosim.cosim.runs.plots import plot_groups
 from drillcosim.cosim.loop.recorder import Recorder, Result
 from drillcosim.cosim.scenario.build import Scenario

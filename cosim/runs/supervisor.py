@@ -40,14 +40,8 @@ import time
 from pathlib import Path
 
 from drillcosim.cosim.errors import CosimError, SimulationError
-from drillcosim.cosim.runs.outputs import (HEARTBEAT_NAME,
-    TRACEBACK_NAME,
-    OutputError,
-    alive,
-    claim,
-    process_start,
-    repair_csv,
-    write_summary)
+from drillcosim.cosim.runs.outputs import HEARTBEAT_NAME, TRACEBACK_NAME, alive, claim, process_start, repair_csv, write_summary
+from drillcosim.cosim.errors import OutputError
 from drillcosim.cosim.runs.runner import RunEnded, _base_summary, default_out_dir, load, run_in_folder
 from drillcosim.cosim.loop.watch import Heartbeat, RunWatch, exit_code_for
 
@@ -74,7 +68,7 @@ def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progre
     """Run ``scenario`` in a child process; return its summary (also in summary.json).
 
     Raises only for what happens before the run (:class:`drillcosim.cosim.errors.ScenarioError`,
-    :class:`drillcosim.cosim.runs.outputs.OutputError`); every outcome of the run itself -- ``completed``,
+    :class:`drillcosim.cosim.errors.OutputError`); every outcome of the run itself -- ``completed``,
     ``stopped``, ``failed``, ``interrupted``, ``timeout``, ``crashed`` -- is a summary.
     ``log_file``: the child's stdout and stderr (C-level output too) go there. ``server``: a
     :class:`drillcosim.cosim.runs.run_server.RunServer` whose warm child runs it (a campaign's worker), when

@@ -16,7 +16,7 @@ from pathlib import Path
 from drillcosim.cosim.errors import AlgebraicLoopError, CosimError, ScenarioError
 from drillcosim.cosim.blocks.input_file import InputFile, check_span, connect_columns
 from drillcosim.cosim.fmi.model_exchange import create_slave, load_any_model
-from drillcosim.cosim.fmi.slave import resolve_fmu_path
+from drillcosim.cosim.scenario.paths import resolve_fmu_path
 from drillcosim.cosim.loop.manipulators import Event, parse_condition, setter_for
 from drillcosim.cosim.loop.system import System
 from drillcosim.cosim.scenario.binding import load_binding

@@ -14,7 +14,7 @@ from drillcosim.cosim.errors import ScenarioError
 from drillcosim.cosim.scenario.build import Scenario, build
 from drillcosim.cosim.scenario.files import Origins, load_raw, read_toml
 from drillcosim.cosim.scenario.paths import scenario_dirs, scenario_path
-from drillcosim.cosim.ssp.reader import load_ssp
+from drillcosim.cosim.scenario.plugins import registry
 
 def load_scenario(path, overrides: dict | None = None) -> Scenario:
     """Load and fully validate a scenario file (a path, or a name in ``scenarios/``);
@@ -24,8 +24,9 @@ def load_scenario(path, overrides: dict | None = None) -> Scenario:
         where = ", ".join(str(d) for d in scenario_dirs()) or "no scenario folder"
         raise ScenarioError(f"no such scenario file, and no scenario of that name in {where} "
                             "(`drillcosim list` shows the names)", str(given))
-    if path.suffix.lower() in (".ssp", ".ssd"):    # an SSP package from another tool (cosim/ssp/reader.py)
-        return load_ssp(path, overrides)
+    other = registry().formats.get(path.suffix.lower())     # e.g. an SSP package from another tool
+    if other is not None:
+        return other(path, overrides)
     origins = Origins()
     raw = load_raw(path, overrides, origins)
     scenario = build(raw, str(path), path.parent.resolve(), path.stem, origins)

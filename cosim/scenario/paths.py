@@ -15,8 +15,12 @@
 """
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
+
+from drillcosim.cosim.errors import CosimError
+from drillcosim.cosim.scenario.plugins import registry
 
 PATH_SETTING = re.compile(r"_file$")      # block settings that are paths
 
@@ -32,7 +36,6 @@ def resolve(path, base_dir=None) -> Path:
 def scenario_dirs() -> list[Path]:
     """Where scenario names are looked up: ``scenarios/`` of the working directory, then
     the folders plug-ins register, each once."""
-    from drillcosim.cosim.scenario.plugins import registry
     dirs = [Path("scenarios")] if Path("scenarios").is_dir() else []     # kept relative, as given
     for d in registry().scenario_dirs:
         if d.resolve() not in [x.resolve() for x in dirs]:
@@ -50,3 +53,24 @@ def scenario_path(name) -> Path:
             if cand.is_file():
                 return cand
     return path
+
+
+def resolve_fmu_path(spec: str, base_dir: str | os.PathLike | None = None) -> Path:
+    """A name of an FMU catalogue (:mod:`drillcosim.cosim.scenario.plugins`; built on first
+    use by the catalogue's owner) or a path to a ``.fmu`` file."""
+    reg = registry()
+    try:
+        built = reg.catalogue_fmu(spec)
+    except Exception as e:        # the catalogue's build failed: say which name and why
+        raise CosimError(f"catalogue FMU '{spec}' could not be built: {type(e).__name__}: {e}") from e
+    if built is not None:
+        return built
+    p = Path(spec).expanduser()
+    if not p.is_absolute() and base_dir is not None:
+        p = Path(base_dir) / p
+    names = ", ".join(reg.catalogue_names()) or "none registered"
+    if not p.exists():
+        raise CosimError(f"FMU file '{p}' does not exist (catalogue names: {names})")
+    if p.is_dir():
+        raise CosimError(f"'{p}' is a folder; expected a .fmu file or a catalogue name ({names})")
+    return p.resolve()

@@ -10,7 +10,9 @@ package (this project's is :mod:`drillcosim.drilling`) registers, once per proce
   scenario is checked (``expand(raw, error) -> raw``);
 * **FMU catalogues**: FMUs known by name rather than by path (``path = "Name"``), with the
   function that returns the built ``.fmu``;
-* **scenario folders**: where ``drillcosim list`` and a scenario given by name look.
+* **scenario folders**: where ``drillcosim list`` and a scenario given by name look;
+* **scenario formats**: a file suffix and the function that loads such a file as a
+  scenario (the master's own SSP reader, :mod:`drillcosim.cosim.ssp.reader`, is one).
 
 Registration happens through the entry-point group :data:`GROUP` (``pyproject.toml``,
 ``[project.entry-points."drillcosim.plugins"]``): each entry is a function
@@ -35,6 +37,7 @@ class Registry:
     expanders: dict = field(default_factory=dict)         # scenario section -> expand(raw, error)
     catalogues: list = field(default_factory=list)        # (names, fmu_path(name) -> Path)
     scenario_dirs: list = field(default_factory=list)     # Path, searched in order
+    formats: dict = field(default_factory=dict)           # file suffix -> load(path, overrides) -> Scenario
     loaded: list = field(default_factory=list)            # entry points registered, for `info`
 
     def add_contract(self, contract) -> None:
@@ -50,6 +53,10 @@ class Registry:
     def add_scenario_dir(self, path) -> None:
         if Path(path) not in self.scenario_dirs:
             self.scenario_dirs.append(Path(path))
+
+    def add_format(self, suffixes, load: Callable) -> None:
+        for s in suffixes:
+            self.formats[s.lower()] = load
 
     def contract(self, name: str | None):
         """The contract named ``name``; without a name, the only one registered."""

@@ -243,3 +243,9 @@ def load_ssp(path, overrides: dict | None = None):
     sc.path = path
     sc.overrides = dict(overrides or {})
     return sc
+
+
+def register(registry) -> None:
+    """The master's SSP support as a scenario format (entry point ``ssp`` of the group
+    ``drillcosim.plugins``): ``drillcosim run X.ssp`` (or an unpacked ``.ssd``)."""
+    registry.add_format((".ssp", ".ssd"), load_ssp)

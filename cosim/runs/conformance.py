@@ -3,7 +3,7 @@
 Builds the Reference-FMUs from their source archive (CMake, FMI 2 and 3; nothing is
 downloaded), runs each one through the master -- co-simulation, and Model Exchange
 with rk4 and cvode -- and compares every numeric output with ``fmpy.simulate_fmu`` on
-the same grid. ``python -m drillcosim.cosim.fmi.conformance`` (or ``drillcosim conformance``)
+the same grid. ``python -m drillcosim.cosim.runs.conformance`` (or ``drillcosim conformance``)
 regenerates the table in docs/conformance.md; tests/test_conformance.py asserts it.
 
 Where the archive is found (:func:`search_paths`): ``--reference-fmus PATH``,
@@ -307,7 +307,7 @@ def write_doc(rows: list[Row], doc: Path = DOC) -> None:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m drillcosim.cosim.fmi.conformance",
+    p = argparse.ArgumentParser(prog="python -m drillcosim.cosim.runs.conformance",
                                 description="Run the Reference-FMUs through the master, compare with fmpy, "
                                             "and rewrite the table in docs/conformance.md")
     p.add_argument("--no-write", action="store_true", help="print the table only")
