@@ -14,7 +14,7 @@ import json
 import numpy as np
 import pytest
 
-from drillcosim.cosim.fmi import conformance as conf
+from drillcosim.cosim.runs import conformance as conf
 from drillcosim.cosim.loop.algorithm import run
 from drillcosim.cosim.errors import ScenarioError, SimulationError
 from drillcosim.cosim.fmi.model_exchange import create_slave

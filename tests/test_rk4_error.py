@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from drillcosim.cosim.fmi import conformance as conf
+from drillcosim.cosim.runs import conformance as conf
 from drillcosim.cosim.loop.algorithm import run
 from drillcosim.cosim.fmi.model_exchange import create_slave
 from drillcosim.cosim.loop.recorder import Recorder
