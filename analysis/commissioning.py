@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from drillcosim.analysis.identification import IdentificationError, identify_inertia, select_friction_model
+from drillcosim.analysis.commissioning_paths import experiments_folder, relative_paths
 from drillcosim.analysis.experiments import plant_settings, run_experiment, write_scenario
 from drillcosim.analysis.plotting import pyplot, save_figure
 from drillcosim.controllers.calibration import COMMISSIONING_FORMAT, DATASHEET_DEFAULT, DATASHEET_SETTINGS
@@ -404,12 +405,13 @@ def _finish(doc, res, fm, target, out: Path, scale, travel, print_table, dest: P
     for q, why in doc["unverified"].items():
         doc["warnings"].append(f"UNVERIFIED {q}: {why}")
     dest.parent.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(dest, _file_relative(doc, dest.parent, (out,)))
+    doc["experiments_folder"] = experiments_folder(out, dest.parent)
+    write_json_atomic(dest, relative_paths(doc, dest.parent, out))
     report_figure(res, fm, target, out)
     summary = {"commissioning_file": str(dest), "kind": doc["nominal"]["kind"],
                "nominal": doc["nominal"], "friction_model": fm.info.get("selection"), "contact": doc["contact"],
                "unverified": doc["unverified"], "warnings": doc["warnings"]}
-    write_json_atomic(out / "summary.json", _file_relative(summary, out))
+    write_json_atomic(out / "summary.json", relative_paths(summary, out, out))
     if print_table:
         print(report_table(doc))
     return doc
@@ -432,24 +434,6 @@ def without_calibration(doc: dict) -> dict:
         nom["position_force"] = {**pf, "coefficients": [c * back for c in pf["coefficients"]]}
     fm = rescale_friction(FrictionModel.from_dict(doc["friction"]), back)
     return {**doc, "nominal": nom, "friction": fm.to_dict(), "calibration": None}
-
-
-def _file_relative(obj, base: Path, roots=()):
-    """Every absolute path under the file's folder ``base``, one of ``roots`` (the experiments'
-    folder) or the repository written relative to ``base`` (a commissioning file is committed
-    and read from other checkouts and folders), also inside messages."""
-    import os
-    if isinstance(obj, dict):
-        return {k: _file_relative(v, base, roots) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_file_relative(v, base, roots) for v in obj]
-    if isinstance(obj, str):
-        # the deepest folder first: the experiments' folder may lie inside the repository
-        for r in sorted({str(Path(x).resolve()) for x in (base, *roots, ROOT)}, key=len, reverse=True):
-            if r + "/" in obj:
-                rel = os.path.relpath(r, base)
-                obj = obj.replace(r + "/", "" if rel == "." else rel + "/")
-    return obj
 
 
 # --------------------------------------------------------------------------- report
