@@ -56,6 +56,28 @@ class CommissioningError(ValueError):
     """The plant cannot be commissioned as asked (the message says why and what to change)."""
 
 
+# exit codes of ``drillcosim commission`` (docs/commissioning.md, "Exit codes"); 5 means what
+# it means for ``drillcosim run``: the work finished and wrote its files, a check said no
+EXIT_VERIFIED, EXIT_WARNINGS, EXIT_REFUSED, EXIT_UNVERIFIED = 0, 1, 2, 5
+
+
+def exit_status(doc: dict, strict: bool = False) -> tuple[int, list[str]]:
+    """The exit code of a commissioning that wrote ``doc`` and the lines that say why on the
+    console: an ``unverified`` value is never success (the file is written -- the user is not
+    stopped -- but the blocks refuse the value unless a scenario accepts it); with ``strict``
+    any warning fails too."""
+    unverified = doc.get("unverified") or {}
+    if unverified:
+        lines = [f"UNVERIFIED {q}: {why}" for q, why in unverified.items()]
+        lines.append(f"{len(unverified)} value(s) failed their check ({', '.join(unverified)}): the file is written, "
+                     f"but the blocks refuse them unless a scenario names them in accept_unverified "
+                     f"(docs/commissioning.md, \"Reading unverified\")")
+        return EXIT_UNVERIFIED, lines
+    if strict and doc.get("warnings"):
+        return EXIT_WARNINGS, [f"--strict: {len(doc['warnings'])} warning(s) in the report"]
+    return EXIT_VERIFIED, []
+
+
 # --------------------------------------------------------------------------- the target
 def read_target(path) -> dict:
     """The plant binding and the data sheet from a binding file or a scenario."""
@@ -410,7 +432,8 @@ def _finish(doc, res, fm, target, out: Path, scale, travel, print_table, dest: P
     report_figure(res, fm, target, out)
     summary = {"commissioning_file": str(dest), "kind": doc["nominal"]["kind"],
                "nominal": doc["nominal"], "friction_model": fm.info.get("selection"), "contact": doc["contact"],
-               "unverified": doc["unverified"], "warnings": doc["warnings"]}
+               "unverified": doc["unverified"], "checks_passed": not doc["unverified"],
+               "warnings": doc["warnings"]}
     write_json_atomic(out / "summary.json", relative_paths(summary, out, out))
     if print_table:
         print(report_table(doc))

@@ -383,7 +383,7 @@ def cmd_conformance(args) -> int:
 
 def cmd_commission(args) -> int:
     # the commissioning is offline analysis (analysis/commissioning.py); the CLI only calls it
-    from drillcosim.analysis.commissioning import CommissioningError, commission
+    from drillcosim.analysis.commissioning import EXIT_REFUSED, CommissioningError, commission, exit_status
     from drillcosim.cosim.errors import CosimError
     target = _scenario_path(args.target)
     out = args.out or str(Path("results") / f"commission_{Path(target).stem}")
@@ -392,10 +392,14 @@ def cmd_commission(args) -> int:
                          file=args.file, air_cut_overrides=_parse_set(args.air_cut))
     except (CommissioningError, CosimError) as e:
         print(f"drillcosim commission: {e}", file=sys.stderr)
-        return 2
-    print(f"commissioning file: {args.file or f'{out}/commissioning.json'}\nreport: {out}/commissioning.png\n"
+        return EXIT_REFUSED
+    code, why = exit_status(doc, args.strict)
+    verdict = "" if not doc.get("unverified") else f" (NOT VERIFIED: {', '.join(doc['unverified'])})"
+    print(f"commissioning file{verdict}: {args.file or f'{out}/commissioning.json'}\nreport: {out}/commissioning.png\n"
           f"summary: {out}/summary.json")
-    return 1 if doc["warnings"] and args.strict else 0
+    for line in why:
+        print(f"drillcosim commission: {line}", file=sys.stderr)
+    return code
 
 
 def cmd_export_fmu(args) -> int:
@@ -588,7 +592,8 @@ def build_parser() -> argparse.ArgumentParser:
     cm.add_argument("--contact-stiffness", type=float, metavar="N/m", help="tool/workpiece contact stiffness "
                     "for the force-loop margin (linear stage)")
     cm.add_argument("--contact-damping", type=float, metavar="N*s/m", help="contact damping for the margin")
-    cm.add_argument("--strict", action="store_true", help="exit 1 when the report has warnings")
+    cm.add_argument("--strict", action="store_true", help="exit 1 when the report has warnings (exit codes: 0 every "
+                    "value verified, 5 a value unverified, 2 refused: docs/commissioning.md)")
     cm.set_defaults(func=cmd_commission)
     _add_export_parsers(sub)
     c = sub.add_parser("conformance", help="run the Modelica Reference-FMUs against fmpy and rewrite "
