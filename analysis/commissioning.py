@@ -82,47 +82,82 @@ def exit_status(doc: dict, strict: bool = False) -> tuple[int, list[str]]:
 def read_target(path) -> dict:
     """The plant binding and the data sheet from a binding file or a scenario."""
     from drillcosim.cosim.scenario.binding import load_binding
-    from drillcosim.cosim.scenario.files import Origins, load_raw, read_toml
+    from drillcosim.cosim.scenario.files import read_toml
 
     path = Path(path).resolve()
     raw = read_toml(path)
-    fmu_params = {}
     if "plant" in raw and "roles" in raw:
-        binding_path, datasheet, fmu_name, plant_params = path, {}, "drive", {}
+        target = {"binding_path": path, "datasheet": {}, "fmu": "drive", "plant_parameters": {},
+                  "fmu_parameters": {}, "fmu_options": {}}
     else:
-        origins = Origins(str(path))
-        raw = load_raw(path, origins=origins)
-        fmus = [(n, s) for n, s in raw.get("fmus", {}).items() if isinstance(s, dict) and "plant" in s]
-        if not fmus:
-            raise CommissioningError(f"{path}: no [fmus.<name>] with a plant binding (plant = \"plants/x.toml\"): "
-                                     f"commissioning needs the plant's roles")
-        fmu_name, spec = fmus[0]
-        where = Path(origins.file_of(f"fmus.{fmu_name}.plant")).parent
-        binding_path = (where / spec["plant"]).resolve()
-        plant_params = dict(spec.get("plant_parameters", {}))
-        fmu_params = dict(spec.get("parameters", {}))
-        datasheet = {}
-        binding = load_binding(binding_path)
-        for key, names in DATASHEET_SETTINGS[binding.kind].items():
-            for blk in raw.get("blocks", {}).values():
-                st = blk.get("settings", {}) if isinstance(blk, dict) else {}
-                hit = next((st[n] for n in names if isinstance(st.get(n), (int, float))), None)
-                if hit is not None:
-                    datasheet[key] = float(hit)
-                    break
-    binding = load_binding(binding_path)
+        target = _scenario_target(path)
+    binding = load_binding(target["binding_path"])
     missing = [r for r in REQUIRED_ROLES[binding.kind] if r not in binding.roles]
     if missing:
-        raise CommissioningError(f"{binding_path}: the plant lacks the role(s) {', '.join(missing)} that commissioning "
-                                 f"a {binding.kind} needs (required: {', '.join(REQUIRED_ROLES[binding.kind])}); "
-                                 f"add them under [roles]")
-    notes = []
+        raise CommissioningError(f"{target['binding_path']}: the plant lacks the role(s) {', '.join(missing)} that "
+                                 f"commissioning a {binding.kind} needs (required: "
+                                 f"{', '.join(REQUIRED_ROLES[binding.kind])}); add them under [roles]")
+    notes, datasheet = [], target["datasheet"]
     for key, val in DATASHEET_DEFAULT[binding.kind].items():
         if key not in datasheet:
             datasheet[key] = val
             notes.append(f"data sheet: {key} not given, the project's nominal {val:g} is used")
-    return {"binding": binding, "binding_path": binding_path, "kind": binding.kind, "datasheet": datasheet,
-            "fmu": fmu_name, "plant_parameters": plant_params, "fmu_parameters": fmu_params, "notes": notes}
+    return {**target, "binding": binding, "kind": binding.kind, "notes": notes}
+
+
+# what a scenario's [fmus.X] may set besides the binding (cosim/scenario/checks.py FMU_KEYS):
+# each reaches every experiment as the scenario gives it ("path" resolved against its file)
+FMU_OPTIONS = ("path", "interface", "solver", "solver_step", "rel_tol", "max_step", "logging", "optional_parameters")
+
+
+def _scenario_target(path: Path) -> dict:
+    """The plant a scenario binds, with every setting it gives it, and its blocks' data sheet.
+    A scenario that binds several plants differently is refused: which one to commission
+    would be a guess (identical copies, e.g. Keio Fig. 4's constant-feed twin, are one plant)."""
+    from drillcosim.cosim.scenario.binding import load_binding
+    from drillcosim.cosim.scenario.files import Origins, load_raw
+
+    origins = Origins(str(path))
+    raw = load_raw(path, origins=origins)
+    fmus = [(n, s) for n, s in raw.get("fmus", {}).items() if isinstance(s, dict) and "plant" in s]
+    if not fmus:
+        raise CommissioningError(f"{path}: no [fmus.<name>] with a plant binding (plant = \"plants/x.toml\"): "
+                                 f"commissioning needs the plant's roles")
+    targets = {n: _fmu_target(n, s, origins) for n, s in fmus}
+    fmu_name, target = next(iter(targets.items()))
+    differ = [n for n, t in targets.items() if _plant_setup(t) != _plant_setup(target)]
+    if differ:
+        raise CommissioningError(f"{path}: binds {len(targets)} plants, and fmus.{', fmus.'.join(differ)} differ from "
+                                 f"fmus.{fmu_name} (binding, FMU, parameters or options): commission one plant at a "
+                                 f"time (a scenario that binds only it, or its binding file)")
+    kind = load_binding(target["binding_path"]).kind
+    datasheet = {}
+    for key, names in DATASHEET_SETTINGS[kind].items():
+        for blk in raw.get("blocks", {}).values():
+            st = blk.get("settings", {}) if isinstance(blk, dict) else {}
+            hit = next((st[n] for n in names if isinstance(st.get(n), (int, float))), None)
+            if hit is not None:
+                datasheet[key] = float(hit)
+                break
+    return {**target, "fmu": fmu_name, "datasheet": datasheet}
+
+
+def _fmu_target(name: str, spec: dict, origins) -> dict:
+    """One [fmus.X] of a scenario: its binding (resolved), parameters and options."""
+    where = lambda key: Path(origins.file_of(f"fmus.{name}.{key}")).parent     # noqa: E731
+    options = {k: spec[k] for k in FMU_OPTIONS if k in spec}
+    if "path" in options and (where("path") / options["path"]).exists():     # else a catalogue name
+        options["path"] = str((where("path") / options["path"]).resolve())
+    return {"binding_path": (where("plant") / spec["plant"]).resolve(),
+            "plant_parameters": dict(spec.get("plant_parameters", {})),
+            "fmu_parameters": dict(spec.get("parameters", {})), "fmu_options": options}
+
+
+def _plant_setup(target: dict) -> tuple:
+    """What makes two bound FMUs the same plant for the experiments (the workpiece aside)."""
+    from drillcosim.analysis.experiments import experiment_plant_parameters
+    return (str(target["binding_path"]), experiment_plant_parameters(target["plant_parameters"]),
+            target["fmu_parameters"], target["fmu_options"])
 
 
 # --------------------------------------------------------------------------- experiment 1
@@ -130,7 +165,7 @@ def air_cut(target: dict, out: Path):
     kind, ds = target["kind"], target["datasheet"]
     tables = {"scenario": {"extends": str(TEMPLATES / f"air_cut_{kind}.toml"),
                            "description": f"commissioning air cut of {target['binding_path'].name}"},
-              "fmus.drive": {"plant": str(target["binding_path"])}, **plant_settings(target)}
+              **plant_settings(target)}
     tables["fmus.drive.plant_parameters"]["surface"] = 0.2 if kind == "ball_screw" else 0.5
     rec = ["drive.i_meas", "drive.table_position", "reference.v_ref", "reference.a_ref", "controller.i_ref"]
     if kind == "ball_screw":
@@ -299,8 +334,7 @@ def thrust_calibration(target: dict, friction_file: Path, mass: float, out: Path
     controller_ds = {names[q][-1]: v for q, v in vals.items()}
     tables = {"scenario": {"extends": str(ROOT / "scenarios" / "keio_thrust_constant_calibration.toml"),
                            "description": "commissioning reference cut (thrust constant)"},
-              "fmus.stage": {"plant": str(target["binding_path"])},
-              "fmus.stage.plant_parameters": params, **plant,
+              **plant, "fmus.stage.plant_parameters": params,
               "blocks.observer.settings": {**observer_ds, "friction_file": str(friction_file), "calibration_file": ""},
               **_cut_position_force(friction_file),
               "blocks.controller.settings": {**controller_ds, "calibration_file": "", "F_bias": 0.0}}
@@ -339,8 +373,7 @@ def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: fl
     observer["friction_file"] = str(friction_file)
     controller = {DATASHEET_SETTINGS["ball_screw"][q][-1]: ds[q] for q in ds}
     tables = {"scenario": {"extends": str(template), "description": "commissioning reference cut (thrust constant)"},
-              "fmus.drive": {"plant": str(target["binding_path"])},
-              "fmus.drive.plant_parameters": block, **plant,
+              **plant, "fmus.drive.plant_parameters": block,
               "blocks.controller.settings": controller, "blocks.observer.settings": observer,
               "[[connections]]": [{"from": "drive.motor_angle", "to": "controller.z", "scale": ds["pitch"]}]}
     sc = write_scenario(out / "experiments" / "thrust_calibration.toml", tables)

@@ -288,7 +288,7 @@ def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings
     from drillcosim.analysis.experiments import plant_settings
     tables = {"scenario": {"extends": str(TEMPLATE), "description":
                            f"commissioning contact experiment of {Path(target['binding_path']).name}"},
-              "fmus.drive": {"plant": str(target["binding_path"])}, **plant_settings(target),
+              **plant_settings(target),
               "blocks.observer.settings": {"commissioning_file": str(com)},
               "blocks.controller.settings": {"commissioning_file": str(com)},
               "[[events]]": [{"time": steps[0][0] - SETTLE, "set": "excitation.amplitude", "value": AMPLITUDE}]
