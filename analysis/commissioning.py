@@ -99,6 +99,8 @@ def read_target(path) -> dict:
                                  f"{', '.join(REQUIRED_ROLES[binding.kind])}); add them under [roles]")
     notes, datasheet = [], target["datasheet"]
     for key, val in DATASHEET_DEFAULT[binding.kind].items():
+        if key not in datasheet and isinstance(binding.datasheet.get(key), (int, float)):
+            datasheet[key] = float(binding.datasheet[key])      # the binding's data sheet, below the scenario's
         if key not in datasheet:
             datasheet[key] = val
             notes.append(f"data sheet: {key} not given, the project's nominal {val:g} is used")
@@ -160,13 +162,39 @@ def _plant_setup(target: dict) -> tuple:
             target["fmu_parameters"], target["fmu_options"])
 
 
+def experiment_limits(target: dict, given: dict | None) -> dict:
+    """The experiments' limits: the binding's ``[datasheet]`` under the command line's; an
+    unknown data-sheet key is an error naming the binding and the keys it may hold."""
+    from drillcosim.analysis.commissioning_sizing import LIMIT_UNITS, SizingError
+    from drillcosim.analysis.commissioning_sizing import experiment_limits as checked
+    ds, where = target["binding"].datasheet, target["binding_path"]
+    known = {**LIMIT_UNITS, **{k: "SI" for k in DATASHEET_DEFAULT[target["kind"]]}}
+    unknown = sorted(set(ds) - set(known))
+    if unknown:
+        raise CommissioningError(f"{where}: [datasheet] key(s) {', '.join(unknown)} unknown to commissioning a "
+                                 f"{target['kind']} (expected some of: {', '.join(f'{k} [{u}]' for k, u in known.items())})")
+    try:
+        limits = checked(ds, dict(given or {}), str(where))
+    except SizingError as e:
+        raise CommissioningError(str(e)) from None
+    if "reference_levels" in limits and target["kind"] == "ball_screw":
+        raise CommissioningError("reference_levels: a ball screw's reference cut levels are the materials of its "
+                                 "block (scenarios/commissioning/thrust_cut_ball_screw.toml), not set by thrust")
+    return limits
+
+
 # --------------------------------------------------------------------------- experiment 1
 def air_cut(target: dict, out: Path):
     kind, ds = target["kind"], target["datasheet"]
     tables = {"scenario": {"extends": str(TEMPLATES / f"air_cut_{kind}.toml"),
                            "description": f"commissioning air cut of {target['binding_path'].name}"},
               **plant_settings(target)}
-    tables["fmus.drive.plant_parameters"]["surface"] = 0.2 if kind == "ball_screw" else 0.5
+    segments = air_cut_segments(target)
+    # the workpiece far away; with a declared stroke, at its end, where the plant's free travel
+    # ends: an air cut that overran it would touch and be refused, so the record shows it did not
+    stroke = target.get("limits", {}).get("stroke")
+    tables["fmus.drive.plant_parameters"]["surface"] = (0.2 if kind == "ball_screw" else 0.5) if stroke is None \
+        else float(segments.get("z_start", 0.0)) + stroke
     rec = ["drive.i_meas", "drive.table_position", "reference.v_ref", "reference.a_ref", "controller.i_ref"]
     if kind == "ball_screw":
         tables["blocks.controller.settings"] = {DATASHEET_SETTINGS[kind][q][-1]: ds[q] for q in ds}
@@ -178,10 +206,38 @@ def air_cut(target: dict, out: Path):
     if "thrust_dyn" in target["binding"].roles:
         rec.append("drive.thrust_dyn")
     tables["record"] = {"signals": rec, "decimation": 1}
-    if target.get("air_cut"):
-        tables["blocks.reference.settings"] = air_cut_settings(kind, target["air_cut"])
+    if segments:
+        tables["blocks.reference.settings"] = segments
     sc = write_scenario(out / "experiments" / "air_cut.toml", tables)
     return run_experiment(sc, out / "air_cut")
+
+
+# what the friction fit drops at each segment's start, the least it needs after that [s], and
+# the speed below which a sample counts as standing [position unit/s]
+FIT_WINDOW = {"ball_screw": (0.3, 0.5, 1e-3), "linear_stage": (0.15, 0.25, 1e-5)}
+
+
+def air_cut_segments(target: dict) -> dict:
+    """The air cut's segment settings: the template sized to the plant's declared limits
+    (:mod:`drillcosim.analysis.commissioning_sizing`), then the user's ``--air-cut`` keys;
+    given ``velocities`` replace the sizing. A travel beyond the declared stroke is refused."""
+    from drillcosim.analysis.commissioning_sizing import SizingError, air_cut_travel, size_air_cut
+    from drillcosim.cosim.scenario.files import read_toml
+    kind, limits, given = target["kind"], target.get("limits", {}), target.get("air_cut") or {}
+    template = read_toml(TEMPLATES / f"air_cut_{kind}.toml")["blocks"]["reference"]["settings"]
+    try:
+        sized, notes = size_air_cut(template, limits, *FIT_WINDOW[kind][:2]) if "velocities" not in given \
+            else (None, [])
+    except SizingError as e:
+        raise CommissioningError(str(e)) from None
+    target.setdefault("notes", []).extend(notes)
+    settings = {**(sized or {}), **air_cut_settings(kind, given)}
+    travel = air_cut_travel({**template, **settings})
+    if "stroke" in limits and travel > limits["stroke"]:
+        raise CommissioningError(f"the air cut as set travels {travel:.4g} m from its start, beyond the declared stroke "
+                                 f"{limits['stroke']:g} m: shorten its velocities or holds (--air-cut), or drop them "
+                                 f"and let the stroke size it")
+    return settings
 
 
 AIR_CUT_KEYS = ("velocities", "hold", "a_max", "pause", "z_start")
@@ -212,22 +268,24 @@ def fit_air_cut(result, target: dict) -> tuple:
         pos = result["drive.motor_angle"]
         effort = ds["force_constant"] * result["drive.i_meas"]
         units = dict(effort_unit="N m", velocity_unit="rad/s", position_unit="rad")
-        settle, min_dur, v_eps = 0.3, 0.5, 1e-3
     else:
         pos = result["drive.table_position"]
         effort = ds["force_constant"] * result["controller.i_ref"]     # the effort the Keio observer uses
         units = dict(effort_unit="N", velocity_unit="m/s", position_unit="m")
-        settle, min_dur, v_eps = 0.15, 0.25, 1e-5
+    settle, min_dur, v_eps = FIT_WINDOW[kind]
     warnings = []
     if "drive.thrust_dyn" in result:
         from drillcosim.analysis.identification import constant_velocity_segments
         for s in constant_velocity_segments(t, result["reference.v_ref"], settle=settle, min_duration=min_dur):
             F = float(np.mean(result["drive.thrust_dyn"][s]))
             if abs(F) > MAX_AIR_THRUST:
+                z = result["drive.table_position"] if "drive.table_position" in result else pos
                 raise CommissioningError(
                     f"air cut touches the workpiece: the dynamometer reads {F:.1f} N (> {MAX_AIR_THRUST} N) between "
-                    f"t = {t[s[0]]:.2f} and {t[s[-1]]:.2f} s; move the stack away (plant parameter 'surface') "
-                    f"and commission again")
+                    f"t = {t[s[0]]:.2f} and {t[s[-1]]:.2f} s, at {float(np.min(z[s])):.4g}..{float(np.max(z[s])):.4g} "
+                    f"from a start at {float(z[0]):.4g}; "
+                    f"move the stack away (plant parameter 'surface'), or if the travel is not free that far, "
+                    f"declare the stroke (binding [datasheet] stroke, or --stroke) and the air cut is sized to it")
     try:
         fm = select_friction_model(t, pos, effort, result["reference.v_ref"], settle=settle, min_duration=min_dur,
                                    v_eps=v_eps, **units)
@@ -332,15 +390,74 @@ def thrust_calibration(target: dict, friction_file: Path, mass: float, out: Path
     vals = {"mass": mass, "force_constant": ds["force_constant"]}
     observer_ds = {names[q][0]: v for q, v in vals.items()}
     controller_ds = {names[q][-1]: v for q, v in vals.items()}
-    tables = {"scenario": {"extends": str(ROOT / "scenarios" / "keio_thrust_constant_calibration.toml"),
+    tables = {"scenario": {"extends": str(REFERENCE_CUT),
                            "description": "commissioning reference cut (thrust constant)"},
               **plant, "fmus.stage.plant_parameters": params,
               "blocks.observer.settings": {**observer_ds, "friction_file": str(friction_file), "calibration_file": ""},
               **_cut_position_force(friction_file),
               "blocks.controller.settings": {**controller_ds, "calibration_file": "", "F_bias": 0.0}}
+    tables.update(_reference_levels(target))
     sc = write_scenario(out / "experiments" / "thrust_calibration.toml", tables)
     run_experiment(sc, out / "thrust_calibration")
     return json.loads((out / "thrust_calibration" / "thrust_calibration.json").read_text())
+
+
+REFERENCE_CUT = ROOT / "scenarios" / "keio_thrust_constant_calibration.toml"
+
+
+def _reference_levels(target: dict) -> dict:
+    """The linear stage's reference-cut command for the declared levels or current (none: the
+    template's 40/70/30/60 N): the first level until the template's first step, then one
+    level per template step, the template's tail after the last."""
+    from drillcosim.analysis.commissioning_sizing import reference_levels
+    from drillcosim.cosim.scenario.files import read_toml
+    raw = read_toml(REFERENCE_CUT)
+    cmd = raw["blocks"]["command"]["settings"]
+    t_tmpl, v_tmpl = [float(x) for x in cmd["times"]], [float(x) for x in cmd["values"]]
+    levels, notes = reference_levels(v_tmpl[::2], target.get("limits", {}), target["datasheet"]["force_constant"])
+    if levels is None:
+        return {}
+    target.setdefault("notes", []).extend(notes)
+    first, step = t_tmpl[1], t_tmpl[3] - t_tmpl[1]
+    times, values = [0.0], [levels[0]]
+    for j, level in enumerate(levels[1:]):
+        times += [first + j * step] * 2
+        values += [values[-1], level]
+    tail = float(raw["scenario"]["stop_time"]) - t_tmpl[-1]
+    return {"blocks.command.settings": {"times": times, "values": values},
+            "scenario": {"extends": str(REFERENCE_CUT), "description": "commissioning reference cut (thrust "
+                         f"constant) at {', '.join(f'{x:.3g}' for x in levels)} N", "stop_time": times[-1] + tail}}
+
+
+def stroke_needs(target: dict) -> dict:
+    """What each experiment on the workpiece needs of the stroke [m] from the start: the
+    reference cut and the contact experiment up to where their force loop ends (``z_limit``),
+    the ball screw's reference block to its bottom."""
+    from drillcosim.analysis.contact_identification import TEMPLATE
+    from drillcosim.cosim.scenario.files import read_toml
+    needs = {}
+    if "thrust_dyn" in target["binding"].roles and target["kind"] == "ball_screw":
+        block = read_toml(TEMPLATES / "thrust_cut_ball_screw.toml")["fmus"]["drive"]["plant_parameters"]
+        needs["reference cut (its block's bottom)"] = reference_block_windows(block)[-1][1] + WINDOW_BEFORE_BOTTOM
+    elif "thrust_dyn" in target["binding"].roles:
+        needs["reference cut (z_limit)"] = read_toml(REFERENCE_CUT)["blocks"]["controller"]["settings"]["z_limit"]
+    if target["kind"] == "linear_stage":
+        needs["contact experiment (z_limit)"] = read_toml(TEMPLATE)["blocks"]["controller"]["settings"]["z_limit"]
+    return {k: float(v) for k, v in needs.items()}
+
+
+def check_stroke(target: dict) -> None:
+    """Refuse, before anything runs, an experiment on the workpiece that the declared stroke
+    cannot hold, naming it, its need and the stroke."""
+    stroke = target.get("limits", {}).get("stroke")
+    if stroke is None:
+        return
+    short = {k: v for k, v in stroke_needs(target).items() if v > stroke}
+    if short:
+        raise CommissioningError(f"the declared stroke {stroke:g} m is shorter than "
+                                 + "; ".join(f"the {k} needs: {v:g} m" for k, v in short.items())
+                                 + " from the start position: a plant with less free travel cannot be commissioned "
+                                 "by these experiments")
 
 
 def reference_block_windows(params: dict) -> list[tuple[float, float]]:
@@ -392,23 +509,29 @@ def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: fl
 # --------------------------------------------------------------------------- the whole
 def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
                contact_damping: float | None = None, print_table: bool = True, file=None,
-               air_cut_overrides: dict | None = None) -> dict:
+               air_cut_overrides: dict | None = None, limits: dict | None = None) -> dict:
     """Run the commissioning experiments and write ``commissioning.json`` (see module doc) into
-    ``out_dir``, or to ``file`` (its paths are written relative to the file's folder)."""
+    ``out_dir``, or to ``file`` (docs/commissioning.md, "Paths in the file"). ``limits``:
+    what the plant allows the experiments (stroke, speeds, acceleration, current, reference
+    levels: :mod:`drillcosim.analysis.commissioning_sizing`), over the binding's ``[datasheet]``."""
     out = Path(out_dir).resolve()      # the experiment files it writes name paths under it
     out.mkdir(parents=True, exist_ok=True)
     target = read_target(target_path)
     target["air_cut"] = dict(air_cut_overrides or {})
+    target["limits"] = experiment_limits(target, limits)
+    check_stroke(target)
     kind, ds = target["kind"], target["datasheet"]
-    warnings = list(target["notes"])
     res = air_cut(target, out)
+    warnings = list(target["notes"])       # the data sheet's and the air cut's sizing
     fm, inertia, w = fit_air_cut(res, target)
     warnings += w + inertia.pop("warnings", [])
     fm.info.update(kind=kind, force_constant_nominal=ds["force_constant"])
     raw_friction = fm.save(out / "friction_air_cut.json")
     mass_key = "mass" if kind == "linear_stage" else "inertia"
     mass = inertia["value"] if inertia.get("ok") else ds[mass_key]
+    n_notes = len(target["notes"])
     cal = thrust_calibration(target, raw_friction, mass, out)
+    warnings += target["notes"][n_notes:]      # the reference cut's levels, when sized
     kt, scale = ds["force_constant"], 1.0
     if cal is not None:
         from drillcosim.controllers.calibration import rescale_friction
