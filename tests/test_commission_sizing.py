@@ -128,3 +128,19 @@ def test_short_stroke_stage_is_commissioned_with_a_shorter_air_cut(tmp_path):
         e = doc["identified"][q]
         assert e["status"] == "unverified" or abs(e["value"] / truth[q] - 1) <= tol, (q, e["value"])
     assert json.loads((tmp_path / "commissioning.json").read_text())["unverified"] == doc["unverified"]
+
+
+def test_a_contact_working_point_beyond_the_current_is_not_run_and_says_why(tmp_path):
+    """max_current 2.5 A: the contact experiment's 50 +- 3 N with ~8 N of friction needs
+    2.62 A at 23.3 N/A, above 80 % of 2.5 A -- no run, the reason in the warnings (no margin)."""
+    from drillcosim.analysis.contact_identification import contact_experiment
+    doc = json.loads((ROOT / "scenarios/commissioning/linear_stage.json").read_text())
+    target = {**read_target(PLANTS / "linear_stage.toml"), "limits": {"max_current": 2.5}}
+    warnings = []
+    entry = contact_experiment(target, PLANTS / "linear_stage.toml", doc, tmp_path, warnings)
+    assert "error" in entry and warnings == [entry["error"]]
+    assert "8.01 N of friction needs 2.62 A, above 0.8 x the declared max_current 2.5 A" in entry["error"]
+    assert not (tmp_path / "contact").exists()
+    target["limits"] = {"max_current": 10.0}
+    from drillcosim.analysis.contact_identification import current_short
+    assert current_short(target, doc) is None
