@@ -24,7 +24,9 @@ setting the target gives its plant reaches every experiment (:func:`plant_settin
 and controllers read the file through ``commissioning_file`` (Keio) or ``friction_file``
 (any block using :func:`drillcosim.controllers.friction.make_friction`). Refusals
 (:class:`CommissioningError`, nothing written as commissioning.json): a missing role, an
-air cut that touches the workpiece, an ill-conditioned fit. Warnings (in the file, the
+air cut that touches the workpiece, an ill-conditioned fit, a plant whose declared limits
+(binding ``[datasheet]``, command line: :mod:`drillcosim.analysis.commissioning_sizing`)
+the experiments cannot be sized to, a scenario binding two different plants. Warnings (in the file, the
 report and summary.json): residual far above the noise, a force loop without margin.
 Nothing here reads a true plant parameter.
 """
@@ -166,7 +168,7 @@ def experiment_limits(target: dict, given: dict | None) -> dict:
     """The experiments' limits: the binding's ``[datasheet]`` under the command line's; an
     unknown data-sheet key is an error naming the binding and the keys it may hold."""
     from drillcosim.analysis.commissioning_sizing import LIMIT_UNITS, SizingError
-    from drillcosim.analysis.commissioning_sizing import experiment_limits as checked
+    from drillcosim.analysis.commissioning_sizing import checked_limits
     ds, where = target["binding"].datasheet, target["binding_path"]
     known = {**LIMIT_UNITS, **{k: "SI" for k in DATASHEET_DEFAULT[target["kind"]]}}
     unknown = sorted(set(ds) - set(known))
@@ -174,7 +176,7 @@ def experiment_limits(target: dict, given: dict | None) -> dict:
         raise CommissioningError(f"{where}: [datasheet] key(s) {', '.join(unknown)} unknown to commissioning a "
                                  f"{target['kind']} (expected some of: {', '.join(f'{k} [{u}]' for k, u in known.items())})")
     try:
-        limits = checked(ds, dict(given or {}), str(where))
+        limits = checked_limits(ds, dict(given or {}), str(where))
     except SizingError as e:
         raise CommissioningError(str(e)) from None
     if "reference_levels" in limits and target["kind"] == "ball_screw":

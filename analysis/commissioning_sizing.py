@@ -36,7 +36,7 @@ class SizingError(ValueError):
     """The declared plant cannot take an experiment (the message names the number and the need)."""
 
 
-def experiment_limits(datasheet: dict, given: dict, where: str) -> dict:
+def checked_limits(datasheet: dict, given: dict, where: str) -> dict:
     """The limits of :data:`LIMIT_UNITS` from the binding's ``[datasheet]`` (``where`` names
     it), each overridden by ``given`` (the command line), checked: positive numbers."""
     limits = {k: datasheet[k] for k in LIMIT_UNITS if k in datasheet}
