@@ -24,7 +24,9 @@ setting the target gives its plant reaches every experiment (:func:`plant_settin
 and controllers read the file through ``commissioning_file`` (Keio) or ``friction_file``
 (any block using :func:`drillcosim.controllers.friction.make_friction`). Refusals
 (:class:`CommissioningError`, nothing written as commissioning.json): a missing role, an
-air cut that touches the workpiece, an ill-conditioned fit. Warnings (in the file, the
+air cut that touches the workpiece, an ill-conditioned fit, a plant whose declared limits
+(binding ``[datasheet]``, command line: :mod:`drillcosim.analysis.commissioning_sizing`)
+the experiments cannot be sized to, a scenario binding two different plants. Warnings (in the file, the
 report and summary.json): residual far above the noise, a force loop without margin.
 Nothing here reads a true plant parameter.
 """
@@ -37,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from drillcosim.analysis.identification import IdentificationError, identify_inertia, select_friction_model
+from drillcosim.analysis.commissioning_paths import experiments_folder, relative_paths
 from drillcosim.analysis.experiments import plant_settings, run_experiment, write_scenario
 from drillcosim.analysis.plotting import pyplot, save_figure
 from drillcosim.controllers.calibration import COMMISSIONING_FORMAT, DATASHEET_DEFAULT, DATASHEET_SETTINGS
@@ -55,51 +58,131 @@ class CommissioningError(ValueError):
     """The plant cannot be commissioned as asked (the message says why and what to change)."""
 
 
+# exit codes of ``drillcosim commission`` (docs/commissioning.md, "Exit codes"); 5 means what
+# it means for ``drillcosim run``: the work finished and wrote its files, a check said no
+EXIT_VERIFIED, EXIT_WARNINGS, EXIT_REFUSED, EXIT_UNVERIFIED = 0, 1, 2, 5
+
+
+def exit_status(doc: dict, strict: bool = False) -> tuple[int, list[str]]:
+    """The exit code of a commissioning that wrote ``doc`` and the lines that say why on the
+    console: an ``unverified`` value is never success (the file is written -- the user is not
+    stopped -- but the blocks refuse the value unless a scenario accepts it); with ``strict``
+    any warning fails too."""
+    unverified = doc.get("unverified") or {}
+    if unverified:
+        lines = [f"UNVERIFIED {q}: {why}" for q, why in unverified.items()]
+        lines.append(f"{len(unverified)} value(s) failed their check ({', '.join(unverified)}): the file is written, "
+                     f"but the blocks refuse them unless a scenario names them in accept_unverified "
+                     f"(docs/commissioning.md, \"Reading unverified\")")
+        return EXIT_UNVERIFIED, lines
+    if strict and doc.get("warnings"):
+        return EXIT_WARNINGS, [f"--strict: {len(doc['warnings'])} warning(s) in the report"]
+    return EXIT_VERIFIED, []
+
+
 # --------------------------------------------------------------------------- the target
 def read_target(path) -> dict:
     """The plant binding and the data sheet from a binding file or a scenario."""
     from drillcosim.cosim.scenario.binding import load_binding
-    from drillcosim.cosim.scenario.files import Origins, load_raw, read_toml
+    from drillcosim.cosim.scenario.files import read_toml
 
     path = Path(path).resolve()
     raw = read_toml(path)
-    fmu_params = {}
     if "plant" in raw and "roles" in raw:
-        binding_path, datasheet, fmu_name, plant_params = path, {}, "drive", {}
+        target = {"binding_path": path, "datasheet": {}, "fmu": "drive", "plant_parameters": {},
+                  "fmu_parameters": {}, "fmu_options": {}}
     else:
-        origins = Origins(str(path))
-        raw = load_raw(path, origins=origins)
-        fmus = [(n, s) for n, s in raw.get("fmus", {}).items() if isinstance(s, dict) and "plant" in s]
-        if not fmus:
-            raise CommissioningError(f"{path}: no [fmus.<name>] with a plant binding (plant = \"plants/x.toml\"): "
-                                     f"commissioning needs the plant's roles")
-        fmu_name, spec = fmus[0]
-        where = Path(origins.file_of(f"fmus.{fmu_name}.plant")).parent
-        binding_path = (where / spec["plant"]).resolve()
-        plant_params = dict(spec.get("plant_parameters", {}))
-        fmu_params = dict(spec.get("parameters", {}))
-        datasheet = {}
-        binding = load_binding(binding_path)
-        for key, names in DATASHEET_SETTINGS[binding.kind].items():
-            for blk in raw.get("blocks", {}).values():
-                st = blk.get("settings", {}) if isinstance(blk, dict) else {}
-                hit = next((st[n] for n in names if isinstance(st.get(n), (int, float))), None)
-                if hit is not None:
-                    datasheet[key] = float(hit)
-                    break
-    binding = load_binding(binding_path)
+        target = _scenario_target(path)
+    binding = load_binding(target["binding_path"])
     missing = [r for r in REQUIRED_ROLES[binding.kind] if r not in binding.roles]
     if missing:
-        raise CommissioningError(f"{binding_path}: the plant lacks the role(s) {', '.join(missing)} that commissioning "
-                                 f"a {binding.kind} needs (required: {', '.join(REQUIRED_ROLES[binding.kind])}); "
-                                 f"add them under [roles]")
-    notes = []
+        raise CommissioningError(f"{target['binding_path']}: the plant lacks the role(s) {', '.join(missing)} that "
+                                 f"commissioning a {binding.kind} needs (required: "
+                                 f"{', '.join(REQUIRED_ROLES[binding.kind])}); add them under [roles]")
+    notes, datasheet = [], target["datasheet"]
     for key, val in DATASHEET_DEFAULT[binding.kind].items():
+        if key not in datasheet and isinstance(binding.datasheet.get(key), (int, float)):
+            datasheet[key] = float(binding.datasheet[key])      # the binding's data sheet, below the scenario's
         if key not in datasheet:
             datasheet[key] = val
             notes.append(f"data sheet: {key} not given, the project's nominal {val:g} is used")
-    return {"binding": binding, "binding_path": binding_path, "kind": binding.kind, "datasheet": datasheet,
-            "fmu": fmu_name, "plant_parameters": plant_params, "fmu_parameters": fmu_params, "notes": notes}
+    return {**target, "binding": binding, "kind": binding.kind, "notes": notes}
+
+
+# what a scenario's [fmus.X] may set besides the binding (cosim/scenario/checks.py FMU_KEYS):
+# each reaches every experiment as the scenario gives it ("path" resolved against its file)
+FMU_OPTIONS = ("path", "interface", "solver", "solver_step", "rel_tol", "max_step", "logging", "optional_parameters")
+
+
+def _scenario_target(path: Path) -> dict:
+    """The plant a scenario binds, with every setting it gives it, and its blocks' data sheet.
+    A scenario that binds several plants differently is refused: which one to commission
+    would be a guess (identical copies, e.g. Keio Fig. 4's constant-feed twin, are one plant)."""
+    from drillcosim.cosim.scenario.binding import load_binding
+    from drillcosim.cosim.scenario.files import Origins, load_raw
+
+    origins = Origins(str(path))
+    raw = load_raw(path, origins=origins)
+    fmus = [(n, s) for n, s in raw.get("fmus", {}).items() if isinstance(s, dict) and "plant" in s]
+    if not fmus:
+        raise CommissioningError(f"{path}: no [fmus.<name>] with a plant binding (plant = \"plants/x.toml\"): "
+                                 f"commissioning needs the plant's roles")
+    targets = {n: _fmu_target(n, s, origins) for n, s in fmus}
+    fmu_name, target = next(iter(targets.items()))
+    differ = [n for n, t in targets.items() if _plant_setup(t) != _plant_setup(target)]
+    if differ:
+        raise CommissioningError(f"{path}: binds {len(targets)} plants, and fmus.{', fmus.'.join(differ)} differ from "
+                                 f"fmus.{fmu_name} (binding, FMU, parameters or options): commission one plant at a "
+                                 f"time (a scenario that binds only it, or its binding file)")
+    kind = load_binding(target["binding_path"]).kind
+    datasheet = {}
+    for key, names in DATASHEET_SETTINGS[kind].items():
+        for blk in raw.get("blocks", {}).values():
+            st = blk.get("settings", {}) if isinstance(blk, dict) else {}
+            hit = next((st[n] for n in names if isinstance(st.get(n), (int, float))), None)
+            if hit is not None:
+                datasheet[key] = float(hit)
+                break
+    return {**target, "fmu": fmu_name, "datasheet": datasheet}
+
+
+def _fmu_target(name: str, spec: dict, origins) -> dict:
+    """One [fmus.X] of a scenario: its binding (resolved), parameters and options."""
+    where = lambda key: Path(origins.file_of(f"fmus.{name}.{key}")).parent     # noqa: E731
+    options = {k: spec[k] for k in FMU_OPTIONS if k in spec}
+    if "path" in options and (where("path") / options["path"]).exists():     # else a catalogue name
+        options["path"] = str((where("path") / options["path"]).resolve())
+    return {"binding_path": (where("plant") / spec["plant"]).resolve(),
+            "plant_parameters": dict(spec.get("plant_parameters", {})),
+            "fmu_parameters": dict(spec.get("parameters", {})), "fmu_options": options}
+
+
+def _plant_setup(target: dict) -> tuple:
+    """What makes two bound FMUs the same plant for the experiments (the workpiece aside)."""
+    from drillcosim.analysis.experiments import experiment_plant_parameters
+    return (str(target["binding_path"]), experiment_plant_parameters(target["plant_parameters"]),
+            target["fmu_parameters"], target["fmu_options"])
+
+
+def experiment_limits(target: dict, given: dict | None) -> dict:
+    """The experiments' limits: the binding's ``[datasheet]`` under the command line's; an
+    unknown data-sheet key is an error naming the binding and the keys it may hold."""
+    from drillcosim.analysis.commissioning_sizing import LIMIT_UNITS, SizingError
+    from drillcosim.analysis.commissioning_sizing import checked_limits
+    ds, where = target["binding"].datasheet, target["binding_path"]
+    known = {**LIMIT_UNITS, **{k: "SI" for k in DATASHEET_DEFAULT[target["kind"]]}}
+    unknown = sorted(set(ds) - set(known))
+    if unknown:
+        raise CommissioningError(f"{where}: [datasheet] key(s) {', '.join(unknown)} unknown to commissioning a "
+                                 f"{target['kind']} (expected some of: {', '.join(f'{k} [{u}]' for k, u in known.items())})")
+    try:
+        limits = checked_limits(ds, dict(given or {}), str(where))
+    except SizingError as e:
+        raise CommissioningError(str(e)) from None
+    if "reference_levels" in limits and target["kind"] == "ball_screw":
+        raise CommissioningError("reference_levels: a ball screw's reference cut levels are the materials of its "
+                                 "block (scenarios/commissioning/thrust_cut_ball_screw.toml), not set by thrust")
+    return limits
 
 
 # --------------------------------------------------------------------------- experiment 1
@@ -107,8 +190,13 @@ def air_cut(target: dict, out: Path):
     kind, ds = target["kind"], target["datasheet"]
     tables = {"scenario": {"extends": str(TEMPLATES / f"air_cut_{kind}.toml"),
                            "description": f"commissioning air cut of {target['binding_path'].name}"},
-              "fmus.drive": {"plant": str(target["binding_path"])}, **plant_settings(target)}
-    tables["fmus.drive.plant_parameters"]["surface"] = 0.2 if kind == "ball_screw" else 0.5
+              **plant_settings(target)}
+    segments = air_cut_segments(target)
+    # the workpiece far away; with a declared stroke, at its end, where the plant's free travel
+    # ends: an air cut that overran it would touch and be refused, so the record shows it did not
+    stroke = target.get("limits", {}).get("stroke")
+    tables["fmus.drive.plant_parameters"]["surface"] = (0.2 if kind == "ball_screw" else 0.5) if stroke is None \
+        else float(segments.get("z_start", 0.0)) + stroke
     rec = ["drive.i_meas", "drive.table_position", "reference.v_ref", "reference.a_ref", "controller.i_ref"]
     if kind == "ball_screw":
         tables["blocks.controller.settings"] = {DATASHEET_SETTINGS[kind][q][-1]: ds[q] for q in ds}
@@ -120,10 +208,38 @@ def air_cut(target: dict, out: Path):
     if "thrust_dyn" in target["binding"].roles:
         rec.append("drive.thrust_dyn")
     tables["record"] = {"signals": rec, "decimation": 1}
-    if target.get("air_cut"):
-        tables["blocks.reference.settings"] = air_cut_settings(kind, target["air_cut"])
+    if segments:
+        tables["blocks.reference.settings"] = segments
     sc = write_scenario(out / "experiments" / "air_cut.toml", tables)
     return run_experiment(sc, out / "air_cut")
+
+
+# what the friction fit drops at each segment's start, the least it needs after that [s], and
+# the speed below which a sample counts as standing [position unit/s]
+FIT_WINDOW = {"ball_screw": (0.3, 0.5, 1e-3), "linear_stage": (0.15, 0.25, 1e-5)}
+
+
+def air_cut_segments(target: dict) -> dict:
+    """The air cut's segment settings: the template sized to the plant's declared limits
+    (:mod:`drillcosim.analysis.commissioning_sizing`), then the user's ``--air-cut`` keys;
+    given ``velocities`` replace the sizing. A travel beyond the declared stroke is refused."""
+    from drillcosim.analysis.commissioning_sizing import SizingError, air_cut_travel, size_air_cut
+    from drillcosim.cosim.scenario.files import read_toml
+    kind, limits, given = target["kind"], target.get("limits", {}), target.get("air_cut") or {}
+    template = read_toml(TEMPLATES / f"air_cut_{kind}.toml")["blocks"]["reference"]["settings"]
+    try:
+        sized, notes = size_air_cut(template, limits, *FIT_WINDOW[kind][:2]) if "velocities" not in given \
+            else (None, [])
+    except SizingError as e:
+        raise CommissioningError(str(e)) from None
+    target.setdefault("notes", []).extend(notes)
+    settings = {**(sized or {}), **air_cut_settings(kind, given)}
+    travel = air_cut_travel({**template, **settings})
+    if "stroke" in limits and travel > limits["stroke"]:
+        raise CommissioningError(f"the air cut as set travels {travel:.4g} m from its start, beyond the declared stroke "
+                                 f"{limits['stroke']:g} m: shorten its velocities or holds (--air-cut), or drop them "
+                                 f"and let the stroke size it")
+    return settings
 
 
 AIR_CUT_KEYS = ("velocities", "hold", "a_max", "pause", "z_start")
@@ -154,22 +270,24 @@ def fit_air_cut(result, target: dict) -> tuple:
         pos = result["drive.motor_angle"]
         effort = ds["force_constant"] * result["drive.i_meas"]
         units = dict(effort_unit="N m", velocity_unit="rad/s", position_unit="rad")
-        settle, min_dur, v_eps = 0.3, 0.5, 1e-3
     else:
         pos = result["drive.table_position"]
         effort = ds["force_constant"] * result["controller.i_ref"]     # the effort the Keio observer uses
         units = dict(effort_unit="N", velocity_unit="m/s", position_unit="m")
-        settle, min_dur, v_eps = 0.15, 0.25, 1e-5
+    settle, min_dur, v_eps = FIT_WINDOW[kind]
     warnings = []
     if "drive.thrust_dyn" in result:
         from drillcosim.analysis.identification import constant_velocity_segments
         for s in constant_velocity_segments(t, result["reference.v_ref"], settle=settle, min_duration=min_dur):
             F = float(np.mean(result["drive.thrust_dyn"][s]))
             if abs(F) > MAX_AIR_THRUST:
+                z = result["drive.table_position"] if "drive.table_position" in result else pos
                 raise CommissioningError(
                     f"air cut touches the workpiece: the dynamometer reads {F:.1f} N (> {MAX_AIR_THRUST} N) between "
-                    f"t = {t[s[0]]:.2f} and {t[s[-1]]:.2f} s; move the stack away (plant parameter 'surface') "
-                    f"and commission again")
+                    f"t = {t[s[0]]:.2f} and {t[s[-1]]:.2f} s, at {float(np.min(z[s])):.4g}..{float(np.max(z[s])):.4g} "
+                    f"from a start at {float(z[0]):.4g}; "
+                    f"move the stack away (plant parameter 'surface'), or if the travel is not free that far, "
+                    f"declare the stroke (binding [datasheet] stroke, or --stroke) and the air cut is sized to it")
     try:
         fm = select_friction_model(t, pos, effort, result["reference.v_ref"], settle=settle, min_duration=min_dur,
                                    v_eps=v_eps, **units)
@@ -274,16 +392,74 @@ def thrust_calibration(target: dict, friction_file: Path, mass: float, out: Path
     vals = {"mass": mass, "force_constant": ds["force_constant"]}
     observer_ds = {names[q][0]: v for q, v in vals.items()}
     controller_ds = {names[q][-1]: v for q, v in vals.items()}
-    tables = {"scenario": {"extends": str(ROOT / "scenarios" / "keio_thrust_constant_calibration.toml"),
+    tables = {"scenario": {"extends": str(REFERENCE_CUT),
                            "description": "commissioning reference cut (thrust constant)"},
-              "fmus.stage": {"plant": str(target["binding_path"])},
-              "fmus.stage.plant_parameters": params, **plant,
+              **plant, "fmus.stage.plant_parameters": params,
               "blocks.observer.settings": {**observer_ds, "friction_file": str(friction_file), "calibration_file": ""},
               **_cut_position_force(friction_file),
               "blocks.controller.settings": {**controller_ds, "calibration_file": "", "F_bias": 0.0}}
+    tables.update(_reference_levels(target))
     sc = write_scenario(out / "experiments" / "thrust_calibration.toml", tables)
     run_experiment(sc, out / "thrust_calibration")
     return json.loads((out / "thrust_calibration" / "thrust_calibration.json").read_text())
+
+
+REFERENCE_CUT = ROOT / "scenarios" / "keio_thrust_constant_calibration.toml"
+
+
+def _reference_levels(target: dict) -> dict:
+    """The linear stage's reference-cut command for the declared levels or current (none: the
+    template's 40/70/30/60 N): the first level until the template's first step, then one
+    level per template step, the template's tail after the last."""
+    from drillcosim.analysis.commissioning_sizing import reference_levels
+    from drillcosim.cosim.scenario.files import read_toml
+    raw = read_toml(REFERENCE_CUT)
+    cmd = raw["blocks"]["command"]["settings"]
+    t_tmpl, v_tmpl = [float(x) for x in cmd["times"]], [float(x) for x in cmd["values"]]
+    levels, notes = reference_levels(v_tmpl[::2], target.get("limits", {}), target["datasheet"]["force_constant"])
+    if levels is None:
+        return {}
+    target.setdefault("notes", []).extend(notes)
+    first, step = t_tmpl[1], t_tmpl[3] - t_tmpl[1]
+    times, values = [0.0], [levels[0]]
+    for j, level in enumerate(levels[1:]):
+        times += [first + j * step] * 2
+        values += [values[-1], level]
+    tail = float(raw["scenario"]["stop_time"]) - t_tmpl[-1]
+    return {"blocks.command.settings": {"times": times, "values": values},
+            "scenario": {"extends": str(REFERENCE_CUT), "description": "commissioning reference cut (thrust "
+                         f"constant) at {', '.join(f'{x:.3g}' for x in levels)} N", "stop_time": times[-1] + tail}}
+
+
+def stroke_needs(target: dict) -> dict:
+    """What each experiment on the workpiece needs of the stroke [m] from the start: the
+    reference cut and the contact experiment up to where their force loop ends (``z_limit``),
+    the ball screw's reference block to its bottom."""
+    from drillcosim.analysis.contact_identification import TEMPLATE
+    from drillcosim.cosim.scenario.files import read_toml
+    needs = {}
+    if "thrust_dyn" in target["binding"].roles and target["kind"] == "ball_screw":
+        block = read_toml(TEMPLATES / "thrust_cut_ball_screw.toml")["fmus"]["drive"]["plant_parameters"]
+        needs["reference cut (its block's bottom)"] = reference_block_windows(block)[-1][1] + WINDOW_BEFORE_BOTTOM
+    elif "thrust_dyn" in target["binding"].roles:
+        needs["reference cut (z_limit)"] = read_toml(REFERENCE_CUT)["blocks"]["controller"]["settings"]["z_limit"]
+    if target["kind"] == "linear_stage":
+        needs["contact experiment (z_limit)"] = read_toml(TEMPLATE)["blocks"]["controller"]["settings"]["z_limit"]
+    return {k: float(v) for k, v in needs.items()}
+
+
+def check_stroke(target: dict) -> None:
+    """Refuse, before anything runs, an experiment on the workpiece that the declared stroke
+    cannot hold, naming it, its need and the stroke."""
+    stroke = target.get("limits", {}).get("stroke")
+    if stroke is None:
+        return
+    short = {k: v for k, v in stroke_needs(target).items() if v > stroke}
+    if short:
+        raise CommissioningError(f"the declared stroke {stroke:g} m is shorter than "
+                                 + "; ".join(f"the {k} needs: {v:g} m" for k, v in short.items())
+                                 + " from the start position: a plant with less free travel cannot be commissioned "
+                                 "by these experiments")
 
 
 def reference_block_windows(params: dict) -> list[tuple[float, float]]:
@@ -316,8 +492,7 @@ def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: fl
     observer["friction_file"] = str(friction_file)
     controller = {DATASHEET_SETTINGS["ball_screw"][q][-1]: ds[q] for q in ds}
     tables = {"scenario": {"extends": str(template), "description": "commissioning reference cut (thrust constant)"},
-              "fmus.drive": {"plant": str(target["binding_path"])},
-              "fmus.drive.plant_parameters": block, **plant,
+              **plant, "fmus.drive.plant_parameters": block,
               "blocks.controller.settings": controller, "blocks.observer.settings": observer,
               "[[connections]]": [{"from": "drive.motor_angle", "to": "controller.z", "scale": ds["pitch"]}]}
     sc = write_scenario(out / "experiments" / "thrust_calibration.toml", tables)
@@ -336,23 +511,29 @@ def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: fl
 # --------------------------------------------------------------------------- the whole
 def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
                contact_damping: float | None = None, print_table: bool = True, file=None,
-               air_cut_overrides: dict | None = None) -> dict:
+               air_cut_overrides: dict | None = None, limits: dict | None = None) -> dict:
     """Run the commissioning experiments and write ``commissioning.json`` (see module doc) into
-    ``out_dir``, or to ``file`` (its paths are written relative to the file's folder)."""
+    ``out_dir``, or to ``file`` (docs/commissioning.md, "Paths in the file"). ``limits``:
+    what the plant allows the experiments (stroke, speeds, acceleration, current, reference
+    levels: :mod:`drillcosim.analysis.commissioning_sizing`), over the binding's ``[datasheet]``."""
     out = Path(out_dir).resolve()      # the experiment files it writes name paths under it
     out.mkdir(parents=True, exist_ok=True)
     target = read_target(target_path)
     target["air_cut"] = dict(air_cut_overrides or {})
+    target["limits"] = experiment_limits(target, limits)
+    check_stroke(target)
     kind, ds = target["kind"], target["datasheet"]
-    warnings = list(target["notes"])
     res = air_cut(target, out)
+    warnings = list(target["notes"])       # the data sheet's and the air cut's sizing
     fm, inertia, w = fit_air_cut(res, target)
     warnings += w + inertia.pop("warnings", [])
     fm.info.update(kind=kind, force_constant_nominal=ds["force_constant"])
     raw_friction = fm.save(out / "friction_air_cut.json")
     mass_key = "mass" if kind == "linear_stage" else "inertia"
     mass = inertia["value"] if inertia.get("ok") else ds[mass_key]
+    n_notes = len(target["notes"])
     cal = thrust_calibration(target, raw_friction, mass, out)
+    warnings += target["notes"][n_notes:]      # the reference cut's levels, when sized
     kt, scale = ds["force_constant"], 1.0
     if cal is not None:
         from drillcosim.controllers.calibration import rescale_friction
@@ -404,12 +585,14 @@ def _finish(doc, res, fm, target, out: Path, scale, travel, print_table, dest: P
     for q, why in doc["unverified"].items():
         doc["warnings"].append(f"UNVERIFIED {q}: {why}")
     dest.parent.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(dest, _file_relative(doc, dest.parent, (out,)))
+    doc["experiments_folder"] = experiments_folder(out, dest.parent)
+    write_json_atomic(dest, relative_paths(doc, dest.parent, out))
     report_figure(res, fm, target, out)
     summary = {"commissioning_file": str(dest), "kind": doc["nominal"]["kind"],
                "nominal": doc["nominal"], "friction_model": fm.info.get("selection"), "contact": doc["contact"],
-               "unverified": doc["unverified"], "warnings": doc["warnings"]}
-    write_json_atomic(out / "summary.json", _file_relative(summary, out))
+               "unverified": doc["unverified"], "checks_passed": not doc["unverified"],
+               "warnings": doc["warnings"]}
+    write_json_atomic(out / "summary.json", relative_paths(summary, out, out))
     if print_table:
         print(report_table(doc))
     return doc
@@ -432,24 +615,6 @@ def without_calibration(doc: dict) -> dict:
         nom["position_force"] = {**pf, "coefficients": [c * back for c in pf["coefficients"]]}
     fm = rescale_friction(FrictionModel.from_dict(doc["friction"]), back)
     return {**doc, "nominal": nom, "friction": fm.to_dict(), "calibration": None}
-
-
-def _file_relative(obj, base: Path, roots=()):
-    """Every absolute path under the file's folder ``base``, one of ``roots`` (the experiments'
-    folder) or the repository written relative to ``base`` (a commissioning file is committed
-    and read from other checkouts and folders), also inside messages."""
-    import os
-    if isinstance(obj, dict):
-        return {k: _file_relative(v, base, roots) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_file_relative(v, base, roots) for v in obj]
-    if isinstance(obj, str):
-        # the deepest folder first: the experiments' folder may lie inside the repository
-        for r in sorted({str(Path(x).resolve()) for x in (base, *roots, ROOT)}, key=len, reverse=True):
-            if r + "/" in obj:
-                rel = os.path.relpath(r, base)
-                obj = obj.replace(r + "/", "" if rel == "." else rel + "/")
-    return obj
 
 
 # --------------------------------------------------------------------------- report

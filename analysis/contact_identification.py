@@ -280,6 +280,10 @@ def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings
     from drillcosim.analysis.experiments import run_experiment, write_scenario
     from drillcosim.controllers.friction import FrictionModel
 
+    short = current_short(target, doc)
+    if short:
+        warnings.append(short)
+        return {"source": "contact experiment", "error": short}
     exp = out / "experiments"
     exp.mkdir(parents=True, exist_ok=True)
     com = exp / "commissioning_air_cut.json"
@@ -288,7 +292,7 @@ def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings
     from drillcosim.analysis.experiments import plant_settings
     tables = {"scenario": {"extends": str(TEMPLATE), "description":
                            f"commissioning contact experiment of {Path(target['binding_path']).name}"},
-              "fmus.drive": {"plant": str(target["binding_path"])}, **plant_settings(target),
+              **plant_settings(target),
               "blocks.observer.settings": {"commissioning_file": str(com)},
               "blocks.controller.settings": {"commissioning_file": str(com)},
               "[[events]]": [{"time": steps[0][0] - SETTLE, "set": "excitation.amplitude", "value": AMPLITUDE}]
@@ -312,6 +316,26 @@ def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings
     warnings.extend(entry["warnings"])
     return entry
 
+
+
+def current_short(target: dict, doc: dict) -> str | None:
+    """Why the declared ``max_current`` cannot hold the contact experiment's working point
+    (command, excitation and Coulomb friction through the identified force constant, against
+    the share of it the sizing allows), or None: a saturating current would be fitted as
+    the contact."""
+    from drillcosim.analysis.commissioning_sizing import CURRENT_USE
+    from drillcosim.cosim.scenario.files import read_toml
+    i_max = (target.get("limits") or {}).get("max_current")
+    if not i_max:
+        return None
+    F0 = float(read_toml(TEMPLATE)["blocks"]["excitation"]["settings"]["offset"])
+    need = (F0 + AMPLITUDE + abs(doc["friction"]["coulomb"])) / doc["nominal"]["force_constant"]
+    if need <= CURRENT_USE * i_max:
+        return None
+    return (f"contact experiment not run: its working point {F0:g} N +- {AMPLITUDE:g} N with "
+            f"{abs(doc['friction']['coulomb']):.3g} N of friction needs {need:.3g} A, above {CURRENT_USE:g} x the "
+            f"declared max_current {i_max:g} A (a saturating current would be fitted as the contact); state the "
+            f"contact instead (--contact-stiffness, --contact-damping)")
 
 
 # --------------------------------------------------------------------------- in commissioning

@@ -11,14 +11,20 @@ from pathlib import Path
 STACK_PARAMETERS = ("surface", "n_layers", "wear_holes")
 
 
+def experiment_plant_parameters(plant_parameters: dict) -> dict:
+    """The contract parameters an experiment takes from the target: all but the workpiece
+    layout, which each experiment sets for itself."""
+    return {k: v for k, v in plant_parameters.items() if k not in STACK_PARAMETERS and not k.startswith("layer")}
+
+
 def plant_settings(target: dict, fmu: str = "drive") -> dict:
-    """Every setting the target scenario gives its plant, for an experiment's tables: its
-    ``plant_parameters`` but the workpiece layout (the experiment's own) and the FMU's own
-    ``parameters`` (a spring rate, a mount stiffness...): the experiments run on the plant
-    as the scenario configures it."""
-    params = {k: v for k, v in target["plant_parameters"].items()
-              if k not in STACK_PARAMETERS and not k.startswith("layer")}
-    tables = {f"fmus.{fmu}.plant_parameters": params}
+    """Every setting the target scenario gives its plant, for an experiment's tables: the
+    binding with the FMU's options (another FMU file, CS/ME, solver, logging, optional
+    parameters), its ``plant_parameters`` but the workpiece layout (the experiment's own),
+    and the FMU's own ``parameters`` (a spring rate, a mount stiffness...): the experiments
+    run on the plant as the scenario configures it."""
+    tables = {f"fmus.{fmu}": {"plant": str(target["binding_path"]), **target.get("fmu_options", {})},
+              f"fmus.{fmu}.plant_parameters": experiment_plant_parameters(target["plant_parameters"])}
     if target.get("fmu_parameters"):
         tables[f"fmus.{fmu}.parameters"] = dict(target["fmu_parameters"])
     return tables

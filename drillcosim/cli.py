@@ -381,21 +381,45 @@ def cmd_conformance(args) -> int:
                             + (["--reference-fmus", args.reference_fmus] if args.reference_fmus else []))
 
 
+def _numbers(text: str, option: str, count: int | None = None) -> list[float]:
+    try:
+        vals = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise SystemExit(f"drillcosim commission: {option} expects comma-separated numbers, got {text!r}") from None
+    if count is not None and len(vals) != count:
+        raise SystemExit(f"drillcosim commission: {option} expects {count} numbers, got {text!r}")
+    return vals
+
+
+def _commission_limits(args) -> dict:
+    """What the command line says the plant allows (over the binding's [datasheet])."""
+    limits = {"stroke": args.stroke, "max_acceleration": args.max_acceleration, "max_current": args.max_current}
+    if args.speeds:
+        limits["min_speed"], limits["max_speed"] = _numbers(args.speeds, "--speeds", 2)
+    if args.levels:
+        limits["reference_levels"] = _numbers(args.levels, "--levels")
+    return {k: v for k, v in limits.items() if v is not None}
+
+
 def cmd_commission(args) -> int:
     # the commissioning is offline analysis (analysis/commissioning.py); the CLI only calls it
-    from drillcosim.analysis.commissioning import CommissioningError, commission
+    from drillcosim.analysis.commissioning import EXIT_REFUSED, CommissioningError, commission, exit_status
     from drillcosim.cosim.errors import CosimError
     target = _scenario_path(args.target)
     out = args.out or str(Path("results") / f"commission_{Path(target).stem}")
     try:
         doc = commission(target, out, contact_stiffness=args.contact_stiffness, contact_damping=args.contact_damping,
-                         file=args.file, air_cut_overrides=_parse_set(args.air_cut))
+                         file=args.file, air_cut_overrides=_parse_set(args.air_cut), limits=_commission_limits(args))
     except (CommissioningError, CosimError) as e:
         print(f"drillcosim commission: {e}", file=sys.stderr)
-        return 2
-    print(f"commissioning file: {args.file or f'{out}/commissioning.json'}\nreport: {out}/commissioning.png\n"
+        return EXIT_REFUSED
+    code, why = exit_status(doc, args.strict)
+    verdict = "" if not doc.get("unverified") else f" (NOT VERIFIED: {', '.join(doc['unverified'])})"
+    print(f"commissioning file{verdict}: {args.file or f'{out}/commissioning.json'}\nreport: {out}/commissioning.png\n"
           f"summary: {out}/summary.json")
-    return 1 if doc["warnings"] and args.strict else 0
+    for line in why:
+        print(f"drillcosim commission: {line}", file=sys.stderr)
+    return code
 
 
 def cmd_export_fmu(args) -> int:
@@ -452,6 +476,29 @@ def main(argv: list[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
+
+
+def _add_commission_parser(sub) -> None:
+    cm = sub.add_parser("commission", help="commission a plant: air cut, friction model selection, inertia, "
+                                           "thrust-constant reference cut -> commissioning.json + report")
+    cm.add_argument("target", help="a plant binding (scenarios/plants/x.toml) or a scenario that binds one "
+                                   "(its observer/controller settings are the data sheet)")
+    cm.add_argument("--out", help="output folder (default results/commission_<name>)")
+    cm.add_argument("--file", help="commissioning.json's path (default OUT/; its paths are relative to it)")
+    cm.add_argument("--air-cut", action="append", metavar="KEY=VALUE", help="air-cut setting (docs/commissioning.md)")
+    cm.add_argument("--stroke", type=float, metavar="M", help="free travel from the start along +z [m]: the air "
+                    "cut is sized to it (default: the binding's [datasheet] stroke, else the template's)")
+    cm.add_argument("--speeds", metavar="MIN,MAX", help="the air cut's speed range [m/s] (table speed)")
+    cm.add_argument("--max-acceleration", type=float, metavar="M/S2", help="the air cut's ramps stay below it")
+    cm.add_argument("--max-current", type=float, metavar="A", help="the reference cut's levels stay below 80 %% of "
+                    "it (linear stage)")
+    cm.add_argument("--levels", metavar="N,N,N[,...]", help="the reference cut's thrust levels [N] (linear stage)")
+    cm.add_argument("--contact-stiffness", type=float, metavar="N/m", help="tool/workpiece contact stiffness "
+                    "for the force-loop margin (linear stage)")
+    cm.add_argument("--contact-damping", type=float, metavar="N*s/m", help="contact damping for the margin")
+    cm.add_argument("--strict", action="store_true", help="exit 1 when the report has warnings (exit codes: 0 every "
+                    "value verified, 5 a value unverified, 2 refused: docs/commissioning.md)")
+    cm.set_defaults(func=cmd_commission)
 
 
 def _add_campaign_parser(sub) -> None:
@@ -581,18 +628,7 @@ def build_parser() -> argparse.ArgumentParser:
                                         "exit 1 when a signal leaves its tube")
     validate.add_arguments(v)
     v.set_defaults(func=validate.run)
-    cm = sub.add_parser("commission", help="commission a plant: air cut, friction model selection, inertia, "
-                                           "thrust-constant reference cut -> commissioning.json + report")
-    cm.add_argument("target", help="a plant binding (scenarios/plants/x.toml) or a scenario that binds one "
-                                   "(its observer/controller settings are the data sheet)")
-    cm.add_argument("--out", help="output folder (default results/commission_<name>)")
-    cm.add_argument("--file", help="commissioning.json's path (default OUT/; its paths are relative to it)")
-    cm.add_argument("--air-cut", action="append", metavar="KEY=VALUE", help="air-cut setting (docs/commissioning.md)")
-    cm.add_argument("--contact-stiffness", type=float, metavar="N/m", help="tool/workpiece contact stiffness "
-                    "for the force-loop margin (linear stage)")
-    cm.add_argument("--contact-damping", type=float, metavar="N*s/m", help="contact damping for the margin")
-    cm.add_argument("--strict", action="store_true", help="exit 1 when the report has warnings")
-    cm.set_defaults(func=cmd_commission)
+    _add_commission_parser(sub)
     _add_export_parsers(sub)
     c = sub.add_parser("conformance", help="run the Modelica Reference-FMUs against fmpy and rewrite "
                                            "the table in docs/conformance.md")

@@ -15,7 +15,8 @@ import pytest
 from tests.air_cut_helpers import air_cut_record
 
 from drillcosim.analysis.calibration import held_out_levels
-from drillcosim.analysis.commissioning import _file_relative, fit_air_cut, read_target, report_table
+from drillcosim.analysis.commissioning import fit_air_cut, read_target, report_table
+from drillcosim.analysis.commissioning_paths import absolute_paths, experiments_folder, relative_paths
 from drillcosim.analysis.commissioning_checks import identified_entries
 from drillcosim.analysis.identification import position_force, select_friction_model
 from drillcosim.controllers.calibration import COMMISSIONING_FORMAT, load_commissioning
@@ -155,10 +156,38 @@ def test_report_shows_no_placeholder_for_a_rejected_stribeck_term():
 
 def test_paths_are_written_relative_to_the_file(tmp_path):
     out = tmp_path / "com"
-    doc = {"plant": str(ROOT / "scenarios/plants/linear_stage.toml"), "x": [f"run {out}/air_cut/data.csv"]}
-    rel = _file_relative(doc, out)
+    doc = {"plant": str(ROOT / "scenarios/plants/linear_stage.toml"), "x": [f"run {out}/air_cut/data.csv"],
+           "unit": "N s/m over 1/rev"}
+    rel = relative_paths(doc, out, out)
     assert not rel["plant"].startswith("/") and (out / rel["plant"]).resolve() == ROOT / "scenarios/plants/linear_stage.toml"
-    assert rel["x"] == ["run air_cut/data.csv"]
+    assert rel["x"] == ["run air_cut/data.csv"] and rel["unit"] == doc["unit"]
+    assert experiments_folder(out, out) == "."
+
+
+def test_experiments_outside_the_files_project_leave_no_path_that_climbs_to_the_root(tmp_path):
+    """``--out /tmp/x --file scenarios/commissioning/y.json`` (how the shipped files were
+    written): the experiments' paths are relative to their own folder, which the file names
+    as null (no path from the checkout to /tmp means anything elsewhere); the plant relative
+    to the file. Experiments in the same project are named from the file."""
+    out, base = Path("/tmp") / tmp_path.name / "exp", COM
+    doc = {"plant": str(ROOT / "scenarios/plants/linear_stage.toml"),
+           "calibration": {"file": f"{out}/experiments/thrust_calibration.toml"},
+           "warnings": [f"contact experiment could not run on this plant ({out}/experiments/contact.toml): x"]}
+    rel = relative_paths(doc, base, out)
+    assert rel["plant"] == "../plants/linear_stage.toml"
+    assert rel["calibration"]["file"] == "experiments/thrust_calibration.toml"
+    assert rel["warnings"] == ["contact experiment could not run on this plant (experiments/contact.toml): x"]
+    assert experiments_folder(out, base) is None and not absolute_paths(rel)
+    assert experiments_folder(tmp_path / "results" / "c", tmp_path / "files") == "../results/c"
+
+
+@pytest.mark.parametrize("path", sorted(COM.glob("*.json")), ids=lambda p: p.name)
+def test_shipped_files_name_no_path_outside_the_checkout(path):
+    doc = json.loads(path.read_text())
+    assert not absolute_paths(doc) and "/tmp" not in json.dumps(doc)
+    for key in ("plant", "target"):
+        assert (path.parent / doc[key]).resolve().is_relative_to(ROOT) and (path.parent / doc[key]).is_file()
+    assert "experiments_folder" in doc
 
 
 def test_a_failed_check_is_unverified_with_its_reason():

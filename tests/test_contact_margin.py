@@ -253,12 +253,15 @@ def test_air_cut_mass_stays_when_the_contact_agrees():
 def test_compliant_mount_boundary_in_simulation(tmp_path):
     """Fig. 7 (2 s) at 0.9 and 1.2 x the predicted critical Kf: quiet below (< 0.1 N on the
     true thrust, measured 0.008 N at 0.7), a sustained oscillation above (> 0.3 N, measured
-    0.65 N at 0.8; the friction bounds it below the score's 1 N limit-cycle threshold)."""
+    0.65 N at 0.8; the friction bounds it below 1 N) that the score calls a limit cycle
+    (sustained, above 1 % of the command: tests/test_limit_cycle.py)."""
     from drillcosim.analysis.force_margin import commissioned_loop
     from drillcosim.cosim.runs.runner import run_scenario
     K_crit = critical(commissioned_loop(json.loads(FOREIGN2_FILE.read_text()), {}), "Kf", 0.02, 8.0)
     for factor, quiet in ((0.9, True), (1.2, False)):
         res = run_scenario(FOREIGN2_FIG7, out_dir=tmp_path / f"run{factor}", progress=False, handle_signals=False,
                            overrides={"blocks.controller.settings.Kf": factor * K_crit, "scenario.stop_time": 2.0})
-        osc = res.summary["scores"]["force_control"]["oscillation_amplitude_N"]
+        fc = res.summary["scores"]["force_control"]
+        osc = fc["oscillation_amplitude_N"]
         assert (osc < 0.1) if quiet else (osc > 0.3), (factor, K_crit, osc)
+        assert fc["limit_cycle"] is not quiet and res.summary["scores_passed"] is quiet, (factor, fc.get("failure"))

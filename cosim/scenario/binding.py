@@ -74,7 +74,7 @@ class RoleContract:
         return self.roles.get(name)
 
 
-BINDING_SECTIONS = ("plant", "roles", "parameter_roles", "true_parameters")
+BINDING_SECTIONS = ("plant", "roles", "parameter_roles", "true_parameters", "datasheet")
 PLANT_KEYS = ("path", "kind", "description", "parameters", "contract")
 ROLE_KEYS = ("variable", "unit", "scale", "offset")
 
@@ -111,6 +111,7 @@ class PlantBinding:
     bound_parameters: dict = field(default_factory=dict)
     bound_true: dict = field(default_factory=dict)
     unbound_parameters: dict = field(default_factory=dict)   # contract parameters this plant lacks
+    datasheet: dict = field(default_factory=dict)        # [datasheet]: numbers for tools (SI), not for the run
 
     @property
     def base_dir(self) -> Path:
@@ -283,7 +284,20 @@ def load_binding(path) -> PlantBinding:
                             file, "roles")
     return PlantBinding(file=file, path=plant["path"], kind=plant["kind"], contract=contract,
                         description=str(plant.get("description", "")),
-                        parameters=dict(plant.get("parameters", {})), **sections)
+                        parameters=dict(plant.get("parameters", {})), datasheet=_datasheet(raw, file), **sections)
+
+
+def _datasheet(raw: dict, file: str) -> dict:
+    """``[datasheet]``: what the plant's data sheet says (SI numbers, or lists of them), for
+    tools that size or start from it (``drillcosim commission``); the run does not read it."""
+    table = raw.get("datasheet", {})
+    if not isinstance(table, dict):
+        raise ScenarioError("expected a table [datasheet] of numbers (SI)", file, "datasheet")
+    for k, v in table.items():
+        ok = isinstance(v, (int, float)) or (isinstance(v, list) and v and all(isinstance(x, (int, float)) for x in v))
+        if not ok or isinstance(v, bool):
+            raise ScenarioError(f"expected a number or a list of numbers (SI), got {v!r}", file, f"datasheet.{k}")
+    return dict(table)
 
 
 __all__ = ["Role", "RoleContract", "Bound", "PlantBinding", "load_binding"]
