@@ -17,7 +17,7 @@ import drillcosim.analysis.commissioning as commissioning
 import drillcosim.analysis.experiments as experiments
 from drillcosim.analysis.commissioning import CommissioningError, read_target
 from drillcosim.controllers.friction import FrictionModel
-from drillcosim.cosim.fmi.slave import resolve_fmu_path
+from drillcosim.cosim.scenario.paths import resolve_fmu_path
 from drillcosim.cosim.scenario.loader import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
