@@ -31,6 +31,10 @@ def test_a_limit_cycle_fails_even_when_passed_says_otherwise():
                                                               "oscillation_frequency_Hz": 428.0}})
     assert not ok and [f["score"] for f in failed] == ["b"]
     assert "limit cycle (6.9 N at 428 Hz)" in failed[0]["reason"]
+    # the line's own amplitude, when the score measured it, over the spectrum's bin
+    _, failed = scores_verdict({"b": {"limit_cycle": True, "oscillation_amplitude_N": 0.6,
+                                      "oscillation_line_N": 0.66, "oscillation_frequency_Hz": 399.0}})
+    assert "limit cycle (0.66 N at 399 Hz)" in failed[0]["reason"]
 
 
 def test_scores_without_a_verdict_pass_and_a_missing_score_fails():

@@ -191,7 +191,11 @@ def _failure_reason(sc: dict) -> str:
     rule = (sc.get("definitions") or {}).get("passed") if isinstance(sc.get("definitions"), dict) else None
     reason = sc.get("failure") or sc.get("warning") or (f"outside its pass rule ({rule})" if rule else "passed: false")
     if sc.get("limit_cycle") is True:
-        amp, f = sc.get("oscillation_amplitude_N"), sc.get("oscillation_frequency_Hz")
+        # the line's own amplitude (its band's envelope) when the score gives it: the Hann
+        # spectrum's bin reads up to 15 % low between bins
+        amp = sc.get("oscillation_line_N", sc.get("oscillation_amplitude_N"))
+        amp = amp if amp is not None else sc.get("oscillation_amplitude_N")
+        f = sc.get("oscillation_frequency_Hz")
         reason = (f"limit cycle ({amp:.3g} N at {f:.0f} Hz); " if amp is not None and f is not None
                   else "limit cycle; ") + reason
     return reason
