@@ -12,7 +12,7 @@ instance, its types and units), :mod:`~drillcosim.cosim.loop` (the system, the a
 its C steps, the recorder -- libcosim's observer -- and the manipulators),
 :mod:`~drillcosim.cosim.blocks` (ready-made blocks), :mod:`~drillcosim.cosim.scenario`
 (files, checks, build, bindings, plug-ins, sweeps), :mod:`~drillcosim.cosim.runs` (runner,
-supervisor, campaigns, replays) and :mod:`~drillcosim.cosim.ssp`.
+supervisor, campaigns, replays) and :mod:`~drillcosim.cosim.exchange.ssp`.
 """
 from importlib import import_module
 

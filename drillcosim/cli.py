@@ -424,7 +424,7 @@ def cmd_commission(args) -> int:
 
 def cmd_export_fmu(args) -> int:
     from drillcosim.cosim.errors import CosimError
-    from drillcosim.cosim.fmi.export_fmu import ExportError, export_blocks
+    from drillcosim.cosim.exchange.export_fmu import ExportError, export_blocks
     from drillcosim.cosim.scenario.loader import load_scenario
     try:
         sc = load_scenario(_scenario_path(args.scenario), _parse_set(args.set))
@@ -443,9 +443,9 @@ def cmd_export_fmu(args) -> int:
 
 def cmd_export_ssp(args) -> int:
     from drillcosim.cosim.errors import CosimError
-    from drillcosim.cosim.fmi.export_fmu import ExportError
+    from drillcosim.cosim.exchange.export_fmu import ExportError
     from drillcosim.cosim.scenario.loader import load_scenario
-    from drillcosim.cosim.ssp.writer import export_ssp
+    from drillcosim.cosim.exchange.ssp_writer import export_ssp
     try:
         sc = load_scenario(_scenario_path(args.scenario), _parse_set(args.set))
         out, missing = export_ssp(sc, args.out, args.fmi, args.allow_missing)

@@ -19,7 +19,7 @@ from fmpy.validation import validate_fmu
 
 from drillcosim.controllers.adaptation import OneStepDelay
 from drillcosim.cosim.loop.algorithm import run
-from drillcosim.cosim.fmi.export_fmu import ExportError, export_blocks, has_c_step, with_exported_blocks
+from drillcosim.cosim.exchange.export_fmu import ExportError, export_blocks, has_c_step, with_exported_blocks
 from drillcosim.cosim.loop.recorder import Recorder
 from drillcosim.cosim.scenario.loader import load_scenario
 

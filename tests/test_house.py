@@ -204,3 +204,20 @@ def test_layers_import_only_the_layers_below(layer):
             continue
         bad += [f"{name} -> {m}" for m in _imports(name, path) if _layer(m) not in ALLOWED[layer]]
     assert not bad, bad
+
+
+# inside the master, libcosim's seams stack up the same way: slaves, the loop over them, the
+# ready-made blocks, scenarios built into a system, exchange with other tools, runs
+MASTER_ORDER = ("fmi", "loop", "blocks", "scenario", "exchange", "runs")
+
+
+def test_the_masters_sub_packages_import_only_those_below():
+    rank = {f"drillcosim.cosim.{p}": i for i, p in enumerate(MASTER_ORDER)}
+
+    def level(module: str) -> int:
+        return next((r for p, r in rank.items() if module == p or module.startswith(p + ".")), -1)  # -1: errors
+
+    bad = [f"{name} -> {m}" for name, path in MODULES.items() if level(name) >= 0
+           for m in _imports(name, path) if level(m) > level(name)]
+    assert not bad, bad
+    assert {p.name for p in (ROOT / "cosim").iterdir() if (p / "__init__.py").exists()} == set(MASTER_ORDER)

@@ -20,11 +20,11 @@ import pytest
 
 from drillcosim.cosim.loop.algorithm import run
 from drillcosim.cosim.errors import ScenarioError
-from drillcosim.cosim.fmi.export_fmu import ExportError
+from drillcosim.cosim.exchange.export_fmu import ExportError
 from drillcosim.cosim.loop.recorder import Recorder
 from drillcosim.cosim.scenario.loader import load_scenario
-from drillcosim.cosim.ssp.reader import SSPError
-from drillcosim.cosim.ssp.writer import export_ssp
+from drillcosim.cosim.exchange.ssp_reader import SSPError
+from drillcosim.cosim.exchange.ssp_writer import export_ssp
 
 ROOT = Path(__file__).resolve().parents[1]
 THIRD = ROOT / "tests" / "third_party" / "ssp"

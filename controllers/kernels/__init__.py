@@ -48,7 +48,7 @@ class Kernel:
     def __init__(self, lib_name: str, fn_name: str, state, n_in: int, n_out: int):
         fn = getattr(library(lib_name), fn_name)
         fn.argtypes, fn.restype = [_P, _D, _P, _P], None
-        self.source, self.function = HERE / f"{lib_name}.c", fn_name   # for export-fmu (cosim/fmi/export_fmu.py)
+        self.source, self.function = HERE / f"{lib_name}.c", fn_name   # for export-fmu (cosim/exchange/export_fmu.py)
         self.state = state
         self.n_in, self.n_out = n_in, n_out
         self.address = ctypes.cast(fn, _P).value
@@ -76,7 +76,7 @@ class KernelBlock:
     kernel = "auto"
     c_kernel = None
     c_step: tuple | None = None
-    # for ``drillcosim export-fmu`` (cosim/fmi/export_fmu.py): the struct fields that are the
+    # for ``drillcosim export-fmu`` (cosim/exchange/export_fmu.py): the struct fields that are the
     # block's constants (field or array name -> unit, or (unit, description)); they become
     # the FMU's parameters, every other field is state. Settings the block reads from a
     # file *during the run* (none of the shipped blocks: their files are read by the

@@ -1,5 +1,5 @@
 """What every FMU build shares (the project's plant FMUs in fmus/, the blocks exported by
-:mod:`drillcosim.cosim.fmi.export_fmu`): the FMI frame (``frame/``), the FMI headers fmpy
+:mod:`drillcosim.cosim.exchange.export_fmu`): the FMI frame (``frame/``), the FMI headers fmpy
 ships, the platform folder names, a lock for concurrent builds, and writing generated files
 only when they change (so make sees no change)."""
 from __future__ import annotations

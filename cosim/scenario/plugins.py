@@ -12,7 +12,7 @@ package (this project's is :mod:`drillcosim.drilling`) registers, once per proce
   function that returns the built ``.fmu``;
 * **scenario folders**: where ``drillcosim list`` and a scenario given by name look;
 * **scenario formats**: a file suffix and the function that loads such a file as a
-  scenario (the master's own SSP reader, :mod:`drillcosim.cosim.ssp.reader`, is one).
+  scenario (the master's own SSP reader, :mod:`drillcosim.cosim.exchange.ssp_reader`, is one).
 
 Registration happens through the entry-point group :data:`GROUP` (``pyproject.toml``,
 ``[project.entry-points."drillcosim.plugins"]``): each entry is a function

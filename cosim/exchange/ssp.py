@@ -1,10 +1,10 @@
 """SSP 1.0 (System Structure and Parameterization): scenarios out, other tools' systems in.
 
-* :func:`drillcosim.cosim.ssp.writer.export_ssp` (``drillcosim export-ssp``): a scenario as an SSP
+* :func:`drillcosim.cosim.exchange.ssp_writer.export_ssp` (``drillcosim export-ssp``): a scenario as an SSP
   package -- ``SystemStructure.ssd``, the plant FMUs and the exported block FMUs in
   ``resources/``, parameter values in SSV files, connections with their unit conversion
   as ``ssc:LinearTransformation``; what SSP cannot say is refused or listed;
-* :func:`drillcosim.cosim.ssp.reader.load_ssp` (``drillcosim run X.ssp``): an SSP package written by
+* :func:`drillcosim.cosim.exchange.ssp_reader.load_ssp` (``drillcosim run X.ssp``): an SSP package written by
   another tool, validated against the SSP schema (``schema/``), translated into the same
   :class:`drillcosim.cosim.scenario.build.Scenario` a TOML file gives, so it runs with the same
   supervision, recording and summary.

@@ -26,7 +26,7 @@ from pathlib import Path
 
 from drillcosim.cosim.errors import ScenarioError
 from drillcosim.cosim.fmi.units import UnitDef, UnitError, conversion
-from drillcosim.cosim.ssp import DRILLCOSIM_NS, NS
+from drillcosim.cosim.exchange.ssp import DRILLCOSIM_NS, NS
 
 HERE = Path(__file__).resolve().parent
 DEFAULT_STEP = None

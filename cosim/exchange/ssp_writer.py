@@ -1,7 +1,7 @@
 """``drillcosim export-ssp SCENARIO --out X.ssp``: a scenario as an SSP 1.0 package.
 
 * every FMU of the scenario is a component (its .fmu copied to ``resources/``), every block
-  with a C step is exported as an FMU (:mod:`drillcosim.cosim.fmi.export_fmu`) and is a component too;
+  with a C step is exported as an FMU (:mod:`drillcosim.cosim.exchange.export_fmu`) and is a component too;
 * parameter values (the scenario's, a plant binding's) go to ``resources/<instance>.ssv``,
   bound to the component;
 * each connection is an ``ssd:Connection``; a unit conversion or a stated scale/offset
@@ -24,9 +24,9 @@ import zipfile
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
-from drillcosim.cosim.fmi.export_fmu import ExportError, _xml_num, describe_block, has_c_step, write_fmu
+from drillcosim.cosim.exchange.export_fmu import ExportError, _xml_num, describe_block, has_c_step, write_fmu
 from drillcosim.cosim.fmi.units import BUILTIN_UNITS
-from drillcosim.cosim.ssp import DRILLCOSIM_NS, NS
+from drillcosim.cosim.exchange.ssp import DRILLCOSIM_NS, NS
 
 
 def _split(wire: str) -> tuple[str, str]:
