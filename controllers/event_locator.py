@@ -158,13 +158,26 @@ def free_face(x, F, lo: float, hi: float, air: float | None) -> tuple[float, flo
     return _best_face(lo, hi, sse, PUSH_OUT_LENGTHS, PUSH_OUT_SHAPES, x.size)
 
 
-def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None):
+def open_gap(F, cut_floor: float | None) -> bool:
+    """Whether the window ends in a gap that goes on past it: the upper layer's level
+    (the median of the first fifth) is a cut level and the last fifth's median is below
+    ``cut_floor`` [N] (the lowest thrust of the lower layer's material when cut: the
+    detector's engagement floor). A window shortened to a thin lower layer
+    (``InterfaceDetector`` interface_loc_after) can end there."""
+    if cut_floor is None or not math.isfinite(cut_floor):
+        return False
+    k = max(MIN_SEGMENT, F.size // 5)
+    return float(np.median(F[:k])) > cut_floor and float(np.median(F[-k:])) < cut_floor
+
+
+def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cut_floor: float | None = None):
     """Located position [m] of an event and its uncertainty [m] from the samples around
     its trigger: table positions ``x`` [m] (increasing along the feed), observed thrust
     ``F`` [N]. ``kind``: "entry", "interface" or "exit"; ``air`` [N]: the observed thrust
     with the tool in air (before the entry); ``x_trig`` [m]: where the detector fired
-    (an onset lies before it; default the window's middle). A ramp of either sign is
-    fitted. (NaN, NaN) when there are too few samples."""
+    (an onset lies before it; default the window's middle); ``cut_floor`` [N]: an
+    interface's window whose end is below it ends in a gap (:func:`open_gap`). A ramp
+    of either sign is fitted. (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
     x, F = np.asarray(x, float), np.asarray(F, float)
@@ -178,6 +191,11 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None):
         return onset_face(x, F, x0, min(xt, x1))
     if kind == EXIT:
         return free_face(x, F, x0, x1, air if FIXED_EXIT_AIR else None)
+    if open_gap(F, cut_floor):
+        # the lower face lies at or past the window's end: the upper layer's free face
+        # and the window's end bound a part of the gap, their middle is inside it
+        face, dface = free_face(x, F, x0, x1, None)
+        return 0.5 * (face + x1), 0.5 * (x1 - face) + dface
     gap = air_run(x, F, air)
     if gap is None:
         return onset_face(x, F, x0, min(xt, x1))
