@@ -728,9 +728,10 @@ class InterfaceDetector(KernelBlock, Block):
         xs = np.interp(ht - self.observer_delay, ht, hx) if self.observer_delay > 0 else hx
         sel = (xs >= lo) & (xs <= hi)
         kind = "entry" if k == 0 else "exit" if k == self.n else "interface"
-        # an interface window shortened to a thin layer below may end in the gap
-        floor = self.floor[k] if self.relative and kind == "interface" and self.loc_after[k - 1] < \
-            self.max_gap + self.locate_margin else None
+        # an interface window shortened to a thin layer below may end in the gap: air is
+        # below the engagement floor of both layers around it (Al's is the lowest)
+        floor = min(self.floor[k - 1], self.floor[k]) if self.relative and kind == "interface" and \
+            self.loc_after[k - 1] < self.max_gap + self.locate_margin else None
         x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor)
         F_air = NAN
         if k == 0 and math.isfinite(x_loc):
