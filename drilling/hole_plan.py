@@ -42,7 +42,7 @@ OBSERVER_SETTLE_ORBITS = 6.0
 
 HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "approach", "breakthrough",
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
-             "match_tolerance", "locate_margin", "push_out"}
+             "match_tolerance", "locate_margin", "push_out", "orbital_harmonics"}
 # Localisation (controllers/event_locator.py): travel on either side of an event that holds its
 # change and a stretch of level (engagement up to ~0.35 mm on the drives measured, and the
 # trigger up to ~0.1 mm into it: with 0.3 mm, Ti entries with a 0.22 mm engagement were
@@ -57,6 +57,7 @@ ORBITS_PER_LAYER = 2.0
 MISMATCH_FACTOR = 4.0
 DETECTOR_DT, DETECTOR_N_MIN = 0.02, 25  # InterfaceDetector defaults (Table 4's dt, its shortest window)
 LAYER_KEYS = {"material", "thickness", "tolerance"}
+MAX_HARMONICS = 4       # orbital harmonics the adaptive observer models at most (fang_observer.MAX_HARMONICS)
 
 
 def _num(v) -> bool:
@@ -87,6 +88,7 @@ class HolePlan:
         self.match_tolerance = self._number(hole, "match_tolerance", 1.0e-3, positive=True)
         self.locate_margin = self._number(hole, "locate_margin", LOCATE_MARGIN, positive=True)
         self.push_out = self._number(hole, "push_out", PUSH_OUT, positive=True)
+        self.harmonics = self._harmonics(hole)
         self.fail_action = hole.get("fail_action", "hold")
         if self.fail_action not in FAIL_ACTIONS:
             raise error("hole.fail_action", f"expected one of {FAIL_ACTIONS}, got {self.fail_action!r}")
@@ -111,6 +113,19 @@ class HolePlan:
         if minimum is not None and v < minimum:
             raise self.error(f"{where}.{key}", f"expected a number >= {minimum}, got {v!r}")
         return float(v)
+
+    def _harmonics(self, hole) -> int | None:
+        """``orbital_harmonics``: how many harmonics of the orbit the observer models (Fang
+        eq. 8 generalised; a drive whose orbital thrust ripple has a 2nd harmonic leaves it
+        in the DC estimate otherwise); None when the plan does not say (the observer's own
+        setting, default 1)."""
+        v = hole.get("orbital_harmonics")
+        if v is None:
+            return None
+        if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_HARMONICS:
+            raise self.error("hole.orbital_harmonics", f"expected an integer 1..{MAX_HARMONICS} (orbital ripple "
+                                                       f"harmonics the observer models), got {v!r}")
+        return v
 
     def _layers(self, layers):
         if not isinstance(layers, list) or not layers:
@@ -356,6 +371,12 @@ def expand(raw: dict, error, origin: str = "[hole]") -> dict:
     if plan.names["orbit_delay"] in blocks:      # the delayed orbit command starts where the adaptation does
         _derive(raw, f"blocks.{plan.names['orbit_delay']}.settings.initial",
                 plan.layer_process(0)["orbital_speed"], error, origin)
+    if plan.harmonics is not None:
+        oname = plan.names["observer"]
+        if oname not in blocks:
+            raise error("hole.orbital_harmonics", f"the plan sets the observer's harmonics, but the scenario has no "
+                                                  f"block '{oname}' (hole.observer names it)")
+        _derive(raw, f"blocks.{oname}.settings.harmonics", plan.harmonics, error, origin)
     _derive(raw, "scenario.stop_time", plan.stop_time({**tset, **traj}), error, origin)
     if plan.scored:
         raw.setdefault("scores", []).append(plan.score())
