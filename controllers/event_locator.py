@@ -158,13 +158,38 @@ def free_face(x, F, lo: float, hi: float, air: float | None) -> tuple[float, flo
     return _best_face(lo, hi, sse, PUSH_OUT_LENGTHS, PUSH_OUT_SHAPES, x.size)
 
 
-def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None):
+def floor_gap(F, cut_floor: float | None) -> tuple[int, int] | None:
+    """(first, last + 1) sample of the longest run below ``cut_floor`` [N] (the lowest
+    thrust either layer's material shows when cut: the detector's engagement floors)
+    after a cut level (the first fifth's median above it), or None. A window shortened to
+    a thin lower layer (``InterfaceDetector`` interface_loc_after) can end in the gap or on
+    the lower layer's first rise, where :func:`air_run` sees no second cut level; any
+    part of the run is in the gap (noise may split it)."""
+    if cut_floor is None or not math.isfinite(cut_floor):
+        return None
+    k = max(MIN_SEGMENT, F.size // 5)
+    if not float(np.median(F[:k])) > cut_floor:
+        return None
+    below = np.concatenate(([False], F < cut_floor, [False]))
+    edges = np.flatnonzero(np.diff(below.astype(int)))
+    starts, ends = edges[0::2], edges[1::2]
+    if starts.size == 0:
+        return None
+    j = int(np.argmax(ends - starts))
+    if ends[j] - starts[j] < 2 * MIN_SEGMENT or starts[j] < 2 * MIN_SEGMENT:
+        return None
+    return int(starts[j]), int(ends[j])
+
+
+def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cut_floor: float | None = None):
     """Located position [m] of an event and its uncertainty [m] from the samples around
     its trigger: table positions ``x`` [m] (increasing along the feed), observed thrust
     ``F`` [N]. ``kind``: "entry", "interface" or "exit"; ``air`` [N]: the observed thrust
     with the tool in air (before the entry); ``x_trig`` [m]: where the detector fired
-    (an onset lies before it; default the window's middle). A ramp of either sign is
-    fitted. (NaN, NaN) when there are too few samples."""
+    (an onset lies before it; default the window's middle); ``cut_floor`` [N]: an
+    interface's window shortened to a thin layer below: a gap without a second cut level
+    in the window is a run below it (:func:`floor_gap`). A ramp
+    of either sign is fitted. (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
     x, F = np.asarray(x, float), np.asarray(F, float)
@@ -180,7 +205,18 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None):
         return free_face(x, F, x0, x1, air if FIXED_EXIT_AIR else None)
     gap = air_run(x, F, air)
     if gap is None:
+        gap = floor_gap(F, cut_floor)
+        if gap is not None:
+            return _gap_faces(x, F, gap, None, open_end=x.size - gap[1] < 2 * MIN_SEGMENT)
         return onset_face(x, F, x0, min(xt, x1))
+    return _gap_faces(x, F, gap, air)
+
+
+def _gap_faces(x, F, gap, air, open_end: bool = False):
+    """The middle of a gap's two faces and its uncertainty: the upper layer's free face,
+    the lower layer's onset (``open_end``: the window ends in the gap, its last sample
+    bounds the part seen). ``air`` None: the air level is fitted."""
+    x0, x1 = float(x[0]), float(x[-1])
     # the upper layer runs out at its free face, the lower one's rise leaves the air level
     # at its face: the middle of the two is inside the gap whatever its width
     mid = 0.5 * (x[gap[0]] + x[gap[1] - 1])
@@ -188,7 +224,7 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None):
     if up.sum() < 2 * MIN_SEGMENT or down.sum() < 2 * MIN_SEGMENT:
         return NAN, NAN
     lo, dlo = free_face(x[up], F[up], x0, mid, air)
-    hi, dhi = onset_face(x[down], F[down], mid, x1)
+    hi, dhi = (x1, 0.0) if open_end else onset_face(x[down], F[down], mid, x1)
     return 0.5 * (lo + hi), 0.5 * abs(hi - lo) + max(dlo, dhi)
 
 

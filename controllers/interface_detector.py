@@ -294,6 +294,12 @@ class InterfaceDetector(KernelBlock, Block):
         trigger complete: the engagement ramp is behind the tool) the regression
         window restarts and the next test arms after N_min quiet samples instead of
         rearm_samples: a layer needs locate_margin + 2 N_min dt of feed, not N dt.
+    interface_loc_after [m]: per interface, the travel after its trigger that its
+        localisation window holds (default max_gap + locate_margin: a gap may follow a
+        trigger on the upper layer's push-out). The hole plan shortens it to what a thin
+        layer below leaves before its tests must arm; a gap longer than the window then
+        ends the window in air or on the lower layer's ramp, and the locator places the
+        event in the part of the gap it saw (docs/stacks.md).
     mismatch_factor: > 1 (process-following mode) checks the plan's materials against
         the levels observed: when a layer's tests arm, the ratio of its observed level
         to the layer above's must be within this factor of the plan's ratio
@@ -347,6 +353,7 @@ class InterfaceDetector(KernelBlock, Block):
         observer_delay: float = 0.0,
         mismatch_factor: float = 0.0,
         restart: bool = False,
+        interface_loc_after: Sequence[float] | None = None,
     ):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
@@ -382,6 +389,7 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_thresholds(kc, feed_per_rev, feed_per_rev_min, entry_fraction, step_fraction,
                              engage_fraction, thd_min, rearm_level)
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
+        self._set_loc_after(interface_loc_after)
         self.windows = self._windows()
         self.reset(0.0)
 
@@ -432,17 +440,33 @@ class InterfaceDetector(KernelBlock, Block):
         self.locate_margin, self.push_out = float(locate_margin), float(push_out)
         self.observer_delay = float(observer_delay)
 
+    def _set_loc_after(self, loc_after) -> None:
+        """Travel [m] after each interface's trigger that its localisation window holds:
+        default max_gap + locate_margin (a gap of up to max_gap may follow a trigger on the
+        upper layer's push-out); shorter on a thin layer below (the hole plan: what the layer
+        leaves before its own tests must arm), never under locate_margin."""
+        n_if = self.n - 1
+        if loc_after is None:
+            self.loc_after = [self.max_gap + self.locate_margin] * n_if
+            return
+        vals = [float(v) for v in loc_after]
+        if len(vals) != n_if or not all(self.locate_margin <= v for v in vals):
+            raise ValueError(f"InterfaceDetector: interface_loc_after needs one value >= locate_margin "
+                             f"({self.locate_margin:g} m) per interface ({n_if}), got {list(loc_after)}")
+        self.loc_after = vals
+
     def loc_window(self, k: int) -> tuple[float, float]:
         """Travel [m] (before, after) the trigger of event k (0 entry, 1..n-1 interface
         k, n exit) whose samples the localisation fits: an interface may have a gap of up
         to max_gap on either side of its trigger (the upper layer's push-out fires it, or
-        the lower layer's rise), the exit's fall may start push_out above it."""
+        the lower layer's rise), the exit's fall may start push_out above it; after an
+        interface, interface_loc_after."""
         m = self.locate_margin
         if k == 0:
             return m, m
         if k == self.n:
             return self.push_out + m, m
-        return self.max_gap + m, self.max_gap + m
+        return self.max_gap + m, self.loc_after[k - 1]
 
     # ------------------------------------------------------------------ windows
     def _windows(self):
@@ -704,7 +728,11 @@ class InterfaceDetector(KernelBlock, Block):
         xs = np.interp(ht - self.observer_delay, ht, hx) if self.observer_delay > 0 else hx
         sel = (xs >= lo) & (xs <= hi)
         kind = "entry" if k == 0 else "exit" if k == self.n else "interface"
-        x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig)
+        # an interface window shortened to a thin layer below may end in the gap: air is
+        # below the engagement floor of both layers around it (Al's is the lowest)
+        floor = min(self.floor[k - 1], self.floor[k]) if self.relative and kind == "interface" and \
+            self.loc_after[k - 1] < self.max_gap + self.locate_margin else None
+        x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor)
         F_air = NAN
         if k == 0 and math.isfinite(x_loc):
             in_air = sel & (xs < x_loc - 0.5 * self.locate_margin)
@@ -791,6 +819,7 @@ class InterfaceDetector(KernelBlock, Block):
              thd_entry=getattr(self, "thd_entry", 0.0), exit_gain=getattr(self, "exit_gain", 0.0),
              localise=self.localise, locate_margin=self.locate_margin, push_out=self.push_out,
              max_gap=self.max_gap, py_sum_comp=detector_kernel.PY_SUM_COMPENSATED)
+        c.loc_after[:n - 1] = self.loc_after
         if self.windows is not None:
             c.win_lo[:n + 1] = [float(w[0]) for w in self.windows]
             c.win_hi[:n + 1] = [float(w[1]) for w in self.windows]

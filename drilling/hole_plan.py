@@ -42,7 +42,7 @@ OBSERVER_SETTLE_ORBITS = 6.0
 
 HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "approach", "breakthrough",
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
-             "match_tolerance", "locate_margin", "push_out"}
+             "match_tolerance", "locate_margin", "push_out", "orbital_harmonics"}
 # Localisation (controllers/event_locator.py): travel on either side of an event that holds its
 # change and a stretch of level (engagement up to ~0.35 mm on the drives measured, and the
 # trigger up to ~0.1 mm into it: with 0.3 mm, Ti entries with a 0.22 mm engagement were
@@ -57,6 +57,7 @@ ORBITS_PER_LAYER = 2.0
 MISMATCH_FACTOR = 4.0
 DETECTOR_DT, DETECTOR_N_MIN = 0.02, 25  # InterfaceDetector defaults (Table 4's dt, its shortest window)
 LAYER_KEYS = {"material", "thickness", "tolerance"}
+MAX_HARMONICS = 4       # orbital harmonics the adaptive observer models at most (fang_observer.MAX_HARMONICS)
 
 
 def _num(v) -> bool:
@@ -87,6 +88,7 @@ class HolePlan:
         self.match_tolerance = self._number(hole, "match_tolerance", 1.0e-3, positive=True)
         self.locate_margin = self._number(hole, "locate_margin", LOCATE_MARGIN, positive=True)
         self.push_out = self._number(hole, "push_out", PUSH_OUT, positive=True)
+        self.harmonics = self._harmonics(hole)
         self.fail_action = hole.get("fail_action", "hold")
         if self.fail_action not in FAIL_ACTIONS:
             raise error("hole.fail_action", f"expected one of {FAIL_ACTIONS}, got {self.fail_action!r}")
@@ -111,6 +113,19 @@ class HolePlan:
         if minimum is not None and v < minimum:
             raise self.error(f"{where}.{key}", f"expected a number >= {minimum}, got {v!r}")
         return float(v)
+
+    def _harmonics(self, hole) -> int | None:
+        """``orbital_harmonics``: how many harmonics of the orbit the observer models (Fang
+        eq. 8 generalised; a drive whose orbital thrust ripple has a 2nd harmonic leaves it
+        in the DC estimate otherwise); None when the plan does not say (the observer's own
+        setting, default 1)."""
+        v = hole.get("orbital_harmonics")
+        if v is None:
+            return None
+        if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_HARMONICS:
+            raise self.error("hole.orbital_harmonics", f"expected an integer 1..{MAX_HARMONICS} (orbital ripple "
+                                                       f"harmonics the observer models), got {v!r}")
+        return v
 
     def _layers(self, layers):
         if not isinstance(layers, list) or not layers:
@@ -163,9 +178,10 @@ class HolePlan:
         name the layer): its regression window at the layer's feed after the engagement
         (``window_s`` [s]: the detector restarts its window once the event is located
         and arms once N_min samples of it are quiet: 2 N_min dt),
-        ORBITS_PER_LAYER orbits (the observer tells the ripple from the level), and each
-        localisation window reaching into it (after the event above: locate_margin, plus
-        gap_tolerance after an interface; before the exit: push_out + locate_margin)."""
+        ORBITS_PER_LAYER orbits (the observer tells the ripple from the level), and the
+        exit's localisation window before its trigger (push_out + locate_margin). The
+        window after an interface above is shortened to the layer instead
+        (:meth:`interface_loc_after`): it is no reason to refuse a plan."""
         n = len(self.layers)
         for k, layer in enumerate(self.layers):
             where, mat = f"hole.layers[{k}]", layer["material"]
@@ -183,14 +199,29 @@ class HolePlan:
                                  f"{p['orbital_speed']:g} rpm is too slow for layer {k + 1} ({mat}, {1e3 * thin:.2f} mm "
                                  f"at its thinnest): {orbits:.2f} orbits in it, the observer needs "
                                  f"{ORBITS_PER_LAYER:g} to tell its orbital ripple from its thrust")
-            # the window after the event above it, the exit's before it (each is clipped at
-            # the event before it, so only a window longer than the layer is wrong)
-            loc = max(self.locate_margin + (self.gap_tolerance if k > 0 else 0.0),
-                      self.push_out + self.locate_margin if k == n - 1 else 0.0)
+            # the exit's window before its trigger (clipped at the event above, so only a
+            # window longer than the layer is wrong); the window after the interface above
+            # shrinks to the layer (interface_loc_after), the check above holds its minimum
+            loc = self.push_out + self.locate_margin if k == n - 1 else 0.0
             if thin < loc:
                 raise self.error(f"{where}.thickness", f"{mat} layer {k + 1} is {1e3 * thin:.2f} mm at its thinnest, "
-                                 f"shorter than a localisation window that reaches into it ({1e3 * loc:.2f} mm: "
-                                 f"hole.locate_margin, hole.gap_tolerance, hole.push_out)")
+                                 f"shorter than the exit's localisation window ({1e3 * loc:.2f} mm: "
+                                 f"hole.push_out + hole.locate_margin)")
+
+    def interface_loc_after(self, window_s: float) -> list[float]:
+        """Travel [m] after each interface's trigger that its localisation window holds:
+        gap_tolerance + locate_margin (a gap may follow a trigger on the upper layer's
+        push-out), at most what the layer below leaves, at its thinnest, for the
+        regression window its tests then need (``window_s`` [s] at its feed): the event is
+        located, and the tests restart, before the layer ends. Never under locate_margin
+        (check_windows refuses a layer that thin). A gap wider than the shortened window
+        allows is located in the part of it the window saw (docs/stacks.md)."""
+        out = []
+        for layer in self.layers[1:]:
+            thin = layer["thickness"] - layer["tolerance"]
+            room = thin - window_s * self.process[layer["material"]]["feed_rate"]
+            out.append(max(self.locate_margin, min(self.gap_tolerance + self.locate_margin, room)))
+        return out
 
     # ------------------------------------------------------------------ derived
     def layer_process(self, k: int) -> dict:
@@ -244,7 +275,9 @@ class HolePlan:
         t_feed = (traj["z_end"] - traj["z_approach_end"]) / slowest
         return float(traj.get("t_start", 0.0)) + t_approach + t_feed + self.stop_margin
 
-    def detector(self) -> dict:
+    def detector(self, window_s: float) -> dict:
+        """The detector's settings; ``window_s`` [s]: its shortest restart-and-arm window
+        (2 N_min dt)."""
         fprs = [feed_per_rev(self.layer_process(k)) for k in range(len(self.layers))]
         cons = self.conservative()
         return {
@@ -264,6 +297,7 @@ class HolePlan:
             "mismatch_factor": MISMATCH_FACTOR,
             "restart": True,
             "entry_confirm": True,
+            "interface_loc_after": self.interface_loc_after(window_s),
         }
 
     def stages(self) -> list[dict]:
@@ -324,18 +358,25 @@ def expand(raw: dict, error, origin: str = "[hole]") -> dict:
     # quiet samples of it: a layer must hold twice its shortest window after the engagement
     dblock = blocks[dname] if isinstance(blocks[dname], dict) else {}
     dt, n_min = dblock.get("sample_period", DETECTOR_DT), (dblock.get("settings") or {}).get("N_min", DETECTOR_N_MIN)
-    plan.check_windows(2.0 * float(n_min) * float(dt) if _num(dt) and _num(n_min) else 2 * DETECTOR_N_MIN * DETECTOR_DT)
+    window_s = 2.0 * float(n_min) * float(dt) if _num(dt) and _num(n_min) else 2 * DETECTOR_N_MIN * DETECTOR_DT
+    plan.check_windows(window_s)
     tset = blocks[tname].get("settings", {})
     traj = plan.trajectory(tset)
     for k, v in traj.items():
         _derive(raw, f"blocks.{tname}.settings.{k}", v, error, origin)
-    for k, v in plan.detector().items():
+    for k, v in plan.detector(window_s).items():
         _derive(raw, f"blocks.{dname}.settings.{k}", v, error, origin)
     for k, v in plan.adaptation().items():
         _derive(raw, f"blocks.{aname}.settings.{k}", v, error, origin)
     if plan.names["orbit_delay"] in blocks:      # the delayed orbit command starts where the adaptation does
         _derive(raw, f"blocks.{plan.names['orbit_delay']}.settings.initial",
                 plan.layer_process(0)["orbital_speed"], error, origin)
+    if plan.harmonics is not None:
+        oname = plan.names["observer"]
+        if oname not in blocks:
+            raise error("hole.orbital_harmonics", f"the plan sets the observer's harmonics, but the scenario has no "
+                                                  f"block '{oname}' (hole.observer names it)")
+        _derive(raw, f"blocks.{oname}.settings.harmonics", plan.harmonics, error, origin)
     _derive(raw, "scenario.stop_time", plan.stop_time({**tset, **traj}), error, origin)
     if plan.scored:
         raw.setdefault("scores", []).append(plan.score())

@@ -118,6 +118,10 @@ CASES = {
                                     ringing=25.0, feed_mm_min=15.0)),
     "plan_noise_delay": (dict(PLAN, thd_noise_factor=3.0, observer_delay=0.05, step_signs=[1.0, -1.0]),
                          dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.0, 0.3))),
+    # issue 23: the window after an interface cut short by a thin layer below; a 0.8 mm gap
+    # ends it in air, where the locator places the event (event_locator.open_gap)
+    "plan_short_loc_window": (dict(PLAN, max_gap=1.0 * MM, interface_loc_after=[0.5 * MM, 0.5 * MM]),
+                              dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.8, 0.0))),
     "plan_mismatch_fails": (dict(PLAN, thicknesses=(3 * MM, 2.5 * MM), kc=[1.2e7, 4.0e7], feed_per_rev=[5e-6, 4e-6],
                                  mismatch_factor=1.5),
                             dict(levels=(60.0, 500.0), thick_mm=(3.0, 2.5), gaps_mm=(0, 0))),
@@ -150,6 +154,8 @@ def test_c_step_is_bit_identical_to_the_python_step(case):
     if case == "plan_gap_confirm":
         assert dropped >= 1                      # the ringing made candidates, the confirmation dropped them
         assert math.isfinite(p.loc["interface1"][0]) and abs(p.loc["interface1"][0] - 4.2 * MM) < 0.25 * MM
+    if case == "plan_short_loc_window":          # located in the part of the gap its window saw
+        assert 4.0 * MM <= p.loc["interface1"][0] <= 4.8 * MM, p.loc["interface1"]
     if case == "table4_nan_thinning":
         assert np.isnan(F).sum() > 10 and np.isfinite(_out(p, ys, "t_exit_thinning")[-1])
 

@@ -9,6 +9,8 @@
 #include <math.h>
 
 #define FANG_MAX_RIPPLE 8
+#define FANG_MAX_HARMONICS 4                 /* fang_observer.py MAX_HARMONICS */
+#define FANG_NH (2 * FANG_MAX_HARMONICS)
 #define TWO_PI 6.283185307179586
 #define PI 3.141592653589793
 
@@ -24,6 +26,9 @@ typedef struct {
     /* state */
     int first;
     double t0, phase, x[3], Y[6], th[2], Si[3], th_prev, w_enc;
+    /* harmonics > 1: theta [S_1, C_1, .., S_H, C_H], Y (3 x 2H), Gamma^-1 (2H x 2H), row-major */
+    int harmonics;
+    double th_h[FANG_NH], Y_h[3 * FANG_NH], Si_h[FANG_NH * FANG_NH];
 } FangObserver;
 
 static double friction(const FangObserver *o, double v)
@@ -45,10 +50,10 @@ static double position_ripple(const FangObserver *o, double p)
     return f;
 }
 
-/* u: the block's inputs in port order (i_m, x[, theta][, orbital_speed]);
- * out: F_dc_hat, F_ripple_hat, tau_d_hat, F_cut_hat, ripple_amplitude_hat,
- * ripple_phase_hat, w_hat */
-void fang_observer_step(FangObserver *o, double t, const double *u, double *out)
+/* the sample's inputs and orbital angle phi(t) (_sample): starts the state on the first
+ * sample, advances the phase */
+static void sample(FangObserver *o, double t, const double *u, double *i_m_, double *y_, double *theta_,
+                   double *phi_, double *f_orb_)
 {
     double i_m = u[0], x_meas = u[1];
     double theta = o->k_theta >= 0 ? u[o->k_theta] : 0.0;
@@ -69,6 +74,127 @@ void fang_observer_step(FangObserver *o, double t, const double *u, double *out)
         o->phase = phi + TWO_PI * f_orb * Ts;
     } else {
         phi = TWO_PI * f_orb * t;
+    }
+    *i_m_ = i_m;
+    *y_ = y;
+    *theta_ = theta;
+    *phi_ = phi;
+    *f_orb_ = f_orb;
+}
+
+/* the outputs at t (_outputs) from the updated state and the ripple torque tau_r */
+static void outputs(FangObserver *o, double xn1, double xn2, double theta, double th0, double th1,
+                    double tau_r, double *out)
+{
+    double kf = o->kf, w_f, Ts = o->Ts;
+    if (o->use_theta) {
+        double av = o->avel;
+        o->w_enc = av * o->w_enc + (1.0 - av) * (theta - o->th_prev) / Ts;
+        o->th_prev = theta;
+        w_f = o->w_enc;
+    } else {
+        w_f = xn1;
+    }
+    double tau_f = friction(o, w_f) + o->offset;
+    if (o->use_theta)
+        tau_f += position_ripple(o, theta);
+    double F_dc = kf * (xn2 - tau_f);
+    double F_r = kf * tau_r;
+    out[0] = F_dc;
+    out[1] = F_r;
+    out[2] = xn2 + tau_r;
+    out[3] = F_dc + F_r;
+    out[4] = kf * hypot(th0, th1);
+    out[5] = atan2(th1, th0);
+    out[6] = xn1;
+}
+
+static void regressor(double phi, int harmonics, double *reg)
+{
+    for (int h = 1; h <= harmonics; h++) {
+        reg[2 * h - 2] = sin((double)h * phi);
+        reg[2 * h - 1] = cos((double)h * phi);
+    }
+}
+
+/* z = S^-1 c, S symmetric positive definite n x n (_spd_solve: Cholesky, two triangular solves) */
+static void spd_solve(const double *S, const double *c, int n, double *z)
+{
+    double L[FANG_NH * FANG_NH], w[FANG_NH];
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j <= i; j++) {
+            double v = S[i * n + j];
+            for (int k = 0; k < j; k++)
+                v -= L[i * n + k] * L[j * n + k];
+            L[i * n + j] = i == j ? sqrt(v) : v / L[j * n + j];
+        }
+    for (int i = 0; i < n; i++) {
+        double v = c[i];
+        for (int k = 0; k < i; k++)
+            v -= L[i * n + k] * w[k];
+        w[i] = v / L[i * n + i];
+    }
+    for (int i = n - 1; i >= 0; i--) {
+        double v = w[i];
+        for (int k = i + 1; k < n; k++)
+            v -= L[k * n + i] * z[k];
+        z[i] = v / L[i * n + i];
+    }
+}
+
+/* one sample with H > 1 orbital harmonics (_step_python_harmonics) */
+static void step_harmonics(FangObserver *o, double i_m, double y, double theta, double phi, double f_orb,
+                           double *out)
+{
+    int n = 2 * o->harmonics;
+    double Ts = o->Ts, reg[FANG_NH], z[FANG_NH], d[FANG_NH], Yn[3 * FANG_NH], xn[3];
+    double phim = phi + PI * f_orb * Ts;
+    regressor(phim, o->harmonics, reg);
+    double x0 = o->x[0], x1 = o->x[1], x2 = o->x[2];
+    const double *Y = o->Y_h, *P = o->Phi, *G = o->Bg, *U = o->Bu, *B = o->By;
+    double e = y - x0;
+    spd_solve(o->Si_h, Y, n, z);
+    for (int j = 0; j < n; j++)
+        d[j] = Ts * z[j] * e;
+    for (int r = 0; r < 3; r++)
+        for (int j = 0; j < n; j++)
+            Yn[r * n + j] = P[3 * r] * Y[j] + P[3 * r + 1] * Y[n + j] + P[3 * r + 2] * Y[2 * n + j] + G[r] * reg[j];
+    double tr = 0.0;
+    for (int j = 0; j < n; j++)
+        tr += o->th_h[j] * reg[j];
+    for (int r = 0; r < 3; r++) {
+        double v = P[3 * r] * x0 + P[3 * r + 1] * x1 + P[3 * r + 2] * x2 + U[r] * i_m + B[r] * y + G[r] * tr;
+        for (int j = 0; j < n; j++)
+            v += Yn[r * n + j] * d[j];
+        xn[r] = v;
+    }
+    for (int r = 0; r < 3; r++)
+        o->x[r] = xn[r];
+    for (int j = 0; j < 3 * n; j++)
+        o->Y_h[j] = Yn[j];
+    for (int j = 0; j < n; j++)
+        o->th_h[j] += d[j];
+    double a = o->fdecay, b = o->fgain;
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++)
+            o->Si_h[i * n + j] = a * o->Si_h[i * n + j] + b * Yn[i] * Yn[j];
+    regressor(phi, o->harmonics, reg);
+    double tau_r = 0.0;
+    for (int j = 0; j < n; j++)
+        tau_r += o->th_h[j] * reg[j];
+    outputs(o, xn[1], xn[2], theta, o->th_h[0], o->th_h[1], tau_r, out);
+}
+
+/* u: the block's inputs in port order (i_m, x[, theta][, orbital_speed]);
+ * out: F_dc_hat, F_ripple_hat, tau_d_hat, F_cut_hat, ripple_amplitude_hat,
+ * ripple_phase_hat, w_hat */
+void fang_observer_step(FangObserver *o, double t, const double *u, double *out)
+{
+    double i_m, y, theta, phi, f_orb, Ts = o->Ts;
+    sample(o, t, u, &i_m, &y, &theta, &phi, &f_orb);
+    if (o->harmonics > 1) {
+        step_harmonics(o, i_m, y, theta, phi, f_orb, out);
+        return;
     }
     double phim = phi + PI * f_orb * Ts;
     double sm = sin(phim), cm = cos(phim);
@@ -105,27 +231,6 @@ void fang_observer_step(FangObserver *o, double t, const double *u, double *out)
     o->Si[1] = a * s01 + b * n0 * n1;
     o->Si[2] = a * s11 + b * n1 * n1;
 
-    double kf = o->kf, w_f;
-    if (o->use_theta) {
-        double av = o->avel;
-        o->w_enc = av * o->w_enc + (1.0 - av) * (theta - o->th_prev) / Ts;
-        o->th_prev = theta;
-        w_f = o->w_enc;
-    } else {
-        w_f = xn1;
-    }
     double s = sin(phi), c = cos(phi);
-    double tau_r = th0 * s + th1 * c;
-    double tau_f = friction(o, w_f) + o->offset;
-    if (o->use_theta)
-        tau_f += position_ripple(o, theta);
-    double F_dc = kf * (xn2 - tau_f);
-    double F_r = kf * tau_r;
-    out[0] = F_dc;
-    out[1] = F_r;
-    out[2] = xn2 + tau_r;
-    out[3] = F_dc + F_r;
-    out[4] = kf * hypot(th0, th1);
-    out[5] = atan2(th1, th0);
-    out[6] = xn1;
+    outputs(o, xn1, xn2, theta, th0, th1, th0 * s + th1 * c, out);
 }
