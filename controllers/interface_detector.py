@@ -768,9 +768,35 @@ class InterfaceDetector(KernelBlock, Block):
     # state lives in its struct: the attributes below are read from there (``__getattr__``),
     # the window, the history and the weights are these numpy arrays, shared by pointer.
     c_step = ("interface_detector", "interface_detector_step", _DetectorState, 2, len(_OUTPUTS))
-    # not for export-fmu / SSP: the struct points at this process's numpy arrays, its BLAS
-    # and the localisation fit called back in Python (an FMU has neither)
-    c_exportable = False
+    # export-fmu / SSP: the in-process struct points at this process's numpy arrays, its BLAS
+    # and the localisation fit called back in Python, which an FMU has not; the FMU compiles
+    # the self-contained build instead (kernels/interface_detector_fmu.c: a C dot, the fit
+    # ported to C), started from this block's state (c_export_kernel)
+    c_parameters = {
+        "thd1": ("N", "entry threshold on F~ (Table 4 thd1; fixed thresholds)"),
+        "thd2": ("N", "interface threshold on |F~| (Table 4 thd2; fixed thresholds)"),
+        "thd3": ("N", "exit threshold on F~ (Table 4 thd3; fixed thresholds)"),
+        "exit_ratio": ("1", "thinning criterion: exit once F < exit_ratio * F_ref"),
+        "rearm_level": ("N", "|F~| below which a sample counts as quiet (re-arming)"),
+        "thd_min": ("N", "smallest threshold of the relative tests"),
+        "win_lo": ("m", "earliest encoder position of each event (entry, interfaces, exit)"),
+        "win_hi": ("m", "latest encoder position of each event (entry, interfaces, exit)"),
+        "locate_margin": ("m", "travel on either side of an event the localisation fits"),
+        "push_out": ("m", "travel above the exit's trigger its fall may start"),
+        "max_gap": ("m", "widest gap between two layers"),
+        "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
+    }
+
+    @property
+    def c_exportable(self) -> bool:
+        return detector_kernel.export_available()
+
+    def c_export_kernel(self) -> detector_kernel.ExportKernel:
+        """The C step of the exported FMU, on this block's (C) state: see detector_kernel.export_state."""
+        if self.c_kernel is None:
+            raise RuntimeError("InterfaceDetector: export needs the C step (kernel = 'auto' or 'c')")
+        arrays = (self._W_flat, self.buf, self._c_err, self.h_t, self.h_x, self.h_F)
+        return detector_kernel.export_kernel(self.c_kernel.state, self.observer_delay, arrays)
 
     def _c_supports(self) -> bool:
         return (detector_kernel.blas_ddot() is not None and detector_kernel.sums_like_python()

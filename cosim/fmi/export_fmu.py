@@ -87,6 +87,8 @@ class BlockExport:
     state: bytes
     variables: list = field(default_factory=list)
     baked_files: list = field(default_factory=list)     # (setting key, path) read at export
+    includes: list = field(default_factory=list)        # other C files ``source`` includes (shipped)
+    state_tail: int = 0     # bytes of the state after the C struct's fixed part (its flexible array)
 
 
 def struct_leaves(struct_type, prefix: str = "", base: int = 0) -> list[Leaf]:
@@ -104,6 +106,8 @@ def _leaves_of(ftype, name: str, off: int) -> list[Leaf]:
     if issubclass(ftype, ctypes.Array):
         size = ctypes.sizeof(ftype._type_)
         return [leaf for i in range(ftype._length_) for leaf in _leaves_of(ftype._type_, f"{name}[{i}]", off + i * size)]
+    if ftype is ctypes.c_void_p:    # set by the C step from its own memory: neither parameter nor state
+        return []
     kinds = {ctypes.c_double: "double", ctypes.c_int: "int"}
     if ftype not in kinds:
         raise ExportError(f"struct field {name}: type {ftype.__name__} is not double or int")
@@ -145,18 +149,24 @@ def has_c_step(block, t0: float) -> bool:
     if getattr(block, "c_step", None) is None and not hasattr(block, "c_kernel"):
         return False
     block.reset(t0)
-    # c_exportable = False: a C step that calls back into Python (the detector's localisation)
+    # c_exportable False: a C step that calls back into this process (numpy's BLAS, Python)
+    # and has no self-contained build for the FMU (``c_export_kernel``)
     return getattr(block, "c_kernel", None) is not None and getattr(block, "c_exportable", True)
 
 
 def _kernel_of(scenario, name: str, block):
+    """The C step the FMU compiles: the block's ``c_export_kernel()`` when its in-process
+    kernel is not self-contained, else that kernel. Either has ``source``, ``function`` and
+    ``state`` (a ctypes struct), optionally ``includes`` (files ``source`` includes) and
+    ``state_tail`` (bytes of ``state`` past the C struct's ``sizeof``: a flexible array)."""
     file = str(scenario.path or "<scenario>")
     cls = f"{type(block).__module__}:{type(block).__name__}"
     if not has_c_step(block, scenario.start_time):
         raise ExportError(f"{file}: block '{name}' ({cls}) has no C step (with these settings): export-fmu "
                           "compiles a block's C kernel into the FMU; a Python-only block is not exported (a "
                           "Python interpreter inside an FMU is not portable)")
-    return block.c_kernel
+    export = getattr(block, "c_export_kernel", None)
+    return export() if callable(export) else block.c_kernel
 
 
 def _state_type(source: Path, function: str) -> str:
@@ -209,7 +219,8 @@ def describe_block(scenario, name: str) -> BlockExport:
         start_time=scenario.start_time,
         stop_time=scenario.stop_time, direct_feedthrough=bool(getattr(block, "direct_feedthrough", True)),
         source=Path(k.source), function=k.function, state_type=_state_type(Path(k.source), k.function),
-        state=bytes(k.state), variables=vars_, baked_files=baked)
+        state=bytes(k.state), variables=vars_, baked_files=baked,
+        includes=[Path(p) for p in getattr(k, "includes", ())], state_tail=int(getattr(k, "state_tail", 0)))
 
 
 # ----------------------------------------------------------------------------- generated text
@@ -259,6 +270,7 @@ def c_wrapper(ex: BlockExport, fmi: int) -> str:
 #define N_OUT {max(n_out, 1)}
 #define SAMPLE_PERIOD {_c_num(ex.sample_period)}   /* s, the block's sample period: the fixed step */
 #define STATE_SIZE {len(ex.state)}
+#define STATE_TAIL {ex.state_tail}   /* bytes of STATE0 in the struct's flexible array */
 
 typedef struct {{
     double u[N_IN > 0 ? N_IN : 1], y[N_OUT];
@@ -266,7 +278,7 @@ typedef struct {{
     double t0;
 }} BlockData;
 
-_Static_assert(sizeof({ex.state_type}) == STATE_SIZE, "the C struct differs from the exported state");
+_Static_assert(sizeof({ex.state_type}) == STATE_SIZE - STATE_TAIL, "the C struct differs from the exported state");
 
 /* {ex.state_type} after the block's reset({_xml_num(ex.start_time)}), with the scenario's settings */
 static const unsigned char STATE0[STATE_SIZE] = {{{image}}};
@@ -421,7 +433,8 @@ def _sources(ex: BlockExport, fmi: int) -> dict[str, bytes]:
     files = {f"{ex.identifier}.c": c_wrapper(ex, fmi).encode()}
     for name in ("frame_core.c", FRAME_SOURCES[fmi], *FRAME_HEADERS):
         files[name] = (FRAME_DIR / name).read_bytes()
-    files[ex.source.name] = ex.source.read_bytes()
+    for path in (ex.source, *ex.includes):
+        files[path.name] = path.read_bytes()
     if fmi == 3:
         files["buildDescription.xml"] = build_description3(ex).encode()
     return files

@@ -1,0 +1,177 @@
+/* The InterfaceDetector's C step as it runs inside its exported FMU (issue #21):
+ * kernels/interface_detector.c built self-contained -- a plain C dot product for the
+ * regression's prediction, the localisation fit of event_locator.py ported to C
+ * (kernels/event_locator.c) -- on a state that holds its own arrays.
+ *
+ * The in-process block keeps its BLAS ddot and its Python fit (bit-identical to the Python
+ * step); this build agrees with it to rounding: the prediction's sum in another order
+ * (~1e-16 relative) and the fit's solves done otherwise (docs/export.md: measured).
+ *
+ * State: the Detector, then the constants only this build needs, then its arrays, laid
+ * out one after the other (their sizes follow from N and N_min), so that the FMU's state
+ * is one block of memory it can copy (get/set FMU state) and the pointers are set from
+ * it at every step. Mirrored by controllers/detector_kernel.py:export_state_type.
+ */
+#define DETECTOR_SELF_CONTAINED 1
+#include "event_locator.c"
+#include "interface_detector.c"
+
+typedef struct {
+    Detector d;
+    double observer_delay;                        /* s, the observer's lag (the fit's positions) */
+    double engage_lengths[LOC_N_ENGAGE];          /* m, event_locator.ENGAGE_LENGTHS */
+    double engage_fine[LOC_N_FINE];               /* around the best engage length */
+    double push_out_lengths[LOC_N_PUSH_OUT];      /* m, event_locator.PUSH_OUT_LENGTHS */
+    double push_out_fine[LOC_N_FINE];
+    /* weights of the windows N_min..N, window (N), |F~| ring (2 N), history t, x, F */
+    double data[];
+} DetectorFMU;
+
+static double detector_dot(long n, const double *w, const double *buf)
+{
+    double acc = 0.0;
+    for (long i = 0; i < n; i++)
+        acc += w[i] * buf[i];
+    return acc;
+}
+
+/* numpy.interp(q, xp, fp) at one point, xp increasing */
+static double detector_interp(double q, const double *xp, const double *fp, long n)
+{
+    if (isnan(q))
+        return q;
+    if (q < xp[0])
+        return fp[0];
+    if (q > xp[n - 1])
+        return fp[n - 1];
+    long lo = 0, hi = n - 1;            /* xp[lo] <= q <= xp[hi] */
+    while (hi - lo > 1) {
+        long mid = (lo + hi) / 2;
+        if (xp[mid] <= q)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    if (q == xp[n - 1])
+        return fp[n - 1];
+    if (xp[lo] == q)
+        return fp[lo];
+    double slope = (fp[lo + 1] - fp[lo]) / (xp[lo + 1] - xp[lo]);
+    double v = slope * (q - xp[lo]) + fp[lo];
+    if (isnan(v)) {
+        v = slope * (q - xp[lo + 1]) + fp[lo + 1];
+        if (isnan(v) && fp[lo] == fp[lo + 1])
+            v = fp[lo];
+    }
+    return v;
+}
+
+/* event_locator.time_at: first time [s] the position reached x_loc, interpolated */
+static double detector_time_at(const double *t, const double *x, long n, double x_loc)
+{
+    if (!isfinite(x_loc))
+        return NAN;
+    for (long i = 0; i < n; i++) {
+        if (!(x[i] >= x_loc))
+            continue;
+        if (i == 0 || x[i] == x[i - 1])
+            return t[i];
+        return t[i - 1] + (t[i] - t[i - 1]) * (x_loc - x[i - 1]) / (x[i] - x[i - 1]);
+    }
+    return NAN;
+}
+
+/* the fit's samples: the history oldest first (t, x, F), each force sample against where
+ * the tool was when the observer saw it (xs) */
+static long detector_history(const DetectorFMU *s, double h_n, double *t, double *x, double *F, double *xs)
+{
+    long written = (long)h_n, n = written < DET_HISTORY ? written : DET_HISTORY;
+    for (long j = 0; j < n; j++) {
+        long i = (written - n + j) % DET_HISTORY;
+        t[j] = s->d.h_t[i];
+        x[j] = s->d.h_x[i];
+        F[j] = s->d.h_F[i];
+    }
+    for (long j = 0; j < n; j++)
+        xs[j] = s->observer_delay > 0.0 ? detector_interp(t[j] - s->observer_delay, t, x, n) : x[j];
+    return n;
+}
+
+/* InterfaceDetector._fit: out = x_loc [m], t_loc [s], dx [m], F_air [N] */
+static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
+                            double *out)
+{
+    const DetectorFMU *s = (const DetectorFMU *)d;
+    out[0] = out[1] = out[2] = out[3] = NAN;
+    double *t = malloc(6 * DET_HISTORY * sizeof(double));
+    if (t == NULL)
+        return;
+    double *x = t + DET_HISTORY, *F = x + DET_HISTORY, *xs = F + DET_HISTORY, *xsel = xs + DET_HISTORY;
+    double *Fsel = xsel + DET_HISTORY;
+    long n = detector_history(s, h_n, t, x, F, xs), m = 0;
+    for (long j = 0; j < n; j++)
+        if (xs[j] >= lo && xs[j] <= hi) {
+            xsel[m] = xs[j];
+            Fsel[m++] = F[j];
+        }
+    int nl = (int)d->n, kind = k == 0 ? LOC_ENTRY : k == nl ? LOC_EXIT : LOC_INTERFACE;
+    LocGrid engage = {s->engage_lengths, s->engage_fine, LOC_N_ENGAGE};
+    LocGrid push = {s->push_out_lengths, s->push_out_fine, LOC_N_PUSH_OUT};
+    event_locate(kind, xsel, Fsel, m, air, x_trig, &engage, &push, &out[0], &out[2]);
+    if (k == 0 && isfinite(out[0])) {
+        long a = 0;         /* the samples in air before the entry, in the window */
+        for (long j = 0; j < n; j++)
+            if (xs[j] >= lo && xs[j] <= hi && xs[j] < out[0] - 0.5 * d->locate_margin)
+                xsel[a++] = F[j];
+        out[3] = loc_mean(xsel, a);
+    }
+    out[1] = detector_time_at(t, x, n, out[0]);
+    free(t);
+}
+
+/* the arrays follow the constants, in the order of DetectorFMU's comment */
+static void detector_attach(DetectorFMU *s)
+{
+    long N = (long)s->d.N, Nm = (long)s->d.N_min;
+    double *p = s->data;
+    s->d.W = p;
+    p += (N * (N + 1) - Nm * (Nm - 1)) / 2;
+    s->d.buf = p;
+    p += N;
+    s->d.err = p;
+    p += 2 * N;
+    s->d.h_t = p;
+    s->d.h_x = p + DET_HISTORY;
+    s->d.h_F = p + 2 * DET_HISTORY;
+    s->d.dot = NULL;
+    s->d.locate = NULL;
+}
+
+/* one sample; u: F [N], x [m]; y: the block's outputs (interface_detector.py _OUTPUTS) */
+void interface_detector_fmu_step(DetectorFMU *s, double t, const double *u, double *y)
+{
+    detector_attach(s);
+    interface_detector_step(&s->d, t, u, y);
+}
+
+/* the localisation alone, for tests against event_locator.locate: kind 0 entry, 1
+ * interface, 2 exit; out = x_loc, dx [m]; tables as in DetectorFMU */
+void event_locate_tables(int kind, const double *x, const double *F, long n, double air, double x_trig,
+                         const double *tables, double *out)
+{
+    LocGrid engage = {tables, tables + LOC_N_ENGAGE, LOC_N_ENGAGE};
+    LocGrid push = {tables + LOC_N_ENGAGE + LOC_N_FINE, tables + LOC_N_ENGAGE + LOC_N_FINE + LOC_N_PUSH_OUT,
+                    LOC_N_PUSH_OUT};
+    event_locate(kind, x, F, n, air, x_trig, &engage, &push, &out[0], &out[1]);
+}
+
+/* numpy.mean as the fit spells it, for the test that it is numpy's to the bit */
+double event_locator_mean(const double *a, long n)
+{
+    return loc_mean(a, n);
+}
+
+long interface_detector_fmu_state_size(void)
+{
+    return (long)sizeof(DetectorFMU);
+}
