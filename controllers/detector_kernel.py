@@ -7,7 +7,7 @@ what it needs from this process so that its doubles are the Python step's.
 * the localisation fit (numpy, LAPACK) runs in Python through a ctypes callback, once per event.
 
 The exported FMU cannot call either: it compiles the self-contained build (interface_detector_fmu.c,
-below) -- a plain C dot, the fit ported to C -- which agrees with this one to rounding.
+below) -- the dot in the order of OpenBLAS's AVX2 kernel in portable C, the fit ported to C.
 
 Each is checked once per process against what numpy and ``sum`` give here; when one does not
 match (another BLAS, no ILP64 ddot symbol, another sum), the detector keeps its Python step.
@@ -103,8 +103,8 @@ def state_size() -> int:
 
 
 # ----------------------------------------------------------------------------- the exported FMU
-# kernels/interface_detector_fmu.c: the same C step, self-contained (a plain C dot, the fit of
-# event_locator.py ported to C: kernels/event_locator.c), on a state that holds its arrays.
+# kernels/interface_detector_fmu.c: the same C step, self-contained (its own dot product, the fit
+# of event_locator.py ported to C: kernels/event_locator.c), on a state that holds its arrays.
 EXPORT_NAME = "interface_detector_fmu"
 EXPORT_SOURCES = ("interface_detector_fmu.c", "interface_detector.c", "event_locator.c")
 FINE_LENGTHS = 9          # event_locator._best_face: lengths tried around the best on the fine grid
@@ -134,6 +134,16 @@ def export_available() -> bool:
     except (NativeUnavailable, OSError):
         return False
     return True
+
+
+@lru_cache(maxsize=None)
+def export_dot_is_numpys() -> bool:
+    """Whether the exported build's dot product (the summation order of OpenBLAS's Haswell/Zen
+    ddot, in portable C) gives numpy's ``w @ v`` to the bit here: then the FMU's prediction is
+    the in-process one's."""
+    fn = export_library().interface_detector_fmu_dot
+    fn.restype, fn.argtypes = _D, [ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p]
+    return _agrees_with_numpy(lambda n, w, _i, v, _j: fn(n, w, v))
 
 
 def locator_tables() -> np.ndarray:

@@ -770,8 +770,9 @@ class InterfaceDetector(KernelBlock, Block):
     c_step = ("interface_detector", "interface_detector_step", _DetectorState, 2, len(_OUTPUTS))
     # export-fmu / SSP: the in-process struct points at this process's numpy arrays, its BLAS
     # and the localisation fit called back in Python, which an FMU has not; the FMU compiles
-    # the self-contained build instead (kernels/interface_detector_fmu.c: a C dot, the fit
-    # ported to C), started from this block's state (c_export_kernel)
+    # the self-contained build instead (kernels/interface_detector_fmu.c: its own dot in the
+    # order of numpy's AVX2 BLAS kernel, the fit ported to C), started from this block's state
+    # (c_export_kernel)
     c_parameters = {
         "thd1": ("N", "entry threshold on F~ (Table 4 thd1; fixed thresholds)"),
         "thd2": ("N", "interface threshold on |F~| (Table 4 thd2; fixed thresholds)"),

@@ -10,9 +10,11 @@ to C (kernels/event_locator.c). What is checked here:
   tests/test_detector_kernel.py) and on hand-made entry / gap / exit windows: the same
   position and interval, within 1e-9 mm (measured: the same doubles);
 * the exported step against the in-process step, sample by sample on those holes: every
-  event, flag and located position the same doubles; the prediction F^ and what is
-  computed from it (F~, F_ref, the relative thresholds) within 1e-12 of the signal's peak
-  (the plain C dot sums in another order than OpenBLAS's SIMD ddot; measured <= 3.4e-13 N);
+  output the same doubles. The exported dot sums in the order of OpenBLAS's AVX2 ddot kernel
+  (portable C); where numpy uses another kernel, the prediction F^ and what is computed
+  from it (F~, F_ref, the relative thresholds) are held to 1e-12 of their peak instead
+  (measured with a plain left-to-right C dot: <= 3.4e-13 N), every event and located
+  position still to the bit;
 * the FMU of the Fang hole's detector passes fmpy validate, its settings are parameters,
   and driven through FMI it gives the in-process outputs; the Fang hole with all its C
   blocks as FMUs records the same signals (6 s here, the whole hole under ``-m long``).
@@ -124,11 +126,13 @@ def _exported_step(det):
 
 
 def _assert_agree(names, a, b):
-    """Every output the same doubles, but those computed from the prediction: within 1e-12
-    of their peak (and NaN where the other is)."""
+    """Every output the same doubles. Where the exported dot is not numpy's (numpy on another
+    BLAS kernel than the AVX2 one), those computed from the prediction: within 1e-12 of
+    their peak (and NaN where the other is)."""
     a, b = np.asarray(a, float), np.asarray(b, float)
+    exact = detector_kernel.export_dot_is_numpys()
     for j, name in enumerate(names):
-        if name not in PREDICTION:
+        if exact or name not in PREDICTION:
             assert np.array_equal(a[:, j], b[:, j], equal_nan=True), name
             continue
         assert np.array_equal(np.isnan(a[:, j]), np.isnan(b[:, j])), name

@@ -31,8 +31,8 @@ def _c_blocks(sc) -> list[str]:
     return [n for n, b in sc.system.blocks.items() if has_c_step(b, sc.start_time)]
 
 
-# the exported detector sums its regression's prediction in plain C where the in-process one
-# calls numpy's BLAS ddot (docs/export.md): what is computed from it agrees to rounding
+# the exported detector sums its regression's prediction in the order of numpy's AVX2 BLAS kernel
+# (docs/export.md): on a machine whose numpy uses another, what is computed from it agrees to rounding
 ROUNDING = {"detector.F_pred", "detector.F_err", "detector.F_ref", "detector.thd", "detector.level_mismatch"}
 
 

@@ -56,7 +56,7 @@ typedef struct {
 
 #ifdef DETECTOR_SELF_CONTAINED
 /* The exported FMU (kernels/interface_detector_fmu.c) has neither numpy's BLAS nor Python:
- * it defines a plain C dot product and the localisation fit ported to C (event_locator.c).
+ * it defines its own dot product and the localisation fit ported to C (event_locator.c).
  * Only that build takes this branch; the in-process step below is unchanged. */
 static double detector_dot(long n, const double *w, const double *buf);
 static void detector_locate(const Detector *s, int k, double x_trig, double lo, double hi, double h_n, double air,

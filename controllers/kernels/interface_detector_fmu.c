@@ -1,11 +1,12 @@
 /* The InterfaceDetector's C step as it runs inside its exported FMU (issue #21):
- * kernels/interface_detector.c built self-contained -- a plain C dot product for the
+ * kernels/interface_detector.c built self-contained -- its own dot product for the
  * regression's prediction, the localisation fit of event_locator.py ported to C
  * (kernels/event_locator.c) -- on a state that holds its own arrays.
  *
  * The in-process block keeps its BLAS ddot and its Python fit (bit-identical to the Python
- * step); this build agrees with it to rounding: the prediction's sum in another order
- * (~1e-16 relative) and the fit's solves done otherwise (docs/export.md: measured).
+ * step). This build sums the prediction in the order of the BLAS kernel numpy uses on AVX2
+ * machines (detector_dot) and fits as the Python does, its solves done otherwise: measured,
+ * the same doubles as the in-process step on this project's machines (docs/export.md).
  *
  * State: the Detector, then the constants only this build needs, then its arrays, laid
  * out one after the other (their sizes follow from N and N_min), so that the FMU's state
@@ -27,12 +28,39 @@ typedef struct {
     double data[];
 } DetectorFMU;
 
+/* The prediction W . buf in the summation order of OpenBLAS's Haswell/Zen ddot kernel, the
+ * one numpy calls on an AVX2 machine: over the first n & -16 terms four accumulators of four
+ * lanes, each term fused (fma); each accumulator's high pair added onto its low pair, the
+ * four pairs added (0 + 1) + (2 + 3), the two lanes added; then the rest left to right.
+ * Written in portable C (fma() is exact everywhere), so the FMU gives the same doubles on
+ * any platform, and those of the in-process step where numpy uses that kernel
+ * (detector_kernel.export_dot_is_numpys says whether it does here). */
 static double detector_dot(long n, const double *w, const double *buf)
 {
-    double acc = 0.0;
-    for (long i = 0; i < n; i++)
-        acc += w[i] * buf[i];
-    return acc;
+    double acc[4][4] = {{0.0}}, dot = 0.0;
+    long n16 = n & -16, i;
+    for (i = 0; i < n16; i += 16)
+        for (int a = 0; a < 4; a++)
+            for (int l = 0; l < 4; l++)
+                acc[a][l] = fma(w[i + 4 * a + l], buf[i + 4 * a + l], acc[a][l]);
+    if (n16 > 0) {
+        double pair[4][2];
+        for (int a = 0; a < 4; a++)
+            for (int l = 0; l < 2; l++)
+                pair[a][l] = acc[a][l] + acc[a][l + 2];
+        double lo = (pair[0][0] + pair[1][0]) + (pair[2][0] + pair[3][0]);
+        double hi = (pair[0][1] + pair[1][1]) + (pair[2][1] + pair[3][1]);
+        dot = lo + hi;
+    }
+    for (; i < n; i++)
+        dot += buf[i] * w[i];
+    return dot;
+}
+
+/* for the check that this dot is numpy's here */
+double interface_detector_fmu_dot(long n, const double *w, const double *buf)
+{
+    return detector_dot(n, w, buf);
 }
 
 /* numpy.interp(q, xp, fp) at one point, xp increasing */
