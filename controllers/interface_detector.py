@@ -91,8 +91,9 @@ operation for operation, bit-identical: tests/test_detector_kernel.py), so the m
 detector in its C groups and whole C steps (the Fang hole: every step in C). The regression's
 dot product is numpy's own BLAS ddot and the once-per-event localisation fit is this module's
 numpy, called back from the C step (``controllers/detector_kernel.py``); where either cannot be
-matched to the bit, the block keeps this Python step (``kernel = "python"`` selects it). The C
-step is not exported (``export-fmu``, SSP): its fit needs Python.
+matched to the bit, the block keeps this Python step (``kernel = "python"`` selects it).
+``export-fmu`` / SSP compile a self-contained build instead (``kernels/interface_detector_fmu.c``:
+its own dot product, the fit ported to C; docs/export.md, tests/test_export_detector.py).
 """
 from __future__ import annotations
 

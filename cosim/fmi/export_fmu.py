@@ -266,6 +266,21 @@ _CAUS = {"parameter": "CAUS_PARAMETER", "input": "CAUS_INPUT", "output": "CAUS_O
 _VARI = {"parameter": "VAR_FIXED", "input": "VAR_CONTINUOUS", "output": "VAR_CONTINUOUS"}
 
 
+# the state from STATE0_RUNS: (count, 64-bit word) pairs of its 8-byte words, runs of equal ones
+# folded (a history of NaN, a window of zeros); a double's word is its IEEE bits on either byte order
+_SET_DEFAULTS_C = """void model_set_defaults(void *data)
+{
+    BlockData *d = data;
+    size_t w = 0;
+    for (size_t r = 0; r < sizeof(STATE0_RUNS) / sizeof(STATE0_RUNS[0]); r += 2)
+        for (unsigned long long i = 0; i < STATE0_RUNS[r]; i++, w++)
+            memcpy(&d->s[w], &STATE0_RUNS[r + 1], 8);
+    for (size_t k = 0; k < MODEL_INFO.n_reals; k++)
+        *(double *)((char *)data + BLOCK_VARS[k].offset) = BLOCK_VARS[k].start;
+}
+"""
+
+
 def c_wrapper(ex: BlockExport, fmi: int) -> str:
     """The FMU's one translation unit: FMI frame + the block's kernel + the variable table."""
     n_in = sum(v.causality == "input" for v in ex.variables)
@@ -296,8 +311,6 @@ typedef struct {{
 _Static_assert(sizeof({ex.state_type}) == STATE_SIZE - STATE_TAIL, "the C struct differs from the exported state");
 
 /* {ex.state_type} after the block's reset({_xml_num(ex.start_time)}), with the scenario's settings */
-/* (count, 64-bit word) pairs: the state's 8-byte words, runs of equal ones folded (a history
- * of NaN, a window of zeros); a double's word is its IEEE bits, whatever the byte order */
 static const unsigned long long STATE0_RUNS[] = {{{image}}};
 
 static const VarInfo BLOCK_VARS[] = {{
@@ -307,17 +320,7 @@ static const VarInfo BLOCK_VARS[] = {{
 const ModelInfo MODEL_INFO = {{"{ex.identifier}", "{guid(ex, fmi)}", BLOCK_VARS,
                               sizeof(BLOCK_VARS) / sizeof(BLOCK_VARS[0]), NULL, 0, sizeof(BlockData)}};
 
-void model_set_defaults(void *data)
-{{
-    BlockData *d = data;
-    size_t k = 0;
-    for (size_t r = 0; r < sizeof(STATE0_RUNS) / sizeof(STATE0_RUNS[0]); r += 2)
-        for (unsigned long long i = 0; i < STATE0_RUNS[r]; i++)
-            memcpy(&d->s[k++], &STATE0_RUNS[r + 1], 8);
-    for (size_t k = 0; k < MODEL_INFO.n_reals; k++)
-        *(double *)((char *)data + BLOCK_VARS[k].offset) = BLOCK_VARS[k].start;
-}}
-
+{_SET_DEFAULTS_C}
 int model_validate(const void *data, char *msg, size_t n) {{ (void)data; (void)msg; (void)n; return 0; }}
 
 void model_initialize(void *data, double start_time) {{ ((BlockData *)data)->t0 = start_time; }}
