@@ -223,3 +223,29 @@ def test_fang_hole_with_fmus(tmp_path):
     a = _fang_with_fmus(tmp_path, None)
     assert a["detector.flag"][-1] == 3 and a["detector.fail"][-1] == 0
     assert np.isfinite([a[f"detector.x_{ev}_loc"][-1] for ev in ("entry", "interface1", "exit")]).all()
+
+
+def test_the_detector_fmu_builds_from_its_own_sources(fang_detector_fmu, tmp_path):
+    """The wrapper, the self-contained step and the two files it includes, compiled alone
+    (strict C99) against the FMI headers: the FMI entry points are there."""
+    import subprocess
+
+    import fmpy
+    _sc, ex, fmu = fang_detector_fmu
+    src = tmp_path / "unpacked"
+    with zipfile.ZipFile(fmu) as zf:
+        zf.extractall(src)
+    headers = Path(fmpy.__file__).resolve().parent / "c-code"
+    lib = tmp_path / "rebuilt.so"
+    subprocess.run(["gcc", "-std=c99", "-shared", "-fPIC", "-O2", f"-I{headers}", str(src / "sources" / "detector.c"),
+                    "-o", str(lib), "-lm"], check=True, capture_output=True, text=True)
+    syms = subprocess.run(["nm", "-D", "--defined-only", str(lib)], capture_output=True, text=True, check=True).stdout
+    assert all(f" {name}\n" in syms for name in ("fmi3InstantiateCoSimulation", "fmi3DoStep", "fmi3GetFloat64"))
+
+
+def test_a_changed_length_table_is_named(monkeypatch):
+    """event_locator.py's grids and the C port must have the same sizes: else the error says which."""
+    from drillcosim.controllers import event_locator
+    monkeypatch.setattr(event_locator, "ENGAGE_LENGTHS", np.geomspace(0.01e-3, 0.6e-3, 27))
+    with pytest.raises(ValueError, match=r"event_locator.ENGAGE_LENGTHS has 27 lengths, kernels/event_locator.c"):
+        detector_kernel.locator_tables()
