@@ -67,7 +67,7 @@ def test_fig7_blocks_as_fmus_record_the_same_doubles(tmp_path):
 
 CLOSED_LOOPS = ["keio_fig3_force_monitoring", "keio_fig4_composite_force_control",
                 "keio_fig7_aluminium_force_control", "keio_thrust_constant_calibration",
-                "fang_orbital_cfrp_ti", "fang_table5_hole"]
+                "fang_orbital_cfrp_ti", "fang_table5_hole", "stacks/cfrp_al_ti"]
 
 
 @pytest.mark.long
