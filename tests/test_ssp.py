@@ -3,7 +3,9 @@
 * ``export-ssp`` of Keio Fig. 7 validates against the SSP 1.0 schema and runs in libcosim
   (``from_ssp_file``); libcosim and ``drillcosim run`` of the same package agree to 1e-9
   until the plant's first encoder count that differs, and stay the same experiment after it
-  (see ``_compare_fig7`` for why and how far);
+  (see ``_compare_fig7`` for why and how far); ``export-ssp`` of the Fang hole (its detector
+  exported too) runs in libcosim with the same detector decisions (``_compare_fang``; ``-m long``:
+  exporting its seven FMUs alone takes ~7 s);
 * two packages written by other tools (tests/third_party/ssp/README.md): libcosim's demo
   against libcosim running it, OMSimulator's LinearTransformation against its stated result;
 * bad input named: incompatible units on a connection, a missing FMU, an SSD that does not
