@@ -6,6 +6,9 @@ what it needs from this process so that its doubles are the Python step's.
 * Python's ``sum`` of floats is a plain left sum up to 3.11, Neumaier-compensated from 3.12;
 * the localisation fit (numpy, LAPACK) runs in Python through a ctypes callback, once per event.
 
+The exported FMU cannot call either: it compiles the self-contained build (interface_detector_fmu.c,
+below) -- the dot in the order of OpenBLAS's AVX2 kernel in portable C, the fit ported to C.
+
 Each is checked once per process against what numpy and ``sum`` give here; when one does not
 match (another BLAS, no ILP64 ddot symbol, another sum), the detector keeps its Python step.
 """
@@ -15,11 +18,14 @@ import ctypes
 import glob
 import math
 import os
+from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
-from drillcosim.controllers.kernels import library
+from drillcosim.controllers.kernels import HERE, build, library
+from drillcosim.cosim.loop.native import NativeUnavailable, lib_path
 
 _D = ctypes.c_double
 # ILP64 ddot (64-bit n and strides) of the BLAS numpy wheels ship (scipy-openblas64) and of
@@ -94,3 +100,118 @@ def state_size() -> int:
     fn = library("interface_detector").interface_detector_state_size
     fn.restype, fn.argtypes = ctypes.c_long, []
     return fn()
+
+
+# ----------------------------------------------------------------------------- the exported FMU
+# kernels/interface_detector_fmu.c: the same C step, self-contained (its own dot product, the fit
+# of event_locator.py ported to C: kernels/event_locator.c), on a state that holds its arrays.
+EXPORT_NAME = "interface_detector_fmu"
+EXPORT_SOURCES = ("interface_detector_fmu.c", "interface_detector.c", "event_locator.c")
+FINE_LENGTHS = 9          # event_locator._best_face: lengths tried around the best on the fine grid
+_C_TABLES = {"ENGAGE_LENGTHS": 25, "PUSH_OUT_LENGTHS": 30}     # kernels/event_locator.c LOC_N_*
+
+
+def _source(name: str) -> Path:
+    return HERE / name
+
+
+@lru_cache(maxsize=None)
+def export_library() -> ctypes.CDLL:
+    """The self-contained build, loaded here (for its checks and tests), rebuilt when any of
+    the files it includes is newer than it."""
+    lib = lib_path(_source(EXPORT_NAME + ".c"))
+    newest = max(_source(n).stat().st_mtime_ns for n in EXPORT_SOURCES)
+    stale = not lib.exists() or lib.stat().st_mtime_ns < newest
+    return ctypes.CDLL(str(build(EXPORT_NAME, force=stale)))
+
+
+def export_available() -> bool:
+    """Whether the exported C step exists and compiles here (export-fmu needs both)."""
+    if not all(_source(n).exists() for n in EXPORT_SOURCES):
+        return False
+    try:
+        export_library()
+    except (NativeUnavailable, OSError):
+        return False
+    return True
+
+
+@lru_cache(maxsize=None)
+def export_dot_is_numpys() -> bool:
+    """Whether the exported build's dot product (the summation order of OpenBLAS's Haswell/Zen
+    ddot, in portable C) gives numpy's ``w @ v`` to the bit here: then the FMU's prediction is
+    the in-process one's."""
+    fn = export_library().interface_detector_fmu_dot
+    fn.restype, fn.argtypes = _D, [ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p]
+    return _agrees_with_numpy(lambda n, w, _i, v, _j: fn(n, w, v))
+
+
+def locator_tables() -> np.ndarray:
+    """event_locator's length grids as the C fit takes them: engage lengths [m], their fine
+    factors, push-out lengths [m], theirs. An error names the table when event_locator.py
+    no longer has the sizes kernels/event_locator.c was written for."""
+    from drillcosim.controllers import event_locator as el
+    out = []
+    for name, size in _C_TABLES.items():
+        lengths = np.asarray(getattr(el, name), dtype=float)
+        if lengths.size != size:
+            raise ValueError(f"event_locator.{name} has {lengths.size} lengths, kernels/event_locator.c "
+                             f"(LOC_N_*) holds {size}: update the C port with the Python fit")
+        out += [lengths, np.geomspace(1.0 / (lengths[1] / lengths[0]), lengths[1] / lengths[0], FINE_LENGTHS)]
+    return np.concatenate(out)
+
+
+def export_data_size(N: int, N_min: int, history: int) -> int:
+    """Doubles of the FMU state's arrays: weights of windows N_min..N, window, |F~| ring, history."""
+    return (N * (N + 1) - N_min * (N_min - 1)) // 2 + N + 2 * N + 3 * history
+
+
+def export_state_type(detector_type, n_data: int):
+    """ctypes mirror of DetectorFMU (kernels/interface_detector_fmu.c) with ``n_data`` doubles
+    of arrays: the Detector's fields, then the fit's constants, then the arrays."""
+    fields = list(detector_type._fields_) + [("observer_delay", _D), ("engage_lengths", _D * _C_TABLES["ENGAGE_LENGTHS"]),
+                                              ("engage_fine", _D * FINE_LENGTHS),
+                                              ("push_out_lengths", _D * _C_TABLES["PUSH_OUT_LENGTHS"]), ("push_out_fine", _D * FINE_LENGTHS),
+                                              ("data", _D * n_data)]
+    return type("DetectorFMU", (ctypes.Structure,), {"_fields_": fields})
+
+
+def export_state(state, observer_delay: float, arrays) -> ctypes.Structure:
+    """The exported FMU's state: the in-process C state ``state`` (a Detector) with its
+    pointers cleared (the FMU sets them from its own memory at every step), the delay [s],
+    the fit's tables and ``arrays`` (weights, window, |F~| ring, history t, x, F) copied in."""
+    data = np.concatenate([np.asarray(a, dtype=float) for a in arrays])
+    T = export_state_type(type(state), data.size)
+    out = T()
+    ctypes.memmove(ctypes.addressof(out), ctypes.addressof(state), ctypes.sizeof(state))
+    for name in ("W", "buf", "h_t", "h_x", "h_F", "err", "dot", "locate"):
+        setattr(out, name, None)
+    out.observer_delay = float(observer_delay)
+    tables = locator_tables()
+    ctypes.memmove(ctypes.addressof(out) + T.engage_lengths.offset, tables.ctypes.data, tables.nbytes)
+    ctypes.memmove(ctypes.addressof(out) + T.data.offset, data.ctypes.data, data.nbytes)
+    fixed = export_library().interface_detector_fmu_state_size
+    fixed.restype, fixed.argtypes = ctypes.c_long, []
+    if fixed() != T.data.offset:
+        raise RuntimeError(f"{EXPORT_NAME}.c: DetectorFMU is {fixed()} bytes before its arrays, its ctypes "
+                           f"mirror {T.data.offset}: detector_kernel.export_state_type must follow the C struct")
+    return out
+
+
+@dataclass
+class ExportKernel:
+    """What export-fmu compiles (cosim/exchange/export_fmu.py): ``source`` (it includes
+    ``includes``), its step ``function``, the ``state`` to start from and the bytes of that
+    state in the C struct's flexible array (``state_tail``)."""
+    source: Path
+    function: str
+    state: ctypes.Structure
+    includes: tuple
+    state_tail: int
+
+
+def export_kernel(state, observer_delay: float, arrays) -> ExportKernel:
+    """The exported FMU's C step started from the in-process C ``state`` (see export_state)."""
+    s = export_state(state, observer_delay, arrays)
+    return ExportKernel(_source(EXPORT_NAME + ".c"), "interface_detector_fmu_step", s,
+                        tuple(_source(n) for n in EXPORT_SOURCES[1:]), type(s).data.size)

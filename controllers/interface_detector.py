@@ -91,8 +91,9 @@ operation for operation, bit-identical: tests/test_detector_kernel.py), so the m
 detector in its C groups and whole C steps (the Fang hole: every step in C). The regression's
 dot product is numpy's own BLAS ddot and the once-per-event localisation fit is this module's
 numpy, called back from the C step (``controllers/detector_kernel.py``); where either cannot be
-matched to the bit, the block keeps this Python step (``kernel = "python"`` selects it). The C
-step is not exported (``export-fmu``, SSP): its fit needs Python.
+matched to the bit, the block keeps this Python step (``kernel = "python"`` selects it).
+``export-fmu`` / SSP compile a self-contained build instead (``kernels/interface_detector_fmu.c``:
+its own dot product, the fit ported to C; docs/export.md, tests/test_export_detector.py).
 """
 from __future__ import annotations
 
@@ -796,9 +797,36 @@ class InterfaceDetector(KernelBlock, Block):
     # state lives in its struct: the attributes below are read from there (``__getattr__``),
     # the window, the history and the weights are these numpy arrays, shared by pointer.
     c_step = ("interface_detector", "interface_detector_step", _DetectorState, 2, len(_OUTPUTS))
-    # not for export-fmu / SSP: the struct points at this process's numpy arrays, its BLAS
-    # and the localisation fit called back in Python (an FMU has neither)
-    c_exportable = False
+    # export-fmu / SSP: the in-process struct points at this process's numpy arrays, its BLAS
+    # and the localisation fit called back in Python, which an FMU has not; the FMU compiles
+    # the self-contained build instead (kernels/interface_detector_fmu.c: its own dot in the
+    # order of numpy's AVX2 BLAS kernel, the fit ported to C), started from this block's state
+    # (c_export_kernel)
+    c_parameters = {
+        "thd1": ("N", "entry threshold on F~ (Table 4 thd1; fixed thresholds)"),
+        "thd2": ("N", "interface threshold on |F~| (Table 4 thd2; fixed thresholds)"),
+        "thd3": ("N", "exit threshold on F~ (Table 4 thd3; fixed thresholds)"),
+        "exit_ratio": ("1", "thinning criterion: exit once F < exit_ratio * F_ref"),
+        "rearm_level": ("N", "|F~| below which a sample counts as quiet (re-arming)"),
+        "thd_min": ("N", "smallest threshold of the relative tests"),
+        "win_lo": ("m", "earliest encoder position of each event (entry, interfaces, exit)"),
+        "win_hi": ("m", "latest encoder position of each event (entry, interfaces, exit)"),
+        "locate_margin": ("m", "travel on either side of an event the localisation fits"),
+        "push_out": ("m", "travel above the exit's trigger its fall may start"),
+        "max_gap": ("m", "widest gap between two layers"),
+        "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
+    }
+
+    @property
+    def c_exportable(self) -> bool:
+        return detector_kernel.export_available()
+
+    def c_export_kernel(self) -> detector_kernel.ExportKernel:
+        """The C step of the exported FMU, on this block's (C) state: see detector_kernel.export_state."""
+        if self.c_kernel is None:
+            raise RuntimeError("InterfaceDetector: export needs the C step (kernel = 'auto' or 'c')")
+        arrays = (self._W_flat, self.buf, self._c_err, self.h_t, self.h_x, self.h_F)
+        return detector_kernel.export_kernel(self.c_kernel.state, self.observer_delay, arrays)
 
     def _c_supports(self) -> bool:
         return (detector_kernel.blas_ddot() is not None and detector_kernel.sums_like_python()

@@ -31,8 +31,23 @@ def _c_blocks(sc) -> list[str]:
     return [n for n, b in sc.system.blocks.items() if has_c_step(b, sc.start_time)]
 
 
+# the exported detector sums its regression's prediction in the order of numpy's AVX2 BLAS kernel
+# (docs/export.md): on a machine whose numpy uses another, what is computed from it agrees to rounding
+ROUNDING = {"detector.F_pred", "detector.F_err", "detector.F_ref", "detector.thd", "detector.level_mismatch"}
+
+
+def _same_signal(a, b) -> bool:
+    """The same doubles; a ROUNDING signal: NaN where the other is, else within 1e-12 of its peak."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    if np.array_equal(a, b, equal_nan=True):
+        return True
+    peak = np.nanmax(np.abs(a), initial=1.0)
+    return bool(np.array_equal(np.isnan(a), np.isnan(b)) and np.nanmax(np.abs(a - b)) <= 1e-12 * peak)
+
+
 def _same_run(path: Path, tmp: Path, overrides: dict) -> tuple[int, int]:
-    """Run ``path`` with its blocks, then with their FMUs; every recorded double equal."""
+    """Run ``path`` with its blocks, then with their FMUs; every recorded double equal (ROUNDING:
+    to rounding)."""
     sc = load_scenario(path, overrides)
     names = _c_blocks(sc)
     fmus = {ex.name: p for ex, p in export_blocks(sc, names, tmp, 3)}
@@ -41,7 +56,7 @@ def _same_run(path: Path, tmp: Path, overrides: dict) -> tuple[int, int]:
     b = run(sc2.system, sc2.stop_time, Recorder(["*"], 1))
     assert a.signals == b.signals and len(a.time) == len(b.time) > 100
     for c in a.signals:
-        assert np.array_equal(a[c], b[c], equal_nan=True), c
+        assert np.array_equal(a[c], b[c], equal_nan=True) or c in ROUNDING and _same_signal(a[c], b[c]), c
     return len(names), len(a.time)
 
 
@@ -52,7 +67,7 @@ def test_fig7_blocks_as_fmus_record_the_same_doubles(tmp_path):
 
 CLOSED_LOOPS = ["keio_fig3_force_monitoring", "keio_fig4_composite_force_control",
                 "keio_fig7_aluminium_force_control", "keio_thrust_constant_calibration",
-                "fang_orbital_cfrp_ti", "fang_table5_hole"]
+                "fang_orbital_cfrp_ti", "fang_table5_hole", "stacks/cfrp_al_ti"]
 
 
 @pytest.mark.long
@@ -126,9 +141,10 @@ def test_step_rule_multiples_and_fractions_of_the_sample_period(tmp_path):
 
 
 def test_a_block_without_c_step_is_refused_by_name(tmp_path):
-    sc = load_scenario(ROOT / "scenarios" / "fang_table5_hole.toml")
-    with pytest.raises(ExportError, match=r"fang_table5_hole.toml: block 'detector' .*InterfaceDetector.* no C step"):
-        export_blocks(sc, ["adapt", "detector"], tmp_path, 3)
+    sc = load_scenario(ROOT / "scenarios" / "keio_thrust_constant_calibration.toml")
+    with pytest.raises(ExportError, match=r"keio_thrust_constant_calibration.toml: block 'command' "
+                                          r".*PiecewiseLinear.* no C step"):
+        export_blocks(sc, ["observer", "command"], tmp_path, 3)
     assert not list(tmp_path.glob("*.fmu"))          # all checked before any is built
     with pytest.raises(ExportError, match="no block 'nope'"):
         export_blocks(sc, ["nope"], tmp_path, 3)

@@ -54,6 +54,18 @@ typedef struct {
     locate_fn locate;
 } Detector;
 
+#ifdef DETECTOR_SELF_CONTAINED
+/* The exported FMU (kernels/interface_detector_fmu.c) has neither numpy's BLAS nor Python:
+ * it defines its own dot product and the localisation fit ported to C (event_locator.c).
+ * Only that build takes this branch; the in-process step below is unchanged. */
+static double detector_dot(long n, const double *w, const double *buf);
+static void detector_locate(const Detector *s, int k, double x_trig, double lo, double hi, double h_n, double air,
+                            double *out);
+#define DET_DOT(s, n, w) detector_dot(n, w, (s)->buf)
+#else
+#define DET_DOT(s, n, w) (s)->dot(n, w, 1, (s)->buf, 1)
+#endif
+
 /* Python's sum() of floats, folded one term at a time: (sum, compensation) */
 static void py_sum_add(const Detector *s, double *f, double *c, double x)
 {
@@ -311,10 +323,14 @@ static void locate(Detector *s, int k, double x_trig, double before, double afte
     if (k > 0 && isfinite(s->x_ev[k - 1]))
         lo = MAX(lo, s->x_ev[k - 1] + s->locate_margin);
     double air = isfinite(s->F_air) ? s->F_air : 0.0;
+#ifdef DETECTOR_SELF_CONTAINED
+    detector_locate(s, k, x_trig, lo, x_trig + after, s->h_n, air, out);
+#else
     if (s->locate == NULL)      /* a state the block did not fill (it always sets the callback) */
         out[0] = out[1] = out[2] = out[3] = NAN;
     else
         s->locate(k, x_trig, lo, x_trig + after, s->h_n, air, out);
+#endif
     int name = k == 0 ? 0 : k == n ? DET_EVENTS - 1 : k;
     s->loc[4 * name] = out[0];
     s->loc[4 * name + 1] = out[1];
@@ -419,7 +435,7 @@ void interface_detector_step(Detector *s, double t, const double *u, double *y)
     if (nb >= Nm) {
         /* weights of length nb start after those of N_min .. nb - 1 */
         const double *w = s->W + (nb * (nb - 1) - Nm * (Nm - 1)) / 2;
-        tests(s, t, x, F, s->dot(nb, w, 1, s->buf, 1));
+        tests(s, t, x, F, DET_DOT(s, nb, w));
     }
     if (nb < N) {               /* shift the regression window (oldest first) */
         s->buf[nb] = F;

@@ -33,6 +33,7 @@ import json
 import math
 import os
 import re
+import sys
 import tempfile
 import uuid
 import zipfile
@@ -87,6 +88,8 @@ class BlockExport:
     state: bytes
     variables: list = field(default_factory=list)
     baked_files: list = field(default_factory=list)     # (setting key, path) read at export
+    includes: list = field(default_factory=list)        # other C files ``source`` includes (shipped)
+    state_tail: int = 0     # bytes of the state after the C struct's fixed part (its flexible array)
 
 
 def struct_leaves(struct_type, prefix: str = "", base: int = 0) -> list[Leaf]:
@@ -104,6 +107,8 @@ def _leaves_of(ftype, name: str, off: int) -> list[Leaf]:
     if issubclass(ftype, ctypes.Array):
         size = ctypes.sizeof(ftype._type_)
         return [leaf for i in range(ftype._length_) for leaf in _leaves_of(ftype._type_, f"{name}[{i}]", off + i * size)]
+    if ftype is ctypes.c_void_p:    # set by the C step from its own memory: neither parameter nor state
+        return []
     kinds = {ctypes.c_double: "double", ctypes.c_int: "int"}
     if ftype not in kinds:
         raise ExportError(f"struct field {name}: type {ftype.__name__} is not double or int")
@@ -145,18 +150,24 @@ def has_c_step(block, t0: float) -> bool:
     if getattr(block, "c_step", None) is None and not hasattr(block, "c_kernel"):
         return False
     block.reset(t0)
-    # c_exportable = False: a C step that calls back into Python (the detector's localisation)
+    # c_exportable False: a C step that calls back into this process (numpy's BLAS, Python)
+    # and has no self-contained build for the FMU (``c_export_kernel``)
     return getattr(block, "c_kernel", None) is not None and getattr(block, "c_exportable", True)
 
 
 def _kernel_of(scenario, name: str, block):
+    """The C step the FMU compiles: the block's ``c_export_kernel()`` when its in-process
+    kernel is not self-contained, else that kernel. Either has ``source``, ``function`` and
+    ``state`` (a ctypes struct), optionally ``includes`` (files ``source`` includes) and
+    ``state_tail`` (bytes of ``state`` past the C struct's ``sizeof``: a flexible array)."""
     file = str(scenario.path or "<scenario>")
     cls = f"{type(block).__module__}:{type(block).__name__}"
     if not has_c_step(block, scenario.start_time):
         raise ExportError(f"{file}: block '{name}' ({cls}) has no C step (with these settings): export-fmu "
                           "compiles a block's C kernel into the FMU; a Python-only block is not exported (a "
                           "Python interpreter inside an FMU is not portable)")
-    return block.c_kernel
+    export = getattr(block, "c_export_kernel", None)
+    return export() if callable(export) else block.c_kernel
 
 
 def _state_type(source: Path, function: str) -> str:
@@ -209,7 +220,8 @@ def describe_block(scenario, name: str) -> BlockExport:
         start_time=scenario.start_time,
         stop_time=scenario.stop_time, direct_feedthrough=bool(getattr(block, "direct_feedthrough", True)),
         source=Path(k.source), function=k.function, state_type=_state_type(Path(k.source), k.function),
-        state=bytes(k.state), variables=vars_, baked_files=baked)
+        state=bytes(k.state), variables=vars_, baked_files=baked,
+        includes=[Path(p) for p in getattr(k, "includes", ())], state_tail=int(getattr(k, "state_tail", 0)))
 
 
 # ----------------------------------------------------------------------------- generated text
@@ -236,8 +248,37 @@ def guid(ex: BlockExport, fmi: int) -> str:
     return "{" + str(uuid.UUID(h.hexdigest()[:32])) + "}"
 
 
+def _state_runs(state: bytes) -> str:
+    """The state image as C ``(count, word)`` pairs of its 8-byte words (zero-padded), equal
+    neighbours folded into one run."""
+    padded = state + bytes(-len(state) % 8)
+    words = [int.from_bytes(padded[i:i + 8], sys.byteorder) for i in range(0, len(padded), 8)]
+    runs: list[list[int]] = []
+    for w in words:
+        if runs and runs[-1][1] == w:
+            runs[-1][0] += 1
+        else:
+            runs.append([1, w])
+    return ", ".join(f"{n}ULL, 0x{w:016x}ULL" for n, w in runs)
+
+
 _CAUS = {"parameter": "CAUS_PARAMETER", "input": "CAUS_INPUT", "output": "CAUS_OUTPUT"}
 _VARI = {"parameter": "VAR_FIXED", "input": "VAR_CONTINUOUS", "output": "VAR_CONTINUOUS"}
+
+
+# the state from STATE0_RUNS: (count, 64-bit word) pairs of its 8-byte words, runs of equal ones
+# folded (a history of NaN, a window of zeros); a double's word is its IEEE bits on either byte order
+_SET_DEFAULTS_C = """void model_set_defaults(void *data)
+{
+    BlockData *d = data;
+    size_t w = 0;
+    for (size_t r = 0; r < sizeof(STATE0_RUNS) / sizeof(STATE0_RUNS[0]); r += 2)
+        for (unsigned long long i = 0; i < STATE0_RUNS[r]; i++, w++)
+            memcpy(&d->s[w], &STATE0_RUNS[r + 1], 8);
+    for (size_t k = 0; k < MODEL_INFO.n_reals; k++)
+        *(double *)((char *)data + BLOCK_VARS[k].offset) = BLOCK_VARS[k].start;
+}
+"""
 
 
 def c_wrapper(ex: BlockExport, fmi: int) -> str:
@@ -246,7 +287,7 @@ def c_wrapper(ex: BlockExport, fmi: int) -> str:
     n_out = sum(v.causality == "output" for v in ex.variables)
     rows = [f'    {{{json.dumps(v.name)}, {i}, {v.offset}, {_CAUS[v.causality]}, '
             f'{_VARI[v.causality]}, {_c_num(v.start)}}},' for i, v in enumerate(ex.variables, start=1)]
-    image = ", ".join(f"0x{b:02x}" for b in ex.state)
+    image = _state_runs(ex.state)
     return f"""/* generated by drillcosim export-fmu (cosim/exchange/export_fmu.py) from block '{ex.name}'
  * ({ex.class_name}): do not edit. The FMI frame and the block's C step are included, so
  * this file is the FMU's one translation unit: cc -shared -fPIC -I<FMI headers> {ex.identifier}.c -lm */
@@ -259,17 +300,18 @@ def c_wrapper(ex: BlockExport, fmi: int) -> str:
 #define N_OUT {max(n_out, 1)}
 #define SAMPLE_PERIOD {_c_num(ex.sample_period)}   /* s, the block's sample period: the fixed step */
 #define STATE_SIZE {len(ex.state)}
+#define STATE_TAIL {ex.state_tail}   /* bytes of the state in the struct's flexible array */
 
 typedef struct {{
     double u[N_IN > 0 ? N_IN : 1], y[N_OUT];
-    double s[(STATE_SIZE + 7) / 8];     /* {ex.state_type}, started from STATE0 */
+    double s[(STATE_SIZE + 7) / 8];     /* {ex.state_type}, started from STATE0_RUNS */
     double t0;
 }} BlockData;
 
-_Static_assert(sizeof({ex.state_type}) == STATE_SIZE, "the C struct differs from the exported state");
+_Static_assert(sizeof({ex.state_type}) == STATE_SIZE - STATE_TAIL, "the C struct differs from the exported state");
 
 /* {ex.state_type} after the block's reset({_xml_num(ex.start_time)}), with the scenario's settings */
-static const unsigned char STATE0[STATE_SIZE] = {{{image}}};
+static const unsigned long long STATE0_RUNS[] = {{{image}}};
 
 static const VarInfo BLOCK_VARS[] = {{
 {chr(10).join(rows)}
@@ -278,14 +320,7 @@ static const VarInfo BLOCK_VARS[] = {{
 const ModelInfo MODEL_INFO = {{"{ex.identifier}", "{guid(ex, fmi)}", BLOCK_VARS,
                               sizeof(BLOCK_VARS) / sizeof(BLOCK_VARS[0]), NULL, 0, sizeof(BlockData)}};
 
-void model_set_defaults(void *data)
-{{
-    BlockData *d = data;
-    memcpy(d->s, STATE0, STATE_SIZE);
-    for (size_t k = 0; k < MODEL_INFO.n_reals; k++)
-        *(double *)((char *)data + BLOCK_VARS[k].offset) = BLOCK_VARS[k].start;
-}}
-
+{_SET_DEFAULTS_C}
 int model_validate(const void *data, char *msg, size_t n) {{ (void)data; (void)msg; (void)n; return 0; }}
 
 void model_initialize(void *data, double start_time) {{ ((BlockData *)data)->t0 = start_time; }}
@@ -421,7 +456,8 @@ def _sources(ex: BlockExport, fmi: int) -> dict[str, bytes]:
     files = {f"{ex.identifier}.c": c_wrapper(ex, fmi).encode()}
     for name in ("frame_core.c", FRAME_SOURCES[fmi], *FRAME_HEADERS):
         files[name] = (FRAME_DIR / name).read_bytes()
-    files[ex.source.name] = ex.source.read_bytes()
+    for path in (ex.source, *ex.includes):
+        files[path.name] = path.read_bytes()
     if fmi == 3:
         files["buildDescription.xml"] = build_description3(ex).encode()
     return files
@@ -482,10 +518,13 @@ def with_exported_blocks(path, fmus: dict, overrides: dict | None = None):
     sample period and order): what the blocks do in drillcosim, done by the FMUs."""
     from drillcosim.cosim.scenario.paths import scenario_path
     from drillcosim.cosim.scenario.files import Origins, load_raw
-    from drillcosim.cosim.scenario.build import build
+    from drillcosim.cosim.scenario.build import _expand, build
+    from drillcosim.cosim.scenario.checks import Checker
     path = scenario_path(path)
     origins = Origins()
-    raw = load_raw(path, overrides, origins)
+    # a plug-in's sections first (they fill in the blocks' settings), so that the replaced
+    # blocks keep only the FMU
+    raw = _expand(load_raw(path, overrides, origins), Checker(str(path), origins))
     for name, fmu in fmus.items():
         if name not in raw.get("blocks", {}):
             raise ExportError(f"{path}: no block '{name}' to replace by {fmu}")

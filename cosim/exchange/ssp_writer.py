@@ -11,9 +11,10 @@
 * the step size goes to ``DefaultExperiment`` as the OSP annotation libcosim reads
   (``osp:FixedStepAlgorithm baseStepSize``); start and stop time as attributes.
 
-What SSP cannot say: a block without a C step and a scenario event change the dynamics,
-so they are refused (``--allow-missing`` lists them instead and writes the package
-without them); scores, plots and the record list do not, and are listed. Every listed
+What SSP cannot say: a block without a C step and a scenario event that sets a value change
+the dynamics, so they are refused (``--allow-missing`` lists them instead and writes the
+package without them); a stop condition (the run ends where a signal crosses; the package
+runs on to its stop time), scores, plots and the record list do not, and are listed. Every listed
 item is printed and written to the SSD's annotations (never dropped silently).
 """
 from __future__ import annotations
@@ -42,11 +43,17 @@ def _not_carried(sc, allow_missing: bool) -> tuple[list[str], list[tuple[str, st
             c_blocks.append(name)
             continue
         missing.append(("block", name, f"{type(b).__module__}:{type(b).__name__} has no C step (Python only)"))
-    missing += [("event", f"events[{i}]", f"{e}: SSP 1.0 has no events") for i, e in enumerate(sc.events)]
+    # a stop condition ends the run where its signal crosses; up to there the dynamics are the
+    # same, so it is listed (the package runs to its stopTime) rather than refused
+    stops = [(i, e) for i, e in enumerate(sc.events) if e.action == "stop"]
+    missing += [("event", f"events[{i}]", f"{e}: SSP 1.0 has no events") for i, e in enumerate(sc.events)
+                if e.action != "stop"]
     if missing and not allow_missing:
         what = "; ".join(f"{k} {n}: {why}" for k, n, why in missing)
         raise ExportError(f"{sc.path}: SSP cannot carry {what} -- the package would simulate something else. "
                           "--allow-missing writes it without them (listed in the SSD's annotations)")
+    missing += [("event", f"events[{i}]", f"{e}: a stop condition, which SSP 1.0 cannot say; the package "
+                 "runs to its stopTime (the same dynamics up to the stop)") for i, e in stops]
     missing += [("score", str(s[3] or s[0]), "scores are drillcosim's analysis") for s in sc.scores]
     missing += [("plot", str(p.get("file") or p.get("spec") or "plot"), "plots are drillcosim's") for p in sc.plots]
     missing.append(("record", ", ".join(sc.record_signals), "kept in the SSD's annotation for drillcosim; "

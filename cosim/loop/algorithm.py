@@ -329,12 +329,24 @@ def _compile(system, recorder, events, extra_record) -> _Plan:
         bus_names[i] = sig
     # block outputs that start as NaN use it as "not yet" (a detector's event times): NaN allowed
     nan_ok = {f"{n}.{p.name}" for n, b in system.blocks.items() for p in b.outputs if p.start != p.start}
+    # and so do an FMU's outputs that start as NaN (such a block exported as an FMU, run from SSP)
+    nan_ok |= {f"{n}.{v.name}" for n, s in system.slaves.items()
+               for v in getattr(getattr(s, "model", None), "variables", {}).values()
+               if v.causality == "output" and _nan_start(v.start)}
     # numeric slots only: a String / Binary FMU variable cannot be NaN (nor summed)
     finite_slots = _getter([i for i, sig in enumerate(bus_names)
                             if sig not in nan_ok and not isinstance(bus.values[i], (str, bytes))])
     return _Plan(bus, columns, read_plan, write_plan, blocks, conds, timed, setters, record, record_refs,
                  recorder.decimation if recorder is not None else 0, bus_names, nan_ok, finite_slots,
                  c_groups, [system.rate(n) for n in order if not any(n in g for g in groups)])
+
+
+def _nan_start(start) -> bool:
+    """Whether a model description's start value (text, a number or None) is NaN."""
+    try:
+        return math.isnan(float(start))
+    except (TypeError, ValueError):
+        return False
 
 
 def _start_recorder(system, recorder, plan: _Plan, allow_nonfinite: bool) -> None:

@@ -143,7 +143,7 @@ static const VarInfo *find_var(FrameInstance *inst, const VarInfo *table, size_t
     return &table[vr - base - 1];
 }
 
-/* An FMU exported from a drillcosim block (cosim/fmi/export_fmu.py) passes NaN ("not yet",
+/* An FMU exported from a drillcosim block (cosim/exchange/export_fmu.py) passes NaN ("not yet",
  * e.g. a detection time) through its inputs as the block does; the plants refuse it. */
 #ifndef FRAME_NONFINITE_INPUTS
 #define FRAME_NONFINITE_INPUTS 0

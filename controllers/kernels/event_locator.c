@@ -1,0 +1,415 @@
+/* The localisation fit of controllers/event_locator.py in plain C, for the exported
+ * InterfaceDetector FMU only (kernels/interface_detector_fmu.c; issue #21).
+ *
+ * Same model as the Python: the thrust's shape at a face (an onset ramp, linear or
+ * smoothstep; a push-out falling linearly or quadratically to the air level), linear in
+ * its levels for each face, length and law; the face tried on a 10 um grid and then on a
+ * 1 um one around the best; the interval of the faces whose best fit is worse by less
+ * than one residual variance; a gap located between the two faces around its air run.
+ * The grids and their lengths are the Python's (numpy's arange spelled out; the length
+ * tables are handed in, taken from event_locator.py at export). The in-process detector
+ * keeps calling the Python fit (numpy's batched BLAS/LAPACK solves): this port agrees
+ * with it to rounding, not to the bit (docs/export.md gives the measured agreement).
+ * Every array is the caller's; scratch is allocated per call (a few calls per hole).
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define LOC_MIN_SEGMENT 3          /* event_locator.MIN_SEGMENT */
+#define LOC_AIR_SHARE 0.5          /* event_locator.AIR_SHARE */
+#define LOC_COARSE_STEP 10e-6      /* m, event_locator.COARSE_STEP */
+#define LOC_GRID_STEP 1e-6         /* m, event_locator.GRID_STEP */
+#define LOC_N_ENGAGE 25            /* len(event_locator.ENGAGE_LENGTHS) */
+#define LOC_N_PUSH_OUT 30          /* len(event_locator.PUSH_OUT_LENGTHS) */
+#define LOC_N_FINE 9               /* lengths tried around the best on the fine grid */
+#define LOC_ENTRY 0
+#define LOC_INTERFACE 1
+#define LOC_EXIT 2
+
+#define LOC_PYMAX(a, b) ((b) > (a) ? (b) : (a))   /* Python's max(a, b) */
+#define LOC_PYMIN(a, b) ((b) < (a) ? (b) : (a))   /* Python's min(a, b) */
+
+/* The length grids of one family of shapes: the coarse lengths [m] and the factors of the
+ * best coarse length tried on the fine grid (numpy.geomspace(1/ratio, ratio, 9)). */
+typedef struct {
+    const double *lengths, *fine;
+    int n_lengths;
+} LocGrid;
+
+/* One fit problem: samples, the family (onset or push-out), the air level (NaN: fitted). */
+typedef struct {
+    const double *x, *F;
+    long n;
+    int push_out;
+    double air;
+    const LocGrid *grid;
+} LocFit;
+
+/* numpy's sum of a contiguous float64 array: pairwise, 8 accumulators per block of 128 */
+static double loc_pairwise(const double *a, long n)
+{
+    if (n < 8) {
+        double res = 0.0;
+        for (long i = 0; i < n; i++)
+            res += a[i];
+        return res;
+    }
+    if (n <= 128) {
+        double r[8], res;
+        long i;
+        for (int j = 0; j < 8; j++)
+            r[j] = a[j];
+        for (i = 8; i < n - (n % 8); i += 8)
+            for (int j = 0; j < 8; j++)
+                r[j] += a[i + j];
+        res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+        for (; i < n; i++)
+            res += a[i];
+        return res;
+    }
+    long n2 = n / 2;
+    n2 -= n2 % 8;
+    return loc_pairwise(a, n2) + loc_pairwise(a + n2, n - n2);
+}
+
+/* numpy.mean of a contiguous array: its pairwise sum over the count */
+static double loc_mean(const double *a, long n)
+{
+    if (n <= 0)
+        return NAN;
+    return loc_pairwise(a, n) / (double)n;
+}
+
+static int loc_cmp(const void *a, const void *b)
+{
+    double u = *(const double *)a, v = *(const double *)b;
+    return (u > v) - (u < v);
+}
+
+/* numpy.median of finite samples (scratch: n doubles) */
+static double loc_median(const double *a, long n, double *scratch)
+{
+    memcpy(scratch, a, (size_t)n * sizeof(double));
+    qsort(scratch, (size_t)n, sizeof(double), loc_cmp);
+    if (n % 2)
+        return scratch[n / 2];
+    return (scratch[n / 2 - 1] + scratch[n / 2]) / 2.0;
+}
+
+/* numpy.arange(start, stop, step) of doubles: its length and filling (start + i * delta,
+ * delta = (start + step) - start); returns the count, written to out (NULL: count only) */
+static long loc_arange(double start, double stop, double step, double *out)
+{
+    double len = ceil((stop - start) / step);
+    if (!(len > 0.0))
+        return 0;
+    long n = (long)len;
+    if (out != NULL) {
+        double delta = (start + step) - start;
+        out[0] = start;
+        if (n > 1)
+            out[1] = start + step;
+        for (long i = 2; i < n; i++)
+            out[i] = start + (double)i * delta;
+    }
+    return n;
+}
+
+static double loc_clip01(double u)
+{
+    return u < 0.0 ? 0.0 : u > 1.0 ? 1.0 : u;      /* NaN stays NaN, as numpy.clip */
+}
+
+/* the design's columns at one sample: onset d = (x - x0)/L -> 1, d, shape(d); push-out
+ * r = (xb - x)/L, g = shape(r) -> g, r g (and 1 when the air level is fitted) */
+static int loc_columns(const LocFit *f, double face, double L, int shape, double xi, double *c)
+{
+    if (!f->push_out) {
+        double d = (xi - face) / L, u = loc_clip01(d);
+        c[0] = 1.0;
+        c[1] = d;
+        c[2] = shape == 0 ? u : u * u * (3.0 - 2.0 * u);
+        return 3;
+    }
+    double r = (face - xi) / L, u = loc_clip01(r), g = shape == 0 ? u : u * u;
+    c[0] = g;
+    c[1] = r * g;
+    if (!isnan(f->air))
+        return 2;
+    c[2] = 1.0;
+    return 3;
+}
+
+/* solve M a = r (k <= 3) by Gaussian elimination with partial pivoting, as LAPACK's gesv */
+static void loc_solve(double M[3][3], double *r, int k)
+{
+    for (int j = 0; j < k; j++) {
+        int p = j;
+        for (int i = j + 1; i < k; i++)
+            if (fabs(M[i][j]) > fabs(M[p][j]))
+                p = i;
+        if (p != j) {
+            for (int c = 0; c < k; c++) {
+                double tmp = M[j][c];
+                M[j][c] = M[p][c];
+                M[p][c] = tmp;
+            }
+            double tmp = r[j];
+            r[j] = r[p];
+            r[p] = tmp;
+        }
+        for (int i = j + 1; i < k; i++) {
+            double l = M[i][j] / M[j][j];
+            for (int c = j; c < k; c++)
+                M[i][c] -= l * M[j][c];
+            r[i] -= l * r[j];
+        }
+    }
+    for (int j = k - 1; j >= 0; j--) {
+        for (int c = j + 1; c < k; c++)
+            r[j] -= M[j][c] * r[c];
+        r[j] /= M[j][j];
+    }
+}
+
+/* residual sum of squares of the fit at one face, length and shape (_lstsq_batch): a
+ * column that vanishes only drops out (the ridge of 1e-9 of the trace) */
+static double loc_sse(const LocFit *f, double face, double L, int shape, double FF)
+{
+    double M[3][3] = {{0}}, r[3] = {0}, coef[3], c[3];
+    int k = 3;
+    for (long i = 0; i < f->n; i++) {
+        double Fi = f->F[i] - (isnan(f->air) ? 0.0 : f->air);
+        k = loc_columns(f, face, L, shape, f->x[i], c);
+        for (int a = 0; a < k; a++) {
+            r[a] += c[a] * Fi;
+            for (int b = 0; b < k; b++)
+                M[a][b] += c[a] * c[b];
+        }
+    }
+    double trace = 0.0;
+    for (int a = 0; a < k; a++)
+        trace += M[a][a];
+    for (int a = 0; a < k; a++) {
+        M[a][a] += 1e-9 * trace + 1e-30;
+        coef[a] = r[a];
+    }
+    loc_solve(M, coef, k);
+    double fit = 0.0;
+    for (int a = 0; a < k; a++)
+        fit += coef[a] * r[a];
+    return FF - fit;
+}
+
+/* the best residual over lengths and both shapes at each position, and its length */
+static void loc_best_on(const LocFit *f, const double *pos, long G, const double *lengths, int nL, double FF,
+                        double *best, double *arg)
+{
+    for (long g = 0; g < G; g++) {
+        best[g] = INFINITY;
+        arg[g] = 0.0;
+    }
+    for (int j = 0; j < nL; j++)
+        for (int shape = 0; shape < 2; shape++)
+            for (long g = 0; g < G; g++) {
+                double c = loc_sse(f, pos[g], lengths[j], shape, FF);
+                if (c < best[g])
+                    arg[g] = lengths[j];
+                best[g] = (isnan(best[g]) || isnan(c)) ? NAN : (c < best[g] ? c : best[g]);  /* numpy.minimum */
+            }
+}
+
+/* numpy.argmin: the first NaN, else the first minimum */
+static long loc_argmin(const double *v, long n)
+{
+    long i = 0;
+    for (long j = 0; j < n; j++) {
+        if (isnan(v[j]))
+            return j;
+        if (v[j] < v[i])
+            i = j;
+    }
+    return i;
+}
+
+/* half-width [m] of the positions whose best fit is within bmin + var (at least one grid step) */
+static double loc_interval(const double *pc, const double *bc, long Gc, const double *pf, const double *bf, long Gf,
+                           double bound)
+{
+    double lo = INFINITY, hi = -INFINITY;
+    for (long g = 0; g < Gc + Gf; g++) {
+        double b = g < Gc ? bc[g] : bf[g - Gc], p = g < Gc ? pc[g] : pf[g - Gc];
+        if (b <= bound) {
+            lo = p < lo ? p : lo;
+            hi = p > hi ? p : hi;
+        }
+    }
+    if (!(hi >= lo))
+        return NAN;
+    return LOC_PYMAX(0.5 * (hi - lo), LOC_GRID_STEP);
+}
+
+/* _best_face: the face in [lo, hi] with the smallest residual and its half-width */
+static void loc_best_face(const LocFit *f, double lo, double hi, double *face, double *half)
+{
+    double FF = 0.0;
+    *face = *half = NAN;
+    for (long i = 0; i < f->n; i++) {
+        double Fi = f->F[i] - (isnan(f->air) ? 0.0 : f->air);
+        FF += Fi * Fi;
+    }
+    long Gc = loc_arange(lo, hi + 0.5 * LOC_COARSE_STEP, LOC_COARSE_STEP, NULL);
+    if (Gc <= 0)
+        return;
+    double *pc = malloc((size_t)(3 * Gc + 3 * 64) * sizeof(double));
+    if (pc == NULL)
+        return;
+    double *bc = pc + Gc, *Lc = bc + Gc, *pf = Lc + Gc, *bf = pf + 64, *Lf = bf + 64;
+    loc_arange(lo, hi + 0.5 * LOC_COARSE_STEP, LOC_COARSE_STEP, pc);
+    loc_best_on(f, pc, Gc, f->grid->lengths, f->grid->n_lengths, FF, bc, Lc);
+    long i = loc_argmin(bc, Gc);
+    double lengths[LOC_N_FINE];
+    for (int j = 0; j < LOC_N_FINE; j++)
+        lengths[j] = Lc[i] * f->grid->fine[j];
+    double a = LOC_PYMAX(lo, pc[i] - 2 * LOC_COARSE_STEP), b = LOC_PYMIN(hi, pc[i] + 2 * LOC_COARSE_STEP);
+    long Gf = loc_arange(a, b + 0.5 * LOC_GRID_STEP, LOC_GRID_STEP, NULL);
+    if (Gf > 0 && Gf <= 64) {       /* at most 4 coarse steps of fine steps (41) */
+        loc_arange(a, b + 0.5 * LOC_GRID_STEP, LOC_GRID_STEP, pf);
+        loc_best_on(f, pf, Gf, lengths, LOC_N_FINE, FF, bf, Lf);
+        long j = loc_argmin(bf, Gf);
+        double bmin = bf[j], var = bmin / (double)LOC_PYMAX(f->n - 4, 1L);
+        *face = pf[j];
+        *half = loc_interval(pc, bc, Gc, pf, bf, Gf, bmin + var);
+    }
+    free(pc);
+}
+
+/* air_run: [i0, i1) of the longest run at the air level between two cut levels, or 0 */
+static int loc_air_run(const double *F, long n, double air, double *scratch, long *i0, long *i1)
+{
+    long k = LOC_PYMAX((long)LOC_MIN_SEGMENT, n / 5);
+    double low = LOC_AIR_SHARE * LOC_PYMIN(loc_median(F, k, scratch) - air, loc_median(F + n - k, k, scratch) - air);
+    if (!(low > 0.0))
+        return 0;
+    long best = 0, start = -1;
+    *i0 = *i1 = 0;
+    for (long i = 0; i <= n; i++) {
+        int below = i < n && F[i] - air < low;
+        if (below && start < 0)
+            start = i;
+        if (!below && start >= 0) {
+            if (i - start > best) {
+                best = i - start;
+                *i0 = start;
+                *i1 = i;
+            }
+            start = -1;
+        }
+    }
+    if (best == 0 || *i1 - *i0 < 2 * LOC_MIN_SEGMENT
+            || !(loc_median(F + *i0, *i1 - *i0, scratch) - air < 0.5 * low))
+        return 0;
+    return 1;
+}
+
+/* floor_gap: [i0, i1) of the longest run below cut_floor [N] after a cut level (the first
+ * fifth's median above it), or 0: a window cut short to a thin lower layer that ends in the
+ * gap or on the lower layer's first rise (event_locator.floor_gap) */
+static int loc_floor_gap(const double *F, long n, double cut_floor, double *scratch, long *i0, long *i1)
+{
+    if (!isfinite(cut_floor))
+        return 0;
+    long k = LOC_PYMAX((long)LOC_MIN_SEGMENT, n / 5);
+    if (!(loc_median(F, k, scratch) > cut_floor))
+        return 0;
+    long best = 0, start = -1;
+    *i0 = *i1 = 0;
+    for (long i = 0; i <= n; i++) {
+        int below = i < n && F[i] < cut_floor;
+        if (below && start < 0)
+            start = i;
+        if (!below && start >= 0) {
+            if (i - start > best) {          /* the first of the longest, as numpy.argmax */
+                best = i - start;
+                *i0 = start;
+                *i1 = i;
+            }
+            start = -1;
+        }
+    }
+    return best > 0 && *i1 - *i0 >= 2 * LOC_MIN_SEGMENT && *i0 >= 2 * LOC_MIN_SEGMENT;
+}
+
+/* the samples with lo <= x <= hi (a numpy mask), written to xo, Fo; returns their count */
+static long loc_select(const double *x, const double *F, long n, double lo, double hi, double *xo, double *Fo)
+{
+    long m = 0;
+    for (long i = 0; i < n; i++)
+        if (x[i] >= lo && x[i] <= hi) {
+            xo[m] = x[i];
+            Fo[m++] = F[i];
+        }
+    return m;
+}
+
+/* a gap: the upper layer's free face and the lower one's onset around the air run */
+static void loc_gap(const double *x, const double *F, long n, double air, long g0, long g1, int open_end,
+                    const LocGrid *engage, const LocGrid *push, double *x_loc, double *dx)
+{
+    double mid = 0.5 * (x[g0] + x[g1 - 1]);
+    double *xu = malloc((size_t)(4 * n) * sizeof(double));
+    if (xu == NULL)
+        return;
+    double *Fu = xu + n, *xd = Fu + n, *Fd = xd + n;
+    long n_up = loc_select(x, F, n, -INFINITY, mid, xu, Fu), n_down = loc_select(x, F, n, mid, INFINITY, xd, Fd);
+    if (n_up >= 2 * LOC_MIN_SEGMENT && n_down >= 2 * LOC_MIN_SEGMENT) {
+        LocFit up = {xu, Fu, n_up, 1, air, push}, down = {xd, Fd, n_down, 0, NAN, engage};
+        double lo, dlo, hi, dhi;
+        loc_best_face(&up, x[0], mid, &lo, &dlo);
+        if (open_end) {                      /* the window ends in the gap: its last sample bounds it */
+            hi = x[n - 1];
+            dhi = 0.0;
+        } else {
+            loc_best_face(&down, mid, x[n - 1], &hi, &dhi);
+        }
+        *x_loc = 0.5 * (lo + hi);
+        *dx = 0.5 * fabs(hi - lo) + LOC_PYMAX(dlo, dhi);
+    }
+    free(xu);
+}
+
+/* event_locator.locate: position [m] and uncertainty [m] of an event of ``kind`` from
+ * samples x [m] (increasing), F [N]; NaN when there are too few. cut_floor [N]: NaN, or an
+ * interface window cut short to a thin layer below (event_locator.floor_gap) */
+void event_locate(int kind, const double *x_in, const double *F_in, long n_in, double air, double x_trig,
+                  double cut_floor, const LocGrid *engage, const LocGrid *push, double *x_loc, double *dx)
+{
+    *x_loc = *dx = NAN;
+    double *x = malloc((size_t)(3 * (n_in > 0 ? n_in : 1)) * sizeof(double));
+    if (x == NULL)
+        return;
+    double *F = x + n_in, *scratch = F + n_in;
+    long n = 0;
+    for (long i = 0; i < n_in; i++)
+        if (isfinite(x_in[i]) && isfinite(F_in[i])) {
+            x[n] = x_in[i];
+            F[n++] = F_in[i];
+        }
+    long g0, g1;
+    if (n < 5 * LOC_MIN_SEGMENT * 2) {
+        free(x);
+        return;
+    }
+    double x0 = x[0], x1 = x[n - 1];
+    LocFit onset = {x, F, n, 0, NAN, engage}, exit_ = {x, F, n, 1, NAN, push};
+    if (kind == LOC_EXIT)
+        loc_best_face(&exit_, x0, x1, x_loc, dx);
+    else if (kind == LOC_INTERFACE && loc_air_run(F, n, air, scratch, &g0, &g1))
+        loc_gap(x, F, n, air, g0, g1, 0, engage, push, x_loc, dx);
+    else if (kind == LOC_INTERFACE && loc_floor_gap(F, n, cut_floor, scratch, &g0, &g1))
+        loc_gap(x, F, n, NAN, g0, g1, n - g1 < 2 * LOC_MIN_SEGMENT, engage, push, x_loc, dx);   /* air fitted */
+    else
+        loc_best_face(&onset, x0, LOC_PYMIN(x_trig, x1), x_loc, dx);
+    free(x);
+}

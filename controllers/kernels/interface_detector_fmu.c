@@ -1,0 +1,209 @@
+/* The InterfaceDetector's C step as it runs inside its exported FMU (issue #21):
+ * kernels/interface_detector.c built self-contained -- its own dot product for the
+ * regression's prediction, the localisation fit of event_locator.py ported to C
+ * (kernels/event_locator.c) -- on a state that holds its own arrays.
+ *
+ * The in-process block keeps its BLAS ddot and its Python fit (bit-identical to the Python
+ * step). This build sums the prediction in the order of the BLAS kernel numpy uses on AVX2
+ * machines (detector_dot) and fits as the Python does, its solves done otherwise: measured,
+ * the same doubles as the in-process step on this project's machines (docs/export.md).
+ *
+ * State: the Detector, then the constants only this build needs, then its arrays, laid
+ * out one after the other (their sizes follow from N and N_min), so that the FMU's state
+ * is one block of memory it can copy (get/set FMU state) and the pointers are set from
+ * it at every step. Mirrored by controllers/detector_kernel.py:export_state_type.
+ */
+#define DETECTOR_SELF_CONTAINED 1
+#include "event_locator.c"
+#include "interface_detector.c"
+
+typedef struct {
+    Detector d;
+    double observer_delay;                        /* s, the observer's lag (the fit's positions) */
+    double engage_lengths[LOC_N_ENGAGE];          /* m, event_locator.ENGAGE_LENGTHS */
+    double engage_fine[LOC_N_FINE];               /* around the best engage length */
+    double push_out_lengths[LOC_N_PUSH_OUT];      /* m, event_locator.PUSH_OUT_LENGTHS */
+    double push_out_fine[LOC_N_FINE];
+    /* weights of the windows N_min..N, window (N), |F~| ring (2 N), history t, x, F */
+    double data[];
+} DetectorFMU;
+
+/* The prediction W . buf in the summation order of OpenBLAS's Haswell/Zen ddot kernel, the
+ * one numpy calls on an AVX2 machine: over the first n & -16 terms four accumulators of four
+ * lanes, each term fused (fma); each accumulator's high pair added onto its low pair, the
+ * four pairs added (0 + 1) + (2 + 3), the two lanes added; then the rest left to right.
+ * Written in portable C (fma() is exact everywhere), so the FMU gives the same doubles on
+ * any platform, and those of the in-process step where numpy uses that kernel
+ * (detector_kernel.export_dot_is_numpys says whether it does here). */
+static double detector_dot(long n, const double *w, const double *buf)
+{
+    double acc[4][4] = {{0.0}}, dot = 0.0;
+    long n16 = n & -16, i;
+    for (i = 0; i < n16; i += 16)
+        for (int a = 0; a < 4; a++)
+            for (int l = 0; l < 4; l++)
+                acc[a][l] = fma(w[i + 4 * a + l], buf[i + 4 * a + l], acc[a][l]);
+    if (n16 > 0) {
+        double pair[4][2];
+        for (int a = 0; a < 4; a++)
+            for (int l = 0; l < 2; l++)
+                pair[a][l] = acc[a][l] + acc[a][l + 2];
+        double lo = (pair[0][0] + pair[1][0]) + (pair[2][0] + pair[3][0]);
+        double hi = (pair[0][1] + pair[1][1]) + (pair[2][1] + pair[3][1]);
+        dot = lo + hi;
+    }
+    for (; i < n; i++)
+        dot += buf[i] * w[i];
+    return dot;
+}
+
+/* for the check that this dot is numpy's here */
+double interface_detector_fmu_dot(long n, const double *w, const double *buf)
+{
+    return detector_dot(n, w, buf);
+}
+
+/* numpy.interp(q, xp, fp) at one point, xp increasing */
+static double detector_interp(double q, const double *xp, const double *fp, long n)
+{
+    if (isnan(q))
+        return q;
+    if (q < xp[0])
+        return fp[0];
+    if (q > xp[n - 1])
+        return fp[n - 1];
+    long lo = 0, hi = n - 1;            /* xp[lo] <= q <= xp[hi] */
+    while (hi - lo > 1) {
+        long mid = (lo + hi) / 2;
+        if (xp[mid] <= q)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    if (q == xp[n - 1])
+        return fp[n - 1];
+    if (xp[lo] == q)
+        return fp[lo];
+    double slope = (fp[lo + 1] - fp[lo]) / (xp[lo + 1] - xp[lo]);
+    double v = slope * (q - xp[lo]) + fp[lo];
+    if (isnan(v)) {
+        v = slope * (q - xp[lo + 1]) + fp[lo + 1];
+        if (isnan(v) && fp[lo] == fp[lo + 1])
+            v = fp[lo];
+    }
+    return v;
+}
+
+/* event_locator.time_at: first time [s] the position reached x_loc, interpolated */
+static double detector_time_at(const double *t, const double *x, long n, double x_loc)
+{
+    if (!isfinite(x_loc))
+        return NAN;
+    for (long i = 0; i < n; i++) {
+        if (!(x[i] >= x_loc))
+            continue;
+        if (i == 0 || x[i] == x[i - 1])
+            return t[i];
+        return t[i - 1] + (t[i] - t[i - 1]) * (x_loc - x[i - 1]) / (x[i] - x[i - 1]);
+    }
+    return NAN;
+}
+
+/* the fit's samples: the history oldest first (t, x, F), each force sample against where
+ * the tool was when the observer saw it (xs) */
+static long detector_history(const DetectorFMU *s, double h_n, double *t, double *x, double *F, double *xs)
+{
+    long written = (long)h_n, n = written < DET_HISTORY ? written : DET_HISTORY;
+    for (long j = 0; j < n; j++) {
+        long i = (written - n + j) % DET_HISTORY;
+        t[j] = s->d.h_t[i];
+        x[j] = s->d.h_x[i];
+        F[j] = s->d.h_F[i];
+    }
+    for (long j = 0; j < n; j++)
+        xs[j] = s->observer_delay > 0.0 ? detector_interp(t[j] - s->observer_delay, t, x, n) : x[j];
+    return n;
+}
+
+/* InterfaceDetector._fit: out = x_loc [m], t_loc [s], dx [m], F_air [N] */
+static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
+                            double *out)
+{
+    const DetectorFMU *s = (const DetectorFMU *)d;
+    out[0] = out[1] = out[2] = out[3] = NAN;
+    double *t = malloc(6 * DET_HISTORY * sizeof(double));
+    if (t == NULL)
+        return;
+    double *x = t + DET_HISTORY, *F = x + DET_HISTORY, *xs = F + DET_HISTORY, *xsel = xs + DET_HISTORY;
+    double *Fsel = xsel + DET_HISTORY;
+    long n = detector_history(s, h_n, t, x, F, xs), m = 0;
+    for (long j = 0; j < n; j++)
+        if (xs[j] >= lo && xs[j] <= hi) {
+            xsel[m] = xs[j];
+            Fsel[m++] = F[j];
+        }
+    int nl = (int)d->n, kind = k == 0 ? LOC_ENTRY : k == nl ? LOC_EXIT : LOC_INTERFACE;
+    LocGrid engage = {s->engage_lengths, s->engage_fine, LOC_N_ENGAGE};
+    LocGrid push = {s->push_out_lengths, s->push_out_fine, LOC_N_PUSH_OUT};
+    /* an interface window cut short to a thin layer below may end in the gap: air is below
+     * the engagement floor of both layers around it (InterfaceDetector._fit) */
+    double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0 && d->loc_after[k - 1] < d->max_gap + d->locate_margin
+        ? LOC_PYMIN(d->floor[k - 1], d->floor[k]) : NAN;
+    event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, &engage, &push, &out[0], &out[2]);
+    if (k == 0 && isfinite(out[0])) {
+        long a = 0;         /* the samples in air before the entry, in the window */
+        for (long j = 0; j < n; j++)
+            if (xs[j] >= lo && xs[j] <= hi && xs[j] < out[0] - 0.5 * d->locate_margin)
+                xsel[a++] = F[j];
+        out[3] = loc_mean(xsel, a);
+    }
+    out[1] = detector_time_at(t, x, n, out[0]);
+    free(t);
+}
+
+/* the arrays follow the constants, in the order of DetectorFMU's comment */
+static void detector_attach(DetectorFMU *s)
+{
+    long N = (long)s->d.N, Nm = (long)s->d.N_min;
+    double *p = s->data;
+    s->d.W = p;
+    p += (N * (N + 1) - Nm * (Nm - 1)) / 2;
+    s->d.buf = p;
+    p += N;
+    s->d.err = p;
+    p += 2 * N;
+    s->d.h_t = p;
+    s->d.h_x = p + DET_HISTORY;
+    s->d.h_F = p + 2 * DET_HISTORY;
+    s->d.dot = NULL;
+    s->d.locate = NULL;
+}
+
+/* one sample; u: F [N], x [m]; y: the block's outputs (interface_detector.py _OUTPUTS) */
+void interface_detector_fmu_step(DetectorFMU *s, double t, const double *u, double *y)
+{
+    detector_attach(s);
+    interface_detector_step(&s->d, t, u, y);
+}
+
+/* the localisation alone, for tests against event_locator.locate: kind 0 entry, 1
+ * interface, 2 exit; out = x_loc, dx [m]; tables as in DetectorFMU */
+void event_locate_tables(int kind, const double *x, const double *F, long n, double air, double x_trig,
+                         double cut_floor, const double *tables, double *out)
+{
+    LocGrid engage = {tables, tables + LOC_N_ENGAGE, LOC_N_ENGAGE};
+    LocGrid push = {tables + LOC_N_ENGAGE + LOC_N_FINE, tables + LOC_N_ENGAGE + LOC_N_FINE + LOC_N_PUSH_OUT,
+                    LOC_N_PUSH_OUT};
+    event_locate(kind, x, F, n, air, x_trig, cut_floor, &engage, &push, &out[0], &out[1]);
+}
+
+/* numpy.mean as the fit spells it, for the test that it is numpy's to the bit */
+double event_locator_mean(const double *a, long n)
+{
+    return loc_mean(a, n);
+}
+
+long interface_detector_fmu_state_size(void)
+{
+    return (long)sizeof(DetectorFMU);
+}

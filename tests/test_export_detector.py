@@ -1,0 +1,268 @@
+"""Issue #21: the InterfaceDetector exported as an FMU (kernels/interface_detector_fmu.c).
+
+The in-process block steps in C with numpy's BLAS ddot and calls the Python localisation
+fit back (bit-identical to its Python step); an FMU has neither, so its C step is built
+self-contained: a plain C dot product and the fit of controllers/event_locator.py ported
+to C (kernels/event_locator.c). What is checked here:
+
+* the C fit locates what the Python fit locates, on every window the detector fitted in
+  synthetic holes (air, engagement ramps, gaps, thinning exits, ripple, noise; the cases of
+  tests/test_detector_kernel.py) and on hand-made entry / gap / exit windows: the same
+  position and interval, within 1e-9 mm (measured: the same doubles);
+* the exported step against the in-process step, sample by sample on those holes: every
+  output the same doubles. The exported dot sums in the order of OpenBLAS's AVX2 ddot kernel
+  (portable C); where numpy uses another kernel, the prediction F^ and what is computed
+  from it (F~, F_ref, the relative thresholds) are held to 1e-12 of their peak instead
+  (measured with a plain left-to-right C dot: <= 3.4e-13 N), every event and located
+  position still to the bit;
+* the FMU of the Fang hole's detector passes fmpy validate, its settings are parameters,
+  and driven through FMI it gives the in-process outputs; the Fang hole with all its C
+  blocks as FMUs records the same signals (6 s here, the whole hole under ``-m long``).
+"""
+from __future__ import annotations
+
+import ctypes
+import math
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy.validation import validate_fmu
+
+from drillcosim.controllers import detector_kernel
+from drillcosim.controllers import interface_detector as idm
+from drillcosim.controllers.event_locator import locate
+from drillcosim.controllers.interface_detector import InterfaceDetector
+from drillcosim.cosim.exchange.export_fmu import export_blocks, has_c_step, with_exported_blocks
+from drillcosim.cosim.loop.algorithm import run
+from drillcosim.cosim.loop.recorder import Recorder
+from drillcosim.cosim.scenario.loader import load_scenario
+from test_detector_kernel import CASES, _trace
+
+ROOT = Path(__file__).resolve().parents[1]
+FANG = ROOT / "scenarios" / "fang_table5_hole.toml"
+MM = 1e-3
+KINDS = {"entry": 0, "interface": 1, "exit": 2}
+# outputs computed from the regression's prediction (the dot product): equal to rounding
+PREDICTION = ("F_pred", "F_err", "F_ref", "thd", "level_mismatch")
+
+
+def _c_locate(kind, x, F, air, x_trig, cut_floor=None):
+    fn = detector_kernel.export_library().event_locate_tables
+    fn.restype = None
+    fn.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_long, ctypes.c_double,
+                   ctypes.c_double, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p]
+    x, F = np.ascontiguousarray(x, float), np.ascontiguousarray(F, float)
+    tables, out = detector_kernel.locator_tables(), np.zeros(2)
+    fn(KINDS[kind], x.ctypes.data, F.ctypes.data, x.size, air, x_trig,
+       math.nan if cut_floor is None else cut_floor, tables.ctypes.data, out.ctypes.data)
+    return float(out[0]), float(out[1])
+
+
+def _assert_same_fit(kind, x, F, air, x_trig, cut_floor=None):
+    py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor)
+    c = _c_locate(kind, x, F, air, x_trig, cut_floor)
+    for a, b in zip(py, c):
+        assert (math.isnan(a) and math.isnan(b)) or abs(a - b) <= 1e-12, (kind, py, c)   # 1e-9 mm
+    return py
+
+
+def test_c_fit_on_hand_made_windows():
+    """An entry ramp, a gap between two layers, a push-out exit, too few samples."""
+    rng = np.random.default_rng(7)
+    x = np.linspace(1.0 * MM, 1.6 * MM, 600)
+    ramp = np.clip((x - 1.3 * MM) / (0.2 * MM), 0.0, 1.0)
+    gap = np.where(x < 1.25 * MM, 5 + 80 * np.clip((1.25 * MM - x) / (0.1 * MM), 0, 1),
+                   5 + 120 * np.clip((x - 1.32 * MM) / (0.1 * MM), 0, 1))
+    windows = {"entry": 5 + 80 * ramp, "interface": gap, "exit": 5 + 80 * np.clip((1.35 * MM - x) / (0.3 * MM), 0, 1)}
+    for kind, F in windows.items():
+        x_loc, dx = _assert_same_fit(kind, x, F + rng.normal(0.0, 1.0, x.size), 5.0, 1.35 * MM)
+        assert math.isfinite(x_loc) and 1.2 * MM < x_loc < 1.4 * MM and dx > 0
+    assert all(math.isnan(v) for v in _c_locate("entry", x[:20], windows["entry"][:20], 5.0, 1.35 * MM))
+
+
+def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
+    """The windows the Python step fitted in the synthetic holes, refitted in C."""
+    calls = []
+
+    def spy(kind, x, F, *, air=0.0, x_trig=None, cut_floor=None):
+        calls.append((kind, np.array(x), np.array(F), air, x_trig, cut_floor))
+        return locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor)
+
+    monkeypatch.setattr(idm, "locate", spy)
+    for settings, trace in CASES.values():
+        det = InterfaceDetector(**settings)
+        det.kernel = "python"
+        det.reset(0.0)
+        for ti, xi, Fi in zip(*_trace(**trace)):
+            det.step(ti, [Fi, xi])
+    kinds = {c[0] for c in calls}
+    assert len(calls) >= 15 and kinds == {"entry", "interface", "exit"}
+    for kind, x, F, air, x_trig, cut_floor in calls:
+        _assert_same_fit(kind, x, F, air, x_trig, cut_floor)
+
+
+def test_c_fit_of_a_window_cut_short_to_a_thin_layer():
+    """An interface window shortened to the layer below (hole plan interface_loc_after):
+    it ends in the gap (open end) or on the lower layer's first rise, with no second cut
+    level in it; the C finds the gap below the engagement floors as event_locator.floor_gap."""
+    rng = np.random.default_rng(11)
+    x = np.linspace(1.0 * MM, 1.5 * MM, 500)
+    upper = 5 + 95 * np.clip((1.25 * MM - x) / (0.15 * MM), 0, 1)          # pushed out to air at 1.25 mm
+    for rise_at in (None, 1.42 * MM):                                        # gap to the end / a first rise
+        F = upper + (0 if rise_at is None else 15 * np.clip((x - rise_at) / (0.2 * MM), 0, 1))
+        F = F + rng.normal(0, 0.5, x.size)
+        x_py, dx_py = _assert_same_fit("interface", x, F, 5.0, 1.2 * MM, cut_floor=30.0)
+        assert 1.2 * MM < x_py < (rise_at or 1.5 * MM) + 0.01 * MM          # in the gap
+        assert math.isfinite(dx_py)
+
+
+def test_the_c_mean_is_numpy_s():
+    """The entry's air level is numpy's pairwise mean, to the bit."""
+    fn = detector_kernel.export_library().event_locator_mean
+    fn.restype, fn.argtypes = ctypes.c_double, [ctypes.c_void_p, ctypes.c_long]
+    rng = np.random.default_rng(2)
+    for n in [*range(1, 300), 1000, 4096]:
+        a = rng.normal(20.0, 5.0, n)
+        assert fn(a.ctypes.data, n) == float(np.mean(a)), n
+
+
+def _exported_step(det):
+    """The exported C step on a copy of ``det``'s state (reset), as a function of (t, u)."""
+    fn = detector_kernel.export_library().interface_detector_fmu_step
+    fn.restype, fn.argtypes = None, [ctypes.c_void_p, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p]
+    state = det.c_export_kernel().state
+    u, y = (ctypes.c_double * 2)(), (ctypes.c_double * len(det.outputs))()
+
+    def step(t, inputs):
+        u[0], u[1] = inputs
+        fn(ctypes.addressof(state), t, u, y)
+        return y[:]
+    return step
+
+
+def _assert_agree(names, a, b):
+    """Every output the same doubles. Where the exported dot is not numpy's (numpy on another
+    BLAS kernel than the AVX2 one), those computed from the prediction: within 1e-12 of
+    their peak (and NaN where the other is)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    exact = detector_kernel.export_dot_is_numpys()
+    for j, name in enumerate(names):
+        if exact or name not in PREDICTION:
+            assert np.array_equal(a[:, j], b[:, j], equal_nan=True), name
+            continue
+        assert np.array_equal(np.isnan(a[:, j]), np.isnan(b[:, j])), name
+        peak = np.nanmax(np.abs(a[:, j])) if np.isfinite(a[:, j]).any() else 0.0
+        assert np.nanmax(np.abs(a[:, j] - b[:, j]), initial=0.0) <= 1e-12 * max(peak, 1.0), name
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_exported_step_agrees_with_the_in_process_step(case):
+    settings, trace = CASES[case]
+    det = InterfaceDetector(**settings)
+    assert det.c_kernel is not None and det.c_exportable
+    exported = _exported_step(det)
+    t, x, F = _trace(**trace)
+    ys = [det.step(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
+    ye = [exported(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
+    _assert_agree(det.output_names(), ys, ye)
+    assert det.flag == det.n + 1 or case == "plan_mismatch_fails"
+
+
+@pytest.fixture(scope="module")
+def fang_detector_fmu(tmp_path_factory):
+    sc = load_scenario(FANG)
+    (ex, fmu), = export_blocks(sc, ["detector"], tmp_path_factory.mktemp("det"), 3)
+    return sc, ex, fmu
+
+
+def test_fang_detector_fmu_validates_and_carries_its_settings(fang_detector_fmu):
+    sc, ex, fmu = fang_detector_fmu
+    assert validate_fmu(str(fmu)) == []
+    params = {v.name: v.start for v in ex.variables if v.causality == "parameter"}
+    assert params["thd1"] == 50.0 and params["thd3"] == -30.0 and params["max_gap"] == 0.05 * MM   # Table 4
+    assert params["win_lo[0]"] == pytest.approx(0.5 * MM)          # surface 1 mm - tolerance 0.5 mm
+    with zipfile.ZipFile(fmu) as zf:
+        names = set(zf.namelist())
+    assert {"sources/interface_detector_fmu.c", "sources/interface_detector.c", "sources/event_locator.c"} <= names
+
+
+def test_fang_detector_fmu_through_fmi_gives_the_in_process_outputs(fang_detector_fmu):
+    """The FMU (fmpy, FMI 3.0) and the scenario's block on a synthetic Fang hole: the same
+    events and located positions; a parameter set on the FMU takes effect."""
+    from drillcosim.cosim.blocks.fmu_block import FMUBlock
+    sc, _ex, fmu = fang_detector_fmu
+    det = sc.system.blocks["detector"]
+    det.reset(0.0)
+    t, x, F = _trace(levels=(110.0, 380.0), thick_mm=(5.0, 4.5), gaps_mm=(0.0, 0.05))
+    blk = FMUBlock(str(fmu))
+    blk.reset(0.0)
+    ys = [det.step(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
+    yf = [blk.step(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
+    _assert_agree(det.output_names(), ys, yf)
+    assert det.flag == 3 and math.isfinite(det.loc["interface1"][0])
+    deaf = FMUBlock(str(fmu), parameters={"thd1": 1e6})               # no entry with a 1 MN threshold
+    deaf.reset(0.0)
+    last = [deaf.step(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)][-1]
+    assert last[det.output_names().index("flag")] == 0.0
+
+
+def _fang_with_fmus(tmp: Path, stop_time: float | None, only: list | None = None):
+    """The Fang hole with its C blocks (or ``only`` those) as FMUs against the in-process run."""
+    ov = {} if stop_time is None else {"scenario.stop_time": stop_time}
+    sc = load_scenario(FANG, ov)
+    names = only or [n for n, b in sc.system.blocks.items() if has_c_step(b, sc.start_time)]
+    assert "detector" in names and all(has_c_step(sc.system.blocks[n], sc.start_time) for n in names)
+    fmus = {ex.name: p for ex, p in export_blocks(sc, names, tmp, 3)}
+    a = run(sc.system, sc.stop_time, Recorder(["*"], 1))
+    sc2 = with_exported_blocks(FANG, fmus, ov)
+    b = run(sc2.system, sc2.stop_time, Recorder(["*"], 1))
+    assert a.signals == b.signals
+    det = [s for s in a.signals if s.startswith("detector.")]
+    names = [s.split(".", 1)[1] for s in det]
+    _assert_agree(names, np.column_stack([a[s] for s in det]), np.column_stack([b[s] for s in det]))
+    for s in a.signals:               # the plant and every other block: the same doubles
+        if not s.startswith("detector."):
+            assert np.array_equal(a[s], b[s], equal_nan=True), s
+    return a
+
+
+def test_fang_hole_start_with_fmus(tmp_path):
+    """The approach, the entry (3.54 s) and its localisation (known at 5.04 s)."""
+    a = _fang_with_fmus(tmp_path, 6.0, ["detector"])
+    assert a["detector.flag"][-1] == 1 and math.isfinite(a["detector.x_entry_loc"][-1])
+
+
+@pytest.mark.long
+def test_fang_hole_with_fmus(tmp_path):
+    """The whole hole (80 s), every C block an FMU: entry, interface, exit, localised."""
+    a = _fang_with_fmus(tmp_path, None)
+    assert a["detector.flag"][-1] == 3 and a["detector.fail"][-1] == 0
+    assert np.isfinite([a[f"detector.x_{ev}_loc"][-1] for ev in ("entry", "interface1", "exit")]).all()
+
+
+def test_the_detector_fmu_builds_from_its_own_sources(fang_detector_fmu, tmp_path):
+    """The wrapper, the self-contained step and the two files it includes, compiled alone
+    (strict C99) against the FMI headers: the FMI entry points are there."""
+    import subprocess
+
+    import fmpy
+    _sc, ex, fmu = fang_detector_fmu
+    src = tmp_path / "unpacked"
+    with zipfile.ZipFile(fmu) as zf:
+        zf.extractall(src)
+    headers = Path(fmpy.__file__).resolve().parent / "c-code"
+    lib = tmp_path / "rebuilt.so"
+    subprocess.run(["gcc", "-std=c99", "-shared", "-fPIC", "-O2", f"-I{headers}", str(src / "sources" / "detector.c"),
+                    "-o", str(lib), "-lm"], check=True, capture_output=True, text=True)
+    syms = subprocess.run(["nm", "-D", "--defined-only", str(lib)], capture_output=True, text=True, check=True).stdout
+    assert all(f" {name}\n" in syms for name in ("fmi3InstantiateCoSimulation", "fmi3DoStep", "fmi3GetFloat64"))
+
+
+def test_a_changed_length_table_is_named(monkeypatch):
+    """event_locator.py's grids and the C port must have the same sizes: else the error says which."""
+    from drillcosim.controllers import event_locator
+    monkeypatch.setattr(event_locator, "ENGAGE_LENGTHS", np.geomspace(0.01e-3, 0.6e-3, 27))
+    with pytest.raises(ValueError, match=r"event_locator.ENGAGE_LENGTHS has 27 lengths, kernels/event_locator.c"):
+        detector_kernel.locator_tables()
