@@ -518,13 +518,13 @@ def with_exported_blocks(path, fmus: dict, overrides: dict | None = None):
     sample period and order): what the blocks do in drillcosim, done by the FMUs."""
     from drillcosim.cosim.scenario.paths import scenario_path
     from drillcosim.cosim.scenario.files import Origins, load_raw
-    from drillcosim.cosim.scenario.build import _expand, build
+    from drillcosim.cosim.scenario.build import expand_sections, build
     from drillcosim.cosim.scenario.checks import Checker
     path = scenario_path(path)
     origins = Origins()
     # a plug-in's sections first (they fill in the blocks' settings), so that the replaced
     # blocks keep only the FMU
-    raw = _expand(load_raw(path, overrides, origins), Checker(str(path), origins))
+    raw = expand_sections(load_raw(path, overrides, origins), Checker(str(path), origins))
     for name, fmu in fmus.items():
         if name not in raw.get("blocks", {}):
             raise ExportError(f"{path}: no block '{name}' to replace by {fmu}")

@@ -228,7 +228,7 @@ def _function_needs(fn, spec: dict, key: str, positional: int, c: "Checker", che
     return out
 
 
-def _expand(raw: dict, c: Checker) -> dict:
+def expand_sections(raw: dict, c: Checker) -> dict:
     """Sections a plug-in owns (:mod:`drillcosim.cosim.scenario.plugins`) turned into ordinary ones."""
     for section, expand in registry().expanders.items():
         if section in raw:
@@ -413,7 +413,7 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
     of a merged scenario comes from, for error messages and for FMU paths relative to the
     file that wrote them.
     """
-    raw = _expand(raw, Checker(file, origins))
+    raw = expand_sections(raw, Checker(file, origins))
     check_shape(raw, file, origins)
     c = Checker(file, origins)
     sc = raw["scenario"]
