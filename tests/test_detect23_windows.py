@@ -22,16 +22,21 @@ CFRP_TI = ROOT / "scenarios" / "stacks" / "cfrp_ti.toml"
 MM = 1e-3
 
 
-def test_thin_layer_below_a_gapped_interface_loads_with_a_shorter_window():
-    """Ti 1.2 mm at its thinnest at 9 mm/min below CFRP with a 1 mm gap tolerance: the old
-    check asked gap_tolerance + locate_margin = 1.45 mm of it and refused the plan; the
-    window now ends where the layer leaves the detector its 1 s restart window
-    (1.2 mm - 1 s x 0.15 mm/s = 1.05 mm)."""
+def test_thin_layer_below_an_interface_gets_a_shorter_window_or_is_refused():
+    """Ti below CFRP at 9 mm/min with a 1 mm gap tolerance. 1.5 mm at its thinnest holds
+    the 1.45 mm (gap_tolerance + locate_margin) in which detection after an interface is
+    validated, but not that plus the detector's 1 s restart window: the window ends at
+    1.5 - 1 s x 0.15 mm/s = 1.35 mm. 1.2 mm is refused, naming the layer: in the wide
+    Monte Carlo such plans failed detection on 9 of 28 holes (drilling/hole_plan.py)."""
+    from drillcosim.cosim.errors import ScenarioError
     layers = [{"material": "cfrp", "thickness": 5.0e-3, "tolerance": 0.6e-3},
-              {"material": "ti", "thickness": 1.4e-3, "tolerance": 0.2e-3}]
+              {"material": "ti", "thickness": 1.7e-3, "tolerance": 0.2e-3}]
     sc = load_scenario(CFRP_TI, overrides={"hole.layers": layers, "hole.gap_tolerance": 1.0e-3})
     det = sc.raw["blocks"]["detector"]["settings"]
-    assert det["interface_loc_after"] == pytest.approx([1.2e-3 - 1.0 * 1.5e-4])
+    assert det["interface_loc_after"] == pytest.approx([1.5e-3 - 1.0 * 1.5e-4])
+    layers[1] = {"material": "ti", "thickness": 1.4e-3, "tolerance": 0.2e-3}
+    with pytest.raises(ScenarioError, match=r"hole.layers\[1\].thickness.*1.20 mm.*validated"):
+        load_scenario(CFRP_TI, overrides={"hole.layers": layers, "hole.gap_tolerance": 1.0e-3})
     # a thick layer keeps the full window (the default, bit-identical to before)
     sc = load_scenario(CFRP_TI, overrides={"hole.gap_tolerance": 1.0e-3})
     assert sc.raw["blocks"]["detector"]["settings"]["interface_loc_after"] == pytest.approx([1.45e-3])
@@ -73,15 +78,15 @@ def test_window_ending_on_the_lower_layer_is_no_gap():
     assert floor_gap(F, FLOOR) is None
 
 
-def test_wide_draw_refuses_under_five_percent():
-    """Issue 23's bar: < 5 % of the drawn plans refused at load. 1000 draws of the wide
-    generator (seed 7) through the loader's checks: with the 1.45 mm window after every
-    interface 14.3 % were refused (2000 draws; 282 of 286 that window), now only a layer
-    too thin for the regression window or the exit's window, or too few orbits."""
+def test_wide_draw_refusals_are_named_and_counted():
+    """Issue 23 asks for < 5 % of the drawn plans refused at load; the loader refuses
+    more (1000 draws of the wide generator, seed 7), nearly all for the validated travel
+    below an interface, which the plans that failed detection need (drilling/hole_plan.py).
+    Every refusal names its key; the share is what docs/stacks.md says (14 %)."""
     from drillcosim.analysis import stack_montecarlo as mc
     rng = np.random.default_rng(7)
     base = mc.plan_of("cfrp_ti")
     reasons = [mc.plan_refusal(base, *mc._wide_plan(rng)[:2]) for _ in range(1000)]
     refused = [r for r in reasons if r is not None]
-    assert len(refused) / len(reasons) < 0.05, refused[:5]
-    assert not any("gap_tolerance" in r for r in refused)
+    assert all("hole." in r for r in refused), refused[:5]
+    assert 0.10 < len(refused) / len(reasons) < 0.18
