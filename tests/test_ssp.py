@@ -34,8 +34,8 @@ FIG7 = ROOT / "scenarios" / "keio_fig7_aluminium_force_control.toml"
 FIG7_SIGNALS = [("observer", "F_thrust_hat"), ("controller", "i_ref"), ("controller", "mode"), ("stage", "z_enc")]
 
 
-def _libcosim(path: Path, signals: list[tuple[str, str]], n: int) -> np.ndarray:
-    """libcosim runs package ``path`` for ``n`` steps; the signals after each step."""
+def _libcosim(path: Path, signals: list[tuple[str, str]], n: int, every: int = 1) -> np.ndarray:
+    """libcosim runs package ``path`` for ``n`` rows of ``every`` steps; the signals after each row."""
     pytest.importorskip("libcosimpy", reason="libcosimpy (test-only dependency) is not installed")
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
@@ -48,7 +48,7 @@ def _libcosim(path: Path, signals: list[tuple[str, str]], n: int) -> np.ndarray:
     vr = {i: {v.name.decode(): v.reference for v in ex.slave_variables(k)} for i, k in idx.items()}
     rows = []
     for _ in range(n):
-        ex.step()
+        ex.step(every)
         rows.append([obs.last_real_values(idx[i], [vr[i][v]])[0] for i, v in signals])
     return np.array(rows)
 
@@ -260,22 +260,9 @@ def fang_ssp(tmp_path_factory):
 
 def _fang_runs(path: Path, seconds: float) -> tuple[np.ndarray, np.ndarray]:
     """(libcosim, drillcosim) runs of the same package: FANG_SIGNALS every EVERY steps."""
-    pytest.importorskip("libcosimpy", reason="libcosimpy (test-only dependency) is not installed")
-    from libcosimpy.CosimExecution import CosimExecution
-    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
-    from libcosimpy.CosimObserver import CosimObserver
-    log_output_level(CosimLogLevel.WARNING)
-    ex = CosimExecution.from_ssp_file(str(path))
-    obs = CosimObserver.create_last_value()
-    ex.add_observer(obs)
-    idx = {s.name.decode(): s.index for s in ex.slave_infos()}
-    vr = {i: {v.name.decode(): v.reference for v in ex.slave_variables(k)} for i, k in idx.items()}
-    rows = []
-    for _ in range(round(seconds / 1e-4) // EVERY):
-        ex.step(EVERY)
-        rows.append([obs.last_real_values(idx[i], [vr[i][v]])[0] for i, v in FANG_SIGNALS])
+    lc = _libcosim(path, FANG_SIGNALS, round(seconds / 1e-4) // EVERY, EVERY)
     ours = _ours(path, FANG_SIGNALS, seconds, round(seconds / 1e-4))[EVERY - 1::EVERY]
-    return np.array(rows), ours
+    return lc, ours
 
 
 def _compare_fang(path: Path, seconds: float) -> None:
