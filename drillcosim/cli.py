@@ -47,15 +47,21 @@ def _shorten(text: str, keep: int = 24) -> str:
     return text if len(text) <= 2 * keep else f"{text[:keep]}...{text[-keep:]} ({len(text)} characters)"
 
 
-def _parse_set(items: list[str]) -> dict:
-    """``KEY=VALUE`` pairs; VALUE is read as a TOML value (3, 0.5, true, "text"), else a string."""
+def _assignments(option: str, items: list[str], what: str) -> dict:
+    """``WHAT=VALUE`` pairs of a repeatable ``option``; VALUE is read as a TOML value (3, 0.5,
+    true, "text", [1, 2]), else kept as text."""
     out = {}
     for item in items or []:
         key, sep, value = item.partition("=")
         if not sep or not key:
-            raise SystemExit(f"--set expects KEY=VALUE, got {item!r}")
-        out[key.strip()] = _toml_value("--set", key.strip(), value)
+            raise SystemExit(f"drillcosim: {option} expects {what}=VALUE, got {item!r}")
+        out[key.strip()] = _toml_value(option, key.strip(), value)
     return out
+
+
+def _parse_set(items: list[str]) -> dict:
+    """``--set KEY=VALUE``: scenario overrides."""
+    return _assignments("--set", items, "KEY")
 
 
 from drillcosim.cosim.scenario.paths import scenario_dirs, scenario_path as _scenario_path   # noqa: E402 (one path rule)
@@ -292,14 +298,8 @@ def _draw_scenario_plots(folder: Path, result) -> int | None:
 
 
 def _start_values(items: list[str]) -> dict:
-    """``NAME=VALUE`` (TOML value: 3, 0.5, true, "text", [1, 2]) -> dict."""
-    out = {}
-    for item in items or []:
-        name, sep, value = item.partition("=")
-        if not sep or not name:
-            raise SystemExit(f"drillcosim: --start-values expects NAME=VALUE, got {item!r}")
-        out[name.strip()] = _toml_value("--start-values", name.strip(), value)
-    return out
+    """``--start-values NAME=VALUE``: FMU start values."""
+    return _assignments("--start-values", items, "NAME")
 
 
 def cmd_simulate(args) -> int:
