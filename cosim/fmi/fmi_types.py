@@ -233,15 +233,19 @@ def typed_reader(fmu, fmi3: bool, variables: list):
     for t, grp, k in groups:
         calls.append(_group_reader(fmu, funcs, comp, fmi3, t, grp, k, buf, a))
         a += k
+    return _worst_of(calls), buf
 
-    def read():
+
+def _worst_of(calls):
+    """One call for the typed groups of an FMU: each group's call, the worst status."""
+    def call():
         worst = 0
         for c in calls:
             s = c()
             if s > worst:
                 worst = s
         return worst
-    return read, buf
+    return call
 
 
 def _group_reader(fmu, funcs, comp, fmi3, t, grp, k, buf, a):
@@ -295,15 +299,7 @@ def typed_writer(fmu, fmi3: bool, variables: list, on_error=None):
     for t, grp, k in groups:
         calls.append(_group_writer(fmu, funcs, comp, fmi3, t, grp, k, buf, a, on_error))
         a += k
-
-    def write():
-        worst = 0
-        for c in calls:
-            s = c()
-            if s > worst:
-                worst = s
-        return worst
-    return write, buf
+    return _worst_of(calls), buf
 
 
 def _group_writer(fmu, funcs, comp, fmi3, t, grp, k, buf, a, on_error):
