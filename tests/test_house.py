@@ -37,8 +37,6 @@ def _modules() -> dict[str, Path]:
             parts = list(rel.with_suffix("").parts)
             if parts[-1] == "__init__":
                 parts = parts[:-1]
-            if name == "drillcosim" and parts and parts[0] in {v for v in PACKAGES.values()}:
-                continue
             out[".".join([name, *parts])] = path
     return out
 

@@ -193,8 +193,9 @@ def _failure_reason(sc: dict) -> str:
     if sc.get("limit_cycle") is True:
         # the line's own amplitude (its band's envelope) when the score gives it: the Hann
         # spectrum's bin reads up to 15 % low between bins
-        amp = sc.get("oscillation_line_N", sc.get("oscillation_amplitude_N"))
-        amp = amp if amp is not None else sc.get("oscillation_amplitude_N")
+        amp = sc.get("oscillation_line_N")
+        if amp is None:
+            amp = sc.get("oscillation_amplitude_N")
         f = sc.get("oscillation_frequency_Hz")
         reason = (f"limit cycle ({amp:.3g} N at {f:.0f} Hz); " if amp is not None and f is not None
                   else "limit cycle; ") + reason

@@ -43,10 +43,11 @@ class Role:
     description: str
 
     def unit_for(self, kind: str) -> str:
-        return self.unit[kind] if isinstance(self.unit, dict) else self.unit
+        return _unit_of(self.unit, kind)
 
 
-def unit_for(unit: str | dict, kind: str) -> str:
+def _unit_of(unit: str | dict, kind: str) -> str:
+    """A contract unit: one SI unit, or ``{kind: unit}`` where it depends on the kind of plant."""
     return unit[kind] if isinstance(unit, dict) else unit
 
 
@@ -139,10 +140,10 @@ class PlantBinding:
                 raise self.error(f"parameter_roles.{name}", f"'{v.name}' (causality {v.causality}) has no "
                                  "start value that can be set; expected a parameter")
             self.bound_parameters[name] = self._convert(f"parameter_roles.{name}", name, v, spec,
-                                                        unit_for(self.contract.parameters[name], self.kind), md)
+                                                        _unit_of(self.contract.parameters[name], self.kind), md)
         for name, spec in self.true_parameters.items():
             v = self._variable(model, f"true_parameters.{name}", spec["variable"])
-            unit = unit_for(self.contract.true_parameters[name], self.kind)
+            unit = _unit_of(self.contract.true_parameters[name], self.kind)
             self.bound_true[name] = self._convert(f"true_parameters.{name}", name, v, spec, unit, md, True)
         return self
 

@@ -52,8 +52,9 @@ def scenario_files(folder) -> list[tuple[str, Path]]:
     out = []
     for f in files:
         try:
-            if isinstance(read_toml(f).get("scenario"), dict):
-                out.append((f.relative_to(folder).with_suffix("").as_posix(), f))
+            listed = isinstance(read_toml(f).get("scenario"), dict)
         except ScenarioError:
-            out.append((f.relative_to(folder).with_suffix("").as_posix(), f))   # describe() says why
+            listed = True                       # unreadable: listed, describe() says why
+        if listed:
+            out.append((f.relative_to(folder).with_suffix("").as_posix(), f))
     return out
