@@ -494,11 +494,13 @@ def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: fl
     tables = {"scenario": {"extends": str(template), "description": "commissioning reference cut (thrust constant)"},
               **plant, "fmus.drive.plant_parameters": block,
               "blocks.controller.settings": controller, "blocks.observer.settings": observer,
-              "[[connections]]": [{"from": "drive.motor_angle", "to": "controller.z", "scale": ds["pitch"]}]}
+              "[[connections]]": [{"from": "drive.motor_angle", "to": "controller.z", "scale": ds["pitch"]}],
+              # the current the levels take: the range the constant is valid over
+              "record": {"signals": [*read_toml(template)["record"]["signals"], "controller.i_ref"]}}
     sc = write_scenario(out / "experiments" / "thrust_calibration.toml", tables)
     res = run_experiment(sc, out / "thrust_calibration")
     levels = window_levels(res["drive.table_position"], res["drive.thrust_dyn"], res["observer.F_dc_hat"],
-                           reference_block_windows(block))
+                           reference_block_windows(block), current=res["controller.i_ref"])
     fit = fit_thrust_constant(levels, ds["force_constant"], unit="N m/A")
     fit["source"] = {"scenario": str(sc), "seed": block.get("seed"), "block": block,
                      "window": {"after_top_m": WINDOW_AFTER_TOP, "before_bottom_m": WINDOW_BEFORE_BOTTOM},
@@ -535,6 +537,8 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
     cal = thrust_calibration(target, raw_friction, mass, out)
     warnings += target["notes"][n_notes:]      # the reference cut's levels, when sized
     kt, scale = ds["force_constant"], 1.0
+    from drillcosim.analysis.calibration import curvature_warning
+    warnings += [w for w in [curvature_warning(cal)] if w]
     if cal is not None:
         from drillcosim.controllers.calibration import rescale_friction
         scale = cal["Kt_n_cal"] / ds["force_constant"]
@@ -671,6 +675,10 @@ def report_table(doc: dict) -> str:
         rows += [("calibration residual", f"{c.get('residual_rms_N', float('nan')):.3g}", "", "", "N", ""),
                  ("calibration intercept (not applied)", f"{c.get('intercept_N', float('nan')):+.3g}",
                   f"+-{c.get('intercept_std_N', float('nan')):.2g}", "", "N", "")]
+        curve = c.get("current_curvature") or {}
+        rows += [(f"force constant F/i at {e['current_A']:.3g} A", f"{e['value']:.5g}", f"+-{e['std']:.2g}", "",
+                  "N/A" if mk == "mass" else "N m/A", "curvature supported" if curve["supported"] else "")
+                 for e in (curve.get("constant_low"), curve.get("constant_high")) if e]
     from drillcosim.analysis.contact_identification import contact_rows
     from drillcosim.analysis.force_margin import gains_rows
     rows += [(q, v, sd, "", u, "") for q, v, sd, u in contact_rows(doc)]

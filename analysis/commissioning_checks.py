@@ -86,10 +86,18 @@ def force_constant_entry(doc: dict, unit: str) -> dict:
     check = dict(cal.get("check") or {"passed": False, "reason": "the reference cut left no check"})
     check["intercept_N"] = {"value": cal.get("intercept_N"), "std": cal.get("intercept_std_N"),
                             "applied": False}
+    curve = cal.get("current_curvature")
+    if curve:
+        check["current_curvature"] = curve
+        if curve.get("beyond_bar"):      # the cause found, before the held-out levels' candidates
+            check.update(passed=False, reason=curve["reason"])
     entry = _entry(cal["Kt_n_cal"], cal.get("Kt_n_cal_std", math.nan), unit, check)
-    # what the constant is valid for: the current range of the reference levels [A]
+    # what the constant is valid for: the current range of the reference levels [A],
+    # measured when the reference cut recorded it
     thrust = [abs(v["F_dyn_mean_N"]) for v in cal.get("levels", [])]
-    if thrust and unit == "N/A":
+    if curve:
+        entry["valid_current_range_A"] = curve["current_range_A"]
+    elif thrust and unit == "N/A":
         entry["valid_current_range_A"] = [min(thrust) / cal["Kt_n_cal"], max(thrust) / cal["Kt_n_cal"]]
     elif thrust:      # ball screw: thrust -> motor current through the data-sheet pitch and efficiency
         k = doc["nominal"]["pitch"] / doc["nominal"]["eta"] / cal["Kt_n_cal"]

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from tests.air_cut_helpers import air_cut_record
 
-from drillcosim.analysis.calibration import held_out_levels
+from drillcosim.analysis.calibration import current_curvature, fit_thrust_constant, held_out_levels
 from drillcosim.analysis.commissioning import fit_air_cut, read_target, report_table
 from drillcosim.analysis.commissioning_paths import absolute_paths, experiments_folder, relative_paths
 from drillcosim.analysis.commissioning_checks import identified_entries
@@ -84,6 +84,50 @@ def test_force_constant_checked_on_held_out_levels():
     assert not close["passed"] and "too close" in close["reason"]
     two = held_out_levels(np.array([30.0, 70.0]), np.array([30.0, 70.0]))
     assert not two["passed"] and "three or more" in two["reason"]
+
+
+def _levels(current_A, thrust, noise_N=0.0, seed=0):
+    """Reference levels of an observer on 24 N/A with a 0.3 N friction offset: its estimate
+    24 i - 0.3, the dynamometer the plant's ``thrust(i)`` (minus the same friction)."""
+    rng = np.random.default_rng(seed)
+    return [{"F_cmd_N": round(float(thrust(i)), 3), "i_mean_A": float(i), "F_thrust_hat_mean_N": 24.0 * i - 0.3,
+             "F_dyn_mean_N": float(thrust(i)) - 0.3 + float(rng.normal(0.0, noise_N))} for i in current_A]
+
+
+def test_saturating_force_constant_is_found_with_its_value_at_both_ends_of_the_current():
+    """The foreign2 stage's iron-core motor (fmus/foreign2/Foreign2ZStage/README.md):
+    Kf(i) = F/i = 23.4 (1 - 0.03 (i / 6 A)^2). Levels over 1.5-5.5 A (35-125 N) with 0.02 N
+    of level noise: the curvature is supported, the constant at each end within 0.2 % of
+    Kf there, and the force constant is unverified, saying so."""
+    kf = lambda i: 23.4 * (1 - 0.03 * (i / 6.0) ** 2)                       # noqa: E731
+    thrust = lambda i: kf(i) * i                                            # noqa: E731
+    fit = fit_thrust_constant(_levels([2.0, 5.5, 1.5, 4.0], thrust, noise_N=0.02), 24.0)
+    curve = fit["current_curvature"]
+    assert curve["supported"] and curve["beyond_bar"] and curve["current_range_A"] == [1.5, 5.5]
+    for end in (curve["constant_low"], curve["constant_high"]):
+        assert end["value"] == pytest.approx(kf(end["current_A"]), rel=0.002)
+    assert curve["reason"].startswith("saturates: 23.")
+    doc = {"calibration": fit, "nominal": {"force_constant": fit["Kt_n_cal"]}}
+    from drillcosim.analysis.commissioning_checks import force_constant_entry
+    entry = force_constant_entry(doc, "N/A")
+    assert entry["status"] == "unverified" and entry["check"]["reason"].startswith("saturates")
+    assert entry["valid_current_range_A"] == [1.5, 5.5]
+
+
+def test_linear_force_constant_keeps_no_curvature_and_bounds_its_change():
+    """A constant 23.28 N/A (the project stage), the same levels and noise: no curvature is
+    kept, the change over the current range is bounded by well under 1 %, the value verified;
+    the saturation over the default levels' 1.4-3.0 A (0.6 %) is within the bar: not unverified."""
+    fit = fit_thrust_constant(_levels([1.7, 3.0, 1.3, 2.6], lambda i: 23.28 * i, noise_N=0.02), 24.0)
+    curve = fit["current_curvature"]
+    assert not curve["supported"] and curve["change_bound_rel"] < 0.005 and "no curvature" in curve["note"]
+    assert fit["check"]["passed"]
+    kf = lambda i: 23.4 * (1 - 0.03 * (i / 6.0) ** 2)                       # noqa: E731
+    small = current_curvature(_levels([1.8, 3.0, 1.4, 2.6], lambda i: kf(i) * i), 24.0)
+    assert small["supported"] and not small["beyond_bar"] and "within the 1 %" in small["note"]
+    three = current_curvature(_levels([1.3, 3.0, 2.0], lambda i: 23.28 * i), 24.0)
+    assert not three["supported"] and "four or more" in three["reason"]
+    assert current_curvature([{k: v for k, v in x.items() if k != "i_mean_A"} for x in fit["levels"]], 24.0) is None
 
 
 # --------------------------------------------------------------------------- the file and the blocks
