@@ -10,7 +10,9 @@ from the command line (``drillcosim commission --stroke/--speeds/--max-accelerat
 * ``max_acceleration`` [m/s2];
 * ``max_current`` [A]: the drive's continuous current (the reference cut's levels stay
   below 80 % of it, through the data-sheet force constant);
-* ``reference_levels`` [N]: the reference cut's thrust levels (linear stage).
+* ``reference_levels`` [N]: the reference cut's thrust levels (linear stage);
+* ``contact_force`` [N], ``contact_spindle_speed`` [rad/s]: the contact experiment's
+  working point (linear stage; else the target scenario's thrust command and spindle speed).
 
 Nothing declared: the templates as they are (the shipped files come from them). The air
 cut keeps its number of speeds, log-spaced over the range; where a speed does not fit the
@@ -25,7 +27,7 @@ import math
 import numpy as np
 
 LIMIT_UNITS = {"stroke": "m", "min_speed": "m/s", "max_speed": "m/s", "max_acceleration": "m/s2",
-               "max_current": "A", "reference_levels": "N"}
+               "max_current": "A", "reference_levels": "N", "contact_force": "N", "contact_spindle_speed": "rad/s"}
 STROKE_USE = 0.9                  # of the stroke the air cut may travel: the position loop's lag and overshoot
 HOLD_MARGIN = 0.05                # s held beyond what the fit drops and needs (segment edges)
 CURRENT_USE = 0.8                 # of max_current the reference cut's highest level may take (friction, dynamics)

@@ -272,6 +272,50 @@ def identify_contact(result, steps, *, force_constant: float, friction, current_
             "frequencies_Hz": [float(x / (2 * math.pi)) for x in w], "warnings": warnings}
 
 
+THRUST_TOLERANCE = 0.1                            # the cut's mean thrust within this of the command, relative
+MIN_THRUST = 4 * AMPLITUDE                         # N: the excitation never lifts the tool off
+
+
+def working_point(target: dict, target_path) -> dict:
+    """The contact experiment's working point: thrust [N], spindle speed [rad/s] and approach
+    feed [m/s], each with its source -- the command line or the binding's ``[datasheet]``
+    (``contact_force``, ``contact_spindle_speed``), else the target scenario (its force
+    controller's ``F_cmd``, its plant's ``spindle_speed``, its trajectory's ``feed_rate``),
+    else the template (Keio Fig. 7: 50 N, 3000 rpm, 1 mm/s). The margin is then checked where
+    the target scenario cuts, not on a fixed aluminium cut."""
+    from drillcosim.cosim.scenario.files import read_toml
+    tmpl = read_toml(TEMPLATE)
+    limits, scen = target.get("limits") or {}, _target_settings(target_path)
+    found = {"thrust": ("contact_force", scen.get("F_cmd"), tmpl["blocks"]["excitation"]["settings"]["offset"]),
+             "spindle_speed": ("contact_spindle_speed", (target.get("plant_parameters") or {}).get("spindle_speed"),
+                               tmpl["fmus"]["drive"]["plant_parameters"]["spindle_speed"]),
+             "feed": (None, scen.get("feed_rate"), tmpl["blocks"]["trajectory"]["settings"]["feed_rate"])}
+    point, source = {}, {}
+    for q, (key, from_target, default) in found.items():
+        if key in limits:
+            point[q], source[q] = float(limits[key]), "command line or [datasheet] " + key
+        elif isinstance(from_target, (int, float)):
+            point[q], source[q] = float(from_target), "target scenario"
+        else:
+            point[q], source[q] = float(default), "template (Keio Fig. 7)"
+    if point["thrust"] < MIN_THRUST:
+        from drillcosim.analysis.commissioning import CommissioningError
+        raise CommissioningError(f"contact experiment: a working thrust of {point['thrust']:g} N ({source['thrust']}) "
+                                 f"is below {MIN_THRUST:g} N: the {AMPLITUDE:g} N excitation would lift the tool off "
+                                 f"the workpiece; give --contact-force N above it")
+    return {**point, "source": source}
+
+
+def excitation_frequencies(spindle_speed: float) -> tuple[float, ...]:
+    """:data:`FREQUENCIES` without those closer to a multiple of the spindle's rotation
+    frequency (``spindle_speed`` [rad/s]) than half the window's resolution (``0.5 / WINDOW``):
+    the cut's own lines there are not the contact's; farther ones are orthogonal over it."""
+    f_rot = spindle_speed / (2 * math.pi)
+    if f_rot <= 0:
+        return FREQUENCIES
+    return tuple(f for f in FREQUENCIES if abs(f - max(1, round(f / f_rot)) * f_rot) >= 0.5 / WINDOW)
+
+
 def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings: list) -> dict | None:
     """Run the contact experiment on the commissioned stage (``doc``: the commissioning
     document so far, written for the observer and controller to read) and return the
@@ -280,19 +324,24 @@ def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings
     from drillcosim.analysis.experiments import run_experiment, write_scenario
     from drillcosim.controllers.friction import FrictionModel
 
-    short = current_short(target, doc)
+    point = working_point(target, target_path)
+    short = current_short(target, doc, point["thrust"])
     if short:
         warnings.append(short)
-        return {"source": "contact experiment", "error": short}
+        return {"source": "contact experiment", "error": short, "working_point": point}
     exp = out / "experiments"
     exp.mkdir(parents=True, exist_ok=True)
     com = exp / "commissioning_air_cut.json"
     com.write_text(json.dumps(doc, indent=1))
-    steps = schedule()
+    steps = schedule(excitation_frequencies(point["spindle_speed"]))
     from drillcosim.analysis.experiments import plant_settings
+    plant = plant_settings(target)
+    plant["fmus.drive.plant_parameters"]["spindle_speed"] = point["spindle_speed"]
     tables = {"scenario": {"extends": str(TEMPLATE), "description":
-                           f"commissioning contact experiment of {Path(target['binding_path']).name}"},
-              **plant_settings(target),
+                           f"commissioning contact experiment of {Path(target['binding_path']).name} at "
+                           f"{point['thrust']:g} N, {point['spindle_speed'] * 30 / math.pi:g} rpm"},
+              **plant, "blocks.excitation.settings": {"offset": point["thrust"]},
+              "blocks.trajectory.settings": {"feed_rate": point["feed"]},
               "blocks.observer.settings": {"commissioning_file": str(com)},
               "blocks.controller.settings": {"commissioning_file": str(com)},
               "[[events]]": [{"time": steps[0][0] - SETTLE, "set": "excitation.amplitude", "value": AMPLITUDE}]
@@ -310,48 +359,73 @@ def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings
     try:
         entry = identify_contact(res, steps, force_constant=nom["force_constant"],
                                  friction=FrictionModel.from_dict(doc["friction"]), current_lag=lag)
+        held_thrust(entry, point)
     except ContactIdentificationError as e:
         warnings.append(str(e))
-        return {"source": "contact experiment", "error": str(e)}
+        return {"source": "contact experiment", "error": str(e), "working_point": point}
+    entry["working_point"].update(command=point["thrust"], spindle_speed=point["spindle_speed"],
+                                  approach_feed=point["feed"], source=point["source"])
     warnings.extend(entry["warnings"])
     return entry
 
 
+def held_thrust(entry: dict, point: dict) -> None:
+    """Refuse a cut that did not hold its working point (a feed capped at the controller's
+    ``v_max``, a current limit): its contact and process slope are another cut's."""
+    F = entry["working_point"]["thrust"]
+    if abs(F - point["thrust"]) > THRUST_TOLERANCE * point["thrust"]:
+        raise ContactIdentificationError(
+            f"contact experiment: the cut held a mean observed thrust of {F:.1f} N at {entry['working_point']['feed'] * 1e3:.3g} "
+            f"mm/s against the commanded {point['thrust']:g} N ({point['source']['thrust']}; more than "
+            f"{100 * THRUST_TOLERANCE:g} % off): a working point this plant does not hold in the test cut; "
+            f"give another (--contact-force, --contact-spindle-speed) or state the contact")
 
-def current_short(target: dict, doc: dict) -> str | None:
+
+
+def current_short(target: dict, doc: dict, F0: float | None = None) -> str | None:
     """Why the declared ``max_current`` cannot hold the contact experiment's working point
-    (command, excitation and Coulomb friction through the identified force constant, against
-    the share of it the sizing allows), or None: a saturating current would be fitted as
-    the contact."""
+    ``F0`` [N] (default the template's; command, excitation and the identified Coulomb friction
+    through the identified force constant, against the share of it the sizing allows), or
+    None: a saturating current would be fitted as the contact."""
     from drillcosim.analysis.commissioning_sizing import CURRENT_USE
     from drillcosim.cosim.scenario.files import read_toml
     i_max = (target.get("limits") or {}).get("max_current")
     if not i_max:
         return None
-    F0 = float(read_toml(TEMPLATE)["blocks"]["excitation"]["settings"]["offset"])
+    if F0 is None:
+        F0 = float(read_toml(TEMPLATE)["blocks"]["excitation"]["settings"]["offset"])
     need = (F0 + AMPLITUDE + abs(doc["friction"]["coulomb"])) / doc["nominal"]["force_constant"]
     if need <= CURRENT_USE * i_max:
         return None
-    return (f"contact experiment not run: its working point {F0:g} N +- {AMPLITUDE:g} N with "
-            f"{abs(doc['friction']['coulomb']):.3g} N of friction needs {need:.3g} A, above {CURRENT_USE:g} x the "
-            f"declared max_current {i_max:g} A (a saturating current would be fitted as the contact); state the "
-            f"contact instead (--contact-stiffness, --contact-damping)")
+    return (f"contact experiment not run: its working point {F0:g} N +- {AMPLITUDE:g} N with the "
+            f"{abs(doc['friction']['coulomb']):.3g} N of friction the air cut measured needs {need:.3g} A through the "
+            f"identified {doc['nominal']['force_constant']:.4g} N/A, above {CURRENT_USE:g} x the declared max_current "
+            f"{i_max:g} A (a saturating current would be fitted as the contact); lower --contact-force or state the "
+            f"contact (--contact-stiffness, --contact-damping)")
 
 
 # --------------------------------------------------------------------------- in commissioning
-def _target_gains(target_path) -> dict:
-    """Kf, g_dob, g_vel of the target scenario's force controller and g_thrust of its
-    observer (whatever it sets; the margin model's defaults are Keio Table 2's)."""
+def _target_settings(target_path) -> dict:
+    """The numeric settings of the target scenario's blocks that the force loop depends on:
+    Kf, g_dob, g_vel and the thrust command ``F_cmd`` of its force controller, g_thrust of its
+    observer, ``feed_rate`` of its trajectory (whatever it sets; {} for a binding alone)."""
     from drillcosim.cosim.scenario.files import load_raw, read_toml
     raw = read_toml(Path(target_path))
     if "plant" in raw and "roles" in raw:
         return {}
-    gains = {}
+    found = {}
     for blk in load_raw(Path(target_path)).get("blocks", {}).values():
         st = blk.get("settings", {}) if isinstance(blk, dict) else {}
-        keys = ("Kf", "g_dob", "g_vel") if "Kf" in st else ("g_thrust",)
-        gains.update({k: float(st[k]) for k in keys if isinstance(st.get(k), (int, float))})
-    return gains
+        # a force controller's gains when it pins Kf (else the file's tuned ones); its command always
+        keys = (("Kf", "g_dob", "g_vel") if "Kf" in st else ("g_thrust",)) + ("F_cmd", "feed_rate")
+        found.update({k: float(st[k]) for k in keys if isinstance(st.get(k), (int, float))})
+    return found
+
+
+def _target_gains(target_path) -> dict:
+    """Kf, g_dob, g_vel of the target scenario's force controller and g_thrust of its
+    observer (the margin model's defaults are Keio Table 2's)."""
+    return {k: v for k, v in _target_settings(target_path).items() if k in ("Kf", "g_dob", "g_vel", "g_thrust")}
 
 
 def contact_and_margin(doc: dict, target: dict, target_path, out: Path, contact_stiffness: float | None = None,
@@ -372,7 +446,8 @@ def contact_and_margin(doc: dict, target: dict, target_path, out: Path, contact_
         warnings.append("force loop: no margin computed (no trustworthy contact estimate); state the contact with "
                         "--contact-stiffness/--contact-damping or repeat the contact experiment")
         return
-    loop = commissioned_loop(doc, _target_gains(target_path))      # the model of the run's margin score
+    F0 = (c.get("working_point") or {}).get("command") or working_point(target, target_path)["thrust"]
+    loop = commissioned_loop(doc, _target_gains(target_path), F_cmd=F0)      # the model of the run's margin score
     m = margin_verdict(loop)
     sd = c.get("confidence", {}).get("relative_std", {}).get("damping")
     if sd:       # the margin at the low end of the damping estimate (1 sigma): less damping, less margin

@@ -3,6 +3,7 @@ export-fmu, export-ssp."""
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 from pathlib import Path
@@ -393,7 +394,11 @@ def _numbers(text: str, option: str, count: int | None = None) -> list[float]:
 
 def _commission_limits(args) -> dict:
     """What the command line says the plant allows (over the binding's [datasheet])."""
-    limits = {"stroke": args.stroke, "max_acceleration": args.max_acceleration, "max_current": args.max_current}
+    limits = {"stroke": args.stroke, "max_acceleration": args.max_acceleration, "max_current": args.max_current,
+              "contact_force": args.contact_force,
+              # rpm on the command line, as machines state it; rad/s (SI) inside
+              "contact_spindle_speed": None if args.contact_spindle_speed is None
+              else args.contact_spindle_speed * math.pi / 30.0}
     if args.speeds:
         limits["min_speed"], limits["max_speed"] = _numbers(args.speeds, "--speeds", 2)
     if args.levels:
@@ -493,6 +498,10 @@ def _add_commission_parser(sub) -> None:
     cm.add_argument("--max-current", type=float, metavar="A", help="the reference cut's levels stay below 80 %% of "
                     "it (linear stage)")
     cm.add_argument("--levels", metavar="N,N,N[,...]", help="the reference cut's thrust levels [N] (linear stage)")
+    cm.add_argument("--contact-force", type=float, metavar="N", help="the contact experiment's working thrust [N] "
+                    "(default: the binding's [datasheet] contact_force, else the target scenario's F_cmd, else 50)")
+    cm.add_argument("--contact-spindle-speed", type=float, metavar="RPM", help="the contact experiment's spindle "
+                    "speed [rpm] (default: [datasheet] contact_spindle_speed [rad/s], else the target's, else 3000)")
     cm.add_argument("--contact-stiffness", type=float, metavar="N/m", help="tool/workpiece contact stiffness "
                     "for the force-loop margin (linear stage)")
     cm.add_argument("--contact-damping", type=float, metavar="N*s/m", help="contact damping for the margin")

@@ -139,7 +139,8 @@ def test_a_contact_working_point_beyond_the_current_is_not_run_and_says_why(tmp_
     warnings = []
     entry = contact_experiment(target, PLANTS / "linear_stage.toml", doc, tmp_path, warnings)
     assert "error" in entry and warnings == [entry["error"]]
-    assert "8.01 N of friction needs 2.62 A, above 0.8 x the declared max_current 2.5 A" in entry["error"]
+    assert ("8.01 N of friction the air cut measured needs 2.62 A through the identified 23.31 N/A, above 0.8 x the "
+            "declared max_current 2.5 A") in entry["error"]
     assert not (tmp_path / "contact").exists()
     target["limits"] = {"max_current": 10.0}
     from drillcosim.analysis.contact_identification import current_short
