@@ -106,7 +106,7 @@ def read_target(path) -> dict:
         if key not in datasheet:
             datasheet[key] = val
             notes.append(f"data sheet: {key} not given, the project's nominal {val:g} is used")
-    return {**target, "binding": binding, "kind": binding.kind, "notes": notes}
+    return {**target, "binding": binding, "kind": binding.kind, "notes": notes, "target_path": path}
 
 
 # what a scenario's [fmus.X] may set besides the binding (cosim/scenario/checks.py FMU_KEYS):
@@ -435,7 +435,6 @@ def stroke_needs(target: dict) -> dict:
     """What each experiment on the workpiece needs of the stroke [m] from the start: the
     reference cut and the contact experiment up to where their force loop ends (``z_limit``),
     the ball screw's reference block to its bottom."""
-    from drillcosim.analysis.contact_identification import TEMPLATE
     from drillcosim.cosim.scenario.files import read_toml
     needs = {}
     if "thrust_dyn" in target["binding"].roles and target["kind"] == "ball_screw":
@@ -444,7 +443,8 @@ def stroke_needs(target: dict) -> dict:
     elif "thrust_dyn" in target["binding"].roles:
         needs["reference cut (z_limit)"] = read_toml(REFERENCE_CUT)["blocks"]["controller"]["settings"]["z_limit"]
     if target["kind"] == "linear_stage":
-        needs["contact experiment (z_limit)"] = read_toml(TEMPLATE)["blocks"]["controller"]["settings"]["z_limit"]
+        from drillcosim.analysis.contact_identification import contact_travel, working_point
+        needs["contact experiment (z_limit)"] = contact_travel(working_point(target, target.get("target_path")))[0]
     return {k: float(v) for k, v in needs.items()}
 
 

@@ -213,11 +213,16 @@ def identify_contact(result, steps, *, force_constant: float, friction, current_
                                          f"excitation ends at {t_end:.3g} s")
     mode, F_hat = result["controller.mode"][span], result["observer.F_thrust_hat"][span]
     if np.any(mode != 1) or np.mean(F_hat) < F_contact:
+        zs = z[span][mode == 1]
+        where = (f"; under force control the tool went from {zs[0] * 1e3:.3g} to {zs[-1] * 1e3:.3g} mm at "
+                 f"{(zs[-1] - zs[0]) / max(np.sum(mode == 1) * float(np.median(np.diff(t))), 1e-9) * 1e3:.3g} mm/s"
+                 if zs.size > 1 else "")
         raise ContactIdentificationError(
             f"contact experiment: the tool was not in contact through the excitation ({t[span][0]:.2f}-{t_end:.2f} s: "
             f"force control {100 * np.mean(mode == 1):.0f} % of the time, mean observed thrust {np.mean(F_hat):.1f} N "
-            f"against {F_contact:g} N to detect contact); move the workpiece under the tool (plant parameter "
-            f"'surface') or check the approach")
+            f"against {F_contact:g} N to detect contact{where}); move the workpiece under the tool (plant parameter "
+            f"'surface'), check the approach, or, when the force loop ran out of travel (its z_limit), lower the "
+            f"working thrust (--contact-force)")
     ds = dynamic_stiffness(t, z, i_ref, steps, force_constant=force_constant, current_lag=current_lag)
     feed = float(np.median(ds["feed"]))
     warnings = []
@@ -285,7 +290,7 @@ def working_point(target: dict, target_path) -> dict:
     the target scenario cuts, not on a fixed aluminium cut."""
     from drillcosim.cosim.scenario.files import read_toml
     tmpl = read_toml(TEMPLATE)
-    limits, scen = target.get("limits") or {}, _target_settings(target_path)
+    limits, scen = target.get("limits") or {}, _target_settings(target_path) if target_path else {}
     found = {"thrust": ("contact_force", scen.get("F_cmd"), tmpl["blocks"]["excitation"]["settings"]["offset"]),
              "spindle_speed": ("contact_spindle_speed", (target.get("plant_parameters") or {}).get("spindle_speed"),
                                tmpl["fmus"]["drive"]["plant_parameters"]["spindle_speed"]),
@@ -304,6 +309,20 @@ def working_point(target: dict, target_path) -> dict:
                                  f"is below {MIN_THRUST:g} N: the {AMPLITUDE:g} N excitation would lift the tool off "
                                  f"the workpiece; give --contact-force N above it")
     return {**point, "source": source}
+
+
+def contact_travel(point: dict) -> tuple[float, float]:
+    """Where the contact experiment's force loop must be allowed to run (``z_limit`` [m]) and
+    its plate's thickness [m]: the template's at the template's working point; at another,
+    room for the whole run at the controller's feed cap ``v_max`` (the feed a thrust gives is
+    the plant's cutting law, unknown here), the plate 1 mm thicker so that its exit is not cut."""
+    from drillcosim.cosim.scenario.files import read_toml
+    tmpl = read_toml(TEMPLATE)
+    ctrl, plate = tmpl["blocks"]["controller"]["settings"], tmpl["fmus"]["drive"]["plant_parameters"]
+    if all(v.startswith("template") for v in point["source"].values()):
+        return float(ctrl["z_limit"]), float(plate["layer1_thickness"])
+    z_limit = float(plate["surface"]) + float(ctrl["v_max"]) * float(tmpl["scenario"]["stop_time"])
+    return z_limit, z_limit - float(plate["surface"]) + 1e-3
 
 
 def excitation_frequencies(spindle_speed: float) -> tuple[float, ...]:
@@ -336,14 +355,15 @@ def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings
     steps = schedule(excitation_frequencies(point["spindle_speed"]))
     from drillcosim.analysis.experiments import plant_settings
     plant = plant_settings(target)
-    plant["fmus.drive.plant_parameters"]["spindle_speed"] = point["spindle_speed"]
+    z_limit, plate = contact_travel(point)
+    plant["fmus.drive.plant_parameters"].update(spindle_speed=point["spindle_speed"], layer1_thickness=plate)
     tables = {"scenario": {"extends": str(TEMPLATE), "description":
                            f"commissioning contact experiment of {Path(target['binding_path']).name} at "
                            f"{point['thrust']:g} N, {point['spindle_speed'] * 30 / math.pi:g} rpm"},
               **plant, "blocks.excitation.settings": {"offset": point["thrust"]},
               "blocks.trajectory.settings": {"feed_rate": point["feed"]},
               "blocks.observer.settings": {"commissioning_file": str(com)},
-              "blocks.controller.settings": {"commissioning_file": str(com)},
+              "blocks.controller.settings": {"commissioning_file": str(com), "z_limit": z_limit},
               "[[events]]": [{"time": steps[0][0] - SETTLE, "set": "excitation.amplitude", "value": AMPLITUDE}]
               + [{"time": t0, "set": "excitation.frequency", "value": f} for t0, f in steps]}
     sc = write_scenario(exp / "contact.toml", tables)

@@ -69,3 +69,16 @@ def test_excitation_keeps_clear_of_the_spindle_lines():
     kept = excitation_frequencies(80 * math.pi)
     assert set(FREQUENCIES) - set(kept) == {40.0, 80.0, 560.0, 640.0}
     assert all(min(abs(f - n * 40.0) for n in range(1, 30)) >= 0.5 / WINDOW for f in kept)
+
+
+def test_a_sized_working_point_gets_the_travel_of_the_feed_cap_and_the_stroke_check_asks_for_it():
+    """At the template's point the plate and z_limit stay (7 mm); elsewhere the loop may feed
+    at the 3 mm/s cap for the whole 3.45 s: 1 mm + 10.35 mm, and a 10 mm stroke is refused."""
+    from drillcosim.analysis.commissioning import check_stroke
+    from drillcosim.analysis.contact_identification import contact_travel
+    assert contact_travel(working_point(*_target(PLANTS / "foreign2_zstage.toml"))) == pytest.approx((7e-3, 8e-3))
+    z_limit, plate = contact_travel(working_point(*_target(PLANTS / "foreign2_zstage.toml", contact_force=80.0)))
+    assert (z_limit, plate) == pytest.approx((1e-3 + 3e-3 * 3.45, 3e-3 * 3.45 + 1e-3))
+    target, _ = _target(PLANTS / "foreign2_zstage.toml", contact_force=80.0, stroke=0.01)
+    with pytest.raises(CommissioningError, match=r"contact experiment \(z_limit\) needs: 0\.01135 m"):
+        check_stroke(target)
