@@ -443,9 +443,19 @@ def stroke_needs(target: dict) -> dict:
     elif "thrust_dyn" in target["binding"].roles:
         needs["reference cut (z_limit)"] = read_toml(REFERENCE_CUT)["blocks"]["controller"]["settings"]["z_limit"]
     if target["kind"] == "linear_stage":
-        from drillcosim.analysis.contact_identification import contact_travel, working_point
-        needs["contact experiment (z_limit)"] = contact_travel(working_point(target, target.get("target_path")))[0]
+        from drillcosim.analysis.contact_identification import contact_travel
+        needs["contact experiment (z_limit)"] = contact_travel(contact_point(target))[0]
     return {k: float(v) for k, v in needs.items()}
+
+
+def contact_point(target: dict) -> dict:
+    """The contact experiment's working point (:func:`drillcosim.analysis.contact_identification.working_point`);
+    one it cannot hold is refused before anything runs."""
+    from drillcosim.analysis.contact_identification import ContactIdentificationError, working_point
+    try:
+        return working_point(target, target.get("target_path"))
+    except ContactIdentificationError as e:
+        raise CommissioningError(str(e)) from None
 
 
 def check_stroke(target: dict) -> None:
@@ -524,6 +534,8 @@ def commission(target_path, out_dir, *, contact_stiffness: float | None = None,
     target["air_cut"] = dict(air_cut_overrides or {})
     target["limits"] = experiment_limits(target, limits)
     check_stroke(target)
+    if target["kind"] == "linear_stage" and not contact_stiffness:
+        contact_point(target)       # a working point the contact experiment cannot hold: refused now
     kind, ds = target["kind"], target["datasheet"]
     res = air_cut(target, out)
     warnings = list(target["notes"])       # the data sheet's and the air cut's sizing

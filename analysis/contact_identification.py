@@ -194,6 +194,21 @@ def fit_contact(w: np.ndarray, G: np.ndarray, weight: np.ndarray) -> dict:
     return out
 
 
+def _out_of_contact(t, z, mode, F_hat, F_contact: float) -> ContactIdentificationError:
+    """The error of a tool not in contact through the excitation, with what was measured:
+    the share of force control, the mean thrust, where the force loop ran and at what feed."""
+    zs = z[mode == 1]
+    where = (f"; under force control the tool went from {zs[0] * 1e3:.3g} to {zs[-1] * 1e3:.3g} mm at "
+             f"{(zs[-1] - zs[0]) / max(np.sum(mode == 1) * float(np.median(np.diff(t))), 1e-9) * 1e3:.3g} mm/s"
+             if zs.size > 1 else "")
+    return ContactIdentificationError(
+        f"contact experiment: the tool was not in contact through the excitation ({t[0]:.2f}-{t[-1]:.2f} s: "
+        f"force control {100 * np.mean(mode == 1):.0f} % of the time, mean observed thrust {np.mean(F_hat):.1f} N "
+        f"against {F_contact:g} N to detect contact{where}); move the workpiece under the tool (plant parameter "
+        f"'surface'), check the approach, or, when the force loop ran out of travel (its z_limit), lower the "
+        f"working thrust (--contact-force)")
+
+
 def identify_contact(result, steps, *, force_constant: float, friction, current_lag: float,
                      F_contact: float = 10.0) -> dict:
     """The ``contact`` entry from the contact experiment's record (``drive.table_position``,
@@ -213,16 +228,7 @@ def identify_contact(result, steps, *, force_constant: float, friction, current_
                                          f"excitation ends at {t_end:.3g} s")
     mode, F_hat = result["controller.mode"][span], result["observer.F_thrust_hat"][span]
     if np.any(mode != 1) or np.mean(F_hat) < F_contact:
-        zs = z[span][mode == 1]
-        where = (f"; under force control the tool went from {zs[0] * 1e3:.3g} to {zs[-1] * 1e3:.3g} mm at "
-                 f"{(zs[-1] - zs[0]) / max(np.sum(mode == 1) * float(np.median(np.diff(t))), 1e-9) * 1e3:.3g} mm/s"
-                 if zs.size > 1 else "")
-        raise ContactIdentificationError(
-            f"contact experiment: the tool was not in contact through the excitation ({t[span][0]:.2f}-{t_end:.2f} s: "
-            f"force control {100 * np.mean(mode == 1):.0f} % of the time, mean observed thrust {np.mean(F_hat):.1f} N "
-            f"against {F_contact:g} N to detect contact{where}); move the workpiece under the tool (plant parameter "
-            f"'surface'), check the approach, or, when the force loop ran out of travel (its z_limit), lower the "
-            f"working thrust (--contact-force)")
+        raise _out_of_contact(t[span], z[span], mode, F_hat, F_contact)
     ds = dynamic_stiffness(t, z, i_ref, steps, force_constant=force_constant, current_lag=current_lag)
     feed = float(np.median(ds["feed"]))
     warnings = []
@@ -281,13 +287,14 @@ THRUST_TOLERANCE = 0.1                            # the cut's mean thrust within
 MIN_THRUST = 4 * AMPLITUDE                         # N: the excitation never lifts the tool off
 
 
-def working_point(target: dict, target_path) -> dict:
+def working_point(target: dict, target_path, *, for_experiment: bool = True) -> dict:
     """The contact experiment's working point: thrust [N], spindle speed [rad/s] and approach
     feed [m/s], each with its source -- the command line or the binding's ``[datasheet]``
     (``contact_force``, ``contact_spindle_speed``), else the target scenario (its force
     controller's ``F_cmd``, its plant's ``spindle_speed``, its trajectory's ``feed_rate``),
     else the template (Keio Fig. 7: 50 N, 3000 rpm, 1 mm/s). The margin is then checked where
-    the target scenario cuts, not on a fixed aluminium cut."""
+    the target scenario cuts, not on a fixed aluminium cut. ``for_experiment``: refuse a
+    thrust the excitation would lift the tool off at."""
     from drillcosim.cosim.scenario.files import read_toml
     tmpl = read_toml(TEMPLATE)
     limits, scen = target.get("limits") or {}, _target_settings(target_path) if target_path else {}
@@ -303,9 +310,8 @@ def working_point(target: dict, target_path) -> dict:
             point[q], source[q] = float(from_target), "target scenario"
         else:
             point[q], source[q] = float(default), "template (Keio Fig. 7)"
-    if point["thrust"] < MIN_THRUST:
-        from drillcosim.analysis.commissioning import CommissioningError
-        raise CommissioningError(f"contact experiment: a working thrust of {point['thrust']:g} N ({source['thrust']}) "
+    if for_experiment and point["thrust"] < MIN_THRUST:
+        raise ContactIdentificationError(f"contact experiment: a working thrust of {point['thrust']:g} N ({source['thrust']}) "
                                  f"is below {MIN_THRUST:g} N: the {AMPLITUDE:g} N excitation would lift the tool off "
                                  f"the workpiece; give --contact-force N above it")
     return {**point, "source": source}
@@ -466,7 +472,8 @@ def contact_and_margin(doc: dict, target: dict, target_path, out: Path, contact_
         warnings.append("force loop: no margin computed (no trustworthy contact estimate); state the contact with "
                         "--contact-stiffness/--contact-damping or repeat the contact experiment")
         return
-    F0 = (c.get("working_point") or {}).get("command") or working_point(target, target_path)["thrust"]
+    F0 = (c.get("working_point") or {}).get("command") or \
+        working_point(target, target_path, for_experiment=False)["thrust"]      # a stated contact: no cut to lift
     loop = commissioned_loop(doc, _target_gains(target_path), F_cmd=F0)      # the model of the run's margin score
     m = margin_verdict(loop)
     sd = c.get("confidence", {}).get("relative_std", {}).get("damping")

@@ -49,9 +49,13 @@ def test_the_command_line_wins_in_rpm_and_newtons():
     assert p["source"]["thrust"].startswith("command line") and p["source"]["feed"] == "target scenario"
 
 
-def test_a_thrust_the_excitation_would_lift_off_is_refused_naming_it():
-    with pytest.raises(CommissioningError, match=r"working thrust of 5 N \(command line.*below 12 N"):
+def test_a_thrust_the_excitation_would_lift_off_is_refused_naming_it(tmp_path):
+    from drillcosim.analysis.commissioning import commission
+    with pytest.raises(ContactIdentificationError, match=r"working thrust of 5 N \(command line.*below 12 N"):
         working_point(*_target(PLANTS / "foreign2_zstage.toml", contact_force=5.0))
+    with pytest.raises(CommissioningError, match=r"working thrust of 5 N"):      # before anything runs
+        commission(PLANTS / "foreign2_zstage.toml", tmp_path, limits={"contact_force": 5.0}, print_table=False)
+    assert not (tmp_path / "air_cut").exists()
 
 
 def test_a_cut_that_does_not_hold_its_thrust_is_refused_with_the_measured_thrust():
