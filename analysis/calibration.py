@@ -181,8 +181,8 @@ def held_out_levels(x: np.ndarray, y: np.ndarray) -> dict:
     return out
 
 
-CURVATURE_CRITERION = ("F_meas = c + g F_hat + q i^3 (i the level's current: an iron-core motor's F = K0 i (1 - s i^2)) "
-                       "against the line: the curvature is kept when it lowers the leave-one-level-out RMS by more "
+CURVATURE_CRITERION = ("F_meas = c + g F_hat + q i^3 (i the level's current: an iron-core motor's "
+                       "F = K0 i (1 - s i^2)) against the line: the curvature is kept when it lowers the leave-one-level-out RMS by more "
                        "than 0.5 % and lowers the BIC (n ln(RSS/n) + p ln n), the air cut's criterion "
                        "(docs/commissioning.md, Friction model selection)")
 CV_GAIN = 0.005
@@ -247,8 +247,9 @@ def current_curvature(levels: list[dict], Kt_n_reference: float, unit: str = "N/
         out["reason"] = (f"{word}: {span} (F/i; a term in i^3 lowers the held-out RMS {cv_l:.3g} -> {cv_q:.3g} N and "
                          f"the BIC): one constant does not hold within {100 * BOUND_LIMIT:g} % over the levels")
     elif out["supported"]:
-        out["note"] = (f"{word}: {span} (a term in i^3 supported), a change of {100 * abs(change) / ends[0]['value']:.2g}"
-                       f" % over the levels: within the {100 * BOUND_LIMIT:g} % the constant is held to")
+        rel = 100 * abs(change) / ends[0]["value"]
+        out["note"] = (f"{word}: {span} (a term in i^3 supported), a change of {rel:.2g} % over the levels: "
+                       f"within the {100 * BOUND_LIMIT:g} % the constant is held to")
     else:
         out["note"] = (f"no curvature supported ({span}): the constant changes by at most "
                        f"{100 * out['change_bound_rel']:.2g} % (2 sigma) between {abs(i[lo]):.3g} and "

@@ -311,9 +311,10 @@ def working_point(target: dict, target_path, *, for_experiment: bool = True) -> 
         else:
             point[q], source[q] = float(default), "template (Keio Fig. 7)"
     if for_experiment and point["thrust"] < MIN_THRUST:
-        raise ContactIdentificationError(f"contact experiment: a working thrust of {point['thrust']:g} N ({source['thrust']}) "
-                                 f"is below {MIN_THRUST:g} N: the {AMPLITUDE:g} N excitation would lift the tool off "
-                                 f"the workpiece; give --contact-force N above it")
+        raise ContactIdentificationError(
+            f"contact experiment: a working thrust of {point['thrust']:g} N ({source['thrust']}) is below "
+            f"{MIN_THRUST:g} N: the {AMPLITUDE:g} N excitation would lift the tool off the workpiece; give "
+            f"--contact-force N above it")
     return {**point, "source": source}
 
 
@@ -398,14 +399,13 @@ def contact_experiment(target: dict, target_path, doc: dict, out: Path, warnings
 def held_thrust(entry: dict, point: dict) -> None:
     """Refuse a cut that did not hold its working point (a feed capped at the controller's
     ``v_max``, a current limit): its contact and process slope are another cut's."""
-    F = entry["working_point"]["thrust"]
+    F, feed = entry["working_point"]["thrust"], entry["working_point"]["feed"]
     if abs(F - point["thrust"]) > THRUST_TOLERANCE * point["thrust"]:
         raise ContactIdentificationError(
-            f"contact experiment: the cut held a mean observed thrust of {F:.1f} N at {entry['working_point']['feed'] * 1e3:.3g} "
-            f"mm/s against the commanded {point['thrust']:g} N ({point['source']['thrust']}; more than "
+            f"contact experiment: the cut held a mean observed thrust of {F:.1f} N at {feed * 1e3:.3g} mm/s "
+            f"against the commanded {point['thrust']:g} N ({point['source']['thrust']}; more than "
             f"{100 * THRUST_TOLERANCE:g} % off): a working point this plant does not hold in the test cut; "
             f"give another (--contact-force, --contact-spindle-speed) or state the contact")
-
 
 
 def current_short(target: dict, doc: dict, F0: float | None = None) -> str | None:

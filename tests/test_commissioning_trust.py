@@ -279,8 +279,9 @@ def test_a_significant_reference_cut_offset_unverifies_the_offset():
     doc["calibration"].update(intercept_N=1.45, intercept_std_N=0.14)
     ident, unverified = identified_entries(doc, fm, 1.0, (0.0, 0.05))
     assert "offset of +1.45" in unverified["gravity_comp"]
+    # the measured current of the highest reference level (the reference cut records it)
     assert ident["force_constant"]["valid_current_range_A"][1] == pytest.approx(
-        max(v["F_dyn_mean_N"] for v in doc["calibration"]["levels"]) / doc["calibration"]["Kt_n_cal"])
+        max(v["i_mean_A"] for v in doc["calibration"]["levels"]))
     doc["calibration"].update(intercept_N=0.3, intercept_std_N=0.05)
     assert "gravity_comp" not in identified_entries(doc, fm, 1.0, (0.0, 0.05))[1]
 
