@@ -295,8 +295,8 @@ def working_point(target: dict, target_path, *, for_experiment: bool = True) -> 
     else the template (Keio Fig. 7: 50 N, 3000 rpm, 1 mm/s). The margin is then checked where
     the target scenario cuts, not on a fixed aluminium cut. ``for_experiment``: refuse a
     thrust the excitation would lift the tool off at."""
-    from drillcosim.cosim.scenario.files import read_toml
-    tmpl = read_toml(TEMPLATE)
+    from drillcosim.cosim.scenario.files import load_raw
+    tmpl = load_raw(TEMPLATE)      # with what it extends
     limits, scen = target.get("limits") or {}, _target_settings(target_path) if target_path else {}
     found = {"thrust": ("contact_force", scen.get("F_cmd"), tmpl["blocks"]["excitation"]["settings"]["offset"]),
              "spindle_speed": ("contact_spindle_speed", (target.get("plant_parameters") or {}).get("spindle_speed"),
@@ -323,8 +323,8 @@ def contact_travel(point: dict) -> tuple[float, float]:
     its plate's thickness [m]: the template's at the template's working point; at another,
     room for the whole run at the controller's feed cap ``v_max`` (the feed a thrust gives is
     the plant's cutting law, unknown here), the plate 1 mm thicker so that its exit is not cut."""
-    from drillcosim.cosim.scenario.files import read_toml
-    tmpl = read_toml(TEMPLATE)
+    from drillcosim.cosim.scenario.files import load_raw
+    tmpl = load_raw(TEMPLATE)      # with what it extends
     ctrl, plate = tmpl["blocks"]["controller"]["settings"], tmpl["fmus"]["drive"]["plant_parameters"]
     if all(v.startswith("template") for v in point["source"].values()):
         return float(ctrl["z_limit"]), float(plate["layer1_thickness"])
