@@ -208,8 +208,9 @@ def current_curvature(levels: list[dict], Kt_n_reference: float, unit: str = "N/
     iron-core motor saturates; a constant that ripples along the stroke shows the same way):
     ``F_meas`` against the estimate with a term odd in the current, kept by
     :data:`CURVATURE_CRITERION`. The constant ``F/i`` [N/A or N m/A] (as a data sheet gives it:
-    ``K0 + q i^2``, the estimate's friction left to the intercept) at the lowest and the highest
-    level's current, with its 1-sigma spread, is reported either way: found when the curvature
+    ``Kt_ref (g + q i^2 / s)``, ``s`` the estimate's thrust per ampere, the estimate's friction
+    left to the intercept) at the lowest and the highest level's current, with its 1-sigma
+    spread, is reported either way: found when the curvature
     is supported, else bounded (``change_bound_rel``: |high - low| + 2 sigma of it, relative).
     None when the levels carry no current; fewer than four levels cannot judge a curvature."""
     if not levels or any("i_mean_A" not in v for v in levels):
@@ -233,10 +234,15 @@ def current_curvature(levels: list[dict], Kt_n_reference: float, unit: str = "N/
     res = y - curved @ coef
     cov = float(res @ res) / (len(x) - 3) * np.linalg.inv(curved.T @ curved)
     spread = lambda d: float(math.sqrt(max(float(d @ cov @ d), 0.0)))     # noqa: E731
-    ends = [{"current_A": float(abs(i[j])), "value": float(Kt_n_reference * coef[1] + coef[2] * i[j] ** 2),
-             "std": spread(np.array([0.0, Kt_n_reference, i[j] ** 2]))} for j in (lo, hi)]
+    # q i^3 is thrust [N]; the estimate's thrust per ampere ``s`` (Kt_ref on a linear stage,
+    # Kt_ref eta / pitch on a ball screw) turns it into the constant's unit
+    s = float(np.polyfit(i, x, 1)[0])
+    to_k = Kt_n_reference / s
+    ends = [{"current_A": float(abs(i[j])), "value": float(Kt_n_reference * coef[1] + to_k * coef[2] * i[j] ** 2),
+             "std": spread(np.array([0.0, Kt_n_reference, to_k * i[j] ** 2]))} for j in (lo, hi)]
     out["constant_low"], out["constant_high"] = ends
-    change, change_std = ends[1]["value"] - ends[0]["value"], spread(np.array([0.0, 0.0, i[hi] ** 2 - i[lo] ** 2]))
+    change = ends[1]["value"] - ends[0]["value"]
+    change_std = spread(np.array([0.0, 0.0, to_k * (i[hi] ** 2 - i[lo] ** 2)]))
     out["change_bound_rel"] = (abs(change) + 2 * change_std) / abs(ends[0]["value"])
     span = f"{ends[0]['value']:.4g} {unit} at {ends[0]['current_A']:.3g} A, {ends[1]['value']:.4g} {unit} at " \
            f"{ends[1]['current_A']:.3g} A"

@@ -179,9 +179,10 @@ def experiment_limits(target: dict, given: dict | None) -> dict:
         limits = checked_limits(ds, dict(given or {}), str(where))
     except SizingError as e:
         raise CommissioningError(str(e)) from None
-    if "reference_levels" in limits and target["kind"] == "ball_screw":
-        raise CommissioningError("reference_levels: a ball screw's reference cut levels are the materials of its "
-                                 "block (scenarios/commissioning/thrust_cut_ball_screw.toml), not set by thrust")
+    from drillcosim.analysis.commissioning_sizing import MAX_LAYERS
+    if target["kind"] == "ball_screw" and len(limits.get("reference_levels") or ()) > MAX_LAYERS:
+        raise CommissioningError(f"reference_levels: a ball screw's reference levels are layers of its block, at most "
+                                 f"{MAX_LAYERS}; got {len(limits['reference_levels'])}")
     return limits
 
 
@@ -438,7 +439,11 @@ def stroke_needs(target: dict) -> dict:
     from drillcosim.cosim.scenario.files import read_toml
     needs = {}
     if "thrust_dyn" in target["binding"].roles and target["kind"] == "ball_screw":
-        block = read_toml(TEMPLATES / "thrust_cut_ball_screw.toml")["fmus"]["drive"]["plant_parameters"]
+        block = dict(read_toml(TEMPLATES / "thrust_cut_ball_screw.toml")["fmus"]["drive"]["plant_parameters"])
+        n = max(int(block["n_layers"]), len(target.get("limits", {}).get("reference_levels") or ()))
+        for k in range(int(block["n_layers"]) + 1, n + 1):      # declared levels: one layer each, as thick
+            block.update({f"layer{k}_thickness": block["layer1_thickness"], f"layer{k}_gap": 0.0})
+        block["n_layers"] = n
         needs["reference cut (its block's bottom)"] = reference_block_windows(block)[-1][1] + WINDOW_BEFORE_BOTTOM
     elif "thrust_dyn" in target["binding"].roles:
         needs["reference cut (z_limit)"] = read_toml(REFERENCE_CUT)["blocks"]["controller"]["settings"]["z_limit"]
@@ -483,18 +488,16 @@ def reference_block_windows(params: dict) -> list[tuple[float, float]]:
     return out
 
 
-def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: float, out: Path) -> dict:
-    """The reference cut of ``scenarios/commissioning/thrust_cut_ball_screw.toml`` on the
-    plant: calibrated torque constant = gain x the data sheet's, over the layers of the
-    reference block (the observer runs on the data sheet's constant, pitch and eta with the
-    identified inertia and the air-cut friction, so that friction which changes with speed
-    does not pull the slope)."""
-    from drillcosim.analysis.calibration import fit_thrust_constant, window_levels
+def _ball_screw_cut(target: dict, friction_file: Path, inertia: float, out: Path, name: str,
+                    plan: list[dict] | None = None):
+    """Run the ball screw's reference cut (the template's block, or one layer per ``plan``
+    entry at its material and feed): (result, block, scenario)."""
     from drillcosim.cosim.scenario.files import read_toml
 
     ds = target["datasheet"]
     template = TEMPLATES / "thrust_cut_ball_screw.toml"
-    block = dict(read_toml(template)["fmus"]["drive"]["plant_parameters"])
+    raw = read_toml(template)
+    block = dict(raw["fmus"]["drive"]["plant_parameters"])
     plant = plant_settings(target)
     block.update(plant.pop("fmus.drive.plant_parameters"))
     names = DATASHEET_SETTINGS["ball_screw"]
@@ -506,14 +509,77 @@ def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: fl
               "blocks.controller.settings": controller, "blocks.observer.settings": observer,
               "[[connections]]": [{"from": "drive.motor_angle", "to": "controller.z", "scale": ds["pitch"]}],
               # the current the levels take: the range the constant is valid over
-              "record": {"signals": [*read_toml(template)["record"]["signals"], "controller.i_ref"]}}
-    sc = write_scenario(out / "experiments" / "thrust_calibration.toml", tables)
-    res = run_experiment(sc, out / "thrust_calibration")
+              "record": {"signals": [*raw["record"]["signals"], "controller.i_ref"]}}
+    if plan:
+        extra = _level_tables(block, plan, raw)
+        tables["[[connections]]"] += extra.pop("[[connections]]")
+        tables.update(extra)
+    sc = write_scenario(out / "experiments" / f"{name}.toml", tables)
+    return run_experiment(sc, out / name), block, sc
+
+
+def _level_tables(block: dict, plan: list[dict], raw: dict) -> dict:
+    """The block (one layer of the template's thickness per level, resting on each other) and
+    the feed schedule of a sized reference cut: each level's feed from the time the tool
+    reaches its layer's top (the position loop tracks the reference: the window starts 1 mm
+    below the top, far more than its lag), through the trajectory's ``feed_rate_cmd``."""
+    traj = raw["blocks"]["trajectory"]["settings"]
+    t_layer = float(raw["fmus"]["drive"]["plant_parameters"]["layer1_thickness"])
+    block.update(n_layers=len(plan))
+    for k, lv in enumerate(plan, start=1):
+        block.update({f"layer{k}_material": lv["material"], f"layer{k}_thickness": t_layer, f"layer{k}_gap": 0.0})
+    z_app, v_app = float(traj["z_approach_end"]), float(traj["v_approach"])
+    t = (z_app - float(traj["z_start"])) / v_app + v_app / float(traj["a_max"]) \
+        + (float(block["surface"]) - z_app) / plan[0]["feed"]
+    times, values = [0.0], [plan[0]["feed"]]
+    for prev, lv in zip(plan, plan[1:]):
+        t += t_layer / prev["feed"]
+        times += [t, t]
+        values += [values[-1], lv["feed"]]
+    t_end = t + t_layer / plan[-1]["feed"]
+    return {"blocks.trajectory.settings": {"feed_rate": plan[0]["feed"],
+                                           "z_end": float(block["surface"]) + len(plan) * t_layer + 0.3e-3},
+            "blocks.feed": {"class": "drillcosim.cosim.blocks.sources:PiecewiseLinear", "sample_period": 1e-3},
+            "blocks.feed.settings": {"unit": "m/s", "times": times, "values": values},
+            "[[connections]]": [{"from": "feed.y", "to": "trajectory.feed_rate_cmd"}],
+            "scenario": {"extends": str(TEMPLATES / "thrust_cut_ball_screw.toml"),
+                         "description": "commissioning reference cut (thrust constant) at levels " +
+                                        ", ".join(f"{lv['level_N']:g}" for lv in plan) + " N",
+                         "stop_time": max(float(raw["scenario"]["stop_time"]), t_end + 10.0)}}
+
+
+def ball_screw_thrust_calibration(target: dict, friction_file: Path, inertia: float, out: Path) -> dict:
+    """The reference cut of ``scenarios/commissioning/thrust_cut_ball_screw.toml`` on the
+    plant: calibrated torque constant = gain x the data sheet's, over the layers of the
+    reference block (the observer runs on the data sheet's constant, pitch and eta with the
+    identified inertia and the air-cut friction, so that friction which changes with speed
+    does not pull the slope). With declared ``reference_levels`` [N] that cut is the pilot:
+    a second one cuts one layer per level, its material and feed planned from the pilot's
+    measured thrusts (:func:`drillcosim.analysis.commissioning_sizing.ball_screw_level_plan`)."""
+    from drillcosim.analysis.calibration import fit_thrust_constant, window_levels
+    from drillcosim.analysis.commissioning_sizing import SizingError, ball_screw_level_plan
+
+    ds = target["datasheet"]
+    res, block, sc = _ball_screw_cut(target, friction_file, inertia, out, "thrust_calibration")
     levels = window_levels(res["drive.table_position"], res["drive.thrust_dyn"], res["observer.F_dc_hat"],
                            reference_block_windows(block), current=res["controller.i_ref"])
+    source = {"window": {"after_top_m": WINDOW_AFTER_TOP, "before_bottom_m": WINDOW_BEFORE_BOTTOM}}
+    requested = target.get("limits", {}).get("reference_levels")
+    if requested:
+        from drillcosim.cosim.scenario.files import read_toml
+        traj = read_toml(TEMPLATES / "thrust_cut_ball_screw.toml")["blocks"]["trajectory"]["settings"]
+        feed = float(traj["feed_rate"])
+        pilot = [{**v, "material": int(block[f"layer{j + 1}_material"])} for j, v in enumerate(levels)]
+        try:
+            plan = ball_screw_level_plan(pilot, requested, feed)
+        except SizingError as e:
+            raise CommissioningError(str(e)) from None
+        res, block, sc = _ball_screw_cut(target, friction_file, inertia, out, "thrust_calibration_levels", plan)
+        levels = window_levels(res["drive.table_position"], res["drive.thrust_dyn"], res["observer.F_dc_hat"],
+                               reference_block_windows(block), current=res["controller.i_ref"])
+        source.update(pilot_levels=pilot, level_plan=plan)
     fit = fit_thrust_constant(levels, ds["force_constant"], unit="N m/A")
-    fit["source"] = {"scenario": str(sc), "seed": block.get("seed"), "block": block,
-                     "window": {"after_top_m": WINDOW_AFTER_TOP, "before_bottom_m": WINDOW_BEFORE_BOTTOM},
+    fit["source"] = {"scenario": str(sc), "seed": block.get("seed"), "block": block, **source,
                      "note": "eta and pitch kept at the data sheet: the gain calibrates torque constant x eta / pitch "
                              "as one product, carried by the force constant"}
     write_json_atomic(out / "thrust_calibration" / "thrust_calibration.json", fit)

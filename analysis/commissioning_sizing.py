@@ -142,3 +142,34 @@ def reference_levels(template_levels: list, limits: dict, force_constant: float)
     return [x * k for x in template_levels], [f"reference cut: levels scaled by {k:.3g} to stay within "
                                               f"{CURRENT_USE:g} x max_current {limits['max_current']:g} A "
                                               f"({f_max:.3g} N at the data sheet's {force_constant:g})"]
+
+
+FEED_RANGE = (0.5, 2.0)           # of the drilling feed a ball screw's sized reference level may take
+MAX_LAYERS = 4                    # of the contract's workpiece (layer1..layer4)
+
+
+def ball_screw_level_plan(pilot: list[dict], requested: list, feed: float) -> list[dict]:
+    """Material and feed [m/s] of each requested thrust level [N] of a ball screw's reference
+    cut (no force loop: the thrust of a layer is its material's at the feed). ``pilot``: the
+    template cut's levels, ``{"material": m, "F_dyn_mean_N": F}`` at the drilling ``feed``.
+    Each level takes the material whose pilot thrust is nearest in ratio, at the feed scaled
+    by ``level / F`` (the thrust taken proportional to the feed per revolution: a cutting law
+    ``f^x`` with ``x < 1`` gives less; the dynamometer measures what is cut, so the fit is
+    not affected, only how near the level comes), within :data:`FEED_RANGE` of the feed. A
+    level no material reaches so is refused with the ranges that are."""
+    if not MIN_LEVELS <= len(requested) <= MAX_LAYERS:
+        raise SizingError(f"a ball screw's reference levels are layers of its block: {MIN_LEVELS} to {MAX_LAYERS} "
+                          f"levels [N], got {len(requested)} ({', '.join(f'{x:g}' for x in requested)})")
+    plan = []
+    for level in requested:
+        best = min(pilot, key=lambda v: abs(math.log(float(level) / max(v["F_dyn_mean_N"], 1e-9))))
+        scale = float(level) / best["F_dyn_mean_N"]
+        if not FEED_RANGE[0] <= scale <= FEED_RANGE[1]:
+            reach = ", ".join(f"{FEED_RANGE[0] * v['F_dyn_mean_N']:.3g}-{FEED_RANGE[1] * v['F_dyn_mean_N']:.3g} N "
+                              f"(material {v['material']})" for v in pilot)
+            raise SizingError(f"reference level {level:g} N: the pilot cut measured {best['F_dyn_mean_N']:.3g} N "
+                              f"in the nearest material ({best['material']}) at the drilling feed {feed * 6e4:g} "
+                              f"mm/min; within {FEED_RANGE[0]:g}-{FEED_RANGE[1]:g} x that feed the block reaches "
+                              f"{reach}")
+        plan.append({"level_N": float(level), "material": int(best["material"]), "feed": feed * scale})
+    return plan
