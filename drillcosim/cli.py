@@ -497,7 +497,8 @@ def _add_commission_parser(sub) -> None:
     cm.add_argument("--max-acceleration", type=float, metavar="M/S2", help="the air cut's ramps stay below it")
     cm.add_argument("--max-current", type=float, metavar="A", help="the reference cut's levels stay below 80 %% of "
                     "it (linear stage)")
-    cm.add_argument("--levels", metavar="N,N,N[,...]", help="the reference cut's thrust levels [N] (linear stage)")
+    cm.add_argument("--levels", metavar="N,N,N[,...]", help="the reference cut's thrust levels [N] (a ball screw: "
+                    "3 or 4, one layer each, aimed at from a pilot cut)")
     cm.add_argument("--contact-force", type=float, metavar="N", help="the contact experiment's working thrust [N] "
                     "(default: the binding's [datasheet] contact_force, else the target scenario's F_cmd, else 50)")
     cm.add_argument("--contact-spindle-speed", type=float, metavar="RPM", help="the contact experiment's spindle "
