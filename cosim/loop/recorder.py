@@ -267,21 +267,19 @@ class Recorder:
             raise io_problem("write", self.out_dir / self.csv_name, e) from None
 
     def write(self, rows: list) -> None:
-        """Append rows ``(t, v1, v2, ...)`` and flush them to the CSV."""
+        """Append rows and flush them to the CSV: each item of ``rows`` one row ``(t, v1, v2,
+        ...)`` or a block of them, a (rows, columns) float array (the C steps' rows)."""
         if not rows:
             return
         fmt = self._format
-        if fmt is not None:   # typed columns (integers, booleans, strings): rows as they are
+        if fmt is not None:   # typed columns (integers, booleans, strings): rows as tuples
+            rows = _row_tuples(rows)
             self._rows.extend(rows)
             if self._file is not None:
                 self._append("".join(",".join([f(x) for f, x in zip(fmt, r)]) + "\n" for r in rows))
             return
         # all reals: compact float chunks (long 10 kHz runs), checked for non-finite values
-        n = len(self.columns) + 1
-        if any(len(r) != n for r in (rows[0], rows[-1])):
-            raise ValueError(f"recorder: rows of {len(rows[0])} values, expected {n}")
-        # fromiter over the chained rows: ~40 % less than np.array of the tuples
-        chunk = np.fromiter(itertools.chain.from_iterable(rows), float, len(rows) * n).reshape(len(rows), n)
+        chunk = _float_chunk(rows, len(self.columns) + 1)
         bad = None if self.allow_nonfinite or np.isfinite(chunk).all() else _first_nonfinite(chunk, self.nan_ok)
         if bad is not None:
             chunk = chunk[:bad[0] + 1]          # keep the rows up to the first bad one
@@ -387,6 +385,37 @@ class _Spill:
     def close(self) -> None:
         self.f.close()
         self.path.unlink(missing_ok=True)
+
+
+def _row_tuples(rows: list) -> list:
+    """``rows`` with every block (a 2-D array) as its row tuples of Python floats."""
+    if not any(type(r) is np.ndarray for r in rows):
+        return rows
+    out: list = []
+    for r in rows:
+        if type(r) is np.ndarray:
+            out.extend(map(tuple, r.tolist()))
+        else:
+            out.append(r)
+    return out
+
+
+def _float_chunk(rows: list, n: int) -> np.ndarray:
+    """One (rows, n) float64 array of ``rows`` (row tuples and blocks, in order)."""
+    parts, start = [], 0
+    for k in [k for k, r in enumerate(rows) if type(r) is np.ndarray] + [len(rows)]:
+        if k > start:
+            run = rows[start:k]
+            if any(len(r) != n for r in (run[0], run[-1])):
+                raise ValueError(f"recorder: rows of {len(run[0])} values, expected {n}")
+            # fromiter over the chained rows: ~40 % less than np.array of the tuples
+            parts.append(np.fromiter(itertools.chain.from_iterable(run), float, len(run) * n).reshape(len(run), n))
+        if k < len(rows):
+            if rows[k].ndim != 2 or rows[k].shape[1] != n:
+                raise ValueError(f"recorder: a block of shape {rows[k].shape}, expected (rows, {n})")
+            parts.append(rows[k])
+        start = k + 1
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
 def format_chunk(chunk: np.ndarray) -> str:
