@@ -181,6 +181,9 @@ def connect(scheduler: str | None = None, workers: int | None = None, processes:
     from distributed import Client, LocalCluster
     if scheduler:
         return Client(scheduler)
+    if processes:           # worker processes inherit it before they import numpy
+        from drillcosim.cosim.runs.threads import one_thread_per_math_library
+        one_thread_per_math_library()
     with dask.config.set(_cluster_config()):
         # no dashboard; the scheduler's HTTP server (health, metrics) on a free loopback port:
         # its default, 8787, warns "Port 8787 is already in use" beside any other cluster

@@ -43,6 +43,7 @@ from drillcosim.cosim.errors import CosimError, SimulationError
 from drillcosim.cosim.runs.outputs import HEARTBEAT_NAME, TRACEBACK_NAME, alive, claim, process_start, repair_csv, write_summary
 from drillcosim.cosim.errors import OutputError
 from drillcosim.cosim.runs.runner import RunEnded, _base_summary, default_out_dir, load, run_in_folder
+from drillcosim.cosim.runs.threads import one_thread_per_math_library
 from drillcosim.cosim.loop.watch import Heartbeat, RunWatch, exit_code_for
 
 EXIT_FAILED, EXIT_TIMEOUT, EXIT_CRASHED = 1, 3, 4
@@ -138,6 +139,7 @@ def _fork_server(modules: list[str]):
     """The forkserver context, its server to preload ``modules`` (when it is not running yet)."""
     ctx = multiprocessing.get_context("forkserver")
     os.environ.setdefault("MPLBACKEND", "Agg")    # the server preloads pyplot: never a display backend
+    one_thread_per_math_library()                 # the server imports numpy for every run's child
     # imported once in the fork server, so that each run's child does not import them again
     ctx.set_forkserver_preload(["drillcosim.cosim.runs.runner", "drillcosim.cosim.runs.supervisor", *modules])
     return ctx
