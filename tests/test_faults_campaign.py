@@ -24,6 +24,9 @@ def test_campaign_one_crash_five_completed_on_two_local_workers(tmp_path, fault_
     assert not (tmp_path / "camp" / "run_000" / "data.csv").exists()
     assert (tmp_path / "camp" / "run_000" / "summary.json").exists()
     assert (tmp_path / "camp" / "run_003" / "data.csv").exists()
+    # ... written from the raw rows on disk: a good run's data.csv is never formatted at all
+    with open(tmp_path / "camp" / "run_003" / "data.csv") as f:
+        assert f.readline().startswith("time,") and sum(1 for _ in f) == summaries[3]["rows_recorded"]
     assert summaries[0]["files"]["mat"] is None              # a good run's data.mat is not even written
     statuses = [s["status"] for s in summaries]
     assert statuses == ["completed"] * 3 + ["crashed"] + ["completed"] * 2

@@ -216,6 +216,10 @@ class Recorder:
         self._format = None
         self.allow_nonfinite = False      # else a NaN/inf row stops the run (SimulationError)
         self.nan_ok: list[int] = []       # columns that may hold NaN ("not yet" outputs; set by the master)
+        # data.csv only if finish writes data.mat (a run that went wrong): the rows stream to the
+        # raw spill alone, for a campaign that deletes a good run's data (start says when it applies)
+        self.csv_on_demand = False
+        self._csv_deferred = False
 
     def resolve(self, system, extra=()) -> list[str]:
         """The recorded signal names: ``"*"`` expanded, ``extra`` (plotted signals) added."""
@@ -240,12 +244,16 @@ class Recorder:
             meta = {"time": {"unit": "s", "type": "Float64"}}
             meta.update({c: {"unit": self.units[c], "type": self.types[c]} for c in columns})
             csv_path = self.out_dir / self.csv_name
+            # typed columns have no spill to write the CSV from later: they always stream
+            self._csv_deferred = self.csv_on_demand and not typed
             try:
                 columns_file(csv_path).write_text(json.dumps(meta, indent=1) + "\n")
-                self._file = open(csv_path, "wb", buffering=0)   # no buffer: nothing left to flush after an error
+                if not self._csv_deferred:
+                    self._file = open(csv_path, "wb", buffering=0)   # no buffer: nothing left to flush after an error
             except OSError as e:
                 raise io_problem("create", csv_path, e) from None
-            self._append(",".join(["time", *map(_header_field, columns)]) + "\n")
+            if self._file is not None:
+                self._append(csv_header(columns))
             if not typed:
                 self._spill = _Spill(self.out_dir / SPILL_NAME, len(columns) + 1)
 
@@ -310,6 +318,9 @@ class Recorder:
         result = self._finished or self._result()
         self._finished = result             # a second finish (data.mat failed: the disk is full) has the rows
         if write_mat and self.out_dir is not None:
+            if self._csv_deferred:
+                write_csv_rows(self.out_dir / self.csv_name, self.columns, _stacked(result))
+                self._csv_deferred = False
             write_mat_file(result, self.out_dir / "data.mat")
             from drillcosim.cosim.loop.modelica_mat import write_modelica_mat      # OMEdit, DyMat, buildingspy read this one
             write_modelica_mat(result, self.out_dir / "data_res.mat")
@@ -385,6 +396,45 @@ class _Spill:
     def close(self) -> None:
         self.f.close()
         self.path.unlink(missing_ok=True)
+
+
+def csv_header(columns: list[str]) -> str:
+    """The CSV's first line: ``time`` and the signal names."""
+    return ",".join(["time", *map(_header_field, columns)]) + "\n"
+
+
+def write_csv_rows(path: Path, columns: list[str], rows: np.ndarray, block: int = 1 << 16) -> None:
+    """A CSV of ``rows`` (a (rows, 1 + columns) float array: a spill's mapping), ``block``
+    rows at a time; the bytes the recorder streams, but for a chunk holding an infinity
+    (formatted by repr, whose exponents differ: the same doubles read back)."""
+    try:
+        with open(path, "wb") as f:
+            f.write(csv_header(columns).encode())
+            for a in range(0, len(rows), block):
+                f.write(chunk_bytes(np.asarray(rows[a:a + block], dtype=np.float64)))
+    except OSError as e:
+        raise io_problem("write", path, e) from None
+
+
+def csv_from_spill(out: Path, csv_name: str = "data.csv") -> bool:
+    """Write ``out/csv_name`` from the raw spill a run left that kept its rows only there
+    (:attr:`Recorder.csv_on_demand`) and then died; the spill stays for
+    :func:`result_from_spill`. False when there is no spill or no sidecar to name its columns."""
+    spill, meta_file = out / SPILL_NAME, columns_file(out / csv_name)
+    if not (spill.exists() and meta_file.exists()):
+        return False
+    names = [n for n in json.loads(meta_file.read_text()) if n != "time"]
+    width = len(names) + 1
+    n_rows = spill.stat().st_size // (8 * width)          # complete rows only
+    rows = np.memmap(spill, dtype=np.float64, mode="r", shape=(n_rows, width)) if n_rows else np.zeros((0, width))
+    write_csv_rows(out / csv_name, names, rows)
+    return True
+
+
+def _stacked(result: "Result") -> np.ndarray:
+    """The result's rows as one (rows, 1 + columns) array: its spill's mapping when it has one."""
+    store = result.rows_store
+    return store if store is not None else np.column_stack([result.time, result.data])
 
 
 def _row_tuples(rows: list) -> list:

@@ -61,7 +61,8 @@ def _one_run(path: str, out_dir: str, overrides: dict, index: int, wall_timeout=
                 "run": index, "overrides": overrides, "out_dir": out_dir}
     worker = _this_worker()
     out = _worker_folder(worker, stop_name, index) if gather else Path(out_dir)
-    summary = _run_here(path, out, overrides, (wall_timeout, max_steps, plots, keep_data and mats), stop)
+    # a good run's data is deleted without keep_data: then it never writes data.csv or data.mat
+    summary = _run_here(path, out, overrides, (wall_timeout, max_steps, plots, keep_data and mats, keep_data), stop)
     summary.update(run=index, overrides=overrides, out_dir=str(out))
     if worker is not None:
         summary["worker"] = worker.address
@@ -81,7 +82,7 @@ def _run_here(path: str, out: Path, overrides: dict, limits: tuple, stop) -> dic
     from drillcosim.cosim.errors import SimulationError
     from drillcosim.cosim.runs.runner import RunEnded, run_scenario
     from drillcosim.cosim.runs.supervisor import run_supervised
-    wall_timeout, max_steps, plots, mat = limits      # mat: data.mat of a good run, kept or not
+    wall_timeout, max_steps, plots, mat, csv = limits      # data.mat, data.csv of a good run, or not
     try:
         out.mkdir(parents=True, exist_ok=True)
         log = out / "log.txt"
@@ -90,7 +91,7 @@ def _run_here(path: str, out: Path, overrides: dict, limits: tuple, stop) -> dic
             from drillcosim.cosim.runs.run_server import server_for_this_thread
             return run_supervised(path, out, overrides, progress=False, wall_timeout=wall_timeout,
                                   max_steps=max_steps, log_file=log, server=server_for_this_thread(), stop=stop,
-                                  plots=plots, mat=mat)
+                                  plots=plots, mat=mat, csv=csv)
         # a worker started with daemon = True may not have children: run here (a crash then
         # takes the worker down, and the scheduler reports it: KilledWorker -> crashed)
         import contextlib
