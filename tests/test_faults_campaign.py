@@ -86,6 +86,9 @@ def test_fork_server_preloads_blocks_scores_and_plots_of_a_campaign_scenario():
            "plots": [{"function": "drillcosim.analysis.observer_scoring:fang_fig7"}, {"y": ["x"]}]}
     assert _modules_of(raw) == ["drillcosim.controllers.trajectory", "drillcosim.analysis.observer_scoring", "matplotlib.pyplot"]
     assert _modules_of({"blocks": {}}) == []
+    # a campaign that draws no plots (its default) preloads no plot module and no pyplot
+    raw["plots"][0]["function"] = "drillcosim.analysis.figures:only_a_plot"
+    assert _modules_of(raw, plots=False) == ["drillcosim.controllers.trajectory", "drillcosim.analysis.observer_scoring"]
 
 
 def test_campaign_needs_one_scenario_or_one_per_run(tmp_path, mass_fmu):

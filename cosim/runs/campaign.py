@@ -239,7 +239,7 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
     distinct = list(dict.fromkeys(paths)) or ([] if many else [str(Path(scenario).resolve())])
     if client is None and scheduler is None and not processes and distinct:
         from drillcosim.cosim.runs.supervisor import start_fork_server
-        start_fork_server(distinct[0], overrides_list[0] if overrides_list else None)
+        start_fork_server(distinct[0], overrides_list[0] if overrides_list else None, plots)
     names = [load_scenario(p).name for p in distinct]        # validates each once, up front
     out = Path(out_dir) if out_dir is not None else Path("results") / f"{names[0] if names else 'campaign'}_campaign"
     out.mkdir(parents=True, exist_ok=True)

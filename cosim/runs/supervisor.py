@@ -118,15 +118,17 @@ def _summary_facts(path: Path, overrides):
                            overrides=dict(overrides or {}), modules=_modules_of(raw))
 
 
-def _modules_of(raw: dict) -> list[str]:
+def _modules_of(raw: dict, plots: bool = True) -> list[str]:
     """The modules a run of this scenario imports: its blocks', scores' and plots' (and
     pyplot when it plots). Preloaded once in the fork server, they cost a campaign's runs
     nothing each; the score and plot modules (scipy.optimize, matplotlib: ~1.5 s) would
-    otherwise be imported again by every run's child."""
+    otherwise be imported again by every run's child. ``plots=False`` (a campaign's
+    default): no plot module, no pyplot -- the first run waits for the server's imports."""
     specs = [b.get("class") for b in raw.get("blocks", {}).values() if isinstance(b, dict)]
-    specs += [x.get("function") for key in ("scores", "plots") for x in raw.get(key, []) if isinstance(x, dict)]
+    specs += [x.get("function") for key in ("scores", "plots") if plots or key != "plots"
+              for x in raw.get(key, []) if isinstance(x, dict)]
     modules = [c.partition(":")[0] for c in specs if isinstance(c, str) and ":" in c]
-    if raw.get("plots"):
+    if plots and raw.get("plots"):
         modules.append("matplotlib.pyplot")
     return list(dict.fromkeys(modules))
 
@@ -147,14 +149,16 @@ def _fork_server(modules: list[str]):
     return ctx
 
 
-def start_fork_server(path, overrides=None) -> None:
+def start_fork_server(path, overrides=None, plots: bool = True) -> None:
     """Start the fork server for runs of scenario ``path`` now, in the background: its
     imports (~1-2 s: scipy, matplotlib) then overlap whatever the caller does next (a
     campaign validates its scenarios and starts its cluster meanwhile) instead of
-    delaying the first run."""
+    delaying the first run. ``plots=False``: for runs that draw no plots."""
     from multiprocessing import forkserver
+
+    from drillcosim.cosim.scenario.files import load_raw
     try:
-        modules = _summary_facts(Path(path), overrides).modules
+        modules = _modules_of(load_raw(Path(path), overrides), plots)
     except Exception:  # noqa: BLE001 - a bad scenario is reported by its validation, not here
         modules = []
     _fork_server(modules)
