@@ -173,7 +173,7 @@ class FusedSteps:
         """Append the rows the C steps recorded, as one (rows, columns) float array (the
         recorder takes such a block beside the Python loop's row tuples): a copy of the C
         buffer, where a float object per value and a tuple per row cost 13 % of a long
-        hole's simulation."""
+        run's simulation."""
         n = self.f.rec_n
         if n:
             w = self._rec_width
