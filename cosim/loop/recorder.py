@@ -370,7 +370,7 @@ class _Spill:
             raise io_problem("open" if reopen else "create", path, e) from None
 
     def write(self, chunk: np.ndarray) -> None:
-        view = memoryview(np.ascontiguousarray(chunk, dtype=np.float64).tobytes())
+        view = memoryview(np.ascontiguousarray(chunk, dtype=np.float64)).cast("B")    # no copy
         try:
             while view:
                 view = view[self.f.write(view):]
