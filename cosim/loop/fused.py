@@ -172,8 +172,8 @@ class FusedSteps:
     def take_rows(self, rows: list) -> None:
         """Append the rows the C steps recorded, as one (rows, columns) float array (the
         recorder takes such a block beside the Python loop's row tuples): a copy of the C
-        buffer, where a float object per value and a tuple per row cost 13 % of a long
-        run's simulation."""
+        buffer, where a float object per value and a tuple per row, turned back into floats
+        by the recorder, cost a quarter of the C steps' own time (docs/performance.md)."""
         n = self.f.rec_n
         if n:
             w = self._rec_width
