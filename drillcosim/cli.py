@@ -8,6 +8,12 @@ import os
 import sys
 from pathlib import Path
 
+from drillcosim.cosim.runs.threads import one_thread_per_math_library
+
+# before anything imports numpy: its OpenBLAS reads its thread count once, and this process
+# and every run it starts (children, workers, the fork server) step a single-threaded loop
+one_thread_per_math_library()
+
 try:
     import tomllib
 except ModuleNotFoundError:       # Python 3.10

@@ -24,6 +24,9 @@ def test_campaign_one_crash_five_completed_on_two_local_workers(tmp_path, fault_
     assert not (tmp_path / "camp" / "run_000" / "data.csv").exists()
     assert (tmp_path / "camp" / "run_000" / "summary.json").exists()
     assert (tmp_path / "camp" / "run_003" / "data.csv").exists()
+    # ... written from the raw rows on disk: a good run's data.csv is never formatted at all
+    with open(tmp_path / "camp" / "run_003" / "data.csv") as f:
+        assert f.readline().startswith("time,") and sum(1 for _ in f) == summaries[3]["rows_recorded"]
     assert summaries[0]["files"]["mat"] is None              # a good run's data.mat is not even written
     statuses = [s["status"] for s in summaries]
     assert statuses == ["completed"] * 3 + ["crashed"] + ["completed"] * 2
@@ -83,6 +86,9 @@ def test_fork_server_preloads_blocks_scores_and_plots_of_a_campaign_scenario():
            "plots": [{"function": "drillcosim.analysis.observer_scoring:fang_fig7"}, {"y": ["x"]}]}
     assert _modules_of(raw) == ["drillcosim.controllers.trajectory", "drillcosim.analysis.observer_scoring", "matplotlib.pyplot"]
     assert _modules_of({"blocks": {}}) == []
+    # a campaign that draws no plots (its default) preloads no plot module and no pyplot
+    raw["plots"][0]["function"] = "drillcosim.analysis.figures:only_a_plot"
+    assert _modules_of(raw, plots=False) == ["drillcosim.controllers.trajectory", "drillcosim.analysis.observer_scoring"]
 
 
 def test_campaign_needs_one_scenario_or_one_per_run(tmp_path, mass_fmu):

@@ -50,6 +50,7 @@ FMUs report ``can_get_state == False``.
 """
 from __future__ import annotations
 
+import functools
 import math
 import os
 from ctypes import POINTER, c_double, c_void_p
@@ -114,8 +115,16 @@ def load_me_model(path: str | os.PathLike) -> MEModel:
 
 
 def fmu_kinds(path: str | os.PathLike) -> tuple[str, ...]:
-    """Interfaces an FMU offers: a subset of ``("CS", "ME")`` (for ``drillcosim info``)."""
-    md = read_model_description(str(path), validate=False)
+    """Interfaces an FMU offers: a subset of ``("CS", "ME")`` (for ``drillcosim info``).
+    Read once per file version: every load of a scenario asks (twice per FMU), and parsing
+    the modelDescription cost a warm campaign child 15-40 ms a run."""
+    p = Path(path).resolve()
+    return _kinds_of(str(p), p.stat().st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=64)
+def _kinds_of(path: str, _mtime_ns: int) -> tuple[str, ...]:
+    md = read_model_description(path, validate=False)
     kinds = []
     if md.coSimulation is not None:
         kinds.append("CS")

@@ -22,6 +22,8 @@ from __future__ import annotations
 import ctypes
 import struct
 
+import numpy as np
+
 from drillcosim.cosim.loop import kernel_group
 from drillcosim.cosim.loop.manipulators import OPERATORS
 from drillcosim.cosim.loop.native import NativeUnavailable, library
@@ -168,11 +170,14 @@ class FusedSteps:
         return min((-(-n // r) * r for r in self.python_rates), default=-1)
 
     def take_rows(self, rows: list) -> None:
-        """Append the rows the C steps recorded (as tuples, as the Python loop records them)."""
+        """Append the rows the C steps recorded, as one (rows, columns) float array (the
+        recorder takes such a block beside the Python loop's row tuples): a copy of the C
+        buffer, where a float object per value and a tuple per row, turned back into floats
+        by the recorder, cost a quarter of the C steps' own time (docs/performance.md)."""
         n = self.f.rec_n
         if n:
-            flat = self._rec_flat[:n * self._rec_width].tolist()
-            rows.extend(zip(*[iter(flat)] * self._rec_width))
+            w = self._rec_width
+            rows.append(np.frombuffer(self._rec_buf, dtype=np.float64, count=n * w).reshape(n, w).copy())
             self.f.rec_n = 0
 
     def keep_conditions(self, active: list) -> None:

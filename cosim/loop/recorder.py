@@ -216,6 +216,10 @@ class Recorder:
         self._format = None
         self.allow_nonfinite = False      # else a NaN/inf row stops the run (SimulationError)
         self.nan_ok: list[int] = []       # columns that may hold NaN ("not yet" outputs; set by the master)
+        # data.csv only if finish writes data.mat (a run that went wrong): the rows stream to the
+        # raw spill alone, for a campaign that deletes a good run's data (start says when it applies)
+        self.csv_on_demand = False
+        self._csv_deferred = False
 
     def resolve(self, system, extra=()) -> list[str]:
         """The recorded signal names: ``"*"`` expanded, ``extra`` (plotted signals) added."""
@@ -240,21 +244,25 @@ class Recorder:
             meta = {"time": {"unit": "s", "type": "Float64"}}
             meta.update({c: {"unit": self.units[c], "type": self.types[c]} for c in columns})
             csv_path = self.out_dir / self.csv_name
+            # typed columns have no spill to write the CSV from later: they always stream
+            self._csv_deferred = self.csv_on_demand and not typed
             try:
                 columns_file(csv_path).write_text(json.dumps(meta, indent=1) + "\n")
-                self._file = open(csv_path, "wb", buffering=0)   # no buffer: nothing left to flush after an error
+                if not self._csv_deferred:
+                    self._file = open(csv_path, "wb", buffering=0)   # no buffer: nothing left to flush after an error
             except OSError as e:
                 raise io_problem("create", csv_path, e) from None
-            self._append(",".join(["time", *map(_header_field, columns)]) + "\n")
+            if self._file is not None:
+                self._append(csv_header(columns))
             if not typed:
                 self._spill = _Spill(self.out_dir / SPILL_NAME, len(columns) + 1)
 
-    def _append(self, text: str) -> None:
+    def _append(self, text: str | bytes) -> None:
         """Write complete lines or nothing: on an I/O error (full disk) the file is cut back
         to its last complete row and an :class:`OutputError` says what failed."""
         f = self._file
         end = f.tell()
-        view = memoryview(text.encode())
+        view = memoryview(text if isinstance(text, bytes) else text.encode())
         try:
             while view:
                 view = view[f.write(view):]
@@ -267,28 +275,26 @@ class Recorder:
             raise io_problem("write", self.out_dir / self.csv_name, e) from None
 
     def write(self, rows: list) -> None:
-        """Append rows ``(t, v1, v2, ...)`` and flush them to the CSV."""
+        """Append rows and flush them to the CSV: each item of ``rows`` one row ``(t, v1, v2,
+        ...)`` or a block of them, a (rows, columns) float array (the C steps' rows)."""
         if not rows:
             return
         fmt = self._format
-        if fmt is not None:   # typed columns (integers, booleans, strings): rows as they are
+        if fmt is not None:   # typed columns (integers, booleans, strings): rows as tuples
+            rows = _row_tuples(rows)
             self._rows.extend(rows)
             if self._file is not None:
                 self._append("".join(",".join([f(x) for f, x in zip(fmt, r)]) + "\n" for r in rows))
             return
         # all reals: compact float chunks (long 10 kHz runs), checked for non-finite values
-        n = len(self.columns) + 1
-        if any(len(r) != n for r in (rows[0], rows[-1])):
-            raise ValueError(f"recorder: rows of {len(rows[0])} values, expected {n}")
-        # fromiter over the chained rows: ~40 % less than np.array of the tuples
-        chunk = np.fromiter(itertools.chain.from_iterable(rows), float, len(rows) * n).reshape(len(rows), n)
+        chunk = _float_chunk(rows, len(self.columns) + 1)
         bad = None if self.allow_nonfinite or np.isfinite(chunk).all() else _first_nonfinite(chunk, self.nan_ok)
         if bad is not None:
             chunk = chunk[:bad[0] + 1]          # keep the rows up to the first bad one
         if self._spill is None:
             self._rows.append(chunk)
         if self._file is not None:
-            self._append(format_chunk(chunk))
+            self._append(chunk_bytes(chunk))
         if self._spill is not None:      # after the CSV: the two hold the same rows
             self._spill.write(chunk)
         if bad is not None:
@@ -312,6 +318,9 @@ class Recorder:
         result = self._finished or self._result()
         self._finished = result             # a second finish (data.mat failed: the disk is full) has the rows
         if write_mat and self.out_dir is not None:
+            if self._csv_deferred:
+                write_csv_rows(self.out_dir / self.csv_name, self.columns, _stacked(result))
+                self._csv_deferred = False
             write_mat_file(result, self.out_dir / "data.mat")
             from drillcosim.cosim.loop.modelica_mat import write_modelica_mat      # OMEdit, DyMat, buildingspy read this one
             write_modelica_mat(result, self.out_dir / "data_res.mat")
@@ -361,7 +370,7 @@ class _Spill:
             raise io_problem("open" if reopen else "create", path, e) from None
 
     def write(self, chunk: np.ndarray) -> None:
-        view = memoryview(np.ascontiguousarray(chunk, dtype=np.float64).tobytes())
+        view = memoryview(np.ascontiguousarray(chunk, dtype=np.float64)).cast("B")    # no copy
         try:
             while view:
                 view = view[self.f.write(view):]
@@ -389,9 +398,85 @@ class _Spill:
         self.path.unlink(missing_ok=True)
 
 
+def csv_header(columns: list[str]) -> str:
+    """The CSV's first line: ``time`` and the signal names."""
+    return ",".join(["time", *map(_header_field, columns)]) + "\n"
+
+
+def write_csv_rows(path: Path, columns: list[str], rows: np.ndarray, block: int = 1 << 16) -> None:
+    """A CSV of ``rows`` (a (rows, 1 + columns) float array: a spill's mapping), ``block``
+    rows at a time; the bytes the recorder streams, but for a chunk holding an infinity
+    (formatted by repr, whose exponents differ: the same doubles read back)."""
+    try:
+        with open(path, "wb") as f:
+            f.write(csv_header(columns).encode())
+            for a in range(0, len(rows), block):
+                f.write(chunk_bytes(np.asarray(rows[a:a + block], dtype=np.float64)))
+    except OSError as e:
+        raise io_problem("write", path, e) from None
+
+
+def csv_from_spill(out: Path, csv_name: str = "data.csv") -> bool:
+    """Write ``out/csv_name`` from the raw spill a run left that kept its rows only there
+    (:attr:`Recorder.csv_on_demand`) and then died; the spill stays for
+    :func:`result_from_spill`. False when there is no spill or no sidecar to name its columns."""
+    spill, meta_file = out / SPILL_NAME, columns_file(out / csv_name)
+    if not (spill.exists() and meta_file.exists()):
+        return False
+    names = [n for n in json.loads(meta_file.read_text()) if n != "time"]
+    width = len(names) + 1
+    n_rows = spill.stat().st_size // (8 * width)          # complete rows only
+    rows = np.memmap(spill, dtype=np.float64, mode="r", shape=(n_rows, width)) if n_rows else np.zeros((0, width))
+    write_csv_rows(out / csv_name, names, rows)
+    return True
+
+
+def _stacked(result: "Result") -> np.ndarray:
+    """The result's rows as one (rows, 1 + columns) array: its spill's mapping when it has one."""
+    store = result.rows_store
+    return store if store is not None else np.column_stack([result.time, result.data])
+
+
+def _row_tuples(rows: list) -> list:
+    """``rows`` with every block (a 2-D array) as its row tuples of Python floats."""
+    if not any(type(r) is np.ndarray for r in rows):
+        return rows
+    out: list = []
+    for r in rows:
+        if type(r) is np.ndarray:
+            out.extend(map(tuple, r.tolist()))
+        else:
+            out.append(r)
+    return out
+
+
+def _float_chunk(rows: list, n: int) -> np.ndarray:
+    """One (rows, n) float64 array of ``rows`` (row tuples and blocks, in order)."""
+    parts, start = [], 0
+    for k in [k for k, r in enumerate(rows) if type(r) is np.ndarray] + [len(rows)]:
+        if k > start:
+            run = rows[start:k]
+            if any(len(r) != n for r in (run[0], run[-1])):
+                raise ValueError(f"recorder: rows of {len(run[0])} values, expected {n}")
+            # fromiter over the chained rows: ~40 % less than np.array of the tuples
+            parts.append(np.fromiter(itertools.chain.from_iterable(run), float, len(run) * n).reshape(len(run), n))
+        if k < len(rows):
+            if rows[k].ndim != 2 or rows[k].shape[1] != n:
+                raise ValueError(f"recorder: a block of shape {rows[k].shape}, expected (rows, {n})")
+            parts.append(rows[k])
+        start = k + 1
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+
 def format_chunk(chunk: np.ndarray) -> str:
     """CSV lines of a float chunk, each value as the shortest digits that read back bit
-    for bit (NaN as ``nan``, infinities as ``inf`` / ``-inf``).
+    for bit (NaN as ``nan``, infinities as ``inf`` / ``-inf``): :func:`chunk_bytes` as text."""
+    return chunk_bytes(chunk).decode("ascii")
+
+
+def chunk_bytes(chunk: np.ndarray) -> bytes:
+    """:func:`format_chunk`'s lines as ASCII bytes, what the CSV file takes (the recorder
+    writes these: a text round trip would copy a long run's 20-30 MB of rows twice more).
 
     orjson (Ryu-style shortest round trip, ~50 ns a value) gives the same digits as
     Python's ``repr`` but writes small and large exponents its own way (``1e-7``,
@@ -404,10 +489,10 @@ def format_chunk(chunk: np.ndarray) -> str:
         text = _orjson.dumps(chunk, option=_orjson.OPT_SERIALIZE_NUMPY)[2:-2].replace(b"],[", b"\n")
         if not finite.all():             # b"[[a,b],[c,d]]" -> "a,b\nc,d\n"; null can only be a NaN here
             text = text.replace(b"null", b"nan")
-        return text.decode("ascii") + "\n"
+        return text + b"\n"
     # one %-format over the whole chunk costs 40 % less than joining row by row
     row = ",".join(["%r"] * chunk.shape[1]) + "\n"
-    return (row * len(chunk)) % tuple(chunk.ravel().tolist())
+    return ((row * len(chunk)) % tuple(chunk.ravel().tolist())).encode("ascii")
 
 
 def _header_field(name: str) -> str:

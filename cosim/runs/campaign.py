@@ -61,7 +61,8 @@ def _one_run(path: str, out_dir: str, overrides: dict, index: int, wall_timeout=
                 "run": index, "overrides": overrides, "out_dir": out_dir}
     worker = _this_worker()
     out = _worker_folder(worker, stop_name, index) if gather else Path(out_dir)
-    summary = _run_here(path, out, overrides, (wall_timeout, max_steps, plots, keep_data and mats), stop)
+    # a good run's data is deleted without keep_data: then it never writes data.csv or data.mat
+    summary = _run_here(path, out, overrides, (wall_timeout, max_steps, plots, keep_data and mats, keep_data), stop)
     summary.update(run=index, overrides=overrides, out_dir=str(out))
     if worker is not None:
         summary["worker"] = worker.address
@@ -81,7 +82,7 @@ def _run_here(path: str, out: Path, overrides: dict, limits: tuple, stop) -> dic
     from drillcosim.cosim.errors import SimulationError
     from drillcosim.cosim.runs.runner import RunEnded, run_scenario
     from drillcosim.cosim.runs.supervisor import run_supervised
-    wall_timeout, max_steps, plots, mat = limits      # mat: data.mat of a good run, kept or not
+    wall_timeout, max_steps, plots, mat, csv = limits      # data.mat, data.csv of a good run, or not
     try:
         out.mkdir(parents=True, exist_ok=True)
         log = out / "log.txt"
@@ -90,7 +91,7 @@ def _run_here(path: str, out: Path, overrides: dict, limits: tuple, stop) -> dic
             from drillcosim.cosim.runs.run_server import server_for_this_thread
             return run_supervised(path, out, overrides, progress=False, wall_timeout=wall_timeout,
                                   max_steps=max_steps, log_file=log, server=server_for_this_thread(), stop=stop,
-                                  plots=plots, mat=mat)
+                                  plots=plots, mat=mat, csv=csv)
         # a worker started with daemon = True may not have children: run here (a crash then
         # takes the worker down, and the scheduler reports it: KilledWorker -> crashed)
         import contextlib
@@ -181,6 +182,9 @@ def connect(scheduler: str | None = None, workers: int | None = None, processes:
     from distributed import Client, LocalCluster
     if scheduler:
         return Client(scheduler)
+    if processes:           # worker processes inherit it before they import numpy
+        from drillcosim.cosim.runs.threads import one_thread_per_math_library
+        one_thread_per_math_library()
     with dask.config.set(_cluster_config()):
         # no dashboard; the scheduler's HTTP server (health, metrics) on a free loopback port:
         # its default, 8787, warns "Port 8787 is already in use" beside any other cluster
@@ -235,7 +239,7 @@ def run_campaign(scenario, overrides_list: list[dict], out_dir=None, workers: in
     distinct = list(dict.fromkeys(paths)) or ([] if many else [str(Path(scenario).resolve())])
     if client is None and scheduler is None and not processes and distinct:
         from drillcosim.cosim.runs.supervisor import start_fork_server
-        start_fork_server(distinct[0], overrides_list[0] if overrides_list else None)
+        start_fork_server(distinct[0], overrides_list[0] if overrides_list else None, plots)
     names = [load_scenario(p).name for p in distinct]        # validates each once, up front
     out = Path(out_dir) if out_dir is not None else Path("results") / f"{names[0] if names else 'campaign'}_campaign"
     out.mkdir(parents=True, exist_ok=True)

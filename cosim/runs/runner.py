@@ -95,14 +95,16 @@ def block_load_warnings(sc: Scenario, echo: bool = True) -> list[str]:
 
 def run_in_folder(sc: Scenario, out: Path, progress: bool, watch: RunWatch,
                   handle_signals: bool = True, started: float | None = None, plots: bool = True,
-                  mat: bool = True) -> Result:
+                  mat: bool = True, csv: bool = True) -> Result:
     """:func:`run_scenario` on a claimed (locked, cleared) folder ``out``; ``started``: the
     ``time.perf_counter()`` before the scenario was loaded (for summary.json's ``timing_s``).
     ``plots=False``: scores only (a campaign's default: ``drillcosim plot RUN`` draws them later).
     ``mat=False``: no data.mat for a run that ends well (a campaign that drops its good runs'
-    data); one that ends otherwise still gets it, as evidence."""
+    data); one that ends otherwise still gets it, as evidence. ``csv=False``: likewise for
+    data.csv (the rows go only to the recorder's raw spill while the run goes)."""
     t_run = time.perf_counter()
     recorder = Recorder(sc.record_signals, sc.decimation, out)
+    recorder.csv_on_demand = not csv
     summary = _base_summary(sc, out)
     load_warnings = block_load_warnings(sc)
     if load_warnings:

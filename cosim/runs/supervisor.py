@@ -43,6 +43,8 @@ from drillcosim.cosim.errors import CosimError, SimulationError
 from drillcosim.cosim.runs.outputs import HEARTBEAT_NAME, TRACEBACK_NAME, alive, claim, process_start, repair_csv, write_summary
 from drillcosim.cosim.errors import OutputError
 from drillcosim.cosim.runs.runner import RunEnded, _base_summary, default_out_dir, load, run_in_folder
+from drillcosim.cosim.runs.threads import one_thread_per_math_library
+from drillcosim.cosim.loop.recorder import csv_from_spill
 from drillcosim.cosim.loop.watch import Heartbeat, RunWatch, exit_code_for
 
 EXIT_FAILED, EXIT_TIMEOUT, EXIT_CRASHED = 1, 3, 4
@@ -64,7 +66,7 @@ def exit_code(summary: dict) -> int:
 def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progress: bool = True,
                    wall_timeout: float | None = None, max_steps: int | None = None,
                    grace: float = GRACE_S, log_file=None, server=None, stop=None, plots: bool = True,
-                   mat: bool = True) -> dict:
+                   mat: bool = True, csv: bool = True) -> dict:
     """Run ``scenario`` in a child process; return its summary (also in summary.json).
 
     Raises only for what happens before the run (:class:`drillcosim.cosim.errors.ScenarioError`,
@@ -75,7 +77,8 @@ def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progre
     this process is threaded; else a child of its own. ``stop``: a callable polled while the
     run goes, returning the signals the run must act on as if it had received them (a
     campaign's driver was interrupted: the first stops the run, a second kills it), else
-    an empty list. ``plots=False``: scores only; ``mat=False``: no data.mat if the run ends well.
+    an empty list. ``plots=False``: scores only; ``mat=False``: no data.mat if the run ends well;
+    ``csv=False``: no data.csv either (written from the rows on disk if the run ends otherwise).
     """
     RunWatch(wall_timeout, max_steps)             # checks the limits before anything starts
     # forked: load here, the child inherits it; else the child loads and this process reads
@@ -88,7 +91,7 @@ def run_supervised(scenario, out_dir=None, overrides: dict | None = None, progre
         tmp = tempfile.mkdtemp(prefix="drillcosim-")
         try:
             return _supervise(sc, out, progress, wall_timeout, max_steps, grace, tmp, log_file, server, lock,
-                              stop, {"plots": plots, "mat": mat})
+                              stop, {"plots": plots, "mat": mat, "csv": csv})
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
             (out / HEARTBEAT_NAME).unlink(missing_ok=True)
@@ -115,15 +118,17 @@ def _summary_facts(path: Path, overrides):
                            overrides=dict(overrides or {}), modules=_modules_of(raw))
 
 
-def _modules_of(raw: dict) -> list[str]:
+def _modules_of(raw: dict, plots: bool = True) -> list[str]:
     """The modules a run of this scenario imports: its blocks', scores' and plots' (and
     pyplot when it plots). Preloaded once in the fork server, they cost a campaign's runs
     nothing each; the score and plot modules (scipy.optimize, matplotlib: ~1.5 s) would
-    otherwise be imported again by every run's child."""
+    otherwise be imported again by every run's child. ``plots=False`` (a campaign's
+    default): no plot module, no pyplot -- the first run waits for the server's imports."""
     specs = [b.get("class") for b in raw.get("blocks", {}).values() if isinstance(b, dict)]
-    specs += [x.get("function") for key in ("scores", "plots") for x in raw.get(key, []) if isinstance(x, dict)]
+    specs += [x.get("function") for key in ("scores", "plots") if plots or key != "plots"
+              for x in raw.get(key, []) if isinstance(x, dict)]
     modules = [c.partition(":")[0] for c in specs if isinstance(c, str) and ":" in c]
-    if raw.get("plots"):
+    if plots and raw.get("plots"):
         modules.append("matplotlib.pyplot")
     return list(dict.fromkeys(modules))
 
@@ -138,19 +143,22 @@ def _fork_server(modules: list[str]):
     """The forkserver context, its server to preload ``modules`` (when it is not running yet)."""
     ctx = multiprocessing.get_context("forkserver")
     os.environ.setdefault("MPLBACKEND", "Agg")    # the server preloads pyplot: never a display backend
+    one_thread_per_math_library()                 # the server imports numpy for every run's child
     # imported once in the fork server, so that each run's child does not import them again
     ctx.set_forkserver_preload(["drillcosim.cosim.runs.runner", "drillcosim.cosim.runs.supervisor", *modules])
     return ctx
 
 
-def start_fork_server(path, overrides=None) -> None:
+def start_fork_server(path, overrides=None, plots: bool = True) -> None:
     """Start the fork server for runs of scenario ``path`` now, in the background: its
     imports (~1-2 s: scipy, matplotlib) then overlap whatever the caller does next (a
     campaign validates its scenarios and starts its cluster meanwhile) instead of
-    delaying the first run."""
+    delaying the first run. ``plots=False``: for runs that draw no plots."""
     from multiprocessing import forkserver
+
+    from drillcosim.cosim.scenario.files import load_raw
     try:
-        modules = _summary_facts(Path(path), overrides).modules
+        modules = _modules_of(load_raw(Path(path), overrides), plots)
     except Exception:  # noqa: BLE001 - a bad scenario is reported by its validation, not here
         modules = []
     _fork_server(modules)
@@ -253,6 +261,11 @@ def _outcome(sc, out: Path, exitcode: int, killed_for, received: list[int]) -> d
             return done
     summary = _base_summary(sc, out)
     beat = Heartbeat.read(out / HEARTBEAT_NAME) or {}
+    if not (out / "data.csv").exists():     # a run that kept its rows only in the spill (csv=False)
+        try:
+            csv_from_spill(out)
+        except (OSError, ValueError) as e:
+            summary["csv_error"] = f"data.csv not written from the rows on disk: {e}"
     rows, t_last = repair_csv(out / "data.csv")
     summary.update(stop_time=sc.stop_time, time_reached=beat.get("time"), rows_recorded=rows,
                    last_row_time=t_last)
@@ -360,7 +373,7 @@ def run_payload(p: dict) -> int:
         watch = RunWatch(p["wall_timeout"], p["max_steps"], Heartbeat(out / HEARTBEAT_NAME))
         try:
             run_in_folder(sc, out, p["progress"], watch, handle_signals=True, started=started,
-                          plots=p.get("plots", True), mat=p.get("mat", True))
+                          plots=p.get("plots", True), mat=p.get("mat", True), csv=p.get("csv", True))
             code = 0
         except RunEnded as e:
             code = exit_code_for(e.signum) if e.status == "interrupted" else EXIT_TIMEOUT
