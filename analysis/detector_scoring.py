@@ -23,6 +23,8 @@ from drillcosim.analysis.signal_tools import centred_mean
 from drillcosim.cosim.scenario.needs import needs
 
 EVENTS = ("entry", "interface", "exit")
+# Fang Table 5, worst depth errors [mm] of the 24-hole campaign (the paper's numbers)
+PAPER_TABLE5_MM = {"entry": 0.094, "interface": 0.073, "exit_paper": -1.202}
 
 
 # ---------------------------------------------------------------- truth and errors
@@ -268,6 +270,37 @@ def score_hole(result, plant="drive", observer="observer", detector="detector",
             out[f"{name}_{k}"] = v
     out["warnings"] = threshold_warnings(t, g(f"{detector}.flag"), g(f"{detector}.thd"),
                                          out["cfrp_observed"], out["ti_observed"])
+    out.update(hole_verdict(out))
+    out["warnings"] += [f"beyond the paper's worst: {x}" for x in out["beyond_paper"]]
+    return out
+
+
+def hole_verdict(sc: dict, bounds_mm: dict | None = None, gross: float = 5.0) -> dict:
+    """``passed`` of one hole: every event the stack has is found, none before the entry, no
+    fail raised, and no event found farther than ``gross`` times Fang Table 5's worst from
+    where it is (then it was another boundary's, e.g. an entry taken at the Ti). An error
+    beyond the paper's worst but within that is a warning (``beyond_paper``): one hole
+    worse than the worst of the paper's 24 is worth a look, not a failed detection. A hole
+    that fails on the paper's fixed thresholds says where to go: they fit Fang's machine,
+    a hole plan derives them from the process."""
+    bounds = dict(PAPER_TABLE5_MM if bounds_mm is None else bounds_mm)
+    bounds.setdefault("exit_thinning", bounds.get("exit_paper", math.inf))
+    why = [f"{k} missed" for k in sc["missed"]]
+    why += ["the detector flagged before the entry"] if sc["flag_before_entry"] else []
+    why += [f"fail raised (code {sc['fail_code']:g})"] if sc["fail"] else []
+    beyond = []
+    for key, bound in bounds.items():
+        dz = sc.get(f"{key}_dz_mm")
+        if dz is None or not math.isfinite(dz) or abs(dz) <= abs(bound):
+            continue
+        text = f"{key} {dz:+.3f} mm (paper worst {abs(bound):.3f})"
+        (why if abs(dz) > gross * abs(bound) else beyond).append(text)
+    out = {"passed": not why, "beyond_paper": beyond,
+           "definition": f"every event found, none before the entry, no fail, none farther than {gross:g}x Fang "
+                         "Table 5's worst (entry 0.094, interface 0.073, exit 1.202 mm) from its boundary"}
+    if why:
+        out["failure"] = ("; ".join(why) + " -- on fixed thresholds (Fang Table 4) this plant's thrust may "
+                          "not reach them: a hole plan ([hole], docs/stacks.md) derives them from the process")
     return out
 
 

@@ -15,13 +15,11 @@ import math
 
 import numpy as np
 
-from drillcosim.analysis.detector_scoring import stack_transitions
+from drillcosim.analysis.detector_scoring import PAPER_TABLE5_MM, stack_transitions
 from drillcosim.analysis.plotting import pyplot, save_figure
 from drillcosim.cosim.scenario.needs import needs
 
 EVENT_STYLE = {"entry": "tab:green", "interface": "tab:orange", "exit": "tab:red"}
-# Fang Table 5, worst depth errors [mm] of the 24-hole campaign (the paper's numbers)
-PAPER_TABLE5_MM = {"entry": 0.094, "interface": 0.073, "exit_paper": -1.202}
 
 
 def _detected(result, detector: str) -> dict:
