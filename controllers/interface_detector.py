@@ -122,6 +122,11 @@ MAX_INTERFACES = MAX_LAYERS - 1
 N_MAX = 2000     # samples of the regression window (40 s at dt = 0.02 s)
 HISTORY = 4096   # samples kept for the localisation (82 s at dt = 0.02 s: 1.6 mm windows at 1.2 mm/min)
 ENTRY_SWING = 5  # samples: an entry candidate is dropped once the mean of its last F~ is negative
+# an entry candidate needs F~ past this fraction of the entry threshold (issue 23): on a slow
+# feed the engagement ramp lasts longer than the regression window, which follows it, and F~
+# peaks at 0.7-0.9 of the threshold (7 missed entries of the 200-hole wide draw per plant, 5-8
+# mm/min); the confirmation (the thrust level, not F~) still decides
+ENTRY_CANDIDATE = 0.5
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
                   ("t", "s", "time the encoder passed the located position"),
@@ -502,7 +507,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.quiet = 0              # consecutive samples with |F~| < rearm level
         self.need = self.rearm_samples   # quiet samples the next test needs to arm
         self.err_hist = deque(maxlen=2 * self.N)   # |F~| of the last 2 N samples (noise threshold)
-        self.cand = None            # entry candidate (t, x, F^, history index) awaiting confirmation
+        self.cand = None            # entry candidate (t, x, F^, history index, strong) awaiting confirmation
         self.cand_F = []            # thrust samples since the candidate
         self.cand_e = deque(maxlen=ENTRY_SWING)   # its last F~
         self.armed = False
@@ -549,14 +554,19 @@ class InterfaceDetector(KernelBlock, Block):
     def _entry_confirm(self, t, x, F, F_pred, e) -> None:
         """The entry with confirmation (issue 23: aluminium first at a low feed per rev, the
         threshold of a few N is within the observer's noise and start-up ringing in air):
-        F~ > thd makes a candidate at (t, x); it is dropped as soon as the mean of its last
+        F~ > thd makes a candidate at (t, x) (F~ > ENTRY_CANDIDATE thd a weak one, which the
+        first sample with F~ > thd replaces: a slow ramp's F~ may never get there); it is
+        dropped as soon as the mean of its last
         ENTRY_SWING F~ is negative (ringing or noise swings back, a ramp into the layer keeps
         F~ positive), and becomes the entry, at the candidate's (t, x), once the mean thrust
         of the N_min samples since it stands above the air level at the candidate (F^ there)
         by the threshold: the tool stays on a cut level."""
-        if self.cand is None:
-            if e > self.thd:
-                self.cand = (t, x, F_pred, self.h_n - 1)
+        if self.cand is None or (e > self.thd and not self.cand[4]):
+            # a weak candidate (F~ past ENTRY_CANDIDATE of the threshold only) gives way to
+            # the first sample past the whole threshold: where F~ gets there, the entry is
+            # where it always was; only a slow ramp whose F~ never does is confirmed weak
+            if e > ENTRY_CANDIDATE * self.thd:
+                self.cand = (t, x, F_pred, self.h_n - 1, e > self.thd)
                 self.cand_F = [F]
                 self.cand_e.clear()
                 self.cand_e.append(e)
@@ -566,7 +576,7 @@ class InterfaceDetector(KernelBlock, Block):
         if sum(self.cand_e) < 0.0:
             self.cand = None
         elif len(self.cand_F) >= self.N_min and sum(self.cand_F) / len(self.cand_F) > self.cand[2] + self.thd:
-            tc, xc, _F, i_c = self.cand
+            tc, xc, _F, i_c, _strong = self.cand
             self.cand = None
             self._event(0, tc, xc, i_c)
 
@@ -893,7 +903,7 @@ class InterfaceDetector(KernelBlock, Block):
         if name == "pending":
             return [(int(s.pend_k[j]), s.pend_x[j], int(s.pend_i[j])) for j in range(int(s.n_pending))]
         if name == "cand":
-            return None if not s.cand else (s.cand_t, s.cand_x, s.cand_level, int(s.cand_i))
+            return None if not s.cand else (s.cand_t, s.cand_x, s.cand_level, int(s.cand_i), s.cand == 2.0)
         raise AttributeError(f"InterfaceDetector.{name}: kept in the C step's state only "
                              "(kernel = 'python' to inspect it)")
 

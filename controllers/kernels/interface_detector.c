@@ -25,6 +25,7 @@
 #define DET_EVENTS (DET_MAX_LAYERS + 1)      /* entry, interfaces, exit */
 #define DET_HISTORY 4096                     /* interface_detector.py HISTORY */
 #define DET_ENTRY_SWING 5                    /* interface_detector.py ENTRY_SWING */
+#define DET_ENTRY_CANDIDATE 0.5              /* interface_detector.py ENTRY_CANDIDATE */
 #define DET_N_OUT 48
 
 typedef double (*dot_fn)(long n, const double *x, long incx, const double *y, long incy);
@@ -210,9 +211,10 @@ static void event(Detector *s, int k, double t, double x, double i_hist)
 
 static void entry_confirm(Detector *s, double t, double x, double F, double F_pred, double e)
 {
-    if (s->cand == 0.0) {
-        if (e > s->thd) {
-            s->cand = 1.0;
+    /* cand: 0 none, 1 weak (F~ past DET_ENTRY_CANDIDATE of thd only), 2 strong */
+    if (s->cand == 0.0 || (e > s->thd && s->cand != 2.0)) {
+        if (e > DET_ENTRY_CANDIDATE * s->thd) {
+            s->cand = e > s->thd ? 2.0 : 1.0;
             s->cand_t = t;
             s->cand_x = x;
             s->cand_level = F_pred;
