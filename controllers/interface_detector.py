@@ -300,6 +300,10 @@ class InterfaceDetector(KernelBlock, Block):
         trigger complete: the engagement ramp is behind the tool) the regression
         window restarts and the next test arms after N_min quiet samples instead of
         rearm_samples: a layer needs locate_margin + 2 N_min dt of feed, not N dt.
+        While it waits to arm, a loud sample (|F~| above the re-arm level) trims the
+        window to its last N_min samples: a window restarted on a transient (a window cut
+        to a thin layer that ends on the lower layer's ramp) arms N_min quiet samples
+        after it, not once a window growing to N has left it.
     interface_loc_after [m]: per interface, the travel after its trigger that its
         localisation window holds (default max_gap + locate_margin: a gap may follow a
         trigger on the upper layer's push-out). The hole plan shortens it to what a thin
@@ -506,6 +510,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.exit_armed = False     # the last layer's (exit) tests have been armed once
         self.quiet = 0              # consecutive samples with |F~| < rearm level
         self.need = self.rearm_samples   # quiet samples the next test needs to arm
+        self.trim = False           # restarted once located: a loud sample trims the window to N_min
         self.err_hist = deque(maxlen=2 * self.N)   # |F~| of the last 2 N samples (noise threshold)
         self.cand = None            # entry candidate (t, x, F^, history index, strong) awaiting confirmation
         self.cand_F = []            # thrust samples since the candidate
@@ -587,6 +592,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.flag = k + 1
         self.armed = False
         self.quiet = 0
+        self.trim = False
         self.need = self.rearm_samples
         self.t_last, self.x_last = t, x
         if self.localise:
@@ -658,13 +664,20 @@ class InterfaceDetector(KernelBlock, Block):
                 self.F_level = F_pred
             else:
                 self.quiet = 0
+                if self.trim and self.n_buf > self.N_min:
+                    # restarted once located, the window still holds a transient (a window
+                    # cut to a thin layer ends on the lower layer's ramp; an observer's
+                    # ringing): keep its last N_min samples, so that the tests arm N_min
+                    # quiet samples after the transient, not once a longer window has left it
+                    self.buf[:self.N_min] = self.buf[self.n_buf - self.N_min:self.n_buf]
+                    self.n_buf = self.N_min
             if self.thd_noise_factor > 0.0:
                 self.err_hist.append(abs(e))
             if self.relative and 1 <= self.flag <= self.n and math.isnan(self.levels[self.flag - 1]) \
                     and self.quiet >= self.need and self.F_level >= min(self.floor):
                 self._check_level(t, x)     # on a cut level (any material's floor: not a gap)
             if not self.armed and self._may_arm(x):
-                self.armed = True
+                self.armed, self.trim = True, False
             self.thd = NAN
             if self.flag == 0 and self.armed:
                 self.thd = self.thd1 if not self.relative else self.thd_entry
@@ -728,6 +741,7 @@ class InterfaceDetector(KernelBlock, Block):
             # soon as its N_min samples are quiet, instead of once a full window of N has
             # left the ramp (issue 23: thin layers at high feeds were never armed)
             self.n_buf, self.quiet, self.need = 0, 0, self.N_min
+            self.trim = True
 
     def _fit(self, k: int, x_trig: float, lo: float, hi: float, h_n: int, air: float):
         """Event k's located position [m], the time the encoder passed it [s], its
@@ -910,7 +924,7 @@ class InterfaceDetector(KernelBlock, Block):
 
 # the C step's state readable as the Python step's attributes (InterfaceDetector.__getattr__)
 _C_SCALARS = {**{name: int for name in "n_buf flag quiet need h_n fail fail_code".split()},
-              **{name: bool for name in "armed drop exit_armed".split()},
+              **{name: bool for name in "armed drop exit_armed trim".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last "
                                          "F_pred F_err F_level thd F_air mismatch".split()}}
 _C_LISTS = ("t_ev", "x_ev", "levels", "loc", "pending", "cand", "err_hist", "cand_F", "cand_e")
