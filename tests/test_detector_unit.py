@@ -384,32 +384,36 @@ def test_slow_entry_ramp_found_by_a_weak_candidate(monkeypatch, candidate):
 
 def _thin_ti_after_gap_trace(gap, seed=5):
     """Aluminium 3 mm (30 N), a gap, Ti 1.2 mm (1000 N over 0.1 mm of engagement, a 0.4 mm
-    linear push-out) at 15 mm/min, 1 N of noise: the wide draw's al/ti/al hole 22 (issue 23).
-    Returns t, x, F and the Ti layer's faces [m]."""
+    linear push-out), a 0.3 mm gap, aluminium 3 mm, at 15 mm/min, 1 N of noise: the wide
+    draw's al/ti/al hole 22 (issue 23). Returns t, x, F and the Ti layer's faces [m]."""
     rng = np.random.default_rng(seed)
     dt, v = 0.02, 15.0 / 6e4
-    t = np.arange(0.0, 40.0, dt)
+    t = np.arange(0.0, 60.0, dt)
     x = 0.4 * MM + v * t
     ti0 = 4.0 * MM + gap
     ti1 = ti0 + 1.2 * MM
-    F = 30.0 * np.clip((x - 1.0 * MM) / (0.1 * MM), 0, 1) * np.clip((4.0 * MM - x) / (0.2 * MM), 0, 1)
-    F += 1000.0 * np.clip((x - ti0) / (0.1 * MM), 0, 1) * np.clip((ti1 - x) / (0.4 * MM), 0, 1)
+    al0, al1 = ti1 + 0.3 * MM, ti1 + 3.3 * MM
+
+    def layer(lo, hi, level, push):
+        return level * np.clip((x - lo) / (0.1 * MM), 0, 1) * np.clip((hi - x) / push, 0, 1)
+    F = layer(1.0 * MM, 4.0 * MM, 30.0, 0.2 * MM) + layer(ti0, ti1, 1000.0, 0.4 * MM) + layer(al0, al1, 30.0, 0.2 * MM)
     return t, x, F + rng.normal(0.0, 1.0, t.size), ti0, ti1
 
 
 @pytest.mark.parametrize("gap_mm", [0.70, 0.74])
 def test_restart_on_the_lower_layers_ramp_still_arms(gap_mm):
-    """Issue 23: the interface's localisation window, cut to the thin layer below (0.45 mm
-    after the trigger), ends on the Ti engagement ramp, where the regression restarts; a
-    window holding the ramp kept every test quiet-less until the tool had left the 1.2 mm
-    layer (missed exit, fail). A loud sample while the restarted window waits to arm trims
-    it to its last N_min samples: the exit arms on the Ti plateau and is found. (With these
-    gaps and no trimming the exit is missed: fail_code 3, checked when this was written.)"""
+    """Issue 23: the interface's localisation window, cut to the thin Ti layer below (0.45
+    mm after the trigger), ends on the Ti engagement ramp, where the regression restarts; a
+    window holding the ramp kept the Ti layer's test from arming until the tool had left it
+    (missed interface, fail). A loud sample while the restarted window waits to arm an
+    interface test trims it to its last N_min samples: the test arms on the Ti plateau and
+    the Ti/Al interface is found. (With these gaps and no trimming it is missed and the
+    fail indicator set: checked when this was written.)"""
     t, x, F, ti0, ti1 = _thin_ti_after_gap_trace(gap_mm * MM)
-    kw = dict(surface=1.0 * MM, thicknesses=(3 * MM, 1.2 * MM), thickness_tolerances=(0.3 * MM, 0.15 * MM),
-              max_gap=1.0 * MM, kc=[2.5e6, 6.5e7], feed_per_rev=[12e-6, 15.4e-6], exit_criterion="thinning",
-              restart=True, entry_confirm=True, locate_margin=0.45 * MM, interface_loc_after=[0.45 * MM],
-              fail_disarms=True, mismatch_factor=4.0)
+    kw = dict(surface=1.0 * MM, thicknesses=(3 * MM, 1.2 * MM, 3 * MM), thickness_tolerances=(0.3 * MM, 0.15 * MM, 0.3 * MM),
+              max_gap=1.0 * MM, kc=[2.5e6, 6.5e7, 2.5e6], feed_per_rev=[12e-6, 15.4e-6, 12e-6],
+              exit_criterion="thinning", restart=True, entry_confirm=True, locate_margin=0.45 * MM,
+              interface_loc_after=[0.45 * MM, 0.45 * MM], fail_disarms=True, mismatch_factor=4.0)
     runs = []
     for kernel in ("python", "auto"):
         det = InterfaceDetector(**kw)
@@ -422,5 +426,5 @@ def test_restart_on_the_lower_layers_ramp_still_arms(gap_mm):
     flat = [np.array([r[0], *r[1], *(v for ev in r[2].values() for v in ev)], dtype=float) for r in runs]
     assert fail == 0
     assert 4.0 * MM <= loc["interface1"][0] <= ti0     # inside the gap: exact
-    assert abs(loc["exit"][0] - ti1) <= 0.05 * MM
+    assert ti1 - 0.03 * MM <= loc["interface2"][0] <= ti1 + 0.3 * MM
     assert np.array_equal(flat[1], flat[0], equal_nan=True)      # the C step: the same doubles
