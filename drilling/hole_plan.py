@@ -224,14 +224,18 @@ class HolePlan:
         """Travel [m] after each interface's trigger that its localisation window holds:
         gap_tolerance + locate_margin (a gap may follow a trigger on the upper layer's
         push-out), at most what the layer below leaves, at its thinnest, for the
-        regression window its tests then need (``window_s`` [s] at its feed): the event is
-        located, and the tests restart, before the layer ends. Never under locate_margin
-        (check_windows refuses a layer that thin). A gap wider than the shortened window
-        allows is located in the part of it the window saw (docs/stacks.md)."""
+        regression window its tests then need (``window_s`` [s] at its feed) and for its
+        own push-out (push_out: where its thrust already falls towards the next event, no
+        plateau to arm on): the event is located, and the tests restart and arm, before
+        the layer's thrust leaves its plateau (wide draw, project hole 46: a 1.44 mm Ti
+        layer whose window ended 0.33 mm before its end, inside its push-out, never armed).
+        Never under locate_margin (check_windows refuses a layer that thin). A gap wider
+        than the shortened window allows is located in the part of it the window saw
+        (docs/stacks.md)."""
         out = []
         for layer in self.layers[1:]:
             thin = layer["thickness"] - layer["tolerance"]
-            room = thin - window_s * self.process[layer["material"]]["feed_rate"]
+            room = thin - window_s * self.process[layer["material"]]["feed_rate"] - self.push_out
             out.append(max(self.locate_margin, min(self.gap_tolerance + self.locate_margin, room)))
         return out
 

@@ -25,6 +25,7 @@
 #define DET_EVENTS (DET_MAX_LAYERS + 1)      /* entry, interfaces, exit */
 #define DET_HISTORY 4096                     /* interface_detector.py HISTORY */
 #define DET_ENTRY_SWING 5                    /* interface_detector.py ENTRY_SWING */
+#define DET_ENTRY_CANDIDATE 0.5              /* interface_detector.py ENTRY_CANDIDATE */
 #define DET_N_OUT 48
 
 typedef double (*dot_fn)(long n, const double *x, long incx, const double *y, long incy);
@@ -46,7 +47,7 @@ typedef struct {
     double cand_e[DET_ENTRY_SWING], cand_e_n, cand_e_pos;
     double armed, fail, fail_code, t_fail, x_fail, t_last, x_last, F_pred, F_err, F_level, thd, h_n;
     double n_pending, pend_k[DET_EVENTS], pend_x[DET_EVENTS], pend_i[DET_EVENTS];
-    double F_air, levels[DET_MAX_LAYERS], mismatch, loc[4 * DET_EVENTS];
+    double F_air, levels[DET_MAX_LAYERS], mismatch, trim, loc[4 * DET_EVENTS];
     /* the block's arrays and functions */
     const double *W;            /* weights of every window length N_min..N, one after the other */
     double *buf, *h_t, *h_x, *h_F, *err;
@@ -194,6 +195,7 @@ static void event(Detector *s, int k, double t, double x, double i_hist)
     s->flag = k + 1;
     s->armed = 0.0;
     s->quiet = 0.0;
+    s->trim = 0.0;
     s->need = s->rearm_samples;
     s->t_last = t;
     s->x_last = x;
@@ -210,9 +212,10 @@ static void event(Detector *s, int k, double t, double x, double i_hist)
 
 static void entry_confirm(Detector *s, double t, double x, double F, double F_pred, double e)
 {
-    if (s->cand == 0.0) {
-        if (e > s->thd) {
-            s->cand = 1.0;
+    /* cand: 0 none, 1 weak (F~ past DET_ENTRY_CANDIDATE of thd only), 2 strong */
+    if (s->cand == 0.0 || (e > s->thd && s->cand != 2.0)) {
+        if (e > DET_ENTRY_CANDIDATE * s->thd) {
+            s->cand = e > s->thd ? 2.0 : 1.0;
             s->cand_t = t;
             s->cand_x = x;
             s->cand_level = F_pred;
@@ -283,6 +286,12 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
         s->F_level = F_pred;
     } else {
         s->quiet = 0.0;
+        if (s->trim != 0.0 && s->n_buf > s->N_min) {
+            /* interface_detector.py: keep the window's last N_min samples */
+            long nb = (long)s->n_buf, Nm = (long)s->N_min;
+            memmove(s->buf, s->buf + (nb - Nm), (size_t)Nm * sizeof(double));
+            s->n_buf = s->N_min;
+        }
     }
     if (s->thd_noise_factor > 0.0) {
         long n2 = 2 * (long)s->N, p = (long)s->err_pos;
@@ -295,8 +304,10 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
     if (s->relative != 0.0 && 1 <= flag && flag <= n && isnan(s->levels[flag - 1])
             && s->quiet >= s->need && s->F_level >= min_of(s->floor, 0, n))
         check_level(s, t, x);
-    if (s->armed == 0.0 && may_arm(s, x))
+    if (s->armed == 0.0 && may_arm(s, x)) {
         s->armed = 1.0;
+        s->trim = 0.0;
+    }
     s->thd = NAN;
     flag = (int)s->flag;
     if (flag == 0 && s->armed != 0.0) {
@@ -342,6 +353,7 @@ static void locate(Detector *s, int k, double x_trig, double before, double afte
         s->n_buf = 0.0;
         s->quiet = 0.0;
         s->need = s->N_min;
+        s->trim = k + 1 < n ? 1.0 : 0.0;   /* interface_detector.py: not for the exit's test */
     }
 }
 
@@ -436,6 +448,7 @@ void interface_detector_step(Detector *s, double t, const double *u, double *y)
         /* weights of length nb start after those of N_min .. nb - 1 */
         const double *w = s->W + (nb * (nb - 1) - Nm * (Nm - 1)) / 2;
         tests(s, t, x, F, DET_DOT(s, nb, w));
+        nb = (long)s->n_buf;    /* the tests may have trimmed the window */
     }
     if (nb < N) {               /* shift the regression window (oldest first) */
         s->buf[nb] = F;
