@@ -44,6 +44,7 @@ from xml.sax.saxutils import quoteattr
 from drillcosim.cosim.scenario.paths import PATH_SETTING
 from drillcosim.cosim.fmi.build_tools import FRAME_DIR, FRAME_HEADERS, FRAME_SOURCES
 from drillcosim.cosim.fmi.units import BUILTIN_UNITS, UnitDef
+from drillcosim.cosim.loop.system import sample_ratio
 
 # units a block constant may carry beyond the connection table (cosim/fmi/units.py)
 EXTRA_UNITS = {"1/s2": UnitDef("1/s2", s=-2)}
@@ -79,6 +80,8 @@ class BlockExport:
     class_name: str
     description: str
     sample_period: float
+    grid_step: float      # s, the scenario's step: the master gives the block t = t0 + n * grid_step
+    ticks: int            # sample_period / grid_step: the block runs when n % ticks == 0
     start_time: float
     stop_time: float
     direct_feedthrough: bool
@@ -217,6 +220,7 @@ def describe_block(scenario, name: str) -> BlockExport:
     return BlockExport(
         name=name, identifier=_identifier(name), class_name=f"{type(block).__module__}:{type(block).__name__}",
         description=(doc[0] if doc else type(block).__name__), sample_period=h,
+        grid_step=scenario.step_size, ticks=sample_ratio(h, scenario.step_size),
         start_time=scenario.start_time,
         stop_time=scenario.stop_time, direct_feedthrough=bool(getattr(block, "direct_feedthrough", True)),
         source=Path(k.source), function=k.function, state_type=_state_type(Path(k.source), k.function),
@@ -281,6 +285,67 @@ _SET_DEFAULTS_C = """void model_set_defaults(void *data)
 """
 
 
+# how the FMU's samples follow the master's communication points (docs/export.md, "Time")
+_DO_STEP_C = """void model_initialize(void *data, double start_time)
+{{
+    ((BlockData *)data)->t0 = start_time;
+    ((BlockData *)data)->n_next = 0.0;
+}}
+
+/* Sample n_next at the master's time t_m, if t_m is its time: the kernel sees t0 + n GRID_STEP,
+ * the double drillcosim's master gives the in-process block, from the FMU's own counter (a
+ * master counting time otherwise, as libcosim in nanoseconds, is a last bit or two apart).
+ * Returns 1 if it ran, 0 if t_m is before it, -1 if t_m is past it (a sample skipped). */
+static int sample_at(BlockData *d, double t_m)
+{{
+    const double t_n = d->t0 + d->n_next * GRID_STEP;
+    const double tol = TIME_TOL(t_m);
+    if (t_m < t_n - tol) return 0;
+    if (t_m > t_n + tol) return -1;
+    {fn}(({st} *)d->s, t_n, d->u, d->y);
+    d->n_next += TICKS;
+    return 1;
+}}
+
+/* The samples run at the FMU's grid points: doStep(t, k h) runs the k samples at t, t + h, ...,
+ * t + (k-1) h; doStep(t, h / m) runs the sample due at t, if one is. The master's t must be
+ * within TIME_TOL of the grid point (a millionth of the scenario's step plus 1e-15 |t|). */
+int model_do_step(void *data, double t, double H, char *msg, size_t n)
+{{
+    BlockData *d = data;
+    double t_m = t;
+    if (H == 0.0) return 0;
+    double k = H / SAMPLE_PERIOD;
+    if (k >= 1.0 - 1e-9) {{
+        long K = lround(k);
+        if (fabs(k - (double)K) > 1e-9 * (double)K) goto not_a_multiple;
+        for (long i = 0; i < K; i++) {{
+            t_m = t + (double)i * SAMPLE_PERIOD;
+            if (sample_at(d, t_m) != 1) goto off_the_grid;
+        }}
+        return 0;
+    }}
+    double m = SAMPLE_PERIOD / H;
+    long M = lround(m);
+    if (fabs(m - (double)M) > 1e-9 * (double)M) goto not_a_multiple;
+    if (sample_at(d, t) >= 0) return 0;
+off_the_grid:
+    snprintf(msg, n, "communication point %.17g s is not the next sample's time %.17g s (t0 + %.0f x %.17g s, "
+             "within %.3g s): the master skipped or repeated a sample", t_m, d->t0 + d->n_next * GRID_STEP,
+             d->n_next, GRID_STEP, TIME_TOL(t_m));
+    return 1;
+not_a_multiple:
+    snprintf(msg, n, "communication step %.17g s is neither a multiple nor an integer fraction of the "
+             "sample period %.17g s", H, SAMPLE_PERIOD);
+    return 1;
+}}
+"""
+
+
+def _do_step_c(ex: BlockExport) -> str:
+    return _DO_STEP_C.format(fn=ex.function, st=ex.state_type)
+
+
 def c_wrapper(ex: BlockExport, fmi: int) -> str:
     """The FMU's one translation unit: FMI frame + the block's kernel + the variable table."""
     n_in = sum(v.causality == "input" for v in ex.variables)
@@ -299,6 +364,9 @@ def c_wrapper(ex: BlockExport, fmi: int) -> str:
 #define N_IN {n_in}
 #define N_OUT {max(n_out, 1)}
 #define SAMPLE_PERIOD {_c_num(ex.sample_period)}   /* s, the block's sample period: the fixed step */
+#define GRID_STEP {_c_num(ex.grid_step)}   /* s, the exporting scenario's step */
+#define TICKS {ex.ticks}   /* grid steps per sample */
+#define TIME_TOL(t) (1e-6 * GRID_STEP + 1e-15 * fabs(t))   /* s, the master's t against the grid's */
 #define STATE_SIZE {len(ex.state)}
 #define STATE_TAIL {ex.state_tail}   /* bytes of the state in the struct's flexible array */
 
@@ -306,6 +374,7 @@ typedef struct {{
     double u[N_IN > 0 ? N_IN : 1], y[N_OUT];
     double s[(STATE_SIZE + 7) / 8];     /* {ex.state_type}, started from STATE0_RUNS */
     double t0;
+    double n_next;      /* the grid step of the next sample: it runs at t0 + n_next * GRID_STEP */
 }} BlockData;
 
 _Static_assert(sizeof({ex.state_type}) == STATE_SIZE - STATE_TAIL, "the C struct differs from the exported state");
@@ -323,35 +392,7 @@ const ModelInfo MODEL_INFO = {{"{ex.identifier}", "{guid(ex, fmi)}", BLOCK_VARS,
 {_SET_DEFAULTS_C}
 int model_validate(const void *data, char *msg, size_t n) {{ (void)data; (void)msg; (void)n; return 0; }}
 
-void model_initialize(void *data, double start_time) {{ ((BlockData *)data)->t0 = start_time; }}
-
-/* The samples run at the communication points the master gives: doStep(t, k h) runs k samples
- * at t, t + h, ..., t + (k-1) h; doStep(t, h / m) runs the sample at t when t is on the
- * block's grid (round((t - t0) / H) a multiple of m), none otherwise. */
-int model_do_step(void *data, double t, double H, char *msg, size_t n)
-{{
-    BlockData *d = data;
-    if (H == 0.0) return 0;
-    double k = H / SAMPLE_PERIOD;
-    if (k >= 1.0 - 1e-9) {{
-        long K = lround(k);
-        if (fabs(k - (double)K) > 1e-9 * (double)K) goto not_a_multiple;
-        for (long i = 0; i < K; i++)
-            {ex.function}(({ex.state_type} *)d->s, i == 0 ? t : t + (double)i * SAMPLE_PERIOD, d->u, d->y);
-        return 0;
-    }}
-    double m = SAMPLE_PERIOD / H;
-    long M = lround(m);
-    if (fabs(m - (double)M) > 1e-9 * (double)M) goto not_a_multiple;
-    if (lround((t - d->t0) / H) % M == 0)
-        {ex.function}(({ex.state_type} *)d->s, t, d->u, d->y);
-    return 0;
-not_a_multiple:
-    snprintf(msg, n, "communication step %.17g s is neither a multiple nor an integer fraction of the "
-             "sample period %.17g s", H, SAMPLE_PERIOD);
-    return 1;
-}}
-"""
+{_do_step_c(ex)}"""
 
 
 def _unit_definitions(ex: BlockExport) -> list[str]:
