@@ -95,6 +95,41 @@ def _compare_fig7(path: Path, seconds: float) -> None:
     assert np.max(ours[:, 0]) > 40.0 or seconds < 1.0                 # the whole run has the 50 N cut in it
 
 
+def _plant_run(steps: list[float]) -> list[tuple[float, float]]:
+    """The LinearStage alone, stepped by ``steps`` (+1 A then -0.5 A): its position and velocity."""
+    from drillcosim.cosim.fmi.slave import FMUSlave
+    from drillcosim.drilling.catalogue import fmu_path
+    slave = FMUSlave("stage", fmu_path("LinearStage"))
+    slave.instantiate(0.0, 1.0)
+    try:
+        get, out, put, inp, do_step = slave.step_io(["z_tool_true", "v_true"], ["i_ref"])
+        t, rows = 0.0, []
+        for k, h in enumerate(steps):
+            inp[0] = 1.0 if k < len(steps) // 2 else -0.5
+            put()
+            assert do_step(t, h) == 0, slave.last_message()
+            get()
+            rows.append(tuple(out))
+            t += h
+        return rows
+    finally:
+        slave.free()
+
+
+def test_the_plant_integrates_libcosims_step_as_the_decimal_one():
+    """libcosim's H = t_(k+1) - t_k of its nanosecond clock is not the double 1e-4 at 1998 of
+    the first 2000 steps; the plant snaps it to whole nanoseconds (docs/plants.md, "Solver") and
+    moves exactly as with 1e-4. A step 3 ps off (not within 1e-3 ns of a whole one) is used as
+    given: the plant does see such differences (every row differs)."""
+    lc = [(k + 1) * 100000 / 1e9 - k * 100000 / 1e9 for k in range(2000)]
+    assert sum(h != 1e-4 for h in lc) == 1998
+    decimal = _plant_run([1e-4] * 2000)
+    assert _plant_run(lc) == decimal
+    assert abs(decimal[1000][0]) > 1e-4                             # it moved, 0.1 mm at least
+    off = _plant_run([1e-4 + 3e-12] * 2000)
+    assert all(a != b for a, b in zip(off, decimal))
+
+
 def test_fig7_ssp_runs_in_libcosim_as_in_drillcosim(fig7_ssp):
     _compare_fig7(fig7_ssp, 0.5)
 

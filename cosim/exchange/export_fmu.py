@@ -12,13 +12,15 @@ What the FMU is (docs/export.md):
   every other field of the struct is state, started from the block's state after
   ``reset(start_time)``;
 * its fixed step is the block's sample period ``h`` (the scenario's step size for a
-  block that runs every step). The samples run at the communication points the master
-  gives (so in drillcosim the kernel sees exactly the times the block would; libcosim's
-  times, counted in nanoseconds, differ from ``t0 + n*h`` in the last bits). ``doStep(t, k*h)`` runs
-  ``k`` samples from the one ``t`` is on, with the inputs held; ``doStep(t, h/m)`` runs one
-  sample when ``t`` is on the block's grid (``round((t - t0)/H)`` a multiple of ``m``), none
-  otherwise; any other step size is an error. The outputs after ``doStep`` are those of
-  the last sample (held, as the master holds them);
+  block that runs every step). ``doStep(t, k*h)`` runs ``k`` samples, with the inputs
+  held; ``doStep(t, h/m)`` runs the sample due at ``t``, if one is; any other step size is
+  an error. The outputs after ``doStep`` are those of the last sample (held, as the master
+  holds them);
+* its time is its own: sample ``j`` is due at ``t0 + n*h_s`` (``n = j*k``, ``h_s`` the
+  scenario's step, ``k`` the block's sample ratio), the double drillcosim's master gives
+  the in-process block, and the kernel sees that double; the master's communication point
+  must be within ``1e-6*h_s + 1e-15*|t|`` of it (libcosim, counting nanoseconds, is a last
+  bit or two apart), a skipped sample is an error;
 * ModelStructure: a block that is not direct feed-through has outputs that depend on
   no input.
 
