@@ -278,6 +278,7 @@ _SET_DEFAULTS_C = """void model_set_defaults(void *data)
 {
     BlockData *d = data;
     size_t w = 0;
+    d->stop = INFINITY;     /* until the master gives one */
     for (size_t r = 0; r < sizeof(STATE0_RUNS) / sizeof(STATE0_RUNS[0]); r += 2)
         for (unsigned long long i = 0; i < STATE0_RUNS[r]; i++, w++)
             memcpy(&d->s[w], &STATE0_RUNS[r + 1], 8);
@@ -288,19 +289,32 @@ _SET_DEFAULTS_C = """void model_set_defaults(void *data)
 
 
 # how the FMU's samples follow the master's communication points (docs/export.md, "Time")
-_DO_STEP_C = """void model_initialize(void *data, double start_time)
+_DO_STEP_C = """void model_stop_time(void *data, double stop_time) {{ ((BlockData *)data)->stop = stop_time; }}
+
+/* The stop time arrives first (fmi2SetupExperiment, fmi3EnterInitializationMode). The last
+ * grid step n_last is the master's (cosim/loop/algorithm.py, _Grid): its time is the stop time. */
+void model_initialize(void *data, double start_time)
 {{
-    ((BlockData *)data)->t0 = start_time;
-    ((BlockData *)data)->n_next = 0.0;
+    BlockData *d = data;
+    d->t0 = start_time;
+    d->n_next = 0.0;
+    d->n_last = fmax(1.0, ceil((d->stop - start_time) / GRID_STEP - 1e-9));
 }}
 
-/* Sample n_next at the master's time t_m, if t_m is its time: the kernel sees t0 + n GRID_STEP,
- * the double drillcosim's master gives the in-process block, from the FMU's own counter (a
- * master counting time otherwise, as libcosim in nanoseconds, is a last bit or two apart).
+/* The time of grid step n as drillcosim's master spells it: t0 + n GRID_STEP, the stop time at
+ * the last point. */
+static double grid_time(const BlockData *d, double n)
+{{
+    return n < d->n_last ? d->t0 + n * GRID_STEP : d->stop;
+}}
+
+/* Sample n_next at the master's time t_m, if t_m is its time: the kernel sees grid_time, the
+ * double drillcosim's master gives the in-process block, from the FMU's own counter (a master
+ * counting time otherwise, as libcosim in nanoseconds, is a last bit or two apart).
  * Returns 1 if it ran, 0 if t_m is before it, -1 if t_m is past it (a sample skipped). */
 static int sample_at(BlockData *d, double t_m)
 {{
-    const double t_n = d->t0 + d->n_next * GRID_STEP;
+    const double t_n = grid_time(d, d->n_next);
     const double tol = TIME_TOL(t_m);
     if (t_m < t_n - tol) return 0;
     if (t_m > t_n + tol) return -1;
@@ -333,7 +347,7 @@ int model_do_step(void *data, double t, double H, char *msg, size_t n)
     if (sample_at(d, t) >= 0) return 0;
 off_the_grid:
     snprintf(msg, n, "communication point %.17g s is not the next sample's time %.17g s (t0 + %.0f x %.17g s, "
-             "within %.3g s): the master skipped or repeated a sample", t_m, d->t0 + d->n_next * GRID_STEP,
+             "within %.3g s): the master skipped or repeated a sample", t_m, grid_time(d, d->n_next),
              d->n_next, GRID_STEP, TIME_TOL(t_m));
     return 1;
 not_a_multiple:
@@ -359,6 +373,8 @@ def c_wrapper(ex: BlockExport, fmi: int) -> str:
  * ({ex.class_name}): do not edit. The FMI frame and the block's C step are included, so
  * this file is the FMU's one translation unit: cc -shared -fPIC -I<FMI headers> {ex.identifier}.c -lm */
 #define FRAME_NONFINITE_INPUTS 1
+#define FRAME_MODEL_STOP_TIME 1     /* the frame hands over the master's stop time (model_stop_time) */
+void model_stop_time(void *data, double stop_time);
 #include "frame_core.c"
 #include "{FRAME_SOURCES[fmi]}"
 #include "{ex.source.name}"
@@ -377,6 +393,7 @@ typedef struct {{
     double s[(STATE_SIZE + 7) / 8];     /* {ex.state_type}, started from STATE0_RUNS */
     double t0;
     double n_next;      /* the grid step of the next sample: it runs at t0 + n_next * GRID_STEP */
+    double stop, n_last;    /* s, the master's stop time (INFINITY: none), and the grid step that is it */
 }} BlockData;
 
 _Static_assert(sizeof({ex.state_type}) == STATE_SIZE - STATE_TAIL, "the C struct differs from the exported state");
@@ -568,10 +585,13 @@ def with_exported_blocks(path, fmus: dict, overrides: dict | None = None):
     # a plug-in's sections first (they fill in the blocks' settings), so that the replaced
     # blocks keep only the FMU
     raw = expand_sections(load_raw(path, overrides, origins), Checker(str(path), origins))
+    stop = raw.get("scenario", {}).get("stop_time")
     for name, fmu in fmus.items():
         if name not in raw.get("blocks", {}):
             raise ExportError(f"{path}: no block '{name}' to replace by {fmu}")
-        raw["blocks"][name] = {"class": "drillcosim.cosim.blocks.fmu_block:FMUBlock", "settings": {"fmu_file": str(Path(fmu).resolve())}}
+        # the stop time: the FMU spells the last point's time as the master does (docs/export.md, "Time")
+        raw["blocks"][name] = {"class": "drillcosim.cosim.blocks.fmu_block:FMUBlock",
+                               "settings": {"fmu_file": str(Path(fmu).resolve()), "stop_time": stop}}
     sc = build(raw, str(path), path.parent.resolve(), path.stem, origins)
     sc.path = path
     return sc
