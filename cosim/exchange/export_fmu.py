@@ -19,7 +19,7 @@ What the FMU is (docs/export.md):
 * its time is its own: sample ``j`` is due at ``t0 + n*h_s`` (``n = j*k``, ``h_s`` the
   scenario's step, ``k`` the block's sample ratio), the double drillcosim's master gives
   the in-process block, and the kernel sees that double; the master's communication point
-  must be within ``1e-6*h_s + 1e-15*|t|`` of it (libcosim, counting nanoseconds, is a last
+  must be within ``1e-3*min(h_s, H) + 1e-15*|t|`` of it (libcosim, counting nanoseconds, is a last
   bit or two apart), a skipped sample is an error;
 * ModelStructure: a block that is not direct feed-through has outputs that depend on
   no input.
@@ -312,10 +312,10 @@ static double grid_time(const BlockData *d, double n)
  * double drillcosim's master gives the in-process block, from the FMU's own counter (a master
  * counting time otherwise, as libcosim in nanoseconds, is a last bit or two apart).
  * Returns 1 if it ran, 0 if t_m is before it, -1 if t_m is past it (a sample skipped). */
-static int sample_at(BlockData *d, double t_m)
+static int sample_at(BlockData *d, double t_m, double H)
 {{
     const double t_n = grid_time(d, d->n_next);
-    const double tol = TIME_TOL(t_m);
+    const double tol = TIME_TOL(t_m, H);
     if (t_m < t_n - tol) return 0;
     if (t_m > t_n + tol) return -1;
     {fn}(({st} *)d->s, t_n, d->u, d->y);
@@ -325,7 +325,9 @@ static int sample_at(BlockData *d, double t_m)
 
 /* The samples run at the FMU's grid points: doStep(t, k h) runs the k samples at t, t + h, ...,
  * t + (k-1) h; doStep(t, h / m) runs the sample due at t, if one is. The master's t must be
- * within TIME_TOL of the grid point (a millionth of the scenario's step plus 1e-15 |t|). */
+ * within TIME_TOL of the grid point: a thousandth of the scenario's step or of H if shorter (a
+ * master that adds up t += H drifts by less in 1e6 steps; the next point is a whole H away),
+ * plus 1e-15 |t|. */
 int model_do_step(void *data, double t, double H, char *msg, size_t n)
 {{
     BlockData *d = data;
@@ -337,18 +339,18 @@ int model_do_step(void *data, double t, double H, char *msg, size_t n)
         if (fabs(k - (double)K) > 1e-9 * (double)K) goto not_a_multiple;
         for (long i = 0; i < K; i++) {{
             t_m = t + (double)i * SAMPLE_PERIOD;
-            if (sample_at(d, t_m) != 1) goto off_the_grid;
+            if (sample_at(d, t_m, H) != 1) goto off_the_grid;
         }}
         return 0;
     }}
     double m = SAMPLE_PERIOD / H;
     long M = lround(m);
     if (fabs(m - (double)M) > 1e-9 * (double)M) goto not_a_multiple;
-    if (sample_at(d, t) >= 0) return 0;
+    if (sample_at(d, t, H) >= 0) return 0;
 off_the_grid:
     snprintf(msg, n, "communication point %.17g s is not the next sample's time %.17g s (t0 + %.0f x %.17g s, "
              "within %.3g s): the master skipped or repeated a sample", t_m, grid_time(d, d->n_next),
-             d->n_next, GRID_STEP, TIME_TOL(t_m));
+             d->n_next, GRID_STEP, TIME_TOL(t_m, H));
     return 1;
 not_a_multiple:
     snprintf(msg, n, "communication step %.17g s is neither a multiple nor an integer fraction of the "
@@ -384,7 +386,7 @@ void model_stop_time(void *data, double stop_time);
 #define SAMPLE_PERIOD {_c_num(ex.sample_period)}   /* s, the block's sample period: the fixed step */
 #define GRID_STEP {_c_num(ex.grid_step)}   /* s, the exporting scenario's step */
 #define TICKS {ex.ticks}   /* grid steps per sample */
-#define TIME_TOL(t) (1e-6 * GRID_STEP + 1e-15 * fabs(t))   /* s, the master's t against the grid's */
+#define TIME_TOL(t, H) (1e-3 * fmin(GRID_STEP, H) + 1e-15 * fabs(t))   /* s, the master's t against the grid's */
 #define STATE_SIZE {len(ex.state)}
 #define STATE_TAIL {ex.state_tail}   /* bytes of the state in the struct's flexible array */
 
