@@ -2,7 +2,10 @@
 
 * a shipped closed loop with its blocks replaced by their exported FMUs (run as
   drillcosim.cosim.blocks.fmu_block.FMUBlock in the blocks' places) records the same doubles (Keio Fig. 7
-  for 0.5 s here; every shipped closed loop, whole, under ``-m long``);
+  for 0.3 s here; under ``-m long`` every shipped scenario with two or more blocks that
+  step in C, found from the scenario folder, whole);
+* the kernel sees the master's time t0 + n*h however the caller spells it (libcosim's
+  nanoseconds), and a skipped sample is an error;
 * the exported Keio observer driven by fmpy alone (``simulate_fmu``) from a recorded plant
   run reproduces the observer output of that run;
 * the FMUs pass ``fmpy validate`` (FMI 3.0 and 2.0); the stated rule for communication
