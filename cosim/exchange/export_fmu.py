@@ -326,7 +326,7 @@ static int sample_at(BlockData *d, double t_m, double H)
 /* The samples run at the FMU's grid points: doStep(t, k h) runs the k samples at t, t + h, ...,
  * t + (k-1) h; doStep(t, h / m) runs the sample due at t, if one is. The master's t must be
  * within TIME_TOL of the grid point: a thousandth of the scenario's step or of H if shorter (a
- * master that adds up t += H drifts by less in 1e6 steps; the next point is a whole H away),
+ * master that adds up t += H drifts by less in 1e6 steps; the next point is one full H away),
  * plus 1e-15 |t|. */
 int model_do_step(void *data, double t, double H, char *msg, size_t n)
 {{
