@@ -2,7 +2,10 @@
 
 * a shipped closed loop with its blocks replaced by their exported FMUs (run as
   drillcosim.cosim.blocks.fmu_block.FMUBlock in the blocks' places) records the same doubles (Keio Fig. 7
-  for 0.5 s here; every shipped closed loop, whole, under ``-m long``);
+  for 0.3 s here; under ``-m long`` every shipped scenario with two or more blocks that
+  step in C, found from the scenario folder, whole);
+* the kernel sees the master's time t0 + n*h however the caller spells it (libcosim's
+  nanoseconds), and a skipped sample is an error;
 * the exported Keio observer driven by fmpy alone (``simulate_fmu``) from a recorded plant
   run reproduces the observer output of that run;
 * the FMUs pass ``fmpy validate`` (FMI 3.0 and 2.0); the stated rule for communication
@@ -18,6 +21,7 @@ from fmpy import simulate_fmu
 from fmpy.validation import validate_fmu
 
 from drillcosim.controllers.adaptation import OneStepDelay
+from drillcosim.cosim.fmi.slave import FMUSlave
 from drillcosim.cosim.loop.algorithm import run
 from drillcosim.cosim.exchange.export_fmu import ExportError, export_blocks, has_c_step, with_exported_blocks
 from drillcosim.cosim.loop.recorder import Recorder
@@ -65,16 +69,63 @@ def test_fig7_blocks_as_fmus_record_the_same_doubles(tmp_path):
     assert n_blocks == 3 and rows == 3001          # trajectory, observer, controller; 0.3 s at 1e-4 s
 
 
-CLOSED_LOOPS = ["keio_fig3_force_monitoring", "keio_fig4_composite_force_control",
-                "keio_fig7_aluminium_force_control", "keio_thrust_constant_calibration",
-                "fang_orbital_cfrp_ti", "fang_table5_hole", "stacks/cfrp_al_ti"]
+def _shipped() -> list[str]:
+    """Every shipped scenario (what ``drillcosim list`` lists), a new one included."""
+    from drillcosim.cosim.scenario.loader import scenario_files
+    return [name for name, _f in scenario_files(ROOT / "scenarios")]
 
 
 @pytest.mark.long
-@pytest.mark.parametrize("name", CLOSED_LOOPS)
+@pytest.mark.parametrize("name", _shipped())
 def test_every_closed_loop_with_fmus_records_the_same_doubles(name, tmp_path):
+    """A closed loop here: a shipped scenario with at least two blocks that step in C."""
+    sc = load_scenario(ROOT / "scenarios" / f"{name}.toml")
+    if len(_c_blocks(sc)) < 2:
+        pytest.skip(f"{name}: fewer than two blocks with a C step ({', '.join(_c_blocks(sc)) or 'none'})")
     n_blocks, _rows = _same_run(ROOT / "scenarios" / f"{name}.toml", tmp_path, {})
     assert n_blocks >= 2
+
+
+def _stepped(fmu: Path, name: str, times: list[float], h: float, output: str) -> list[float]:
+    """``output`` after ``doStep(t, h)`` at each of ``times``, the FMU alone (inputs at their start)."""
+    slave = FMUSlave(name, fmu)
+    slave.instantiate(times[0], times[-1] + h)
+    try:
+        get, out, _put, _in, do_step = slave.step_io([output], [])
+        ys = []
+        for t in times:
+            assert do_step(t, h) == 0, slave.last_message()
+            get()
+            ys.append(out[0])
+        return ys
+    finally:
+        slave.free()
+
+
+def test_the_kernel_sees_the_masters_grid_time_however_the_caller_spells_it(tmp_path):
+    """libcosim spells step k's time k*1e5 ns / 1e9, drillcosim t0 + k*1e-4: 935 of the first
+    3000 differ in the last bit, and the trajectory's ramp z_ref(t) would follow them. The
+    exported trajectory gives its kernel t0 + n*h from its own counter: both spellings give
+    the in-process block's doubles at every sample. A skipped sample is an error naming both
+    times."""
+    sc = load_scenario(FIG7, {"scenario.stop_time": 0.3})
+    (_ex, fmu), = export_blocks(sc, ["trajectory"], tmp_path, 3)
+    grid = [k * 1e-4 for k in range(3000)]
+    ns = [k * 100000 / 1e9 for k in range(3000)]
+    assert sum(a != b for a, b in zip(grid, ns)) > 900
+    block = sc.system.blocks["trajectory"]
+    block.reset(0.0)
+    u = [p.start for p in block.inputs]
+    ours = [block.step(t, u)[0] for t in grid]
+    assert _stepped(fmu, "trajectory", ns, 1e-4, "z_ref") == _stepped(fmu, "trajectory", grid, 1e-4, "z_ref") == ours
+    assert ours[-1] > 5e-4                                       # it ramped (5 mm/s approach)
+    slave = FMUSlave("trajectory", fmu)
+    slave.instantiate(0.0, 0.3)
+    *_io, do_step = slave.step_io(["z_ref"], [])
+    assert do_step(0.0, 1e-4) == 0 and do_step(3e-4, 1e-4) == 3    # 1e-4 skipped: fmi3Error
+    assert "communication point 0.00029999999999999997 s is not the next sample's time 0.0001 s" in \
+        slave.last_message()
+    slave.free(failed=True)
 
 
 @pytest.fixture(scope="module")

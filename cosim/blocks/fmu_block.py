@@ -7,7 +7,8 @@ step. This block does that with any FMI 2.0/3.0 co-simulation FMU: at each sampl
 the inputs, calls ``doStep(t, sample_period)`` and returns the outputs (docs/export.md).
 
 Settings: ``fmu_file`` (path, relative to the scenario file), ``sample_period`` [s]
-(default: the FMU's ``DefaultExperiment stepSize``), ``parameters`` (name -> start value).
+(default: the FMU's ``DefaultExperiment stepSize``), ``parameters`` (name -> start value),
+``stop_time`` [s] (optional: the run's, handed to the FMU at its initialisation as a slave's is).
 Ports: the FMU's Real/Float64 inputs and outputs with their units and start values;
 ``direct_feedthrough`` is False when the FMU declares that no output depends on an input
 (``dependencies=""`` on every output).
@@ -27,7 +28,8 @@ def _feedthrough(md) -> bool:
 
 
 class FMUBlock(Block):
-    def __init__(self, fmu_file: str, sample_period: float | None = None, parameters: dict | None = None):
+    def __init__(self, fmu_file: str, sample_period: float | None = None, parameters: dict | None = None,
+                 stop_time: float | None = None):
         model = load_model(Path(fmu_file))
         md = model.model_description
         if md.coSimulation is None:
@@ -38,6 +40,7 @@ class FMUBlock(Block):
         super().__init__(float(h))
         self.model = model
         self.parameters = dict(parameters or {})
+        self.stop_time = None if stop_time is None else float(stop_time)
         ports = {c: [v for v in model.variables.values() if v.causality == c and v.is_real] for c in ("input", "output")}
         for v in ports["input"] + ports["output"]:
             if v.dims:
@@ -57,7 +60,7 @@ class FMUBlock(Block):
         if self._slave is not None:
             self._slave.free()
         self._slave = FMUSlave(f"{self.model.path.stem}", self.model, self.parameters)
-        self._slave.instantiate(t0)
+        self._slave.instantiate(t0, self.stop_time)
         names_in = [p.name for p in self.inputs]
         names_out = [p.name for p in self.outputs]
         get, out_buf, put, in_buf, do_step = self._slave.step_io(names_out, names_in)

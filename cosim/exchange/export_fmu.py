@@ -12,13 +12,15 @@ What the FMU is (docs/export.md):
   every other field of the struct is state, started from the block's state after
   ``reset(start_time)``;
 * its fixed step is the block's sample period ``h`` (the scenario's step size for a
-  block that runs every step). The samples run at the communication points the master
-  gives (so in drillcosim the kernel sees exactly the times the block would; libcosim's
-  times, counted in nanoseconds, differ from ``t0 + n*h`` in the last bits). ``doStep(t, k*h)`` runs
-  ``k`` samples from the one ``t`` is on, with the inputs held; ``doStep(t, h/m)`` runs one
-  sample when ``t`` is on the block's grid (``round((t - t0)/H)`` a multiple of ``m``), none
-  otherwise; any other step size is an error. The outputs after ``doStep`` are those of
-  the last sample (held, as the master holds them);
+  block that runs every step). ``doStep(t, k*h)`` runs ``k`` samples, with the inputs
+  held; ``doStep(t, h/m)`` runs the sample due at ``t``, if one is; any other step size is
+  an error. The outputs after ``doStep`` are those of the last sample (held, as the master
+  holds them);
+* its time is its own: sample ``j`` is due at ``t0 + n*h_s`` (``n = j*k``, ``h_s`` the
+  scenario's step, ``k`` the block's sample ratio), the double drillcosim's master gives
+  the in-process block, and the kernel sees that double; the master's communication point
+  must be within ``1e-3*min(h_s, H) + 1e-15*|t|`` of it (libcosim, counting nanoseconds, is a last
+  bit or two apart), a skipped sample is an error;
 * ModelStructure: a block that is not direct feed-through has outputs that depend on
   no input.
 
@@ -44,6 +46,7 @@ from xml.sax.saxutils import quoteattr
 from drillcosim.cosim.scenario.paths import PATH_SETTING
 from drillcosim.cosim.fmi.build_tools import FRAME_DIR, FRAME_HEADERS, FRAME_SOURCES
 from drillcosim.cosim.fmi.units import BUILTIN_UNITS, UnitDef
+from drillcosim.cosim.loop.system import sample_ratio
 
 # units a block constant may carry beyond the connection table (cosim/fmi/units.py)
 EXTRA_UNITS = {"1/s2": UnitDef("1/s2", s=-2)}
@@ -79,6 +82,8 @@ class BlockExport:
     class_name: str
     description: str
     sample_period: float
+    grid_step: float      # s, the scenario's step: the master gives the block t = t0 + n * grid_step
+    ticks: int            # sample_period / grid_step: the block runs when n % ticks == 0
     start_time: float
     stop_time: float
     direct_feedthrough: bool
@@ -217,6 +222,7 @@ def describe_block(scenario, name: str) -> BlockExport:
     return BlockExport(
         name=name, identifier=_identifier(name), class_name=f"{type(block).__module__}:{type(block).__name__}",
         description=(doc[0] if doc else type(block).__name__), sample_period=h,
+        grid_step=scenario.step_size, ticks=sample_ratio(h, scenario.step_size),
         start_time=scenario.start_time,
         stop_time=scenario.stop_time, direct_feedthrough=bool(getattr(block, "direct_feedthrough", True)),
         source=Path(k.source), function=k.function, state_type=_state_type(Path(k.source), k.function),
@@ -272,6 +278,7 @@ _SET_DEFAULTS_C = """void model_set_defaults(void *data)
 {
     BlockData *d = data;
     size_t w = 0;
+    d->stop = INFINITY;     /* until the master gives one */
     for (size_t r = 0; r < sizeof(STATE0_RUNS) / sizeof(STATE0_RUNS[0]); r += 2)
         for (unsigned long long i = 0; i < STATE0_RUNS[r]; i++, w++)
             memcpy(&d->s[w], &STATE0_RUNS[r + 1], 8);
@@ -279,6 +286,82 @@ _SET_DEFAULTS_C = """void model_set_defaults(void *data)
         *(double *)((char *)data + BLOCK_VARS[k].offset) = BLOCK_VARS[k].start;
 }
 """
+
+
+# how the FMU's samples follow the master's communication points (docs/export.md, "Time")
+_DO_STEP_C = """void model_stop_time(void *data, double stop_time) {{ ((BlockData *)data)->stop = stop_time; }}
+
+/* The stop time arrives first (fmi2SetupExperiment, fmi3EnterInitializationMode). The last
+ * grid step n_last is the master's (cosim/loop/algorithm.py, _Grid): its time is the stop time. */
+void model_initialize(void *data, double start_time)
+{{
+    BlockData *d = data;
+    d->t0 = start_time;
+    d->n_next = 0.0;
+    d->n_last = fmax(1.0, ceil((d->stop - start_time) / GRID_STEP - 1e-9));
+}}
+
+/* The time of grid step n as drillcosim's master spells it: t0 + n GRID_STEP, the stop time at
+ * the last point. */
+static double grid_time(const BlockData *d, double n)
+{{
+    return n < d->n_last ? d->t0 + n * GRID_STEP : d->stop;
+}}
+
+/* Sample n_next at the master's time t_m, if t_m is its time: the kernel sees grid_time, the
+ * double drillcosim's master gives the in-process block, from the FMU's own counter (a master
+ * counting time otherwise, as libcosim in nanoseconds, is a last bit or two apart).
+ * Returns 1 if it ran, 0 if t_m is before it, -1 if t_m is past it (a sample skipped). */
+static int sample_at(BlockData *d, double t_m, double H)
+{{
+    const double t_n = grid_time(d, d->n_next);
+    const double tol = TIME_TOL(t_m, H);
+    if (t_m < t_n - tol) return 0;
+    if (t_m > t_n + tol) return -1;
+    {fn}(({st} *)d->s, t_n, d->u, d->y);
+    d->n_next += TICKS;
+    return 1;
+}}
+
+/* The samples run at the FMU's grid points: doStep(t, k h) runs the k samples at t, t + h, ...,
+ * t + (k-1) h; doStep(t, h / m) runs the sample due at t, if one is. The master's t must be
+ * within TIME_TOL of the grid point: a thousandth of the scenario's step or of H if shorter (a
+ * master that adds up t += H drifts by less in 1e6 steps; the next point is one full H away),
+ * plus 1e-15 |t|. */
+int model_do_step(void *data, double t, double H, char *msg, size_t n)
+{{
+    BlockData *d = data;
+    double t_m = t;
+    if (H == 0.0) return 0;
+    double k = H / SAMPLE_PERIOD;
+    if (k >= 1.0 - 1e-9) {{
+        long K = lround(k);
+        if (fabs(k - (double)K) > 1e-9 * (double)K) goto not_a_multiple;
+        for (long i = 0; i < K; i++) {{
+            t_m = t + (double)i * SAMPLE_PERIOD;
+            if (sample_at(d, t_m, H) != 1) goto off_the_grid;
+        }}
+        return 0;
+    }}
+    double m = SAMPLE_PERIOD / H;
+    long M = lround(m);
+    if (fabs(m - (double)M) > 1e-9 * (double)M) goto not_a_multiple;
+    if (sample_at(d, t, H) >= 0) return 0;
+off_the_grid:
+    snprintf(msg, n, "communication point %.17g s is not the next sample's time %.17g s (t0 + %.0f x %.17g s, "
+             "within %.3g s): the master skipped or repeated a sample", t_m, grid_time(d, d->n_next),
+             d->n_next, GRID_STEP, TIME_TOL(t_m, H));
+    return 1;
+not_a_multiple:
+    snprintf(msg, n, "communication step %.17g s is neither a multiple nor an integer fraction of the "
+             "sample period %.17g s", H, SAMPLE_PERIOD);
+    return 1;
+}}
+"""
+
+
+def _do_step_c(ex: BlockExport) -> str:
+    return _DO_STEP_C.format(fn=ex.function, st=ex.state_type)
 
 
 def c_wrapper(ex: BlockExport, fmi: int) -> str:
@@ -292,6 +375,8 @@ def c_wrapper(ex: BlockExport, fmi: int) -> str:
  * ({ex.class_name}): do not edit. The FMI frame and the block's C step are included, so
  * this file is the FMU's one translation unit: cc -shared -fPIC -I<FMI headers> {ex.identifier}.c -lm */
 #define FRAME_NONFINITE_INPUTS 1
+#define FRAME_MODEL_STOP_TIME 1     /* the frame hands over the master's stop time (model_stop_time) */
+void model_stop_time(void *data, double stop_time);
 #include "frame_core.c"
 #include "{FRAME_SOURCES[fmi]}"
 #include "{ex.source.name}"
@@ -299,6 +384,9 @@ def c_wrapper(ex: BlockExport, fmi: int) -> str:
 #define N_IN {n_in}
 #define N_OUT {max(n_out, 1)}
 #define SAMPLE_PERIOD {_c_num(ex.sample_period)}   /* s, the block's sample period: the fixed step */
+#define GRID_STEP {_c_num(ex.grid_step)}   /* s, the exporting scenario's step */
+#define TICKS {ex.ticks}   /* grid steps per sample */
+#define TIME_TOL(t, H) (1e-3 * fmin(GRID_STEP, H) + 1e-15 * fabs(t))   /* s, the master's t against the grid's */
 #define STATE_SIZE {len(ex.state)}
 #define STATE_TAIL {ex.state_tail}   /* bytes of the state in the struct's flexible array */
 
@@ -306,6 +394,8 @@ typedef struct {{
     double u[N_IN > 0 ? N_IN : 1], y[N_OUT];
     double s[(STATE_SIZE + 7) / 8];     /* {ex.state_type}, started from STATE0_RUNS */
     double t0;
+    double n_next;      /* the grid step of the next sample: it runs at t0 + n_next * GRID_STEP */
+    double stop, n_last;    /* s, the master's stop time (INFINITY: none), and the grid step that is it */
 }} BlockData;
 
 _Static_assert(sizeof({ex.state_type}) == STATE_SIZE - STATE_TAIL, "the C struct differs from the exported state");
@@ -323,35 +413,7 @@ const ModelInfo MODEL_INFO = {{"{ex.identifier}", "{guid(ex, fmi)}", BLOCK_VARS,
 {_SET_DEFAULTS_C}
 int model_validate(const void *data, char *msg, size_t n) {{ (void)data; (void)msg; (void)n; return 0; }}
 
-void model_initialize(void *data, double start_time) {{ ((BlockData *)data)->t0 = start_time; }}
-
-/* The samples run at the communication points the master gives: doStep(t, k h) runs k samples
- * at t, t + h, ..., t + (k-1) h; doStep(t, h / m) runs the sample at t when t is on the
- * block's grid (round((t - t0) / H) a multiple of m), none otherwise. */
-int model_do_step(void *data, double t, double H, char *msg, size_t n)
-{{
-    BlockData *d = data;
-    if (H == 0.0) return 0;
-    double k = H / SAMPLE_PERIOD;
-    if (k >= 1.0 - 1e-9) {{
-        long K = lround(k);
-        if (fabs(k - (double)K) > 1e-9 * (double)K) goto not_a_multiple;
-        for (long i = 0; i < K; i++)
-            {ex.function}(({ex.state_type} *)d->s, i == 0 ? t : t + (double)i * SAMPLE_PERIOD, d->u, d->y);
-        return 0;
-    }}
-    double m = SAMPLE_PERIOD / H;
-    long M = lround(m);
-    if (fabs(m - (double)M) > 1e-9 * (double)M) goto not_a_multiple;
-    if (lround((t - d->t0) / H) % M == 0)
-        {ex.function}(({ex.state_type} *)d->s, t, d->u, d->y);
-    return 0;
-not_a_multiple:
-    snprintf(msg, n, "communication step %.17g s is neither a multiple nor an integer fraction of the "
-             "sample period %.17g s", H, SAMPLE_PERIOD);
-    return 1;
-}}
-"""
+{_do_step_c(ex)}"""
 
 
 def _unit_definitions(ex: BlockExport) -> list[str]:
@@ -525,10 +587,13 @@ def with_exported_blocks(path, fmus: dict, overrides: dict | None = None):
     # a plug-in's sections first (they fill in the blocks' settings), so that the replaced
     # blocks keep only the FMU
     raw = expand_sections(load_raw(path, overrides, origins), Checker(str(path), origins))
+    stop = raw.get("scenario", {}).get("stop_time")
     for name, fmu in fmus.items():
         if name not in raw.get("blocks", {}):
             raise ExportError(f"{path}: no block '{name}' to replace by {fmu}")
-        raw["blocks"][name] = {"class": "drillcosim.cosim.blocks.fmu_block:FMUBlock", "settings": {"fmu_file": str(Path(fmu).resolve())}}
+        # the stop time: the FMU spells the last point's time as the master does (docs/export.md, "Time")
+        raw["blocks"][name] = {"class": "drillcosim.cosim.blocks.fmu_block:FMUBlock",
+                               "settings": {"fmu_file": str(Path(fmu).resolve()), "stop_time": stop}}
     sc = build(raw, str(path), path.parent.resolve(), path.stem, origins)
     sc.path = path
     return sc

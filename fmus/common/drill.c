@@ -46,8 +46,15 @@ double prng_gauss(Prng *r)
 
 /* ---------------------------------------------------------------- machine */
 
+/* The step is snapped to whole nanoseconds when it is within 1e-3 ns of them: a master that
+ * counts time in integer nanoseconds (libcosim) gives H = t_(k+1) - t_k of its doubles, the
+ * decimal step a last bit or two apart, and the plant must integrate the same sub-steps as
+ * under a master that gives the decimal itself. A decimal H of at most 9 fractional digits is
+ * its own snap (round(H 1e9) / 1e9 is correctly rounded), so such a master sees no change. */
 int substeps(double H, double h_internal, double *hs)
 {
+    const double H_ns = H * 1e9, whole_ns = nearbyint(H_ns);
+    if (fabs(H_ns - whole_ns) <= 1e-3 && whole_ns > 0.0 && whole_ns < 9007199254740992.0) H = whole_ns / 1e9;
     int nsub = (int)ceil(H / h_internal - 1e-9);
     if (nsub < 1) nsub = 1;
     *hs = H / nsub;

@@ -25,7 +25,8 @@ double prng_uniform(Prng *r);   /* (0, 1) */
 double prng_gauss(Prng *r);     /* N(0, 1), Box-Muller */
 
 /* ---------------------------------------------------------------- machine */
-/* Number of fixed internal sub-steps for a communication step H, ceil(H/h_internal)
+/* Number of fixed internal sub-steps for a communication step H (snapped to whole
+ * nanoseconds when within 1e-3 ns of them, drill.c), ceil(H/h_internal)
  * (at least 1); *hs = H / that number. */
 int substeps(double H, double h_internal, double *hs);
 /* Friction (force or torque, with the velocity v on the same side) of a guide or drive:

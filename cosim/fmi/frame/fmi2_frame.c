@@ -79,6 +79,9 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     (void)toleranceDefined; (void)tolerance; (void)stopTimeDefined; (void)stopTime;
     if (!frame_check_mode(CORE(c), MODE_INSTANTIATED, "fmi2SetupExperiment")) return fmi2Error;
     CORE(c)->startTime = CORE(c)->time = startTime;
+#ifdef FRAME_MODEL_STOP_TIME    /* a model that mirrors its master's last communication point */
+    model_stop_time(CORE(c)->data, stopTimeDefined ? stopTime : INFINITY);
+#endif
     return fmi2OK;
 }
 

@@ -115,6 +115,9 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
                                        fmi3Boolean stopTimeDefined, fmi3Float64 stopTime)
 {
     (void)toleranceDefined; (void)tolerance; (void)stopTimeDefined; (void)stopTime;
+#ifdef FRAME_MODEL_STOP_TIME    /* a model that mirrors its master's last communication point */
+    if (instance) model_stop_time(CORE(instance)->data, stopTimeDefined ? stopTime : INFINITY);
+#endif
     return (fmi3Status)frame_enter_init(CORE(instance), startTime, "fmi3EnterInitializationMode");
 }
 
