@@ -22,7 +22,8 @@ against the bars (0 / 0 / 0; entry <= 0.094 mm, every interface <= 0.073 mm, exi
     python -m drillcosim.analysis.stack_montecarlo --holes 200 --workers 2     # the table + figure in docs/
 
 ``--draw wide`` (issue 23) draws the plan itself too, on a plant of ``--plant`` (the
-project's ball-screw drive, or the foreign one of fmus/foreign): 1-4 layers of any of
+project's ball-screw drive, the foreign one of fmus/foreign, or the foreign2 one of
+fmus/foreign2 on its compliant frame, whose observer models 2 orbital harmonics): 1-4 layers of any of
 CFRP / Ti / Al with no equal neighbours, nominal 1-8 mm (tolerance 15 %, true thickness
 within it), gaps to 1 mm, per material a feed of 5-24 mm/min, a spindle speed giving
 3-15 um/rev and an orbit of 0.5-5 Hz, wear 0-80 holes; on the project's drive also its
@@ -56,7 +57,8 @@ WIDE_BIAS_MM = 0.01
 WIDE = {"layers": (1, 4), "nominal_mm": (1.0, 8.0), "tolerance": 0.15, "gap_mm": (0.0, 1.0),
         "feed_mm_min": (5.0, 24.0), "fpr_um": (3.0, 15.0), "orbit_hz": (0.5, 5.0), "wear_holes": (0, 80),
         "engage_mm": (0.05, 0.35), "exit_thinning_mm": (0.1, 0.5)}
-PLANTS = {"project": "cfrp_ti.toml", "foreign_ballscrew": "foreign_cfrp_ti.toml"}
+PLANTS = {"project": "cfrp_ti.toml", "foreign_ballscrew": "foreign_cfrp_ti.toml",
+          "foreign2_ballscrew": "foreign2_cfrp_ti.toml"}
 PLANT_OPTIONS = {"project": ("engage_length", "exit_thinning")}    # FMU parameters drawn (SI)
 RANGES = {"thickness": 0.10, "gap_m": (0.0, 0.5e-3), "feed_mm_min": (6.0, 24.0), "orbit_hz": (1.0, 4.0),
           "wear_holes": (0, 40)}

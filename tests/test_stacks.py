@@ -276,8 +276,25 @@ def test_montecarlo_wide_short():
         assert g["located_worst"] <= mc.WIDE_BARS_MM[key.split()[0]], (key, g)
 
 
+WIDE_PLANTS = ["project", "foreign_ballscrew", "foreign2_ballscrew"]
+
+
+@pytest.mark.parametrize("plant", WIDE_PLANTS)
+def test_montecarlo_wide_draw_loads_on_every_plant(plant):
+    """A drawn plan loads on each plant's base scenario with the base's own settings kept:
+    the foreign2 drive's observer models its 2nd orbital harmonic (issue 23 item 6; a
+    drawn plan replaces [hole]'s layers and processes, not its orbital_harmonics)."""
+    from drillcosim.analysis import stack_montecarlo as mc
+    assert sorted(mc.PLANTS) == sorted(WIDE_PLANTS)      # a new plant gets its tests here
+    jobs, _refused = mc.draw_wide_campaign(3, seed=23, plant=plant)
+    for _i, _stack, ov in jobs:
+        sc = load_scenario(STACKS / mc.PLANTS[plant], overrides=ov)
+        harmonics = sc.raw["blocks"]["observer"]["settings"].get("harmonics")
+        assert harmonics == (2 if plant == "foreign2_ballscrew" else None)
+
+
 @pytest.mark.long
-@pytest.mark.parametrize("plant", ["project", "foreign_ballscrew"])
+@pytest.mark.parametrize("plant", WIDE_PLANTS)
 def test_montecarlo_wide_full(plant):
     from drillcosim.analysis import stack_montecarlo as mc
     jobs, refused = mc.draw_wide_campaign(200, seed=23, plant=plant)
