@@ -25,8 +25,8 @@ against the bars (0 / 0 / 0; entry <= 0.094 mm, every interface <= 0.073 mm, exi
 project's ball-screw drive, the foreign one of fmus/foreign, or the foreign2 one of
 fmus/foreign2 on its compliant frame, whose observer models 2 orbital harmonics): 1-4
 layers of any of CFRP / Ti / Al with no equal neighbours, nominal 1-8 mm (tolerance
-15 %, true thickness within it), gaps to 1 mm, per material a feed of 5-24 mm/min, a spindle speed giving
-3-15 um/rev and an orbit of 0.5-5 Hz, wear 0-80 holes; on the project's drive also its
+15 %, true thickness within it), gaps to 1 mm, per material a feed of 5-24 mm/min, a
+spindle speed giving 3-15 um/rev and an orbit of 0.5-5 Hz, wear 0-80 holes; on the project's drive also its
 engagement length (0.05-0.35 mm) and exit push-out (0.1-0.5 mm). A plan the hole plan
 refuses at load (a layer too thin for the detector at its feed, too few orbits) is
 redrawn and counted (``refused``). Located errors (``<event>_dz_mm``) and the trigger's
