@@ -26,13 +26,14 @@ project's ball-screw drive, the foreign one of fmus/foreign, or the foreign2 one
 fmus/foreign2 on its compliant frame, whose observer models 2 orbital harmonics): 1-4
 layers of any of CFRP / Ti / Al with no equal neighbours, nominal 1-8 mm (tolerance
 15 %, true thickness within it), gaps to 1 mm, per material a feed of 5-24 mm/min, a
-spindle speed giving 3-15 um/rev and an orbit of 0.5-5 Hz, wear 0-80 holes; on the project's drive also its
-engagement length (0.05-0.35 mm) and exit push-out (0.1-0.5 mm). A plan the hole plan
-refuses at load (a layer too thin for the detector at its feed, too few orbits) is
-redrawn and counted (``refused``). Located errors (``<event>_dz_mm``) and the trigger's
-(``<event>_trigger_dz_mm``) are summarised per plant, event and the materials around it:
-worst, 95th percentile and mean (bias), against issue 23's bars (entry 0.05, every
-interface 0.03, exit 0.1 mm; bias within +-0.01 mm).
+spindle speed giving 3-15 um/rev and an orbit of 0.5-5 Hz, wear 0-80 holes; on the
+project's drive also its engagement length (0.05-0.35 mm) and exit push-out (0.1-0.5
+mm). A plan the hole plan refuses at load (a layer too thin for the detector at its
+feed, too few orbits) is redrawn and counted (``refused``). Located errors
+(``<event>_dz_mm``) and the trigger's (``<event>_trigger_dz_mm``) are summarised per
+plant, event and the materials around it: worst, 95th percentile and mean (bias),
+against issue 23's bars (entry 0.05, every interface 0.03, exit 0.1 mm; bias within
++-0.01 mm).
 """
 from __future__ import annotations
 
