@@ -20,6 +20,7 @@ import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from benchmarks.results import write_result
 
 ROOT = Path(__file__).resolve().parent.parent
 HOLES = int(os.environ.get("BENCH_CAMPAIGN_HOLES", "8"))
@@ -73,10 +74,7 @@ def main() -> dict:
            "ratio": round(t_dask / t_pool, 4), "target": "<= 1.10",
            "pool_runs_s": times["pool"], "dask_runs_s": times["dask"],
            "pool_statuses": sorted(statuses["pool"]), "dask_statuses": sorted(statuses["dask"])}
-    out = ROOT / "results" / "benchmarks"
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "campaign.json").write_text(json.dumps(row, indent=2) + "\n")
-    return row
+    return write_result("campaign", row)
 
 
 if __name__ == "__main__":

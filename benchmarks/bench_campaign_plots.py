@@ -19,6 +19,7 @@ import statistics
 import tempfile
 import time
 from pathlib import Path
+from benchmarks.results import write_result
 
 ROOT = Path(__file__).resolve().parent.parent
 HOLES = int(os.environ.get("BENCH_CAMPAIGN_HOLES", "6"))
@@ -68,10 +69,7 @@ def main() -> dict:
            "scores_per_sim_max": round(max(ratios[False]), 4), "scores_per_sim_target": "<= 0.20",
            "scores_plots_per_sim_median_before": round(statistics.median(ratios[True]), 4),
            "tables_identical": tables[True] == tables[False]}
-    out_dir = ROOT / "results" / "benchmarks"
-    out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "campaign_plots.json").write_text(json.dumps(row, indent=2) + "\n")
-    return row
+    return write_result("campaign_plots", row)
 
 
 if __name__ == "__main__":

@@ -15,6 +15,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from benchmarks.results import write_result
+
 ROOT = Path(__file__).resolve().parent.parent
 SMALL = 100_000
 BIG = int(float(os.environ.get("BENCH_MEMORY_ROWS", "1e7")))
@@ -50,10 +52,7 @@ def main() -> dict:
            "big_mb": big["peak_rss_mb"], "ratio": round(big["peak_rss_mb"] / small["peak_rss_mb"], 4),
            "target": "big <= 500 MB, ratio <= 1.20", "big_wall_s": big["wall_s"],
            "statuses": sorted({small["status"], big["status"]}), "bench_s": round(time.perf_counter() - t0, 1)}
-    out_dir = ROOT / "results" / "benchmarks"
-    out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "memory.json").write_text(json.dumps(row, indent=2) + "\n")
-    return row
+    return write_result("memory", row)
 
 
 if __name__ == "__main__":

@@ -14,6 +14,7 @@ import os
 import tempfile
 import time
 from pathlib import Path
+from benchmarks.results import write_result
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIO = ROOT / "scenarios" / "fang_table5_hole.toml"
@@ -41,10 +42,7 @@ def main() -> dict:
            "supervised_s": round(b, 3), "ratio": round(b / a, 4), "target": "<= 1.05",
            "all_in_process_s": [round(x, 3) for x in times["in_process"]],
            "all_supervised_s": [round(x, 3) for x in times["supervised"]]}
-    out = ROOT / "results" / "benchmarks"
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "supervisor.json").write_text(json.dumps(row, indent=2) + "\n")
-    return row
+    return write_result("supervisor", row)
 
 
 if __name__ == "__main__":

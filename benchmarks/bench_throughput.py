@@ -31,6 +31,7 @@ import time
 from pathlib import Path
 
 from benchmarks.bench_campaign_plots import _scores
+from benchmarks.results import write_result
 
 ROOT = Path(__file__).resolve().parent.parent
 FANG_HOLES = int(os.environ.get("BENCH_FANG_HOLES", "24"))
@@ -109,10 +110,7 @@ def montecarlo() -> dict:
 def main() -> list[dict]:
     only = os.environ.get("BENCH_THROUGHPUT", "fang,montecarlo").split(",")
     rows = [bench() for name, bench in (("fang", fang), ("montecarlo", montecarlo)) if name in only]
-    out = ROOT / "results" / "benchmarks"
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "throughput.json").write_text(json.dumps(rows, indent=2) + "\n")
-    return rows
+    return write_result("throughput", rows)
 
 
 if __name__ == "__main__":
