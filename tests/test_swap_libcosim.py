@@ -3,14 +3,14 @@ by a fixed current profile gives the same trajectory through this project's mast
 through libcosim (libcosimpy, a test-only dependency), which also shows that the plant
 FMU runs in another master.
 
-Tolerance: 1e-9 of each signal's range (measured: at most 6e-14 of the range; z_enc
-bit-identical, thrust 2e-11 N apart). The FMU's equations are deterministic -- fixed
-internal sub-step, seeded noise -- and both masters hand it the same inputs in the same
-order: i_ref(t_k) set before doStep(t_k, h). What differs is the floating-point spelling
-of t_k and h (libcosim counts integer nanoseconds and converts each step to seconds,
-this master uses h and t0 + k*h), which changes the last bits of the sub-step size; 1e-9
-leaves room for that rounding to grow through a stiff contact, and is still 6 orders
-below any physical effect.
+Tolerance: 1e-9 of each signal's range (measured: 0, every value equal, since the
+plants round a communication step to whole nanoseconds, docs/plants.md "Solver"; before
+that 6e-14 of the range). The FMU's equations are deterministic -- fixed internal
+sub-step, seeded noise -- and both masters hand it the same inputs in the same order:
+i_ref(t_k) set before doStep(t_k, h). What differs is the floating-point spelling of t_k
+and h (libcosim counts integer nanoseconds and converts each step to seconds, this master
+uses h and t0 + k*h); the 1e-9 stays for a plant FMU of another tool, which need not
+round, and is still 6 orders below any physical effect.
 """
 from __future__ import annotations
 
