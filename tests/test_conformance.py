@@ -1,7 +1,7 @@
 """FMI conformance against the Modelica Reference-FMUs (issue 14).
 
 The Reference-FMUs are built once per archive (CMake, FMI 2 and 3) by a session
-fixture into fmus/build/reference/ (cached); without the source archive or cmake the
+fixture into ~/.cache/drillcosim/reference-fmus/ (cached); without the source archive or cmake the
 tests skip and say why. Every FMU x FMI version x interface (CS; ME rk4; ME cvode) is
 compared with fmpy.simulate_fmu at the tolerances of drillcosim.cosim.runs.conformance.TOLERANCE:
 CS 1e-9 of the output's range (same FMU code, same grid), ME rk4 2e-3 and ME cvode

@@ -9,8 +9,9 @@ regenerates the table in docs/conformance.md; tests/test_conformance.py asserts 
 Where the archive is found (:func:`search_paths`): ``--reference-fmus PATH``,
 ``$DRILLCOSIM_REFERENCE_FMUS`` (the .tar.gz or its folder), else ``reference-fmus/`` or
 ``shared/reference-fmus/`` in or above the checkout or the working directory. Builds are cached
-in ``fmus/build/reference/<archive hash>/`` (with the archive's LICENSE.txt), so the
-build happens once per archive, not per run.
+in ``<cache>/drillcosim/reference-fmus/<archive hash>/`` (with the archive's LICENSE.txt;
+``<cache>`` is ``$XDG_CACHE_HOME`` or ``~/.cache``), so the build happens once per archive, not
+per run, and the other project's sources and build scripts stay out of this checkout.
 """
 from __future__ import annotations
 
@@ -28,10 +29,12 @@ from pathlib import Path
 
 import numpy as np
 
+from drillcosim.cosim.fmi.build_tools import BuildLock
+
 REPO = Path(__file__).resolve().parents[2]     # the checkout (or the installed package)
 ARCHIVE_GLOB = "Reference-FMUs-*.tar.gz"
 ENV = "DRILLCOSIM_REFERENCE_FMUS"
-CACHE = REPO / "fmus" / "build" / "reference"
+CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "drillcosim" / "reference-fmus"
 DOC = REPO / "docs" / "conformance.md"
 BEGIN, END = "<!-- conformance table: begin -->", "<!-- conformance table: end -->"
 
@@ -91,13 +94,23 @@ def build(jobs: int = 2, quiet: bool = True, archive: str | Path | None = None) 
     archive = found
     digest = hashlib.sha256(archive.read_bytes()).hexdigest()[:12]
     root = CACHE / digest
+    with BuildLock(CACHE / f"{digest}.lock"):      # two test processes build it once
+        _build_into(root, archive, jobs)
+    out = {}
+    for v in (2, 3):
+        for f in sorted((root / f"fmi{v}" / "fmus").glob("*.fmu")):
+            out[(v, f.stem)] = f
+    return out
+
+
+def _build_into(root: Path, archive: Path, jobs: int) -> None:
+    """Unpack ``archive`` into ``root``/src and CMake-build FMI 2 and 3 where not built yet."""
     src = root / "src"
     if not (src / "CMakeLists.txt").exists():
         src.mkdir(parents=True, exist_ok=True)
         with tarfile.open(archive) as tf:
             tf.extractall(src)
     shutil.copy(src / "LICENSE.txt", root / "LICENSE.txt")
-    out = {}
     procs = []
     for v in (2, 3):
         b = root / f"fmi{v}"
@@ -110,10 +123,6 @@ def build(jobs: int = 2, quiet: bool = True, archive: str | Path | None = None) 
         log, _ = p.communicate()
         if p.returncode:
             raise RuntimeError(f"building the FMI {v} Reference-FMUs failed:\n{log[-3000:]}")
-    for v in (2, 3):
-        for f in sorted((root / f"fmi{v}" / "fmus").glob("*.fmu")):
-            out[(v, f.stem)] = f
-    return out
 
 
 # -- the cases -------------------------------------------------------------------------------
