@@ -60,7 +60,9 @@ WIDE = {"layers": (1, 4), "nominal_mm": (1.0, 8.0), "tolerance": 0.15, "gap_mm":
         "engage_mm": (0.05, 0.35), "exit_thinning_mm": (0.1, 0.5)}
 PLANTS = {"project": "cfrp_ti.toml", "foreign_ballscrew": "foreign_cfrp_ti.toml",
           "foreign2_ballscrew": "foreign2_cfrp_ti.toml"}
-PLANT_OPTIONS = {"project": ("engage_length", "exit_thinning")}    # FMU parameters drawn (SI)
+# plant options the default wide draw varies on a plant (contract names, SI; --plant-options: all of
+# analysis.plant_options on every plant that binds them)
+PLANT_OPTIONS = {"project": (("engage_length", "engage_mm"), ("push_out_length", "exit_thinning_mm"))}
 RANGES = {"thickness": 0.10, "gap_m": (0.0, 0.5e-3), "feed_mm_min": (6.0, 24.0), "orbit_hz": (1.0, 4.0),
           "wear_holes": (0, 40)}
 
@@ -152,18 +154,23 @@ def draw_wide(rng: np.random.Generator, plant: str = "project") -> tuple[str, di
         ov[p + "material"] = MATERIAL_CODE[layer["material"]]
         ov[p + "thickness"] = float(layer["thickness"] * (1.0 + rng.uniform(-WIDE["tolerance"], WIDE["tolerance"])))
         ov[p + "gap"] = float(gap)
-    for name in PLANT_OPTIONS.get(plant, ()):
-        lo, hi = WIDE["engage_mm" if name == "engage_length" else "exit_thinning_mm"]
-        ov[f"fmus.drive.parameters.{name}"] = 1e-3 * rng.uniform(lo, hi)
+    for name, key in PLANT_OPTIONS.get(plant, ()):
+        ov[PLANT_PARAMETERS + name] = 1e-3 * rng.uniform(*WIDE[key])
     return "/".join(L["material"] for L in layers), ov, refused
 
 
-def draw_wide_campaign(n: int, seed: int = 23, plant: str = "project") -> tuple[list, int]:
-    """n holes of the wide draw on one plant: (jobs, plans refused and redrawn)."""
+def draw_wide_campaign(n: int, seed: int = 23, plant: str = "project",
+                       plant_options: bool = False) -> tuple[list, int]:
+    """n holes of the wide draw on one plant: (jobs, plans refused and redrawn).
+    ``plant_options``: each hole's plant options drawn too (analysis.plant_options, from
+    their own generator: the plans and true stacks stay those of the plain draw)."""
+    from drillcosim.analysis import plant_options as options
     rng = np.random.default_rng(seed)
     jobs, refused = [], 0
     for i in range(n):
         stack, ov, r = draw_wide(rng, plant)
+        if plant_options:
+            ov.update(options.draw(STACKS / PLANTS[plant], seed, i))
         jobs.append((i, stack, ov))
         refused += r
     return jobs, refused
@@ -393,6 +400,9 @@ def main(argv=None) -> int:
                     help="plans: around the shipped plans (issue 12); wide: the plans drawn too (issue 23)")
     ap.add_argument("--plant", action="append", choices=tuple(PLANTS),
                     help="plant(s) of the wide draw, --holes each (default: every one)")
+    ap.add_argument("--plant-options", action="store_true",
+                    help="wide draw: draw each plant's options too (engagement, push-out, 2nd orbital harmonic, "
+                         "contact stiffness, friction; analysis/plant_options.py), where its binding has them")
     ap.add_argument("--from-runs", action="store_true",
                     help="wide draw: summarise the holes already run under --out/<plant>/runs (the first "
                          "--holes of the same draw), do not run any")
@@ -416,7 +426,7 @@ def main_wide(a, out: Path) -> int:
     generated block of docs/stacks.md that belongs to it."""
     summaries, rows_by_plant = {}, {}
     for plant in a.plant or list(PLANTS):
-        jobs, refused = draw_wide_campaign(a.holes, a.seed, plant)
+        jobs, refused = draw_wide_campaign(a.holes, a.seed, plant, a.plant_options)
         if a.from_runs:
             rows = rows_from_runs(jobs, out / plant / "runs")
         else:
@@ -432,7 +442,8 @@ def main_wide(a, out: Path) -> int:
     if a.docs:
         plants = " ".join(f"--plant {p}" for p in summaries)
         command = (f"python -m drillcosim.analysis.stack_montecarlo --draw wide {plants} --holes {a.holes} "
-                   f"--workers {a.workers} --seed {a.seed}{' --from-runs' if a.from_runs else ''} --docs")
+                   f"--workers {a.workers} --seed {a.seed}{' --plant-options' if a.plant_options else ''}"
+                   f"{' --from-runs' if a.from_runs else ''} --docs")
         img = ROOT / "docs" / "img" / "stack_montecarlo_wide.png"
         figure_wide(rows_by_plant, img)
         replace_block(ROOT / "docs" / "stacks.md", "stack-montecarlo-wide",

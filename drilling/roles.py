@@ -42,6 +42,18 @@ CONTRACT_PARAMETERS: dict[str, str] = {"surface": "m", "n_layers": "1", "wear_ho
 for _k in range(1, 5):
     CONTRACT_PARAMETERS.update({f"layer{_k}_material": "1", f"layer{_k}_thickness": "m", f"layer{_k}_gap": "m"})
 
+# Plant options (optional contract parameters): what the wide Monte Carlo varies on a plant
+# that binds them (issue 23 item 6, docs/stacks.md). Like any contract parameter, one set on a
+# plant that does not bind it is refused at load.
+PLANT_OPTIONS: dict[str, str | dict] = {
+    "engage_length": "m",          # travel over which the tool's point engages a layer
+    "push_out_length": "m",        # travel over which the last layer's thrust falls before break-through
+    "orbital_harmonic2": "1",      # second orbital ripple harmonic, relative to the thrust
+    "contact_stiffness": "N/m",    # tool/workpiece contact stiffness
+    "coulomb": EFFORT,             # Coulomb friction of the drive
+}
+CONTRACT_PARAMETERS.update(PLANT_OPTIONS)
+
 # True plant parameters a binding may offer for comparison (scoring only, optional).
 TRUE_PARAMETERS: dict[str, str | dict] = {
     "force_constant": {"ball_screw": "N.m/A", "linear_stage": "N/A"},
@@ -64,4 +76,4 @@ CONTRACT = RoleContract(
     # parameter -- the stack, its materials, the wear -- is what the experiment is about
     never_required=("seed",), neutral=neutral, docs="docs/signal_contract.md")
 
-__all__ = ["CONTRACT", "ROLES", "CONTRACT_PARAMETERS", "TRUE_PARAMETERS", "KINDS", "EFFORT"]
+__all__ = ["CONTRACT", "ROLES", "CONTRACT_PARAMETERS", "PLANT_OPTIONS", "TRUE_PARAMETERS", "KINDS", "EFFORT"]

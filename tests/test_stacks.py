@@ -293,6 +293,44 @@ def test_montecarlo_wide_draw_loads_on_every_plant(plant):
         assert harmonics == (2 if plant == "foreign2_ballscrew" else None)
 
 
+@pytest.mark.parametrize("plant", WIDE_PLANTS)
+def test_montecarlo_plant_options_reach_the_fmu(plant):
+    """--plant-options (issue 23 item 6): each option a plant binds is drawn within its range
+    (lengths absolute, stiffness and friction as factors on the plant's own value) and reaches
+    the FMU through the binding's units (the foreign drives take mm, N/um, %); the plans and
+    true stacks are the plain draw's."""
+    from drillcosim.analysis import plant_options as po
+    from drillcosim.analysis import stack_montecarlo as mc
+    scenario = STACKS / mc.PLANTS[plant]
+    plain, _ = mc.draw_wide_campaign(2, seed=23, plant=plant)
+    drawn, _ = mc.draw_wide_campaign(2, seed=23, plant=plant, plant_options=True)
+    own = po.own_values(scenario)
+    assert {"engage_length", "push_out_length", "contact_stiffness", "coulomb"} <= set(own)
+    for (_i, _s, ov0), (_j, _t, ov) in zip(plain, drawn):
+        assert {k: v for k, v in ov.items() if k in ov0 and "plant_parameters." not in k} == \
+               {k: v for k, v in ov0.items() if "plant_parameters." not in k}
+        sc = load_scenario(scenario, overrides=ov)
+        binding, slave = sc.system.bindings["drive"], sc.system.slaves["drive"]
+        values = binding.parameter_values_si(slave.model, slave.parameters)
+        for name, (kind, lo, hi) in po.OPTION_RANGES.items():
+            if name not in own:
+                continue
+            v = ov[f"fmus.drive.plant_parameters.{name}"]
+            assert values[name] == pytest.approx(v, rel=1e-12)        # SI -> FMU unit -> SI
+            ref = 1.0 if kind == "abs" else own[name]
+            assert lo * ref <= v <= hi * ref, (name, v)
+
+
+def test_plant_option_the_plant_lacks_is_refused():
+    """A plant option set on a plant whose binding does not bind it is an error naming the key
+    (the project's drive has no second orbital harmonic), never silently ignored."""
+    from drillcosim.analysis import stack_montecarlo as mc
+    expect = "orbital_harmonic2"
+    with pytest.raises(ScenarioError, match=expect) as err:
+        load_scenario(STACKS / mc.PLANTS["project"], overrides={f"fmus.drive.plant_parameters.{expect}": 0.02})
+    assert "plant_parameters.orbital_harmonic2" in str(err.value)
+
+
 def test_foreign2_hole_plan_meets_the_bars(tmp_path):
     """The wide draw's base on the third drive (a Monte Carlo hole there takes 5-10 s, so
     CI runs the shipped plan once instead, ~6 s): every event found, none false, no fail,

@@ -78,6 +78,7 @@ class RoleContract:
 BINDING_SECTIONS = ("plant", "roles", "parameter_roles", "true_parameters", "datasheet")
 PLANT_KEYS = ("path", "kind", "description", "parameters", "contract")
 ROLE_KEYS = ("variable", "unit", "scale", "offset")
+INTEGER_TYPES = ("Integer", "Enumeration", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")
 
 
 @dataclass(frozen=True)
@@ -90,6 +91,7 @@ class Bound:
     scale: float
     offset: float
     scoring_only: bool = False
+    integer: bool = False     # the FMU variable holds integers (a count, a code, a seed)
 
     def to_raw(self, value_si: float) -> float:
         return (value_si - self.offset) / self.scale
@@ -160,14 +162,15 @@ class PlantBinding:
             raise self.error(f"{key}.unit", f"the FMU declares '{v.name}' in [{v.unit}], the binding says "
                              f"[{spec['unit']}]; leave the unit out or make them agree")
         k, c = float(spec.get("scale", 1.0)), float(spec.get("offset", 0.0))
+        integer = v.type in INTEGER_TYPES
         if "scale" in spec or "offset" in spec:      # stated: it is the entire conversion (as on a connection)
-            return Bound(role, v.name, si_unit, k, c, scoring_only)
+            return Bound(role, v.name, si_unit, k, c, scoring_only, integer)
         try:
             s, o, _ = connection_conversion(fmu_unit, si_unit, [md], where=f"role '{role}' ({v.name})")
         except UnitError as e:
             raise self.error(key, f"{e} (role '{role}' is in [{si_unit}]; state scale and offset to "
                                   "convert yourself)") from None
-        return Bound(role, v.name, si_unit, s, o, scoring_only)
+        return Bound(role, v.name, si_unit, s, o, scoring_only, integer)
 
     # -- what the master asks ---------------------------------------------------------
     def role_of_variable(self, variable: str) -> Bound | None:
@@ -196,20 +199,31 @@ class PlantBinding:
             if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
                 raise ScenarioError(f"expected a finite number, got {value!r}", key=f"{key}.{name}")
             raw = b.to_raw(float(value))
-            out[b.variable] = int(round(raw)) if self.contract.parameters.get(name) == "1" else raw
+            out[b.variable] = int(round(raw)) if b.integer else raw
         return out
 
     def true_values(self, model, parameters: dict) -> dict[str, float]:
         """The plant's true parameters this binding offers, in SI (scoring only): the FMU's
         start values with the run's ``parameters`` over them."""
-        out = {}
-        for name, b in self.bound_true.items():
-            raw = parameters.get(b.variable, model.variables[b.variable].start)
-            try:
-                out[name] = b.scale * float(raw) + b.offset
-            except (TypeError, ValueError):
-                continue
-        return out
+        return _si_values(self.bound_true, model, parameters)
+
+    def parameter_values_si(self, model, parameters: dict) -> dict[str, float]:
+        """The contract parameters this binding binds, in SI: the FMU's start values with the
+        run's ``parameters`` over them (a plant option's own value, before a campaign draws it)."""
+        return _si_values(self.bound_parameters, model, parameters)
+
+
+def _si_values(bounds: dict, model, parameters: dict) -> dict[str, float]:
+    """``{name: SI value}`` of bound variables: start values, ``parameters`` (raw) over them;
+    a variable without a numeric value is left out."""
+    out = {}
+    for name, b in bounds.items():
+        raw = parameters.get(b.variable, model.variables[b.variable].start)
+        try:
+            out[name] = b.scale * float(raw) + b.offset
+        except (TypeError, ValueError):
+            continue
+    return out
 
 
 def _entry(file: str, key: str, spec, allowed_names) -> dict:
