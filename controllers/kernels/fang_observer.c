@@ -29,6 +29,9 @@ typedef struct {
     /* harmonics > 1: theta [S_1, C_1, .., S_H, C_H], Y (3 x 2H), Gamma^-1 (2H x 2H), row-major */
     int harmonics;
     double th_h[FANG_NH], Y_h[3 * FANG_NH], Si_h[FANG_NH * FANG_NH];
+    /* gain restart at a commanded orbit-speed change (_restart_gain): relative change, the
+     * orbital frequency [Hz] Gamma was last (re)started for */
+    double gain_restart, f_gain, Si0[FANG_NH];
 } FangObserver;
 
 static double friction(const FangObserver *o, double v)
@@ -48,6 +51,18 @@ static double position_ripple(const FangObserver *o, double p)
         f += r[1] * sin(r[0] * p) + r[2] * cos(r[0] * p);
     }
     return f;
+}
+
+/* Gamma back to Gamma0 at a commanded orbit-speed change (_restart_gain); Gamma0 is the
+ * reset's Gamma^-1 (Si / Si_h as reset() sets them) */
+static void restart_gain(FangObserver *o, double f_orb)
+{
+    int n = 2 * o->harmonics;
+    o->f_gain = f_orb;
+    o->Si[0] = o->Si0[0]; o->Si[1] = 0.0; o->Si[2] = o->Si0[1];
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++)
+            o->Si_h[i * n + j] = i == j ? o->Si0[i] : 0.0;
 }
 
 /* the sample's inputs and orbital angle phi(t) (_sample): starts the state on the first
@@ -70,6 +85,8 @@ static void sample(FangObserver *o, double t, const double *u, double *i_m_, dou
     }
     double phi;
     if (from_input) {
+        if (o->gain_restart > 0.0 && fabs(f_orb - o->f_gain) > o->gain_restart * o->f_gain)
+            restart_gain(o, f_orb);
         phi = o->phase;
         o->phase = phi + TWO_PI * f_orb * Ts;
     } else {
