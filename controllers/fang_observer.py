@@ -75,11 +75,13 @@ Implementation choices (the paper leaves them open)
   20 % ~6 s, within 5 % ~8 s after the switch; 3.5 -> 1 Hz with a 1500 -> 230 N thrust
   step: the DC estimate swung +-86 N 2-4 orbits after it, and a thin last layer's exit
   test never armed, issue 23). ``gain_restart`` (default 0.05): an orbital speed input
-  that moves by more than this fraction from the one Gamma was last started for restarts
-  Gamma at Gamma0, as at t = 0 (theta is kept: the phase runs on through the change):
-  +-9.3 N 2-4 orbits after the same switch (tests/test_observer_blocks.py); 0 never restarts.
-  A commanded change is a step (the adaptation's process per layer); a ramp restarts once
-  per 5 %.
+  that moves by more than this fraction from the one Gamma was last rescaled for scales
+  Gamma^-1 by (f_new / f_old)^2, the gain the new orbit converges to (theta is kept: the
+  phase runs on through the change): +-34 N 2-4 orbits after the same switch, +-14 N 4-7
+  orbits after (tests/test_observer_blocks.py); 0 never rescales. (A restart at Gamma0,
+  5000x that gain, let theta take up the layer change's own transient: an interface
+  located 0.12 mm off.) A commanded change is a step (the adaptation's process per
+  layer); a ramp rescales once per 5 %.
 * **More orbital harmonics** (issue 23, Fang eq. 8 generalised): ``harmonics = H`` (default
   1, the paper's observer) models the ripple as ``sum_h S_h sin(h phi) + C_h cos(h phi)``:
   theta has 2H entries, Y is 3 x 2H, Gamma^-1 is 2H x 2H (one Gamma0 pair per harmonic, or
@@ -147,7 +149,7 @@ class _KernelState(ctypes.Structure):
                 ("harmonics", ctypes.c_int), ("th_h", _D * _NH), ("Y_h", _D * (3 * _NH)),
                 ("Si_h", _D * (_NH * _NH)),
                 # gain restart at a commanded orbit-speed change (gain_restart > 0)
-                ("gain_restart", _D), ("f_gain", _D), ("Si0", _D * _NH)]
+                ("gain_restart", _D), ("f_gain", _D)]
 
 
 class AdaptiveThrustObserver(DiscretisedBlock):
@@ -191,7 +193,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self.Q, self.R, self.Gamma0, self.forgetting = Q, float(R), G0, float(forgetting)
         if not 0.0 <= gain_restart < 1.0:
             raise ValueError(f"AdaptiveThrustObserver: gain_restart must be in [0, 1) (relative orbit-speed "
-                             f"change that restarts Gamma; 0: never), got {gain_restart!r}")
+                             f"change that rescales Gamma; 0: never), got {gain_restart!r}")
         self.gain_restart = float(gain_restart)
         self.position_unit, self.measurement = position_unit, measurement
         # the orbital speed comes from the input `orbital_speed` when asked for, or when the
@@ -295,7 +297,6 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         k.use_theta, k.meas_theta = self._use_theta, self.measurement == "theta"
         k.harmonics = self.harmonics
         k.gain_restart = self.gain_restart
-        k.Si0[:2 * self.harmonics] = [1.0 / float(g) for g in self.Gamma0]   # Gamma0^-1, as reset() starts it
         names = [p.name for p in self.inputs]
         k.k_theta = names.index("theta") if "theta" in names else -1
         k.k_orbital = names.index("orbital_speed") if "orbital_speed" in names else -1
@@ -334,7 +335,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._Si = [1.0 / g0, 0.0, 1.0 / g1]   # Gamma^-1 (symmetric 2x2: s00, s01, s11)
         self._th_prev = 0.0
         self._w_enc = 0.0
-        self._f_gain = 0.0           # orbital frequency [Hz] Gamma was last (re)started for (0: none yet)
+        self._f_gain = 0.0           # orbital frequency [Hz] Gamma was last rescaled for (0: none yet)
         n = 2 * self.harmonics
         self._th_h = [0.0] * n
         self._Y_h = [0.0] * (3 * n)            # row-major 3 x 2H
@@ -380,18 +381,23 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         return i_m, y, theta, phi, f_orb, Ts
 
     def _restart_gain(self, f_orb: float) -> None:
-        """A commanded orbit-speed change (the adaptation's process per layer): Gamma back
-        to Gamma0. With forgetting, Gamma^-1 holds the regressor power of the old orbital
-        frequency for ~1/lambda; theta, which must re-converge to the new layer's ripple
-        (10x smaller after Ti -> CFRP), then moved with a gain sized for another regressor
-        and the DC estimate rang at the orbit for 5-10 s (a 1 Hz +-150 N swing on a
-        230 N CFRP level, wide draw project hole 154: the exit test never armed). theta
-        is kept: the phase runs on through the change, so its ripple is the best start."""
+        """A commanded orbit-speed change (the adaptation's process per layer): Gamma^-1
+        rescaled to the new orbit's regressor. With forgetting Gamma^-1 converges to
+        <(CY)^2> / lambda, and |CY| grows with the orbital frequency (measured Gamma 0.0021
+        at 3.5 Hz, 0.02-0.026 at 1 Hz: ~f^-2), so after a change theta moved with a gain
+        sized for the old regressor (10x too small after 3.5 -> 1 Hz) until Gamma^-1 had
+        forgotten it, and the DC estimate rang at the orbit for 5-10 s (+-150 N on a
+        230 N CFRP level, wide draw project hole 154: the exit test never armed). Scaled by
+        (f_new / f_old)^2 it is the gain the new orbit converges to, at once. Not Gamma0:
+        that gain (5000x) let theta take up the layer change's own transient (an
+        interface located 0.12 mm off). theta is kept: the phase runs on through the
+        change. No orbit before or after (0): nothing to scale."""
+        if self._f_gain > 0.0 and f_orb > 0.0:
+            r = f_orb / self._f_gain
+            s = r * r
+            self._Si = [v * s for v in self._Si]
+            self._Si_h = [v * s for v in self._Si_h]
         self._f_gain = f_orb
-        g0, g1 = self.Gamma0[:2]
-        self._Si = [1.0 / g0, 0.0, 1.0 / g1]
-        n = 2 * self.harmonics
-        self._Si_h = [1.0 / float(self.Gamma0[i]) if i == j else 0.0 for i in range(n) for j in range(n)]
 
     def _step_python_harmonics(self, t, u):
         """One sample with H > 1 orbital harmonics (Fang eq. 8 generalised: Psi(t) theta

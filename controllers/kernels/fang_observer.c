@@ -30,8 +30,8 @@ typedef struct {
     int harmonics;
     double th_h[FANG_NH], Y_h[3 * FANG_NH], Si_h[FANG_NH * FANG_NH];
     /* gain restart at a commanded orbit-speed change (_restart_gain): relative change, the
-     * orbital frequency [Hz] Gamma was last (re)started for */
-    double gain_restart, f_gain, Si0[FANG_NH];
+     * orbital frequency [Hz] Gamma was last rescaled for */
+    double gain_restart, f_gain;
 } FangObserver;
 
 static double friction(const FangObserver *o, double v)
@@ -53,16 +53,19 @@ static double position_ripple(const FangObserver *o, double p)
     return f;
 }
 
-/* Gamma back to Gamma0 at a commanded orbit-speed change (_restart_gain); Gamma0 is the
- * reset's Gamma^-1 (Si / Si_h as reset() sets them) */
+/* Gamma^-1 rescaled to the new orbit's regressor at a commanded orbit-speed change
+ * (_restart_gain): by (f_new / f_old)^2, when both are > 0 */
 static void restart_gain(FangObserver *o, double f_orb)
 {
-    int n = 2 * o->harmonics;
+    if (o->f_gain > 0.0 && f_orb > 0.0) {
+        int n = 2 * o->harmonics;
+        double r = f_orb / o->f_gain, s = r * r;
+        for (int i = 0; i < 3; i++)
+            o->Si[i] *= s;
+        for (int i = 0; i < n * n; i++)
+            o->Si_h[i] *= s;
+    }
     o->f_gain = f_orb;
-    o->Si[0] = o->Si0[0]; o->Si[1] = 0.0; o->Si[2] = o->Si0[1];
-    for (int i = 0; i < n; i++)
-        for (int j = 0; j < n; j++)
-            o->Si_h[i * n + j] = i == j ? o->Si0[i] : 0.0;
 }
 
 /* the sample's inputs and orbital angle phi(t) (_sample): starts the state on the first
