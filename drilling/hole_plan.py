@@ -276,11 +276,20 @@ class HolePlan:
                                               f"z_start {z_start:g} m")
         # past the end of the exit window (detector tolerance), so that a missing exit is a
         # fail while the tool still feeds, not a hole that just ends
+        # (and past the exit's localisation window: half an orbit more than before)
         out = {"z_approach_end": z_app, "feed_rate": first["feed_rate"],
-               "z_end": self.bottom() + DETECTOR_TOLERANCE + self.breakthrough}
+               "z_end": self.bottom() + DETECTOR_TOLERANCE + self.breakthrough + self.half_orbit_travel()}
         if wait > 0:
             out["t_start"] = float(base.get("t_start", 0.0)) + wait
         return out
+
+    def half_orbit_travel(self) -> float:
+        """Travel [m] in half an orbit of the last layer's process: the exit's fit compares
+        means over one orbit (InterfaceDetector exit_orbit_period), the last of which is
+        centred half an orbit before the window's end, so the window reaches that much
+        further past the trigger (exit_loc_after) and the feed past the bottom."""
+        p = self.layer_process(len(self.layers) - 1)
+        return 0.5 * 60.0 / p["orbital_speed"] * p["feed_rate"]
 
     def stop_time(self, traj: dict) -> float:
         """Time to the deepest point at the slowest feed the plan may command, approach
@@ -310,6 +319,10 @@ class HolePlan:
             "fail_disarms": True,
             "locate_margin": self.locate_margin,
             "push_out": self.push_out,
+            # the exit's fit on means over one orbit of the last layer's process: the
+            # observer's ripple estimate outlives the thrust there (InterfaceDetector)
+            "exit_orbit_period": 60.0 / self.layer_process(len(self.layers) - 1)["orbital_speed"],
+            "exit_loc_after": self.locate_margin + self.half_orbit_travel(),
             "mismatch_factor": MISMATCH_FACTOR,
             "restart": True,
             "entry_confirm": True,
