@@ -84,10 +84,7 @@ def test_plan_derives_trajectory_detector_adaptation_stop_time():
     traj, det, ad = b["trajectory"]["settings"], b["detector"]["settings"], b["adapt"]["settings"]
     # deepest bottom: 3 x (3 + 0.35) mm + 2 gaps of 0.5 mm below the 1 mm surface, + the exit
     # window's 0.5 mm + 0.3 mm breakthrough (a missing exit is a fail before the feed ends)
-    # + half an orbit of the last layer (CFRP, 120 rpm at 0.2 mm/s: 0.05 mm; the exit's fit
-    # on orbit means needs it after its window)
-    assert traj["z_end"] == pytest.approx(1e-3 + 3 * 3.35e-3 + 2 * 0.5e-3 + 0.5e-3 + 0.3e-3 + 0.05e-3)
-    assert det["exit_orbit_period"] == pytest.approx(0.5)
+    assert traj["z_end"] == pytest.approx(1e-3 + 3 * 3.35e-3 + 2 * 0.5e-3 + 0.5e-3 + 0.3e-3)
     # the entry window opens after the observer settled (3 s = 6 orbits at 120 rpm): the feed
     # would start 0.5 mm (tolerance) + 3 s x 0.2 mm/s above the 1 mm surface, below the
     # trajectory's start: it starts there (0) after a 0.5 s wait
