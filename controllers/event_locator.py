@@ -142,20 +142,44 @@ def onset_face(x, F, lo: float, hi: float) -> tuple[float, float]:
     return _best_face(lo, hi, sse, ENGAGE_LENGTHS, ENGAGE_SHAPES, x.size)
 
 
-def free_face(x, F, lo: float, hi: float, air: float | None) -> tuple[float, float]:
+def orbit_mean(A, period: float):
+    """Centred mean of ``A`` along its last axis over ``period`` samples (> 1, not
+    necessarily whole: the two end samples weigh the fraction left), at the samples with a
+    whole period around them (``2 K`` fewer, K = ceil(period / 2 - 1/2)). A sinusoid of
+    that period, and each of its harmonics, averages to zero."""
+    K = math.ceil(0.5 * period - 0.5)
+    n = A.shape[-1]
+    if K < 1 or n <= 2 * K:
+        raise ValueError(f"event_locator.orbit_mean: {n} samples hold no whole period of {period:g}")
+    edge = 0.5 * (period + 1.0) - K          # weight of the two end samples, in (0, 1]
+    S = np.concatenate((np.zeros(A.shape[:-1] + (1,)), np.cumsum(A, axis=-1)), axis=-1)
+    i = np.arange(K, n - K)
+    inner = S[..., i + K] - S[..., i - K + 1]
+    return (inner + edge * (A[..., i - K] + A[..., i + K])) / period
+
+
+def free_face(x, F, lo: float, hi: float, air: float | None, period: float | None = None) -> tuple[float, float]:
     """Position [m] in [lo, hi] where a layer pushed out ahead of the tool runs out: its
     thrust (a level with a trend) falls to the air level over a fitted length and law
     and stays there; and its uncertainty [m]. ``air`` None: the air level is fitted too
-    (the samples after the face hold it)."""
+    (the samples after the face hold it). ``period`` [samples]: the orbit's, when the
+    thrust and the model are compared as their means over one orbit (:func:`orbit_mean`):
+    after a push-out the observer's ripple estimate still holds the plateau's ripple
+    while the thrust is gone, and its ghost, +-20-40 N at the orbit for seconds (wide
+    draw, foreign hole 33, project hole 42), was fitted as the end of the fall, early or
+    late; the mean over an orbit has none of it, and the model, averaged the same way,
+    still ends at the face."""
     Fa = F - (0.0 if air is None else air)
+    smooth = (lambda A: orbit_mean(A, period)) if period else (lambda A: A)
+    Fs = smooth(Fa)
 
     def sse(xb, L, shape):
         r = (xb - x[None, :]) / L
         g = shape(r)
         cols = [g, r * g] if air is not None else [g, r * g, np.ones_like(g)]
-        return _lstsq_batch(cols, Fa)
+        return _lstsq_batch([smooth(c) for c in cols], Fs)
 
-    return _best_face(lo, hi, sse, PUSH_OUT_LENGTHS, PUSH_OUT_SHAPES, x.size)
+    return _best_face(lo, hi, sse, PUSH_OUT_LENGTHS, PUSH_OUT_SHAPES, Fs.size)
 
 
 def floor_gap(F, cut_floor: float | None) -> tuple[int, int] | None:
@@ -181,15 +205,18 @@ def floor_gap(F, cut_floor: float | None) -> tuple[int, int] | None:
     return int(starts[j]), int(ends[j])
 
 
-def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cut_floor: float | None = None):
+def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cut_floor: float | None = None,
+           period: float | None = None):
     """Located position [m] of an event and its uncertainty [m] from the samples around
     its trigger: table positions ``x`` [m] (increasing along the feed), observed thrust
     ``F`` [N]. ``kind``: "entry", "interface" or "exit"; ``air`` [N]: the observed thrust
     with the tool in air (before the entry); ``x_trig`` [m]: where the detector fired
     (an onset lies before it; default the window's middle); ``cut_floor`` [N]: an
     interface's window shortened to a thin layer below: a gap without a second cut level
-    in the window is a run below it (:func:`floor_gap`). A ramp
-    of either sign is fitted. (NaN, NaN) when there are too few samples."""
+    in the window is a run below it (:func:`floor_gap`); ``period`` [samples]: the
+    exit's fit compares means over one orbit of this many samples (:func:`free_face`;
+    None, or a window without one orbit plus 10 MIN_SEGMENT samples: the samples as
+    they are). A ramp of either sign is fitted. (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
     x, F = np.asarray(x, float), np.asarray(F, float)
@@ -202,7 +229,9 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     if kind == ENTRY:
         return onset_face(x, F, x0, min(xt, x1))
     if kind == EXIT:
-        return free_face(x, F, x0, x1, air if FIXED_EXIT_AIR else None)
+        if period is not None and not (period > 1.0 and x.size >= period + 10 * MIN_SEGMENT):
+            period = None
+        return free_face(x, F, x0, x1, air if FIXED_EXIT_AIR else None, period)
     gap = air_run(x, F, air)
     if gap is None:
         gap = floor_gap(F, cut_floor)

@@ -68,10 +68,20 @@ Implementation choices (the paper leaves them open)
   ``orbital_speed`` [rpm] whose phase is integrated sample by sample, as the plant does
   (same phase as ``2 pi f t`` while the speed is constant from t = 0). Connect the
   *commanded* speed (scenarios/fang_table5_hole.toml: the adaptation's output, one sample
-  late through ``drillcosim.controllers.adaptation:OneStepDelay``). After a speed change theta
-  re-converges within a few 1/lambda (measured 120 -> 60 rpm: ripple amplitude within
-  20 % ~6 s, within 5 % ~8 s after the switch): Gamma, sized for the old frequency's
-  regressor, has to forget it first.
+  late through ``drillcosim.controllers.adaptation:OneStepDelay``). Gamma converges to
+  ``lambda <(CY)^2>^-1`` of the orbit it has seen: 0.0021 at 3.5 Hz, 0.02-0.026 at 1 Hz on
+  the test drive, so after a speed change theta moved with a gain sized for the old
+  regressor until Gamma^-1 had forgotten it (measured 120 -> 60 rpm: ripple amplitude within
+  20 % ~6 s, within 5 % ~8 s after the switch; 3.5 -> 1 Hz with a 1500 -> 230 N thrust
+  step: the DC estimate swung +-86 N 2-4 orbits after it, and a thin last layer's exit
+  test never armed, issue 23). ``gain_restart`` (default 0.05): an orbital speed input
+  that moves by more than this fraction from the one Gamma was last rescaled for scales
+  Gamma^-1 by (f_new / f_old)^2, the gain the new orbit converges to (theta is kept: the
+  phase runs on through the change): +-34 N 2-4 orbits after the same switch, +-14 N 4-7
+  orbits after (tests/test_observer_blocks.py); 0 never rescales. (A restart at Gamma0,
+  5000x that gain, let theta take up the layer change's own transient: an interface
+  located 0.12 mm off.) A commanded change is a step (the adaptation's process per
+  layer); a ramp rescales once per 5 %.
 * **More orbital harmonics** (issue 23, Fang eq. 8 generalised): ``harmonics = H`` (default
   1, the paper's observer) models the ripple as ``sum_h S_h sin(h phi) + C_h cos(h phi)``:
   theta has 2H entries, Y is 3 x 2H, Gamma^-1 is 2H x 2H (one Gamma0 pair per harmonic, or
@@ -137,7 +147,9 @@ class _KernelState(ctypes.Structure):
                 ("th_prev", _D), ("w_enc", _D),
                 # more than one orbital harmonic (harmonics > 1): theta, Y (3 x 2H), Gamma^-1 (2H x 2H)
                 ("harmonics", ctypes.c_int), ("th_h", _D * _NH), ("Y_h", _D * (3 * _NH)),
-                ("Si_h", _D * (_NH * _NH))]
+                ("Si_h", _D * (_NH * _NH)),
+                # gain restart at a commanded orbit-speed change (gain_restart > 0)
+                ("gain_restart", _D), ("f_gain", _D)]
 
 
 class AdaptiveThrustObserver(DiscretisedBlock):
@@ -152,7 +164,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
                  orbital_speed_rpm: float | None = 120.0, orbital_speed_input: bool = False,
                  tau_coulomb: float | None = None, D_viscous: float | None = None,
                  tau_offset: float | None = None, tau_ripple=None, w_eps: float = 1e-3,
-                 g_fric_vel: float = 50.0, harmonics: int = 1,
+                 g_fric_vel: float = 50.0, harmonics: int = 1, gain_restart: float = 0.05,
                  friction_file: str | None = None, kernel: str = "auto", sample_period: float = 1e-4,
                  commissioning_file: str | None = None, accept_unverified=()):
         super().__init__(sample_period)
@@ -179,6 +191,10 @@ class AdaptiveThrustObserver(DiscretisedBlock):
             raise ValueError(f"AdaptiveThrustObserver: Gamma0 needs 2 (or 2 x harmonics = {2 * harmonics}) "
                              "positive entries and forgetting > 0")
         self.Q, self.R, self.Gamma0, self.forgetting = Q, float(R), G0, float(forgetting)
+        if not 0.0 <= gain_restart < 1.0:
+            raise ValueError(f"AdaptiveThrustObserver: gain_restart must be in [0, 1) (relative orbit-speed "
+                             f"change that rescales Gamma; 0: never), got {gain_restart!r}")
+        self.gain_restart = float(gain_restart)
         self.position_unit, self.measurement = position_unit, measurement
         # the orbital speed comes from the input `orbital_speed` when asked for, or when the
         # setting is None / 0 (TOML has no null; 0 rpm would make the ripple a constant)
@@ -280,6 +296,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         k.f_orb_setting = -1.0 if self.orbital_speed_rpm is None else self.orbital_speed_rpm / 60.0
         k.use_theta, k.meas_theta = self._use_theta, self.measurement == "theta"
         k.harmonics = self.harmonics
+        k.gain_restart = self.gain_restart
         names = [p.name for p in self.inputs]
         k.k_theta = names.index("theta") if "theta" in names else -1
         k.k_orbital = names.index("orbital_speed") if "orbital_speed" in names else -1
@@ -318,13 +335,14 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._Si = [1.0 / g0, 0.0, 1.0 / g1]   # Gamma^-1 (symmetric 2x2: s00, s01, s11)
         self._th_prev = 0.0
         self._w_enc = 0.0
+        self._f_gain = 0.0           # orbital frequency [Hz] Gamma was last rescaled for (0: none yet)
         n = 2 * self.harmonics
         self._th_h = [0.0] * n
         self._Y_h = [0.0] * (3 * n)            # row-major 3 x 2H
         self._Si_h = [1.0 / float(self.Gamma0[i]) if i == j else 0.0 for i in range(n) for j in range(n)]
         k = getattr(self, "_k", None)
         if k is not None:
-            k.first, k.t0, k.phase, k.th_prev, k.w_enc = 1, t0, 0.0, 0.0, 0.0
+            k.first, k.t0, k.phase, k.th_prev, k.w_enc, k.f_gain = 1, t0, 0.0, 0.0, 0.0, 0.0
             k.x[:], k.Y[:], k.th[:], k.Si[:] = self._x, self._Y, self._th, self._Si
             k.th_h[:n], k.Y_h[:3 * n], k.Si_h[:n * n] = self._th_h, self._Y_h, self._Si_h
 
@@ -354,11 +372,32 @@ class AdaptiveThrustObserver(DiscretisedBlock):
             self._th_prev = theta
             self._phase = TWO_PI * f_orb * (t - self._t0) if self.orbital_speed_rpm is None else 0.0
         if self.orbital_speed_rpm is None:
+            if self.gain_restart > 0.0 and abs(f_orb - self._f_gain) > self.gain_restart * self._f_gain:
+                self._restart_gain(f_orb)
             phi = self._phase
             self._phase = phi + TWO_PI * f_orb * Ts
         else:
             phi = TWO_PI * f_orb * t
         return i_m, y, theta, phi, f_orb, Ts
+
+    def _restart_gain(self, f_orb: float) -> None:
+        """A commanded orbit-speed change (the adaptation's process per layer): Gamma^-1
+        rescaled to the new orbit's regressor. With forgetting Gamma^-1 converges to
+        <(CY)^2> / lambda, and |CY| grows with the orbital frequency (measured Gamma 0.0021
+        at 3.5 Hz, 0.02-0.026 at 1 Hz: ~f^-2), so after a change theta moved with a gain
+        sized for the old regressor (10x too small after 3.5 -> 1 Hz) until Gamma^-1 had
+        forgotten it, and the DC estimate rang at the orbit for 5-10 s (+-150 N on a
+        230 N CFRP level, wide draw project hole 154: the exit test never armed). Scaled by
+        (f_new / f_old)^2 it is the gain the new orbit converges to, at once. Not Gamma0:
+        that gain (5000x) let theta take up the layer change's own transient (an
+        interface located 0.12 mm off). theta is kept: the phase runs on through the
+        change. No orbit before or after (0): nothing to scale."""
+        if self._f_gain > 0.0 and f_orb > 0.0:
+            r = f_orb / self._f_gain
+            s = r * r
+            self._Si = [v * s for v in self._Si]
+            self._Si_h = [v * s for v in self._Si_h]
+        self._f_gain = f_orb
 
     def _step_python_harmonics(self, t, u):
         """One sample with H > 1 orbital harmonics (Fang eq. 8 generalised: Psi(t) theta

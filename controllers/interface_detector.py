@@ -304,6 +304,14 @@ class InterfaceDetector(KernelBlock, Block):
         window to its last N_min samples: a window restarted on a transient (a window cut
         to a thin layer that ends on the lower layer's ramp) arms N_min quiet samples
         after it, not once a window growing to N has left it.
+    exit_orbit_period [s]: the last layer's orbit period (the hole plan's orbital speed);
+        > 0: the exit's fit compares the thrust and its model as means over one orbit
+        (``event_locator.free_face``: the observer's ripple estimate outlives the thrust
+        at the exit and its ghost was fitted as the end of the fall); 0 (default): the
+        samples as they are.
+    exit_loc_after [m]: travel after the exit's trigger its localisation window holds
+        (default locate_margin; the hole plan adds half an orbit of the last layer's feed:
+        the orbit means of the last half orbit need the samples after it).
     interface_loc_after [m]: per interface, the travel after its trigger that its
         localisation window holds (default max_gap + locate_margin: a gap may follow a
         trigger on the upper layer's push-out). The hole plan shortens it to what a thin
@@ -364,6 +372,8 @@ class InterfaceDetector(KernelBlock, Block):
         mismatch_factor: float = 0.0,
         restart: bool = False,
         interface_loc_after: Sequence[float] | None = None,
+        exit_orbit_period: float = 0.0,
+        exit_loc_after: float | None = None,
     ):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
@@ -400,6 +410,7 @@ class InterfaceDetector(KernelBlock, Block):
                              engage_fraction, thd_min, rearm_level)
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
         self._set_loc_after(interface_loc_after)
+        self._set_exit_loc(exit_orbit_period, exit_loc_after)
         self.windows = self._windows()
         self.reset(0.0)
 
@@ -465,6 +476,18 @@ class InterfaceDetector(KernelBlock, Block):
                              f"({self.locate_margin:g} m) per interface ({n_if}), got {list(loc_after)}")
         self.loc_after = vals
 
+    def _set_exit_loc(self, orbit_period, loc_after) -> None:
+        """The exit's fit on orbit means (period [s], 0: none) and its window after the
+        trigger [m] (default locate_margin), checked."""
+        if not orbit_period >= 0.0:
+            raise ValueError(f"InterfaceDetector: exit_orbit_period must be >= 0 s (the last layer's orbit "
+                             f"period; 0: none), got {orbit_period!r}")
+        self.exit_orbit_period = float(orbit_period)
+        self.exit_after = self.locate_margin if loc_after is None else float(loc_after)
+        if not self.exit_after >= self.locate_margin:
+            raise ValueError(f"InterfaceDetector: exit_loc_after must be >= locate_margin ({self.locate_margin:g} m), "
+                             f"got {loc_after!r}")
+
     def loc_window(self, k: int) -> tuple[float, float]:
         """Travel [m] (before, after) the trigger of event k (0 entry, 1..n-1 interface
         k, n exit) whose samples the localisation fits: an interface may have a gap of up
@@ -475,7 +498,7 @@ class InterfaceDetector(KernelBlock, Block):
         if k == 0:
             return m, m
         if k == self.n:
-            return self.push_out + m, m
+            return self.push_out + m, self.exit_after
         return self.max_gap + m, self.loc_after[k - 1]
 
     # ------------------------------------------------------------------ windows
@@ -760,12 +783,18 @@ class InterfaceDetector(KernelBlock, Block):
         # below the engagement floor of both layers around it (Al's is the lowest)
         floor = min(self.floor[k - 1], self.floor[k]) if self.relative and kind == "interface" and \
             self.loc_after[k - 1] < self.max_gap + self.locate_margin else None
-        x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor)
+        period = self._exit_period_samples() if kind == "exit" else None
+        x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period)
         F_air = NAN
         if k == 0 and math.isfinite(x_loc):
             in_air = sel & (xs < x_loc - 0.5 * self.locate_margin)
             F_air = float(np.mean(hF[in_air])) if in_air.any() else NAN
         return x_loc, time_at(ht, hx, x_loc), dx, F_air
+
+    def _exit_period_samples(self) -> float | None:
+        """The exit's fit on means over one orbit of the last layer (event_locator.free_face):
+        its period [samples], None without one."""
+        return self.exit_orbit_period / self.sample_period if self.exit_orbit_period > 0.0 else None
 
     def _exit_tests(self, t, x, F, F_pred, e):
         if not self.drop:
@@ -840,6 +869,7 @@ class InterfaceDetector(KernelBlock, Block):
         "win_hi": ("m", "latest encoder position of each event (entry, interfaces, exit)"),
         "locate_margin": ("m", "travel on either side of an event the localisation fits"),
         "push_out": ("m", "travel above the exit's trigger its fall may start"),
+        "exit_period": ("1", "last layer's orbit period in samples: the exit's fit on means over one orbit (0: none)"),
         "max_gap": ("m", "widest gap between two layers"),
         "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
     }
@@ -853,7 +883,8 @@ class InterfaceDetector(KernelBlock, Block):
         if self.c_kernel is None:
             raise RuntimeError("InterfaceDetector: export needs the C step (kernel = 'auto' or 'c')")
         arrays = (self._W_flat, self.buf, self._c_err, self.h_t, self.h_x, self.h_F)
-        return detector_kernel.export_kernel(self.c_kernel.state, self.observer_delay, arrays)
+        return detector_kernel.export_kernel(self.c_kernel.state, self.observer_delay, arrays,
+                                             self._exit_period_samples() or 0.0)
 
     def _c_supports(self) -> bool:
         return (detector_kernel.blas_ddot() is not None and detector_kernel.sums_like_python()
@@ -873,7 +904,7 @@ class InterfaceDetector(KernelBlock, Block):
              thd_noise_factor=self.thd_noise_factor, entry_confirm=self.entry_confirm, relative=self.relative,
              thd_entry=getattr(self, "thd_entry", 0.0), exit_gain=getattr(self, "exit_gain", 0.0),
              localise=self.localise, locate_margin=self.locate_margin, push_out=self.push_out,
-             max_gap=self.max_gap, py_sum_comp=detector_kernel.PY_SUM_COMPENSATED)
+             max_gap=self.max_gap, py_sum_comp=detector_kernel.PY_SUM_COMPENSATED, exit_after=self.exit_after)
         c.loc_after[:n - 1] = self.loc_after
         if self.windows is not None:
             c.win_lo[:n + 1] = [float(w[0]) for w in self.windows]

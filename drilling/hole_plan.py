@@ -42,7 +42,7 @@ OBSERVER_SETTLE_ORBITS = 6.0
 
 HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "approach", "breakthrough",
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
-             "match_tolerance", "locate_margin", "push_out", "orbital_harmonics"}
+             "match_tolerance", "locate_margin", "push_out", "orbital_harmonics", "exit_orbit_mean"}
 # Localisation (controllers/event_locator.py): travel on either side of an event that holds its
 # change and a stretch of level (engagement up to ~0.35 mm on the drives measured, and the
 # trigger up to ~0.1 mm into it: with 0.3 mm, Ti entries with a 0.22 mm engagement were
@@ -89,6 +89,11 @@ class HolePlan:
         self.locate_margin = self._number(hole, "locate_margin", LOCATE_MARGIN, positive=True)
         self.push_out = self._number(hole, "push_out", PUSH_OUT, positive=True)
         self.harmonics = self._harmonics(hole)
+        # the exit's fit on orbit means (InterfaceDetector exit_orbit_period): off by default,
+        # its wide-draw measurement is mixed (docs/stacks.md, "Exit (this round)")
+        self.exit_orbit_mean = hole.get("exit_orbit_mean", False)
+        if not isinstance(self.exit_orbit_mean, bool):
+            raise self.error("hole.exit_orbit_mean", f"expected true or false, got {self.exit_orbit_mean!r}")
         self.fail_action = hole.get("fail_action", "hold")
         if self.fail_action not in FAIL_ACTIONS:
             raise error("hole.fail_action", f"expected one of {FAIL_ACTIONS}, got {self.fail_action!r}")
@@ -276,11 +281,30 @@ class HolePlan:
                                               f"z_start {z_start:g} m")
         # past the end of the exit window (detector tolerance), so that a missing exit is a
         # fail while the tool still feeds, not a hole that just ends
+        # (and past the exit's localisation window: half an orbit more on orbit means)
+        extra = self.half_orbit_travel() if self.exit_orbit_mean else 0.0
         out = {"z_approach_end": z_app, "feed_rate": first["feed_rate"],
-               "z_end": self.bottom() + DETECTOR_TOLERANCE + self.breakthrough}
+               "z_end": self.bottom() + DETECTOR_TOLERANCE + self.breakthrough + extra}
         if wait > 0:
             out["t_start"] = float(base.get("t_start", 0.0)) + wait
         return out
+
+    def _exit_orbit_mean(self) -> dict:
+        """With ``exit_orbit_mean``, the detector's exit fit on means over one orbit of the
+        last layer's process (the observer's ripple estimate outlives the thrust at the
+        exit) and its window half an orbit longer; else nothing."""
+        if not self.exit_orbit_mean:
+            return {}
+        return {"exit_orbit_period": 60.0 / self.layer_process(len(self.layers) - 1)["orbital_speed"],
+                "exit_loc_after": self.locate_margin + self.half_orbit_travel()}
+
+    def half_orbit_travel(self) -> float:
+        """Travel [m] in half an orbit of the last layer's process: the exit's fit compares
+        means over one orbit (InterfaceDetector exit_orbit_period), the last of which is
+        centred half an orbit before the window's end, so the window reaches that much
+        further past the trigger (exit_loc_after) and the feed past the bottom."""
+        p = self.layer_process(len(self.layers) - 1)
+        return 0.5 * 60.0 / p["orbital_speed"] * p["feed_rate"]
 
     def stop_time(self, traj: dict) -> float:
         """Time to the deepest point at the slowest feed the plan may command, approach
@@ -310,6 +334,7 @@ class HolePlan:
             "fail_disarms": True,
             "locate_margin": self.locate_margin,
             "push_out": self.push_out,
+            **self._exit_orbit_mean(),
             "mismatch_factor": MISMATCH_FACTOR,
             "restart": True,
             "entry_confirm": True,

@@ -63,6 +63,9 @@ def test_settings_are_checked():
             AdaptiveThrustObserver(harmonics=bad)
     with pytest.raises(ValueError, match="Gamma0"):
         AdaptiveThrustObserver(harmonics=2, Gamma0=[1.0, 2.0, 3.0])
+    for bad in (-0.1, 1.0):
+        with pytest.raises(ValueError, match="gain_restart"):
+            AdaptiveThrustObserver(gain_restart=bad)
     # one (sine, cosine) pair of Gamma0 serves every harmonic
     assert np.allclose(np.diag(AdaptiveThrustObserver(harmonics=2, Gamma0=[100.0, 50.0]).Gamma),
                        [100.0, 50.0, 100.0, 50.0])

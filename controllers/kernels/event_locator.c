@@ -37,13 +37,19 @@ typedef struct {
     int n_lengths;
 } LocGrid;
 
-/* One fit problem: samples, the family (onset or push-out), the air level (NaN: fitted). */
+/* One fit problem: samples, the family (onset or push-out), the air level (NaN: fitted);
+ * period > 1 [samples]: the thrust and the model compared as their means over one orbit
+ * (event_locator.orbit_mean): Fs the thrust's (m of them), work 5 n + 1 doubles of scratch. */
 typedef struct {
     const double *x, *F;
     long n;
     int push_out;
     double air;
     const LocGrid *grid;
+    double period;
+    const double *Fs;
+    long m;
+    double *work;
 } LocFit;
 
 /* numpy's sum of a contiguous float64 array: pairwise, 8 accumulators per block of 128 */
@@ -141,6 +147,24 @@ static int loc_columns(const LocFit *f, double face, double L, int shape, double
     return 3;
 }
 
+/* event_locator.orbit_mean: the centred mean of a[0..n) over ``period`` samples (the two end
+ * samples weigh the fraction left) at the n - 2 K samples with a whole period around them,
+ * K = ceil(period / 2 - 1/2), into out; S: n + 1 doubles of scratch (numpy's cumsum, left
+ * to right). Returns the count, 0 when the samples hold no whole period. */
+static long loc_orbit_mean(const double *a, long n, double period, double *S, double *out)
+{
+    long K = (long)ceil(0.5 * period - 0.5);
+    if (K < 1 || n <= 2 * K)
+        return 0;
+    double edge = 0.5 * (period + 1.0) - (double)K;
+    S[0] = 0.0;
+    for (long i = 0; i < n; i++)
+        S[i + 1] = S[i] + a[i];
+    for (long i = K; i < n - K; i++)
+        out[i - K] = ((S[i + K] - S[i - K + 1]) + edge * (a[i - K] + a[i + K])) / period;
+    return n - 2 * K;
+}
+
 /* solve M a = r (k <= 3) by Gaussian elimination with partial pivoting, as LAPACK's gesv */
 static void loc_solve(double M[3][3], double *r, int k)
 {
@@ -173,19 +197,47 @@ static void loc_solve(double M[3][3], double *r, int k)
     }
 }
 
+/* the normal equations of the fit on means over one orbit (free_face with a period): each
+ * column at every sample, its orbit mean, then M = C C^T and r = C Fs over the m samples */
+static void loc_orbit_columns(const LocFit *f, double face, double L, int shape, double M[3][3], double *r, int *k)
+{
+    double c[3], *col = f->work, *S = col + 3 * f->n, *mean = S + f->n + 1;
+    for (long i = 0; i < f->n; i++) {
+        *k = loc_columns(f, face, L, shape, f->x[i], c);
+        for (int a = 0; a < *k; a++)
+            col[a * f->n + i] = c[a];
+    }
+    /* each row of n replaced by its m means (m < n) */
+    for (int a = 0; a < *k; a++) {
+        loc_orbit_mean(col + a * f->n, f->n, f->period, S, mean);
+        for (long i = 0; i < f->m; i++)
+            col[a * f->n + i] = mean[i];
+    }
+    for (long i = 0; i < f->m; i++)
+        for (int a = 0; a < *k; a++) {
+            r[a] += col[a * f->n + i] * f->Fs[i];
+            for (int b = 0; b < *k; b++)
+                M[a][b] += col[a * f->n + i] * col[b * f->n + i];
+        }
+}
+
 /* residual sum of squares of the fit at one face, length and shape (_lstsq_batch): a
  * column that vanishes only drops out (the ridge of 1e-9 of the trace) */
 static double loc_sse(const LocFit *f, double face, double L, int shape, double FF)
 {
     double M[3][3] = {{0}}, r[3] = {0}, coef[3], c[3];
     int k = 3;
-    for (long i = 0; i < f->n; i++) {
-        double Fi = f->F[i] - (isnan(f->air) ? 0.0 : f->air);
-        k = loc_columns(f, face, L, shape, f->x[i], c);
-        for (int a = 0; a < k; a++) {
-            r[a] += c[a] * Fi;
-            for (int b = 0; b < k; b++)
-                M[a][b] += c[a] * c[b];
+    if (f->period > 1.0) {
+        loc_orbit_columns(f, face, L, shape, M, r, &k);
+    } else {
+        for (long i = 0; i < f->n; i++) {
+            double Fi = f->F[i] - (isnan(f->air) ? 0.0 : f->air);
+            k = loc_columns(f, face, L, shape, f->x[i], c);
+            for (int a = 0; a < k; a++) {
+                r[a] += c[a] * Fi;
+                for (int b = 0; b < k; b++)
+                    M[a][b] += c[a] * c[b];
+            }
         }
     }
     double trace = 0.0;
@@ -254,9 +306,10 @@ static double loc_interval(const double *pc, const double *bc, long Gc, const do
 static void loc_best_face(const LocFit *f, double lo, double hi, double *face, double *half)
 {
     double FF = 0.0;
+    long n_fit = f->period > 1.0 ? f->m : f->n;     /* the samples the residual is over */
     *face = *half = NAN;
-    for (long i = 0; i < f->n; i++) {
-        double Fi = f->F[i] - (isnan(f->air) ? 0.0 : f->air);
+    for (long i = 0; i < n_fit; i++) {
+        double Fi = f->period > 1.0 ? f->Fs[i] : f->F[i] - (isnan(f->air) ? 0.0 : f->air);
         FF += Fi * Fi;
     }
     long Gc = loc_arange(lo, hi + 0.5 * LOC_COARSE_STEP, LOC_COARSE_STEP, NULL);
@@ -278,7 +331,7 @@ static void loc_best_face(const LocFit *f, double lo, double hi, double *face, d
         loc_arange(a, b + 0.5 * LOC_GRID_STEP, LOC_GRID_STEP, pf);
         loc_best_on(f, pf, Gf, lengths, LOC_N_FINE, FF, bf, Lf);
         long j = loc_argmin(bf, Gf);
-        double bmin = bf[j], var = bmin / (double)LOC_PYMAX(f->n - 4, 1L);
+        double bmin = bf[j], var = bmin / (double)LOC_PYMAX(n_fit - 4, 1L);
         *face = pf[j];
         *half = loc_interval(pc, bc, Gc, pf, bf, Gf, bmin + var);
     }
@@ -379,11 +432,31 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
     free(xu);
 }
 
+/* the exit's free face (locate, kind exit), on means over one orbit of ``period`` samples
+ * when the window holds one orbit and 10 MIN_SEGMENT samples more */
+static void loc_exit(LocFit *f, double period, double x0, double x1, double *x_loc, double *dx)
+{
+    double *Fs = NULL;
+    if (period > 1.0 && (double)f->n >= period + 10 * LOC_MIN_SEGMENT) {
+        Fs = malloc((size_t)(7 * f->n + 2) * sizeof(double));
+        if (Fs == NULL)
+            return;
+        f->work = Fs + f->n;
+        f->m = loc_orbit_mean(f->F, f->n, period, f->work, Fs);
+        f->Fs = Fs;
+        f->period = f->m > 0 ? period : 0.0;
+    }
+    loc_best_face(f, x0, x1, x_loc, dx);
+    free(Fs);
+}
+
 /* event_locator.locate: position [m] and uncertainty [m] of an event of ``kind`` from
  * samples x [m] (increasing), F [N]; NaN when there are too few. cut_floor [N]: NaN, or an
- * interface window cut short to a thin layer below (event_locator.floor_gap) */
+ * interface window cut short to a thin layer below (event_locator.floor_gap); period
+ * [samples]: the exit's fit on means over one orbit (<= 1: none; locate's period) */
 void event_locate(int kind, const double *x_in, const double *F_in, long n_in, double air, double x_trig,
-                  double cut_floor, const LocGrid *engage, const LocGrid *push, double *x_loc, double *dx)
+                  double cut_floor, double period, const LocGrid *engage, const LocGrid *push, double *x_loc,
+                  double *dx)
 {
     *x_loc = *dx = NAN;
     double *x = malloc((size_t)(3 * (n_in > 0 ? n_in : 1)) * sizeof(double));
@@ -402,9 +475,9 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
         return;
     }
     double x0 = x[0], x1 = x[n - 1];
-    LocFit onset = {x, F, n, 0, NAN, engage}, exit_ = {x, F, n, 1, NAN, push};
+    LocFit onset = {x, F, n, 0, NAN, engage, 0.0, NULL, 0, NULL}, exit_ = {x, F, n, 1, NAN, push, 0.0, NULL, 0, NULL};
     if (kind == LOC_EXIT)
-        loc_best_face(&exit_, x0, x1, x_loc, dx);
+        loc_exit(&exit_, period, x0, x1, x_loc, dx);
     else if (kind == LOC_INTERFACE && loc_air_run(F, n, air, scratch, &g0, &g1))
         loc_gap(x, F, n, air, g0, g1, 0, engage, push, x_loc, dx);
     else if (kind == LOC_INTERFACE && loc_floor_gap(F, n, cut_floor, scratch, &g0, &g1))

@@ -29,6 +29,9 @@ typedef struct {
     /* harmonics > 1: theta [S_1, C_1, .., S_H, C_H], Y (3 x 2H), Gamma^-1 (2H x 2H), row-major */
     int harmonics;
     double th_h[FANG_NH], Y_h[3 * FANG_NH], Si_h[FANG_NH * FANG_NH];
+    /* gain restart at a commanded orbit-speed change (_restart_gain): relative change, the
+     * orbital frequency [Hz] Gamma was last rescaled for */
+    double gain_restart, f_gain;
 } FangObserver;
 
 static double friction(const FangObserver *o, double v)
@@ -48,6 +51,21 @@ static double position_ripple(const FangObserver *o, double p)
         f += r[1] * sin(r[0] * p) + r[2] * cos(r[0] * p);
     }
     return f;
+}
+
+/* Gamma^-1 rescaled to the new orbit's regressor at a commanded orbit-speed change
+ * (_restart_gain): by (f_new / f_old)^2, when both are > 0 */
+static void restart_gain(FangObserver *o, double f_orb)
+{
+    if (o->f_gain > 0.0 && f_orb > 0.0) {
+        int n = 2 * o->harmonics;
+        double r = f_orb / o->f_gain, s = r * r;
+        for (int i = 0; i < 3; i++)
+            o->Si[i] *= s;
+        for (int i = 0; i < n * n; i++)
+            o->Si_h[i] *= s;
+    }
+    o->f_gain = f_orb;
 }
 
 /* the sample's inputs and orbital angle phi(t) (_sample): starts the state on the first
@@ -70,6 +88,8 @@ static void sample(FangObserver *o, double t, const double *u, double *i_m_, dou
     }
     double phi;
     if (from_input) {
+        if (o->gain_restart > 0.0 && fabs(f_orb - o->f_gain) > o->gain_restart * o->f_gain)
+            restart_gain(o, f_orb);
         phi = o->phase;
         o->phase = phi + TWO_PI * f_orb * Ts;
     } else {

@@ -39,7 +39,7 @@ typedef struct {
     double fail_disarms, mismatch_factor, restart, thd_min, thd_noise_factor, entry_confirm;
     double step_signs[DET_MAX_LAYERS - 1], relative, thd_entry, step_gain[DET_MAX_LAYERS - 1], exit_gain;
     double floor[DET_MAX_LAYERS], level_plan[DET_MAX_LAYERS], localise, locate_margin, push_out, max_gap;
-    double py_sum_comp, loc_after[DET_MAX_LAYERS - 1];
+    double py_sum_comp, loc_after[DET_MAX_LAYERS - 1], exit_after;
     /* state */
     double n_buf, flag, t_ev[DET_EVENTS], x_ev[DET_EVENTS], t_paper, x_paper, t_thin, x_thin, F_ref;
     double drop, exit_armed, quiet, need, err_n, err_pos;
@@ -369,7 +369,7 @@ static void locate_due(Detector *s, double t, double x)
             after = m_;
         } else if (k == n) {
             before = s->push_out + m_;
-            after = m_;
+            after = s->exit_after;
         } else {
             before = s->max_gap + m_;
             after = s->loc_after[k - 1];

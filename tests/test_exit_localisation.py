@@ -1,0 +1,133 @@
+"""Issue 23, the exit's localisation on push-out laws the project's drive does not have.
+
+The last layer's thrust falls to the air level as it is pushed out: linearly (the project's
+drive, ``exit_thinning``), quadratically (ligament yield, the foreign drive) or capped and
+then broken off above the face (the foreign2 drive). The adaptive observer's ripple
+estimate theta is the plateau's ripple and outlives the thrust: the observed DC thrust
+then carries ``-(F_plateau - F) * ripple * sin(orbit)``, a ghost that grows as the thrust
+falls and stays in air for seconds (measured on the wide draw: +-20 N after a 340 N Ti
+plateau, foreign hole 33; +-100 N after 924 N, foreign2 hole 27). The exit's fit compares
+the thrust and its model as means over one orbit of the last layer
+(``event_locator.orbit_mean``), which no harmonic of the orbit survives.
+
+Synthetic windows (below): 0.3 mm/s feed, a 1 Hz orbit sampled at 0.02 s (50 samples per
+orbit), a 300 N plateau with 1 N noise and a ghost of 5 % of the drop, eight orbit phases.
+Measured (locate, this file's windows): raw samples worst 0.137 / 0.137 / 0.033 mm (linear
+/ quadratic / cap), orbit means 0.005 / 0.010 / 0.029 mm. The cap breaks off 0.05 mm above
+the face: its thrust is zero there, and no fit of the force can tell the break-off from the
+face (bias -0.026 mm, within the 0.05 bar).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from drillcosim.controllers.event_locator import locate, orbit_mean
+from drillcosim.controllers.interface_detector import InterfaceDetector
+from drillcosim.drilling.hole_plan import HolePlan
+from test_export_detector import _assert_same_fit
+
+MM = 1e-3
+FEED = 0.3e-3          # m/s
+ORBIT_HZ = 1.0
+DT = 0.02              # s, the detector's sample
+PERIOD = 1.0 / (ORBIT_HZ * DT)      # samples per orbit
+FACE = 5.0 * MM
+
+
+def _law(name: str, r):
+    """Plateau share of the thrust at ``r`` [m] of layer left above the face."""
+    if name == "linear":                   # a plate thinning over 0.3 mm
+        return np.clip(r / (0.3 * MM), 0.0, 1.0)
+    if name == "quadratic":                # ligament yield over 0.45 mm
+        return np.clip(r / (0.45 * MM), 0.0, 1.0) ** 2
+    # thrust-limited: capped at the plateau, falling over the last 0.133 mm, broken off at 0.05 mm
+    return np.where(r > 0.05 * MM, np.minimum(1.0, r / (0.2 * MM) * 1.5), 0.0)
+
+
+def _window(law: str, phase: float, ghost: float = 0.05, F0: float = 300.0, seed: int = 0):
+    """The samples the detector fits for an exit triggered 0.2 mm above the face: 1 mm of
+    plateau and fall, then locate_margin (0.45 mm) less 0.1 mm plus half an orbit of air
+    (the hole plan's exit_loc_after)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, (1.35 * MM + 0.5 * FEED / ORBIT_HZ) / FEED, DT)
+    x = FACE - 1.0 * MM + FEED * t
+    F = F0 * _law(law, FACE - x)
+    F_obs = F - ghost * (F0 - F) * np.sin(2 * math.pi * ORBIT_HZ * t + phase) + rng.normal(0.0, 1.0, t.size)
+    return x, F_obs
+
+
+def test_orbit_mean_removes_every_harmonic_and_keeps_a_trend():
+    """A level, a trend, the orbit and its 2nd and 3rd harmonics (43 N of ripple) -> the
+    level and the trend: to rounding for a whole period (40 samples); for 37.4 samples the
+    two end samples' fractional weights leave under 0.05 % of the ripple (measured 0.002 N)."""
+    n = 400
+    k = np.arange(n, dtype=float)
+    for p, tol in ((40.0, 1e-9), (37.4, 0.02)):
+        ripple = sum(a * np.sin(2 * math.pi * h * k / p + h) for h, a in ((1, 30.0), (2, 10.0), (3, 3.0)))
+        m = orbit_mean(5.0 + 0.1 * k + ripple, p)
+        K = math.ceil(0.5 * p - 0.5)
+        assert m.size == n - 2 * K
+        assert np.max(np.abs(m - (5.0 + 0.1 * k[K:n - K]))) < tol
+    with pytest.raises(ValueError, match="whole period"):
+        orbit_mean(np.ones(30), 37.4)
+
+
+@pytest.mark.parametrize("law, bar_mm", [("linear", 0.02), ("quadratic", 0.02), ("cap", 0.05)])
+def test_exit_located_on_each_push_out_law(law, bar_mm):
+    """Each law, the ghost at eight orbit phases: the exit on orbit means within 0.02 mm
+    (linear, quadratic: measured 0.005 / 0.010) or 0.05 mm (the cap: 0.029, its break-off
+    0.05 mm above the face); on the raw samples the linear and quadratic laws are located
+    0.137 mm off at their worst phase (so the orbit mean is what holds them)."""
+    raw, mean = [], []
+    for phase in np.linspace(0.0, 2 * math.pi, 8, endpoint=False):
+        x, F = _window(law, phase)
+        raw.append(locate("exit", x, F, x_trig=FACE - 0.2 * MM)[0] - FACE)
+        mean.append(locate("exit", x, F, x_trig=FACE - 0.2 * MM, period=PERIOD)[0] - FACE)
+    assert np.max(np.abs(mean)) < bar_mm * MM
+    if law != "cap":
+        assert np.max(np.abs(raw)) > 0.1 * MM
+
+
+def test_c_fit_of_an_exit_on_orbit_means():
+    """The exported FMU's C fit (kernels/event_locator.c) on orbit means, as the Python."""
+    for law in ("linear", "quadratic", "cap"):
+        x, F = _window(law, 1.6)
+        x_loc, _dx = _assert_same_fit("exit", x, F, 0.0, FACE - 0.2 * MM, period=PERIOD)
+        assert abs(x_loc - FACE) < 0.05 * MM
+    # a window without an orbit and 10 MIN_SEGMENT samples more: the raw samples, in both
+    x, F = _window("linear", 0.0)
+    assert _assert_same_fit("exit", x, F, 0.0, FACE, period=x.size) == locate("exit", x, F, x_trig=FACE)
+
+
+def test_hole_plan_gives_the_exit_its_orbit():
+    """``[hole] exit_orbit_mean = true``: the detector's exit fit uses the last layer's orbit;
+    its window and the feed reach half an orbit further (12 mm/min, 60 rpm: 0.1 mm). Off by
+    default (the wide draw's measurement is mixed, docs/stacks.md); not a boolean: named."""
+    hole = {"surface": 1e-3, "layers": [{"material": "cfrp", "thickness": 5e-3, "tolerance": 0.5e-3},
+                                        {"material": "ti", "thickness": 4e-3, "tolerance": 0.5e-3}],
+            "process": {"cfrp": {"feed_rate": 2e-4, "spindle_speed": 2000.0, "orbital_speed": 120.0},
+                        "ti": {"feed_rate": 2e-4, "spindle_speed": 1000.0, "orbital_speed": 60.0}}}
+    def error(key, msg):
+        return ValueError(f"{key}: {msg}")
+
+    off = HolePlan(hole, error)
+    assert "exit_orbit_period" not in off.detector(1.0)
+    plan = HolePlan({**hole, "exit_orbit_mean": True}, error)
+    det = plan.detector(1.0)
+    assert det["exit_orbit_period"] == pytest.approx(1.0)
+    assert det["exit_loc_after"] == pytest.approx(plan.locate_margin + 0.1e-3)
+    assert plan.half_orbit_travel() == pytest.approx(0.1e-3)
+    z_off, z_on = (p.trajectory({})["z_end"] for p in (off, plan))
+    assert z_on - z_off == pytest.approx(0.1e-3)
+    with pytest.raises(ValueError, match="hole.exit_orbit_mean"):
+        HolePlan({**hole, "exit_orbit_mean": 1}, error)
+
+
+def test_bad_exit_settings_are_named():
+    with pytest.raises(ValueError, match="exit_orbit_period"):
+        InterfaceDetector(exit_orbit_period=-1.0)
+    with pytest.raises(ValueError, match="exit_loc_after"):
+        InterfaceDetector(locate_margin=0.45e-3, exit_loc_after=0.2e-3)
