@@ -146,6 +146,22 @@ def regression_weights(n: int) -> np.ndarray:
     return 1.0 / n + (n + 1 - jbar) * (j - jbar) / sxx
 
 
+def ramp_gain(n: int, ramp_samples: float) -> float:
+    """Largest F~ the regression of window ``n`` shows on a linear ramp of unit height
+    that lasts ``ramp_samples`` samples (after a level, before a level): 1 for a step
+    (``ramp_samples`` <= 1). Once the window lies on the ramp it predicts the ramp, so
+    F~ is bounded by the ramp's slope times the regression's lag, not by its height
+    (issue 23: a 0.3 mm point and a compliant frame at 5 mm/min, ~0.1)."""
+    m = int(math.ceil(ramp_samples))
+    if m <= 1:
+        return 1.0
+    F = np.concatenate([np.zeros(n), np.arange(1, m + 1) / m, np.ones(n)])
+    # F~_k = F_k - w @ F[k-n:k] for every k with a full window: the peak is on the ramp or
+    # just after it (the window still holds the ramp while F is level)
+    pred = np.convolve(F[:-1], regression_weights(n)[::-1], mode="valid")
+    return float(np.max(F[n:] - pred))
+
+
 def event_names(n_layers: int) -> list[str]:
     """Names of the events of an n-layer stack, in order: entry, interface1.., exit."""
     return ["entry", *(f"interface{k}" for k in range(1, n_layers)), "exit"]
@@ -256,7 +272,11 @@ class InterfaceDetector(KernelBlock, Block):
     feed_per_rev [m/rev]: feed per revolution of each layer's own process (the
         first one is in force at the entry); feed_per_rev_min [m/rev]: the lowest
         the adaptation may command (fail-safe included; default min(feed_per_rev)).
-    Then entry: F~ > entry_fraction * kc_1 * f_1; interface k: |F~| >
+    entry_ramp [s]: how long the thrust takes to build up at the entry (the tool's
+        engagement length at the first layer's feed; default 0: a step); the entry
+        threshold is multiplied by ``ramp_gain(N, entry_ramp / dt)``, the share of the
+        ramp's height the regression's F~ shows (1 for a step).
+    Then entry: F~ > entry_fraction * kc_1 * f_1 * ramp_gain; interface k: |F~| >
     max(thd_min, step_fraction * |kc_{k+1}/kc_k - 1| * F^) (the step the
     observed level F^ makes when the material changes under an unchanged process);
     paper exit (recorded): F~ < -max(thd_min, F^ / 2); a layer's tests arm only
@@ -356,6 +376,7 @@ class InterfaceDetector(KernelBlock, Block):
         fail_disarms: bool = False,
         thd_noise_factor: float = 0.0,
         entry_confirm: bool = False,
+        entry_ramp: float = 0.0,
         step_signs: Sequence[float] | None = None,
         localise: bool = True,
         locate_margin: float = 0.3e-3,
@@ -398,6 +419,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.relative = kc is not None
         self._set_thresholds(kc, feed_per_rev, feed_per_rev_min, entry_fraction, step_fraction,
                              engage_fraction, thd_min, rearm_level)
+        self._set_entry_ramp(entry_ramp)
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
         self._set_loc_after(interface_loc_after)
         self.windows = self._windows()
@@ -438,6 +460,18 @@ class InterfaceDetector(KernelBlock, Block):
         self.level_plan = [k_ * f_ for k_, f_ in zip(kc_, fpr)]   # N, new tool, own process
         self.thd_min = float(thd_min)
         self.rearm_level = 0.5 * self.thd_min if rearm_level is None else float(rearm_level)
+
+    def _set_entry_ramp(self, entry_ramp) -> None:
+        """Scale the entry threshold to what the regression shows of the entry's ramp: a
+        tool that engages over ``entry_ramp`` seconds (its engagement length at the first
+        layer's feed) raises the thrust as a ramp, whose F~ is ``ramp_gain`` of its height
+        (issue 23: a Ti entry at 5.2 mm/min over ~0.38 mm, F~ 69 N against 252 N)."""
+        if not (isinstance(entry_ramp, (int, float)) and entry_ramp >= 0.0):
+            raise ValueError(f"InterfaceDetector: entry_ramp must be >= 0 s (0: a step), got {entry_ramp!r}")
+        self.entry_ramp = float(entry_ramp)
+        self.entry_gain = ramp_gain(self.N, self.entry_ramp / self.sample_period)
+        if self.relative:
+            self.thd_entry *= self.entry_gain
 
     def _set_localisation(self, localise, locate_margin, push_out, observer_delay) -> None:
         """The localisation settings (``drillcosim.controllers.event_locator``), checked."""

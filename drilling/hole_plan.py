@@ -42,7 +42,7 @@ OBSERVER_SETTLE_ORBITS = 6.0
 
 HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "approach", "breakthrough",
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
-             "match_tolerance", "locate_margin", "push_out", "orbital_harmonics"}
+             "match_tolerance", "locate_margin", "push_out", "orbital_harmonics", "engagement"}
 # Localisation (controllers/event_locator.py): travel on either side of an event that holds its
 # change and a stretch of level (engagement up to ~0.35 mm on the drives measured, and the
 # trigger up to ~0.1 mm into it: with 0.3 mm, Ti entries with a 0.22 mm engagement were
@@ -88,6 +88,11 @@ class HolePlan:
         self.match_tolerance = self._number(hole, "match_tolerance", 1.0e-3, positive=True)
         self.locate_margin = self._number(hole, "locate_margin", LOCATE_MARGIN, positive=True)
         self.push_out = self._number(hole, "push_out", PUSH_OUT, positive=True)
+        # the travel over which the entry's thrust builds up [m] (the drill's point length
+        # plus the frame's deflection under the thrust; issue 23 item 3): the entry threshold
+        # follows what the regression shows of that ramp at the first layer's feed; 0 (default)
+        # is a step, the threshold of the drives the detector was built on
+        self.engagement = self._number(hole, "engagement", 0.0, minimum=0.0)
         self.harmonics = self._harmonics(hole)
         self.fail_action = hole.get("fail_action", "hold")
         if self.fail_action not in FAIL_ACTIONS:
@@ -313,6 +318,7 @@ class HolePlan:
             "mismatch_factor": MISMATCH_FACTOR,
             "restart": True,
             "entry_confirm": True,
+            "entry_ramp": self.engagement / self.layer_process(0)["feed_rate"],
             "interface_loc_after": self.interface_loc_after(window_s),
         }
 
