@@ -319,6 +319,12 @@ class HolePlan:
             "restart": True,
             "entry_confirm": True,
             "entry_ramp": self.engagement / self.layer_process(0)["feed_rate"],
+            # the entry's confirmation spans one orbit of the first layer's process: at a slow
+            # orbit the observer's ripple estimate has not converged in air and its DC
+            # estimate rings at the orbit frequency (0.7-1 Hz, +-5..20 N: false aluminium
+            # entries 0.2-0.4 mm above the surface on the wide draw), which a whole orbit
+            # averages out
+            "entry_span": 60.0 / self.layer_process(0)["orbital_speed"],
             "interface_loc_after": self.interface_loc_after(window_s),
         }
 
