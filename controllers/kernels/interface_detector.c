@@ -229,17 +229,12 @@ static double entry_air(const Detector *s, double F_pred)
     return (s->entry_P == 0.0 || j1 <= j0) ? F_pred : hist_mean(s, j0, j1);
 }
 
-/* interface_detector.py _entry_holds: 1 confirmed; with a span, decided after entry_P samples (dropped if not) */
+/* interface_detector.py _entry_holds: 1 confirmed */
 static int entry_holds(Detector *s)
 {
     if (s->entry_P == 0.0)
         return s->cand_n >= s->N_min && py_sum_end(s->cand_sum, s->cand_comp) / s->cand_n > s->cand_level + s->thd;
-    if (s->cand_n < s->entry_P)
-        return 0;
-    if (hist_mean(s, s->h_n - s->entry_P, s->h_n) > s->cand_level + s->thd)
-        return 1;
-    s->cand = 0.0;
-    return 0;
+    return s->cand_n >= s->entry_P && hist_mean(s, s->h_n - s->entry_P, s->h_n) > s->cand_level + s->thd;
 }
 
 static void entry_confirm(Detector *s, double t, double x, double F, double F_pred, double e)
@@ -274,7 +269,8 @@ static void entry_confirm(Detector *s, double t, double x, double F, double F_pr
     double f = 0.0, c = 0.0;
     for (int j = 0; j < m; j++)
         py_sum_add(s, &f, &c, s->cand_e[(first + j) % DET_ENTRY_SWING]);
-    if (py_sum_end(f, c) < 0.0 && (s->entry_P == 0.0 || s->cand_n < s->N_min)) {
+    /* interface_detector.py _entry_swings: with a span, not dropped between N_min and entry_P samples */
+    if (py_sum_end(f, c) < 0.0 && (s->entry_P == 0.0 || s->cand_n < s->N_min || s->cand_n >= s->entry_P)) {
         s->cand = 0.0;
     } else if (entry_holds(s)) {
         s->cand = 0.0;
@@ -380,8 +376,6 @@ static void locate(Detector *s, int k, double x_trig, double before, double afte
 {
     int n = (int)s->n;
     double lo = x_trig - before, out[4];
-    if (k == 0)     /* confirmed a span after its candidate: from before the candidate on */
-        lo = MIN(lo, s->x_ev[0] - before);
     if (k > 0 && isfinite(s->x_ev[k - 1]))
         lo = MAX(lo, s->x_ev[k - 1] + s->locate_margin);
     double air = isfinite(s->F_air) ? s->F_air : 0.0;
