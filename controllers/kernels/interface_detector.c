@@ -270,9 +270,11 @@ static void entry_confirm(Detector *s, double t, double x, double F, double F_pr
     for (int j = 0; j < m; j++)
         py_sum_add(s, &f, &c, s->cand_e[(first + j) % DET_ENTRY_SWING]);
     /* interface_detector.py _entry_swings: with a span, not dropped between N_min and entry_P samples */
-    if (py_sum_end(f, c) < 0.0 && (s->entry_P == 0.0 || s->cand_n < s->N_min || s->cand_n >= s->entry_P)) {
+    int holds = entry_holds(s);     /* interface_detector.py: with a span its level decides first */
+    if (py_sum_end(f, c) < 0.0 && (s->entry_P == 0.0 || s->cand_n < s->N_min || s->cand_n >= s->entry_P)
+        && !(s->entry_P != 0.0 && holds)) {
         s->cand = 0.0;
-    } else if (entry_holds(s)) {
+    } else if (holds) {
         s->cand = 0.0;
         event(s, 0, s->cand_t, s->cand_x, s->cand_i);
         if (s->entry_P != 0.0 && s->localise != 0.0) {
