@@ -477,6 +477,7 @@ class InterfaceDetector(KernelBlock, Block):
         if self.entry_P > HISTORY // 4:
             raise ValueError(f"InterfaceDetector: entry_span must be <= {HISTORY // 4 * self.sample_period:g} s "
                              f"(the history it averages), got {entry_span!r}")
+        self.entry_level_gain = self.entry_gain if self.relative else 1.0
         if self.relative:
             self.thd_entry *= self.entry_gain
 
@@ -668,11 +669,14 @@ class InterfaceDetector(KernelBlock, Block):
         """Whether the candidate is confirmed: the mean thrust since it (N_min samples at
         least) above its air level by the threshold; with ``entry_span``, decided once
         entry_P samples are in: the mean of the last entry_P samples (one orbit: the
-        ringing averages out, a cut level stays) above it by the threshold."""
+        ringing averages out, a cut level stays) above it by the threshold before its
+        ``ramp_gain`` scaling: a level is not lagged like F~, and against the scaled one (1
+        N for aluminium over a 0.3 mm point) the orbit's residual ringing confirmed a
+        candidate 0.24 mm above the surface (foreign2 hole 0)."""
         if self.entry_P == 0:
             return len(self.cand_F) >= self.N_min and sum(self.cand_F) / len(self.cand_F) > self.cand[2] + self.thd
         return len(self.cand_F) >= self.entry_P and \
-            self._hist_mean(self.h_n - self.entry_P, self.h_n) > self.cand[2] + self.thd
+            self._hist_mean(self.h_n - self.entry_P, self.h_n) > self.cand[2] + self.thd / self.entry_level_gain
 
     def _event(self, k: int, t: float, x: float, i_hist: int | None = None) -> None:
         """Event k (0 entry, 1..n-1 interface k, n exit) found at (t, x); i_hist: its
@@ -976,7 +980,8 @@ class InterfaceDetector(KernelBlock, Block):
              thd_noise_factor=self.thd_noise_factor, entry_confirm=self.entry_confirm, relative=self.relative,
              thd_entry=getattr(self, "thd_entry", 0.0), exit_gain=getattr(self, "exit_gain", 0.0),
              localise=self.localise, locate_margin=self.locate_margin, push_out=self.push_out,
-             max_gap=self.max_gap, py_sum_comp=detector_kernel.PY_SUM_COMPENSATED, entry_P=self.entry_P)
+             max_gap=self.max_gap, py_sum_comp=detector_kernel.PY_SUM_COMPENSATED, entry_P=self.entry_P,
+             entry_gain=self.entry_level_gain)
         c.loc_after[:n - 1] = self.loc_after
         if self.windows is not None:
             c.win_lo[:n + 1] = [float(w[0]) for w in self.windows]

@@ -41,6 +41,7 @@ typedef struct {
     double floor[DET_MAX_LAYERS], level_plan[DET_MAX_LAYERS], localise, locate_margin, push_out, max_gap;
     double py_sum_comp, loc_after[DET_MAX_LAYERS - 1];
     double entry_P;             /* entry confirmation span [samples] (0: N_min, mean since the candidate) */
+    double entry_gain;          /* the entry threshold's ramp_gain (its level test divides it out) */
     double entry_rs;            /* state: restarted after the entry before it was located */
     /* state */
     double n_buf, flag, t_ev[DET_EVENTS], x_ev[DET_EVENTS], t_paper, x_paper, t_thin, x_thin, F_ref;
@@ -234,7 +235,8 @@ static int entry_holds(Detector *s)
 {
     if (s->entry_P == 0.0)
         return s->cand_n >= s->N_min && py_sum_end(s->cand_sum, s->cand_comp) / s->cand_n > s->cand_level + s->thd;
-    return s->cand_n >= s->entry_P && hist_mean(s, s->h_n - s->entry_P, s->h_n) > s->cand_level + s->thd;
+    return s->cand_n >= s->entry_P
+           && hist_mean(s, s->h_n - s->entry_P, s->h_n) > s->cand_level + s->thd / s->entry_gain;
 }
 
 static void entry_confirm(Detector *s, double t, double x, double F, double F_pred, double e)
