@@ -868,7 +868,12 @@ class InterfaceDetector(KernelBlock, Block):
         x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor)
         F_air = NAN
         if k == 0 and math.isfinite(x_loc):
-            in_air = sel & (xs < x_loc - 0.5 * self.locate_margin)
+            # with a span the window is around the confirmation, which may leave only a few
+            # samples of it in air: the air level then from a locate_margin of air whatever the
+            # window (2 samples in ringing broke the next gap's air run: foreign2 hole 170,
+            # a ti/al interface located 0.39 mm inside the Ti)
+            lo_air = min(lo, x_loc - 1.5 * self.locate_margin) if self.entry_P else lo
+            in_air = (xs >= lo_air) & (xs <= hi) & (xs < x_loc - 0.5 * self.locate_margin)
             F_air = float(np.mean(hF[in_air])) if in_air.any() else NAN
         return x_loc, time_at(ht, hx, x_loc), dx, F_air
 
