@@ -276,6 +276,10 @@ class InterfaceDetector(KernelBlock, Block):
         engagement length at the first layer's feed; default 0: a step); the entry
         threshold is multiplied by ``ramp_gain(N, entry_ramp / dt)``, the share of the
         ramp's height the regression's F~ shows (1 for a step).
+    entry_span [s]: with entry_confirm, the span the entry's confirmation averages over
+        (the hole plan: one orbit of the first layer, whose frequency the observer's DC
+        estimate rings at in air); 0 (default) keeps the N_min confirmation. See
+        ``_entry_air``, ``_entry_holds`` and ``_entry_swings``.
     Then entry: F~ > entry_fraction * kc_1 * f_1 * ramp_gain; interface k: |F~| >
     max(thd_min, step_fraction * |kc_{k+1}/kc_k - 1| * F^) (the step the
     observed level F^ makes when the material changes under an unchanged process);
