@@ -146,6 +146,22 @@ def regression_weights(n: int) -> np.ndarray:
     return 1.0 / n + (n + 1 - jbar) * (j - jbar) / sxx
 
 
+def ramp_gain(n: int, ramp_samples: float) -> float:
+    """Largest F~ the regression of window ``n`` shows on a linear ramp of unit height
+    that lasts ``ramp_samples`` samples (after a level, before a level): 1 for a step
+    (``ramp_samples`` <= 1). Once the window lies on the ramp it predicts the ramp, so
+    F~ is bounded by the ramp's slope times the regression's lag, not by its height
+    (issue 23: a 0.3 mm point and a compliant frame at 5 mm/min, ~0.1)."""
+    m = int(math.ceil(ramp_samples))
+    if m <= 1:
+        return 1.0
+    F = np.concatenate([np.zeros(n), np.arange(1, m + 1) / m, np.ones(n)])
+    # F~_k = F_k - w @ F[k-n:k] for every k with a full window: the peak is on the ramp or
+    # just after it (the window still holds the ramp while F is level)
+    pred = np.convolve(F[:-1], regression_weights(n)[::-1], mode="valid")
+    return float(np.max(F[n:] - pred))
+
+
 def event_names(n_layers: int) -> list[str]:
     """Names of the events of an n-layer stack, in order: entry, interface1.., exit."""
     return ["entry", *(f"interface{k}" for k in range(1, n_layers)), "exit"]
@@ -256,7 +272,15 @@ class InterfaceDetector(KernelBlock, Block):
     feed_per_rev [m/rev]: feed per revolution of each layer's own process (the
         first one is in force at the entry); feed_per_rev_min [m/rev]: the lowest
         the adaptation may command (fail-safe included; default min(feed_per_rev)).
-    Then entry: F~ > entry_fraction * kc_1 * f_1; interface k: |F~| >
+    entry_ramp [s]: how long the thrust takes to build up at the entry (the tool's
+        engagement length at the first layer's feed; default 0: a step); the entry
+        threshold is multiplied by ``ramp_gain(N, entry_ramp / dt)``, the share of the
+        ramp's height the regression's F~ shows (1 for a step).
+    entry_span [s]: with entry_confirm, the span the entry's confirmation averages over
+        (the hole plan: one orbit of the first layer, whose frequency the observer's DC
+        estimate rings at in air); 0 (default) keeps the N_min confirmation. See
+        ``_entry_air``, ``_entry_holds`` and ``_entry_swings``.
+    Then entry: F~ > entry_fraction * kc_1 * f_1 * ramp_gain; interface k: |F~| >
     max(thd_min, step_fraction * |kc_{k+1}/kc_k - 1| * F^) (the step the
     observed level F^ makes when the material changes under an unchanged process);
     paper exit (recorded): F~ < -max(thd_min, F^ / 2); a layer's tests arm only
@@ -364,6 +388,8 @@ class InterfaceDetector(KernelBlock, Block):
         fail_disarms: bool = False,
         thd_noise_factor: float = 0.0,
         entry_confirm: bool = False,
+        entry_ramp: float = 0.0,
+        entry_span: float = 0.0,
         step_signs: Sequence[float] | None = None,
         localise: bool = True,
         locate_margin: float = 0.3e-3,
@@ -408,6 +434,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.relative = kc is not None
         self._set_thresholds(kc, feed_per_rev, feed_per_rev_min, entry_fraction, step_fraction,
                              engage_fraction, thd_min, rearm_level)
+        self._set_entry_ramp(entry_ramp, entry_span)
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
         self._set_loc_after(interface_loc_after)
         self._set_exit_loc(exit_orbit_period, exit_loc_after)
@@ -449,6 +476,25 @@ class InterfaceDetector(KernelBlock, Block):
         self.level_plan = [k_ * f_ for k_, f_ in zip(kc_, fpr)]   # N, new tool, own process
         self.thd_min = float(thd_min)
         self.rearm_level = 0.5 * self.thd_min if rearm_level is None else float(rearm_level)
+
+    def _set_entry_ramp(self, entry_ramp, entry_span) -> None:
+        """Scale the entry threshold to what the regression shows of the entry's ramp: a
+        tool that engages over ``entry_ramp`` seconds (its engagement length at the first
+        layer's feed) raises the thrust as a ramp, whose F~ is ``ramp_gain`` of its height
+        (issue 23: a Ti entry at 5.2 mm/min over ~0.38 mm, F~ 69 N against 252 N). The
+        confirmation's span ``entry_span`` [s] in samples (0: off)."""
+        for name, v in (("entry_ramp", entry_ramp), ("entry_span", entry_span)):
+            if not (isinstance(v, (int, float)) and v >= 0.0):
+                raise ValueError(f"InterfaceDetector: {name} must be >= 0 s (0: off), got {v!r}")
+        self.entry_ramp = float(entry_ramp)
+        self.entry_gain = ramp_gain(self.N, self.entry_ramp / self.sample_period)
+        self.entry_P = 0 if entry_span == 0 else max(self.N_min, int(math.ceil(entry_span / self.sample_period)))
+        if self.entry_P > HISTORY // 4:
+            raise ValueError(f"InterfaceDetector: entry_span must be <= {HISTORY // 4 * self.sample_period:g} s "
+                             f"(the history it averages), got {entry_span!r}")
+        self.entry_level_gain = self.entry_gain if self.relative else 1.0
+        if self.relative:
+            self.thd_entry *= self.entry_gain
 
     def _set_localisation(self, localise, locate_margin, push_out, observer_delay) -> None:
         """The localisation settings (``drillcosim.controllers.event_locator``), checked."""
@@ -534,6 +580,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.quiet = 0              # consecutive samples with |F~| < rearm level
         self.need = self.rearm_samples   # quiet samples the next test needs to arm
         self.trim = False           # restarted once located: a loud sample trims the window to N_min
+        self.entry_rs = False       # restarted after the entry (before it was located)
         self.err_hist = deque(maxlen=2 * self.N)   # |F~| of the last 2 N samples (noise threshold)
         self.cand = None            # entry candidate (t, x, F^, history index, strong) awaiting confirmation
         self.cand_F = []            # thrust samples since the candidate
@@ -594,19 +641,69 @@ class InterfaceDetector(KernelBlock, Block):
             # the first sample past the whole threshold: where F~ gets there, the entry is
             # where it always was; only a slow ramp whose F~ never does is confirmed weak
             if e > ENTRY_CANDIDATE * self.thd:
-                self.cand = (t, x, F_pred, self.h_n - 1, e > self.thd)
+                self.cand = (t, x, self._entry_air(F_pred), self.h_n - 1, e > self.thd)
                 self.cand_F = [F]
                 self.cand_e.clear()
                 self.cand_e.append(e)
             return
         self.cand_F.append(F)
         self.cand_e.append(e)
-        if sum(self.cand_e) < 0.0:
+        holds = self._entry_holds()
+        # with a span its level decides first: once the span is in, the regression overshoots
+        # the end of a short ramp (F~ < 0) while the level stands (project hole 4: Al at 19
+        # mm/min and a 40 rpm orbit, confirmed level 21.5 N over 1.0 N of air, dropped)
+        if sum(self.cand_e) < 0.0 and self._entry_swings() and not (self.entry_P and holds):
             self.cand = None
-        elif len(self.cand_F) >= self.N_min and sum(self.cand_F) / len(self.cand_F) > self.cand[2] + self.thd:
+        elif holds:
             tc, xc, _F, i_c, _strong = self.cand
             self.cand = None
             self._event(0, tc, xc, i_c)
+            if self.entry_P and self.localise:
+                # a candidate confirmed a span later may have been made in the ringing above
+                # the surface (the cut level then came within the span): the onset lies
+                # before the confirmation, not before the candidate, so the fit is around it
+                # (measured on 11 replayed slow-orbit entries: extending the window back to
+                # the candidate put 3 of them 0.57-0.75 mm high, in the ringing)
+                self.pending[-1] = (0, x, self.h_n)
+
+    def _hist_mean(self, j0: int, j1: int) -> float:
+        """Mean thrust [N] of the history's samples j0..j1-1 (counted since the reset)."""
+        return sum(self.h_F[np.arange(j0, j1) % HISTORY].tolist()) / (j1 - j0)
+
+    def _entry_air(self, F_pred: float) -> float:
+        """The air level [N] an entry candidate (the latest sample) is confirmed against:
+        F^ there, or with ``entry_span`` the mean thrust of the entry_P samples before it.
+        Why: at a slow orbit the observer's ripple estimate has not converged when the
+        entry window opens, and F^ rings at the orbit frequency (+-5..20 N at 0.7-1 Hz on
+        the wide draw's aluminium-first holes), so F^ at one sample is that ringing's phase;
+        over one orbit it averages out."""
+        j1 = self.h_n - 1
+        j0 = max(0, j1 - self.entry_P, self.h_n - HISTORY)
+        return F_pred if self.entry_P == 0 or j1 <= j0 else self._hist_mean(j0, j1)
+
+    def _entry_swings(self) -> bool:
+        """Whether a candidate whose last F~ swing back is dropped now: always without a
+        span; with one, not between N_min samples and the span's end. Why: in ringing at
+        the orbit frequency F~ swings back within half an orbit, and on the ramp into the
+        layer the regression overshoots once the ramp ends (F~ < 0 from there): before the
+        span is in, that dropped real aluminium entries (foreign2 hole 142); after it, a
+        candidate still unconfirmed lives on only while F~ holds (a slow ramp's level
+        rises past the threshold later: a CFRP entry at 8.5 mm/min, project seed 6)."""
+        n = len(self.cand_F)
+        return self.entry_P == 0 or n < self.N_min or n >= self.entry_P
+
+    def _entry_holds(self) -> bool:
+        """Whether the candidate is confirmed: the mean thrust since it (N_min samples at
+        least) above its air level by the threshold; with ``entry_span``, decided once
+        entry_P samples are in: the mean of the last entry_P samples (one orbit: the
+        ringing averages out, a cut level stays) above it by the threshold before its
+        ``ramp_gain`` scaling: a level is not lagged like F~, and against the scaled one (1
+        N for aluminium over a 0.3 mm point) the orbit's residual ringing confirmed a
+        candidate 0.24 mm above the surface (foreign2 hole 0)."""
+        if self.entry_P == 0:
+            return len(self.cand_F) >= self.N_min and sum(self.cand_F) / len(self.cand_F) > self.cand[2] + self.thd
+        return len(self.cand_F) >= self.entry_P and \
+            self._hist_mean(self.h_n - self.entry_P, self.h_n) > self.cand[2] + self.thd / self.entry_level_gain
 
     def _event(self, k: int, t: float, x: float, i_hist: int | None = None) -> None:
         """Event k (0 entry, 1..n-1 interface k, n exit) found at (t, x); i_hist: its
@@ -743,6 +840,13 @@ class InterfaceDetector(KernelBlock, Block):
         for item in list(self.pending):
             k, x_trig, i_trig = item
             before, after = self.loc_window(k)
+            if k == 0 and not self.entry_rs and x >= max(self.x_ev[0] + self.locate_margin, x_trig):
+                # the regression restarts past the candidate's engagement (once confirmed), as
+                # it did before the confirmation's span: the fit, a window later around the
+                # confirmation, must not keep a thin first layer's tests from arming (a 1.6 mm
+                # CFRP layer at 24 mm/min, foreign drive hole 53, missed its interface)
+                self._restart_after(0)
+                self.entry_rs = True
             if x < x_trig + after and self.h_n - i_trig < HISTORY // 2:
                 continue
             self.pending.remove(item)
@@ -758,6 +862,11 @@ class InterfaceDetector(KernelBlock, Block):
             self.F_air = F_air
         name = LOC_EVENTS[0] if k == 0 else LOC_EVENTS[-1] if k == self.n else f"interface{k}"
         self.loc[name] = [x_loc, t_loc, dx, t_now]
+        if not (k == 0 and self.entry_rs):
+            self._restart_after(k)
+
+    def _restart_after(self, k: int) -> None:
+        """Event k is behind the tool: restart the regression for the next test."""
         if self.restart and k == self.flag - 1 and k < self.n and not self.armed:
             # the window after the event holds its engagement ramp: from here on the tool
             # is on the new level, so the regression restarts here and the tests arm as
@@ -787,7 +896,12 @@ class InterfaceDetector(KernelBlock, Block):
         x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period)
         F_air = NAN
         if k == 0 and math.isfinite(x_loc):
-            in_air = sel & (xs < x_loc - 0.5 * self.locate_margin)
+            # with a span the window is around the confirmation, which may leave only a few
+            # samples of it in air: the air level then from a locate_margin of air whatever the
+            # window (2 samples in ringing broke the next gap's air run: foreign2 hole 170,
+            # a ti/al interface located 0.39 mm inside the Ti)
+            lo_air = min(lo, x_loc - 1.5 * self.locate_margin) if self.entry_P else lo
+            in_air = (xs >= lo_air) & (xs <= hi) & (xs < x_loc - 0.5 * self.locate_margin)
             F_air = float(np.mean(hF[in_air])) if in_air.any() else NAN
         return x_loc, time_at(ht, hx, x_loc), dx, F_air
 
@@ -824,7 +938,9 @@ class InterfaceDetector(KernelBlock, Block):
             return
         k = self.flag  # index of the next expected event
         hi = self.windows[k][1]
-        if x > hi:
+        # an entry candidate inside the window is decided first (a span's confirmation
+        # outlasts the window's end at a fast feed: 0.4 mm at 21 mm/min and a 0.9 Hz orbit)
+        if x > hi and not (k == 0 and self.cand is not None and self.cand[1] <= hi):
             self._set_fail(k + 1, t, x)
         elif self.feed_rate > 0 and k >= 1 and not math.isnan(self.x_last):
             t_max = self.time_margin * max(hi - self.x_last, 0.0) / self.feed_rate
@@ -904,7 +1020,8 @@ class InterfaceDetector(KernelBlock, Block):
              thd_noise_factor=self.thd_noise_factor, entry_confirm=self.entry_confirm, relative=self.relative,
              thd_entry=getattr(self, "thd_entry", 0.0), exit_gain=getattr(self, "exit_gain", 0.0),
              localise=self.localise, locate_margin=self.locate_margin, push_out=self.push_out,
-             max_gap=self.max_gap, py_sum_comp=detector_kernel.PY_SUM_COMPENSATED, exit_after=self.exit_after)
+             max_gap=self.max_gap, py_sum_comp=detector_kernel.PY_SUM_COMPENSATED, exit_after=self.exit_after,
+             entry_P=self.entry_P, entry_gain=self.entry_level_gain)
         c.loc_after[:n - 1] = self.loc_after
         if self.windows is not None:
             c.win_lo[:n + 1] = [float(w[0]) for w in self.windows]
@@ -958,7 +1075,7 @@ class InterfaceDetector(KernelBlock, Block):
 
 # the C step's state readable as the Python step's attributes (InterfaceDetector.__getattr__)
 _C_SCALARS = {**{name: int for name in "n_buf flag quiet need h_n fail fail_code".split()},
-              **{name: bool for name in "armed drop exit_armed trim".split()},
+              **{name: bool for name in "armed drop exit_armed trim entry_rs".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last "
                                          "F_pred F_err F_level thd F_air mismatch".split()}}
 _C_LISTS = ("t_ev", "x_ev", "levels", "loc", "pending", "cand", "err_hist", "cand_F", "cand_e")

@@ -42,7 +42,7 @@ OBSERVER_SETTLE_ORBITS = 6.0
 
 HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "approach", "breakthrough",
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
-             "match_tolerance", "locate_margin", "push_out", "orbital_harmonics", "exit_orbit_mean"}
+             "match_tolerance", "locate_margin", "push_out", "orbital_harmonics", "exit_orbit_mean", "engagement"}
 # Localisation (controllers/event_locator.py): travel on either side of an event that holds its
 # change and a stretch of level (engagement up to ~0.35 mm on the drives measured, and the
 # trigger up to ~0.1 mm into it: with 0.3 mm, Ti entries with a 0.22 mm engagement were
@@ -88,6 +88,11 @@ class HolePlan:
         self.match_tolerance = self._number(hole, "match_tolerance", 1.0e-3, positive=True)
         self.locate_margin = self._number(hole, "locate_margin", LOCATE_MARGIN, positive=True)
         self.push_out = self._number(hole, "push_out", PUSH_OUT, positive=True)
+        # the travel over which the entry's thrust builds up [m] (the drill's point length
+        # plus the frame's deflection under the thrust; issue 23 item 3): the entry threshold
+        # follows what the regression shows of that ramp at the first layer's feed; 0 (default)
+        # is a step, the threshold of the drives the detector was built on
+        self.engagement = self._number(hole, "engagement", 0.0, minimum=0.0)
         self.harmonics = self._harmonics(hole)
         # the exit's fit on orbit means (InterfaceDetector exit_orbit_period): off by default,
         # its wide-draw measurement is mixed (docs/stacks.md, "Exit (this round)")
@@ -338,6 +343,13 @@ class HolePlan:
             "mismatch_factor": MISMATCH_FACTOR,
             "restart": True,
             "entry_confirm": True,
+            "entry_ramp": self.engagement / self.layer_process(0)["feed_rate"],
+            # the entry's confirmation spans one orbit of the first layer's process: at a slow
+            # orbit the observer's ripple estimate has not converged in air and its DC
+            # estimate rings at the orbit frequency (0.7-1 Hz, +-5..20 N: false aluminium
+            # entries 0.2-0.4 mm above the surface on the wide draw), which a whole orbit
+            # averages out
+            "entry_span": 60.0 / self.layer_process(0)["orbital_speed"],
             "interface_loc_after": self.interface_loc_after(window_s),
         }
 

@@ -40,6 +40,9 @@ typedef struct {
     double step_signs[DET_MAX_LAYERS - 1], relative, thd_entry, step_gain[DET_MAX_LAYERS - 1], exit_gain;
     double floor[DET_MAX_LAYERS], level_plan[DET_MAX_LAYERS], localise, locate_margin, push_out, max_gap;
     double py_sum_comp, loc_after[DET_MAX_LAYERS - 1], exit_after;
+    double entry_P;             /* entry confirmation span [samples] (0: N_min, mean since the candidate) */
+    double entry_gain;          /* the entry threshold's ramp_gain (its level test divides it out) */
+    double entry_rs;            /* state: restarted after the entry before it was located */
     /* state */
     double n_buf, flag, t_ev[DET_EVENTS], x_ev[DET_EVENTS], t_paper, x_paper, t_thin, x_thin, F_ref;
     double drop, exit_armed, quiet, need, err_n, err_pos;
@@ -210,6 +213,32 @@ static void event(Detector *s, int k, double t, double x, double i_hist)
         set_fail(s, k + 1, t, x);
 }
 
+/* interface_detector.py _hist_mean: mean thrust of the history's samples j0..j1-1 */
+static double hist_mean(const Detector *s, double j0, double j1)
+{
+    double f = 0.0, c = 0.0;
+    for (long j = (long)j0; j < (long)j1; j++)
+        py_sum_add(s, &f, &c, s->h_F[j % DET_HISTORY]);
+    return py_sum_end(f, c) / (j1 - j0);
+}
+
+/* interface_detector.py _entry_air: the air level a candidate (the latest sample) is confirmed against */
+static double entry_air(const Detector *s, double F_pred)
+{
+    double j1 = s->h_n - 1.0;
+    double j0 = MAX(MAX(0.0, j1 - s->entry_P), s->h_n - DET_HISTORY);
+    return (s->entry_P == 0.0 || j1 <= j0) ? F_pred : hist_mean(s, j0, j1);
+}
+
+/* interface_detector.py _entry_holds: 1 confirmed */
+static int entry_holds(Detector *s)
+{
+    if (s->entry_P == 0.0)
+        return s->cand_n >= s->N_min && py_sum_end(s->cand_sum, s->cand_comp) / s->cand_n > s->cand_level + s->thd;
+    return s->cand_n >= s->entry_P
+           && hist_mean(s, s->h_n - s->entry_P, s->h_n) > s->cand_level + s->thd / s->entry_gain;
+}
+
 static void entry_confirm(Detector *s, double t, double x, double F, double F_pred, double e)
 {
     /* cand: 0 none, 1 weak (F~ past DET_ENTRY_CANDIDATE of thd only), 2 strong */
@@ -218,7 +247,7 @@ static void entry_confirm(Detector *s, double t, double x, double F, double F_pr
             s->cand = e > s->thd ? 2.0 : 1.0;
             s->cand_t = t;
             s->cand_x = x;
-            s->cand_level = F_pred;
+            s->cand_level = entry_air(s, F_pred);
             s->cand_i = s->h_n - 1.0;
             s->cand_n = 1.0;
             s->cand_sum = 0.0;
@@ -242,12 +271,20 @@ static void entry_confirm(Detector *s, double t, double x, double F, double F_pr
     double f = 0.0, c = 0.0;
     for (int j = 0; j < m; j++)
         py_sum_add(s, &f, &c, s->cand_e[(first + j) % DET_ENTRY_SWING]);
-    if (py_sum_end(f, c) < 0.0) {
+    /* interface_detector.py _entry_swings: with a span, not dropped between N_min and entry_P samples */
+    int holds = entry_holds(s);     /* interface_detector.py: with a span its level decides first */
+    if (py_sum_end(f, c) < 0.0 && (s->entry_P == 0.0 || s->cand_n < s->N_min || s->cand_n >= s->entry_P)
+        && !(s->entry_P != 0.0 && holds)) {
         s->cand = 0.0;
-    } else if (s->cand_n >= s->N_min
-               && py_sum_end(s->cand_sum, s->cand_comp) / s->cand_n > s->cand_level + s->thd) {
+    } else if (holds) {
         s->cand = 0.0;
         event(s, 0, s->cand_t, s->cand_x, s->cand_i);
+        if (s->entry_P != 0.0 && s->localise != 0.0) {
+            /* a span's candidate may lie in the ringing above the surface: fit around the confirmation */
+            int j = (int)s->n_pending - 1;
+            s->pend_x[j] = x;
+            s->pend_i[j] = s->h_n;
+        }
     }
 }
 
@@ -327,6 +364,18 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
     }
 }
 
+/* interface_detector.py _restart_after: event k is behind the tool, restart the regression */
+static void restart_after(Detector *s, int k)
+{
+    int n = (int)s->n;
+    if (s->restart != 0.0 && k == (int)s->flag - 1 && k < n && s->armed == 0.0) {
+        s->n_buf = 0.0;
+        s->quiet = 0.0;
+        s->need = s->N_min;
+        s->trim = k + 1 < n ? 1.0 : 0.0;   /* interface_detector.py: not for the exit's test */
+    }
+}
+
 static void locate(Detector *s, int k, double x_trig, double before, double after, double t_now)
 {
     int n = (int)s->n;
@@ -349,12 +398,8 @@ static void locate(Detector *s, int k, double x_trig, double before, double afte
     s->loc[4 * name + 3] = t_now;
     if (k == 0 && isfinite(out[0]))
         s->F_air = out[3];
-    if (s->restart != 0.0 && k == (int)s->flag - 1 && k < n && s->armed == 0.0) {
-        s->n_buf = 0.0;
-        s->quiet = 0.0;
-        s->need = s->N_min;
-        s->trim = k + 1 < n ? 1.0 : 0.0;   /* interface_detector.py: not for the exit's test */
-    }
+    if (!(k == 0 && s->entry_rs != 0.0))
+        restart_after(s, k);
 }
 
 static void locate_due(Detector *s, double t, double x)
@@ -374,6 +419,10 @@ static void locate_due(Detector *s, double t, double x)
             before = s->max_gap + m_;
             after = s->loc_after[k - 1];
         }
+        if (k == 0 && s->entry_rs == 0.0 && x >= MAX(s->x_ev[0] + m_, x_trig)) {
+            restart_after(s, 0);    /* interface_detector.py _locate_due: past the candidate's engagement */
+            s->entry_rs = 1.0;
+        }
         if (x < x_trig + after && s->h_n - i_trig < DET_HISTORY / 2) {
             s->pend_k[kept] = k;
             s->pend_x[kept] = x_trig;
@@ -392,7 +441,8 @@ static void check_windows(Detector *s, double t, double x)
         return;
     int k = (int)s->flag;
     double hi = s->win_hi[k];
-    if (x > hi) {
+    /* an entry candidate inside the window is decided first (interface_detector.py _check_windows) */
+    if (x > hi && !(k == 0 && s->cand != 0.0 && s->cand_x <= hi)) {
         set_fail(s, k + 1, t, x);
     } else if (s->feed_rate > 0.0 && k >= 1 && !isnan(s->x_last)) {
         double t_max = s->time_margin * MAX(hi - s->x_last, 0.0) / s->feed_rate;

@@ -153,9 +153,10 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     double period = kind == LOC_EXIT ? s->exit_period : 0.0;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, &engage, &push, &out[0], &out[2]);
     if (k == 0 && isfinite(out[0])) {
-        long a = 0;         /* the samples in air before the entry, in the window */
+        long a = 0;         /* the samples in air before the entry, in the window (with a span: from a margin of air) */
+        double lo_air = d->entry_P != 0.0 ? LOC_PYMIN(lo, out[0] - 1.5 * d->locate_margin) : lo;
         for (long j = 0; j < n; j++)
-            if (xs[j] >= lo && xs[j] <= hi && xs[j] < out[0] - 0.5 * d->locate_margin)
+            if (xs[j] >= lo_air && xs[j] <= hi && xs[j] < out[0] - 0.5 * d->locate_margin)
                 xsel[a++] = F[j];
         out[3] = loc_mean(xsel, a);
     }
