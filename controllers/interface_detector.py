@@ -127,6 +127,13 @@ ENTRY_SWING = 5  # samples: an entry candidate is dropped once the mean of its l
 # peaks at 0.7-0.9 of the threshold (7 missed entries of the 200-hole wide draw per plant, 5-8
 # mm/min); the confirmation (the thrust level, not F~) still decides
 ENTRY_CANDIDATE = 0.5
+# the materials check takes a layer's level only once |F~| has stayed below this fraction of the
+# level (or the re-arm level, for a level near zero) for the samples its tests arm on: the re-arm
+# level of a layer whose next step is large (Al before CFRP: 0.5 x 0.3 x 24 x the level) lets the
+# observer's ringing after a Ti -> Al drop (+-40-150 N about a 12-20 N plateau, 3-6 s, foreign drive)
+# count as quiet, and a level taken on it (38 N, 141 N) failed right plans (issue 23: 5 false fails
+# of the wide draw); a settled plateau's one-step error is a few per cent of its level
+LEVEL_SETTLED = 0.1
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
                   ("t", "s", "time the encoder passed the located position"),
@@ -509,6 +516,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.drop = False           # paper drop condition met in the last layer
         self.exit_armed = False     # the last layer's (exit) tests have been armed once
         self.quiet = 0              # consecutive samples with |F~| < rearm level
+        self.settled = 0            # ... and below LEVEL_SETTLED of the level (the materials check)
         self.need = self.rearm_samples   # quiet samples the next test needs to arm
         self.trim = False           # restarted once located: a loud sample trims the window to N_min
         self.err_hist = deque(maxlen=2 * self.N)   # |F~| of the last 2 N samples (noise threshold)
@@ -554,7 +562,7 @@ class InterfaceDetector(KernelBlock, Block):
             self.fail, self.fail_code = 1, code
             self.t_fail, self.x_fail = t, x
             if self.fail_disarms and self.flag <= self.n:
-                self.armed, self.quiet = False, 0
+                self.armed, self.quiet, self.settled = False, 0, 0
 
     def _entry_confirm(self, t, x, F, F_pred, e) -> None:
         """The entry with confirmation (issue 23: aluminium first at a low feed per rev, the
@@ -591,7 +599,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.t_ev[k], self.x_ev[k] = t, x
         self.flag = k + 1
         self.armed = False
-        self.quiet = 0
+        self.quiet = self.settled = 0
         self.trim = False
         self.need = self.rearm_samples
         self.t_last, self.x_last = t, x
@@ -662,8 +670,9 @@ class InterfaceDetector(KernelBlock, Block):
                 # F~ grows (a step), else the threshold would climb the step with F^
                 self.quiet += 1
                 self.F_level = F_pred
+                self.settled = self.settled + 1 if abs(e) < max(self.rearm_level, LEVEL_SETTLED * abs(F_pred)) else 0
             else:
-                self.quiet = 0
+                self.quiet = self.settled = 0
                 if self.trim and self.n_buf > self.N_min:
                     # restarted once located, the window still holds a transient (a window
                     # cut to a thin layer ends on the lower layer's ramp; an observer's
@@ -674,7 +683,7 @@ class InterfaceDetector(KernelBlock, Block):
             if self.thd_noise_factor > 0.0:
                 self.err_hist.append(abs(e))
             if self.relative and 1 <= self.flag <= self.n and math.isnan(self.levels[self.flag - 1]) \
-                    and self.quiet >= self.need and self.F_level >= min(self.floor):
+                    and self.quiet >= self.need and self.settled >= self.N_min and self.F_level >= min(self.floor):
                 self._check_level(t, x)     # on a cut level (any material's floor: not a gap)
             if not self.armed and self._may_arm(x):
                 self.armed, self.trim = True, False
@@ -740,7 +749,7 @@ class InterfaceDetector(KernelBlock, Block):
             # is on the new level, so the regression restarts here and the tests arm as
             # soon as its N_min samples are quiet, instead of once a full window of N has
             # left the ramp (issue 23: thin layers at high feeds were never armed)
-            self.n_buf, self.quiet, self.need = 0, 0, self.N_min
+            self.n_buf, self.quiet, self.settled, self.need = 0, 0, 0, self.N_min
             # trimmed (step) only for an interface test: the exit's test armed on air
             # after a thin aluminium last layer (its floor, a few N, is the air's noise)
             # and fired there 1.2 mm late with no fail (wide draw, project hole 116)
@@ -926,7 +935,7 @@ class InterfaceDetector(KernelBlock, Block):
 
 
 # the C step's state readable as the Python step's attributes (InterfaceDetector.__getattr__)
-_C_SCALARS = {**{name: int for name in "n_buf flag quiet need h_n fail fail_code".split()},
+_C_SCALARS = {**{name: int for name in "n_buf flag quiet settled need h_n fail fail_code".split()},
               **{name: bool for name in "armed drop exit_armed trim".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last "
                                          "F_pred F_err F_level thd F_air mismatch".split()}}

@@ -26,6 +26,7 @@
 #define DET_HISTORY 4096                     /* interface_detector.py HISTORY */
 #define DET_ENTRY_SWING 5                    /* interface_detector.py ENTRY_SWING */
 #define DET_ENTRY_CANDIDATE 0.5              /* interface_detector.py ENTRY_CANDIDATE */
+#define DET_LEVEL_SETTLED 0.1                /* interface_detector.py LEVEL_SETTLED */
 #define DET_N_OUT 48
 
 typedef double (*dot_fn)(long n, const double *x, long incx, const double *y, long incy);
@@ -47,7 +48,7 @@ typedef struct {
     double cand_e[DET_ENTRY_SWING], cand_e_n, cand_e_pos;
     double armed, fail, fail_code, t_fail, x_fail, t_last, x_last, F_pred, F_err, F_level, thd, h_n;
     double n_pending, pend_k[DET_EVENTS], pend_x[DET_EVENTS], pend_i[DET_EVENTS];
-    double F_air, levels[DET_MAX_LAYERS], mismatch, trim, loc[4 * DET_EVENTS];
+    double F_air, levels[DET_MAX_LAYERS], mismatch, trim, settled, loc[4 * DET_EVENTS];
     /* the block's arrays and functions */
     const double *W;            /* weights of every window length N_min..N, one after the other */
     double *buf, *h_t, *h_x, *h_F, *err;
@@ -172,6 +173,7 @@ static void set_fail(Detector *s, int code, double t, double x)
     if (s->fail_disarms != 0.0 && s->flag <= s->n) {
         s->armed = 0.0;
         s->quiet = 0.0;
+        s->settled = 0.0;
     }
 }
 
@@ -195,6 +197,7 @@ static void event(Detector *s, int k, double t, double x, double i_hist)
     s->flag = k + 1;
     s->armed = 0.0;
     s->quiet = 0.0;
+    s->settled = 0.0;
     s->trim = 0.0;
     s->need = s->rearm_samples;
     s->t_last = t;
@@ -284,8 +287,11 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
     if (fabs(e) < rearm_level(s, s->F_level)) {
         s->quiet += 1.0;
         s->F_level = F_pred;
+        /* interface_detector.py LEVEL_SETTLED: the materials check's level */
+        s->settled = fabs(e) < MAX(s->rearm_level, DET_LEVEL_SETTLED * fabs(F_pred)) ? s->settled + 1.0 : 0.0;
     } else {
         s->quiet = 0.0;
+        s->settled = 0.0;
         if (s->trim != 0.0 && s->n_buf > s->N_min) {
             /* interface_detector.py: keep the window's last N_min samples */
             long nb = (long)s->n_buf, Nm = (long)s->N_min;
@@ -302,7 +308,7 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
     }
     flag = (int)s->flag;
     if (s->relative != 0.0 && 1 <= flag && flag <= n && isnan(s->levels[flag - 1])
-            && s->quiet >= s->need && s->F_level >= min_of(s->floor, 0, n))
+            && s->quiet >= s->need && s->settled >= s->N_min && s->F_level >= min_of(s->floor, 0, n))
         check_level(s, t, x);
     if (s->armed == 0.0 && may_arm(s, x)) {
         s->armed = 1.0;
@@ -352,6 +358,7 @@ static void locate(Detector *s, int k, double x_trig, double before, double afte
     if (s->restart != 0.0 && k == (int)s->flag - 1 && k < n && s->armed == 0.0) {
         s->n_buf = 0.0;
         s->quiet = 0.0;
+        s->settled = 0.0;
         s->need = s->N_min;
         s->trim = k + 1 < n ? 1.0 : 0.0;   /* interface_detector.py: not for the exit's test */
     }
