@@ -543,6 +543,18 @@ class InterfaceDetector(KernelBlock, Block):
         self.loc = {ev: [NAN] * len(LOC_QUANTITIES) for ev in LOC_EVENTS}
         self._c_attach()
 
+    def _cut_level(self) -> bool:
+        """Whether the settled level is a cut level the materials check may take: above every
+        material's floor (not air) and, with the check on, above the plan layer's own floor
+        over mismatch_factor. Al's floor (2-3 N at 3 um/rev) is within the observer's offset
+        in air, and a gap level taken for the Ti below it failed a right plan (wide draw,
+        thin-layer holes: 2.6 N against a 63 N Ti floor); a level that far below the plan's
+        is either a gap or a layer whose tests do not arm (the window's fail says so)."""
+        floor = min(self.floor)
+        if self.mismatch_factor > 0.0:
+            floor = max(floor, self.floor[self.flag - 1] / self.mismatch_factor)
+        return self.F_level >= floor
+
     def _check_level(self, t: float, x: float) -> None:
         """The first quiet level of a layer (the statistics its tests arm on; any
         material's floor, so not a gap, whichever material the plan says): compare it
@@ -683,8 +695,8 @@ class InterfaceDetector(KernelBlock, Block):
             if self.thd_noise_factor > 0.0:
                 self.err_hist.append(abs(e))
             if self.relative and 1 <= self.flag <= self.n and math.isnan(self.levels[self.flag - 1]) \
-                    and self.quiet >= self.need and self.settled >= self.N_min and self.F_level >= min(self.floor):
-                self._check_level(t, x)     # on a cut level (any material's floor: not a gap)
+                    and self.quiet >= self.need and self.settled >= self.N_min and self._cut_level():
+                self._check_level(t, x)
             if not self.armed and self._may_arm(x):
                 self.armed, self.trim = True, False
             self.thd = NAN

@@ -177,6 +177,15 @@ static void set_fail(Detector *s, int code, double t, double x)
     }
 }
 
+/* interface_detector.py _cut_level: not air, nor far below the plan layer's own floor */
+static int cut_level(const Detector *s)
+{
+    double floor = min_of(s->floor, 0, (int)s->n);
+    if (s->mismatch_factor > 0.0)
+        floor = MAX(floor, s->floor[(int)s->flag - 1] / s->mismatch_factor);
+    return s->F_level >= floor;
+}
+
 static void check_level(Detector *s, double t, double x)
 {
     int k = (int)s->flag - 1;
@@ -308,7 +317,7 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
     }
     flag = (int)s->flag;
     if (s->relative != 0.0 && 1 <= flag && flag <= n && isnan(s->levels[flag - 1])
-            && s->quiet >= s->need && s->settled >= s->N_min && s->F_level >= min_of(s->floor, 0, n))
+            && s->quiet >= s->need && s->settled >= s->N_min && cut_level(s))
         check_level(s, t, x);
     if (s->armed == 0.0 && may_arm(s, x)) {
         s->armed = 1.0;
