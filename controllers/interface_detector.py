@@ -134,6 +134,13 @@ ENTRY_CANDIDATE = 0.5
 # count as quiet, and a level taken on it (38 N, 141 N) failed right plans (issue 23: 5 false fails
 # of the wide draw); a settled plateau's one-step error is a few per cent of its level
 LEVEL_SETTLED = 0.1
+# an interface test arms only once |F~| has also stayed below this fraction of the level (or the
+# re-arm level) for the samples it arms on: a one-step error as large as the level itself is no
+# plateau but the observer's ringing after a large drop (+-150 N about a 20 N Al plateau, foreign
+# drive, wide draw hole 66), and a test armed on it, with its threshold scaled by a level taken on
+# the ringing, fired there (a false interface 1.7 mm into the Al); half the level still lets Al's
+# plateau arm under the 5-10 N of orbital ripple the observer leaves on the foreign drives (hole 52)
+LEVEL_STEADY = 0.5
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
                   ("t", "s", "time the encoder passed the located position"),
@@ -517,6 +524,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.exit_armed = False     # the last layer's (exit) tests have been armed once
         self.quiet = 0              # consecutive samples with |F~| < rearm level
         self.settled = 0            # ... and below LEVEL_SETTLED of the level (the materials check)
+        self.steady = 0             # ... and below LEVEL_STEADY of the level (an interface test's arming)
         self.need = self.rearm_samples   # quiet samples the next test needs to arm
         self.trim = False           # restarted once located: a loud sample trims the window to N_min
         self.err_hist = deque(maxlen=2 * self.N)   # |F~| of the last 2 N samples (noise threshold)
@@ -574,7 +582,7 @@ class InterfaceDetector(KernelBlock, Block):
             self.fail, self.fail_code = 1, code
             self.t_fail, self.x_fail = t, x
             if self.fail_disarms and self.flag <= self.n:
-                self.armed, self.quiet, self.settled = False, 0, 0
+                self.armed, self.quiet, self.settled, self.steady = False, 0, 0, 0
 
     def _entry_confirm(self, t, x, F, F_pred, e) -> None:
         """The entry with confirmation (issue 23: aluminium first at a low feed per rev, the
@@ -611,7 +619,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.t_ev[k], self.x_ev[k] = t, x
         self.flag = k + 1
         self.armed = False
-        self.quiet = self.settled = 0
+        self.quiet = self.settled = self.steady = 0
         self.trim = False
         self.need = self.rearm_samples
         self.t_last, self.x_last = t, x
@@ -683,8 +691,9 @@ class InterfaceDetector(KernelBlock, Block):
                 self.quiet += 1
                 self.F_level = F_pred
                 self.settled = self.settled + 1 if abs(e) < max(self.rearm_level, LEVEL_SETTLED * abs(F_pred)) else 0
+                self.steady = self.steady + 1 if abs(e) < max(self.rearm_level, LEVEL_STEADY * abs(F_pred)) else 0
             else:
-                self.quiet = self.settled = 0
+                self.quiet = self.settled = self.steady = 0
                 if self.trim and self.n_buf > self.N_min:
                     # restarted once located, the window still holds a transient (a window
                     # cut to a thin layer ends on the lower layer's ramp; an observer's
@@ -761,7 +770,7 @@ class InterfaceDetector(KernelBlock, Block):
             # is on the new level, so the regression restarts here and the tests arm as
             # soon as its N_min samples are quiet, instead of once a full window of N has
             # left the ramp (issue 23: thin layers at high feeds were never armed)
-            self.n_buf, self.quiet, self.settled, self.need = 0, 0, 0, self.N_min
+            self.n_buf, self.quiet, self.settled, self.steady, self.need = 0, 0, 0, 0, self.N_min
             # trimmed (step) only for an interface test: the exit's test armed on air
             # after a thin aluminium last layer (its floor, a few N, is the air's noise)
             # and fired there 1.2 mm late with no fail (wide draw, project hole 116)
@@ -806,10 +815,14 @@ class InterfaceDetector(KernelBlock, Block):
     def _may_arm(self, x: float) -> bool:
         """Whether the next event's test may arm now. The entry test: with a nominal stack,
         once the tool is inside the entry window (above it the observer's start-up and the
-        approach's deceleration are no contact). The others: as after every event (re-arming)."""
+        approach's deceleration are no contact). The others: as after every event (re-arming);
+        an interface test, with process-following thresholds, also on a steady level
+        (LEVEL_STEADY)."""
         if self.flag == 0:
             return self.windows is None or x >= self.windows[0][0]
-        return self.quiet >= self.need and self._engaged(self.F_level)
+        if not (self.quiet >= self.need and self._engaged(self.F_level)):
+            return False
+        return not self.relative or self.flag >= self.n or self.steady >= min(self.need, self.N_min)
 
     def _check_windows(self, t, x):
         if self.windows is None or self.flag > self.n or self.fail:
@@ -947,7 +960,7 @@ class InterfaceDetector(KernelBlock, Block):
 
 
 # the C step's state readable as the Python step's attributes (InterfaceDetector.__getattr__)
-_C_SCALARS = {**{name: int for name in "n_buf flag quiet settled need h_n fail fail_code".split()},
+_C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n fail fail_code".split()},
               **{name: bool for name in "armed drop exit_armed trim".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last "
                                          "F_pred F_err F_level thd F_air mismatch".split()}}
