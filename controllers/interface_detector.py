@@ -330,7 +330,10 @@ class InterfaceDetector(KernelBlock, Block):
         ``kc_{k+1} f_{k+1} / (kc_k f_k)``, else a fail (``fail_code`` n+2): a wrong
         order or a missing layer (CFRP/Ti drilled as Ti/CFRP is a factor ~10 off). 0
         (default) switches it off. Tool wear moves the ratio by up to ~2.7 between Al
-        and Ti after 80 holes (docs/plants.md), another drive by ~0.8 (issue 23).
+        and Ti after 80 holes (docs/plants.md), another drive by ~0.8 (issue 23). The
+        level is the layer's first settled one (|F~| below LEVEL_SETTLED of it for N_min
+        samples), not below the layer's floor / mismatch_factor: not the observer's ringing
+        after a large drop, nor a gap.
     """
 
     inputs = (
