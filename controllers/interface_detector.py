@@ -127,6 +127,20 @@ ENTRY_SWING = 5  # samples: an entry candidate is dropped once the mean of its l
 # peaks at 0.7-0.9 of the threshold (7 missed entries of the 200-hole wide draw per plant, 5-8
 # mm/min); the confirmation (the thrust level, not F~) still decides
 ENTRY_CANDIDATE = 0.5
+# the materials check takes a layer's level only once |F~| has stayed below this fraction of the
+# level (or the re-arm level, for a level near zero) for the samples its tests arm on: the re-arm
+# level of a layer whose next step is large (Al before CFRP: 0.5 x 0.3 x 24 x the level) lets the
+# observer's ringing after a Ti -> Al drop (+-40-150 N about a 12-20 N plateau, 3-6 s, foreign drive)
+# count as quiet, and a level taken on it (38 N, 141 N) failed right plans (issue 23: 5 false fails
+# of the wide draw); a settled plateau's one-step error is a few per cent of its level
+LEVEL_SETTLED = 0.1
+# an interface test arms only once |F~| has also stayed below this fraction of the level (or the
+# re-arm level) for the samples it arms on: a one-step error as large as the level itself is no
+# plateau but the observer's ringing after a large drop (+-150 N about a 20 N Al plateau, foreign
+# drive, wide draw hole 66), and a test armed on it, with its threshold scaled by a level taken on
+# the ringing, fired there (a false interface 1.7 mm into the Al); half the level still lets Al's
+# plateau arm under the 5-10 N of orbital ripple the observer leaves on the foreign drives (hole 52)
+LEVEL_STEADY = 0.5
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
                   ("t", "s", "time the encoder passed the located position"),
@@ -348,7 +362,10 @@ class InterfaceDetector(KernelBlock, Block):
         ``kc_{k+1} f_{k+1} / (kc_k f_k)``, else a fail (``fail_code`` n+2): a wrong
         order or a missing layer (CFRP/Ti drilled as Ti/CFRP is a factor ~10 off). 0
         (default) switches it off. Tool wear moves the ratio by up to ~2.7 between Al
-        and Ti after 80 holes (docs/plants.md), another drive by ~0.8 (issue 23).
+        and Ti after 80 holes (docs/plants.md), another drive by ~0.8 (issue 23). The
+        level is the layer's first settled one (|F~| below LEVEL_SETTLED of it for N_min
+        samples), not below the layer's floor / mismatch_factor: not the observer's ringing
+        after a large drop, nor a gap.
     """
 
     inputs = (
@@ -578,6 +595,8 @@ class InterfaceDetector(KernelBlock, Block):
         self.drop = False           # paper drop condition met in the last layer
         self.exit_armed = False     # the last layer's (exit) tests have been armed once
         self.quiet = 0              # consecutive samples with |F~| < rearm level
+        self.settled = 0            # ... and below LEVEL_SETTLED of the level (the materials check)
+        self.steady = 0             # ... and below LEVEL_STEADY of the level (an interface test's arming)
         self.need = self.rearm_samples   # quiet samples the next test needs to arm
         self.trim = False           # restarted once located: a loud sample trims the window to N_min
         self.entry_rs = False       # restarted after the entry (before it was located)
@@ -605,6 +624,18 @@ class InterfaceDetector(KernelBlock, Block):
         self.loc = {ev: [NAN] * len(LOC_QUANTITIES) for ev in LOC_EVENTS}
         self._c_attach()
 
+    def _cut_level(self) -> bool:
+        """Whether the settled level is a cut level the materials check may take: above every
+        material's floor (not air) and, with the check on, above the plan layer's own floor
+        over mismatch_factor. Al's floor (2-3 N at 3 um/rev) is within the observer's offset
+        in air, and a gap level taken for the Ti below it failed a right plan (wide draw,
+        thin-layer holes: 2.6 N against a 63 N Ti floor); a level that far below the plan's
+        is either a gap or a layer whose tests do not arm (the window's fail says so)."""
+        floor = min(self.floor)
+        if self.mismatch_factor > 0.0:
+            floor = max(floor, self.floor[self.flag - 1] / self.mismatch_factor)
+        return self.F_level >= floor
+
     def _check_level(self, t: float, x: float) -> None:
         """The first quiet level of a layer (the statistics its tests arm on; any
         material's floor, so not a gap, whichever material the plan says): compare it
@@ -624,7 +655,7 @@ class InterfaceDetector(KernelBlock, Block):
             self.fail, self.fail_code = 1, code
             self.t_fail, self.x_fail = t, x
             if self.fail_disarms and self.flag <= self.n:
-                self.armed, self.quiet = False, 0
+                self.armed, self.quiet, self.settled, self.steady = False, 0, 0, 0
 
     def _entry_confirm(self, t, x, F, F_pred, e) -> None:
         """The entry with confirmation (issue 23: aluminium first at a low feed per rev, the
@@ -711,7 +742,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.t_ev[k], self.x_ev[k] = t, x
         self.flag = k + 1
         self.armed = False
-        self.quiet = 0
+        self.quiet = self.settled = self.steady = 0
         self.trim = False
         self.need = self.rearm_samples
         self.t_last, self.x_last = t, x
@@ -782,8 +813,10 @@ class InterfaceDetector(KernelBlock, Block):
                 # F~ grows (a step), else the threshold would climb the step with F^
                 self.quiet += 1
                 self.F_level = F_pred
+                self.settled = self.settled + 1 if abs(e) < max(self.rearm_level, LEVEL_SETTLED * abs(F_pred)) else 0
+                self.steady = self.steady + 1 if abs(e) < max(self.rearm_level, LEVEL_STEADY * abs(F_pred)) else 0
             else:
-                self.quiet = 0
+                self.quiet = self.settled = self.steady = 0
                 if self.trim and self.n_buf > self.N_min:
                     # restarted once located, the window still holds a transient (a window
                     # cut to a thin layer ends on the lower layer's ramp; an observer's
@@ -794,8 +827,8 @@ class InterfaceDetector(KernelBlock, Block):
             if self.thd_noise_factor > 0.0:
                 self.err_hist.append(abs(e))
             if self.relative and 1 <= self.flag <= self.n and math.isnan(self.levels[self.flag - 1]) \
-                    and self.quiet >= self.need and self.F_level >= min(self.floor):
-                self._check_level(t, x)     # on a cut level (any material's floor: not a gap)
+                    and self.quiet >= self.need and self.settled >= self.N_min and self._cut_level():
+                self._check_level(t, x)
             if not self.armed and self._may_arm(x):
                 self.armed, self.trim = True, False
             self.thd = NAN
@@ -872,7 +905,7 @@ class InterfaceDetector(KernelBlock, Block):
             # is on the new level, so the regression restarts here and the tests arm as
             # soon as its N_min samples are quiet, instead of once a full window of N has
             # left the ramp (issue 23: thin layers at high feeds were never armed)
-            self.n_buf, self.quiet, self.need = 0, 0, self.N_min
+            self.n_buf, self.quiet, self.settled, self.steady, self.need = 0, 0, 0, 0, self.N_min
             # trimmed (step) only for an interface test: the exit's test armed on air
             # after a thin aluminium last layer (its floor, a few N, is the air's noise)
             # and fired there 1.2 mm late with no fail (wide draw, project hole 116)
@@ -928,10 +961,14 @@ class InterfaceDetector(KernelBlock, Block):
     def _may_arm(self, x: float) -> bool:
         """Whether the next event's test may arm now. The entry test: with a nominal stack,
         once the tool is inside the entry window (above it the observer's start-up and the
-        approach's deceleration are no contact). The others: as after every event (re-arming)."""
+        approach's deceleration are no contact). The others: as after every event (re-arming);
+        an interface test, with process-following thresholds, also on a steady level
+        (LEVEL_STEADY)."""
         if self.flag == 0:
             return self.windows is None or x >= self.windows[0][0]
-        return self.quiet >= self.need and self._engaged(self.F_level)
+        if not (self.quiet >= self.need and self._engaged(self.F_level)):
+            return False
+        return not self.relative or self.flag >= self.n or self.steady >= min(self.need, self.N_min)
 
     def _check_windows(self, t, x):
         if self.windows is None or self.flag > self.n or self.fail:
@@ -1074,7 +1111,7 @@ class InterfaceDetector(KernelBlock, Block):
 
 
 # the C step's state readable as the Python step's attributes (InterfaceDetector.__getattr__)
-_C_SCALARS = {**{name: int for name in "n_buf flag quiet need h_n fail fail_code".split()},
+_C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n fail fail_code".split()},
               **{name: bool for name in "armed drop exit_armed trim entry_rs".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last "
                                          "F_pred F_err F_level thd F_air mismatch".split()}}

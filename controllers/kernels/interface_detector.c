@@ -26,6 +26,8 @@
 #define DET_HISTORY 4096                     /* interface_detector.py HISTORY */
 #define DET_ENTRY_SWING 5                    /* interface_detector.py ENTRY_SWING */
 #define DET_ENTRY_CANDIDATE 0.5              /* interface_detector.py ENTRY_CANDIDATE */
+#define DET_LEVEL_SETTLED 0.1                /* interface_detector.py LEVEL_SETTLED */
+#define DET_LEVEL_STEADY 0.5                 /* interface_detector.py LEVEL_STEADY */
 #define DET_N_OUT 48
 
 typedef double (*dot_fn)(long n, const double *x, long incx, const double *y, long incy);
@@ -50,7 +52,7 @@ typedef struct {
     double cand_e[DET_ENTRY_SWING], cand_e_n, cand_e_pos;
     double armed, fail, fail_code, t_fail, x_fail, t_last, x_last, F_pred, F_err, F_level, thd, h_n;
     double n_pending, pend_k[DET_EVENTS], pend_x[DET_EVENTS], pend_i[DET_EVENTS];
-    double F_air, levels[DET_MAX_LAYERS], mismatch, trim, loc[4 * DET_EVENTS];
+    double F_air, levels[DET_MAX_LAYERS], mismatch, trim, settled, steady, loc[4 * DET_EVENTS];
     /* the block's arrays and functions */
     const double *W;            /* weights of every window length N_min..N, one after the other */
     double *buf, *h_t, *h_x, *h_F, *err;
@@ -161,7 +163,10 @@ static int may_arm(const Detector *s, double x)
 {
     if (s->flag == 0.0)
         return s->has_windows == 0.0 || x >= s->win_lo[0];
-    return s->quiet >= s->need && engaged(s, s->F_level);
+    if (!(s->quiet >= s->need && engaged(s, s->F_level)))
+        return 0;
+    /* interface_detector.py: an interface test arms on a steady level (LEVEL_STEADY) */
+    return s->relative == 0.0 || s->flag >= s->n || s->steady >= MIN(s->need, s->N_min);
 }
 
 static void set_fail(Detector *s, int code, double t, double x)
@@ -175,7 +180,18 @@ static void set_fail(Detector *s, int code, double t, double x)
     if (s->fail_disarms != 0.0 && s->flag <= s->n) {
         s->armed = 0.0;
         s->quiet = 0.0;
+        s->settled = 0.0;
+        s->steady = 0.0;
     }
+}
+
+/* interface_detector.py _cut_level: not air, nor far below the plan layer's own floor */
+static int cut_level(const Detector *s)
+{
+    double floor = min_of(s->floor, 0, (int)s->n);
+    if (s->mismatch_factor > 0.0)
+        floor = MAX(floor, s->floor[(int)s->flag - 1] / s->mismatch_factor);
+    return s->F_level >= floor;
 }
 
 static void check_level(Detector *s, double t, double x)
@@ -198,6 +214,8 @@ static void event(Detector *s, int k, double t, double x, double i_hist)
     s->flag = k + 1;
     s->armed = 0.0;
     s->quiet = 0.0;
+    s->settled = 0.0;
+    s->steady = 0.0;
     s->trim = 0.0;
     s->need = s->rearm_samples;
     s->t_last = t;
@@ -321,8 +339,13 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
     if (fabs(e) < rearm_level(s, s->F_level)) {
         s->quiet += 1.0;
         s->F_level = F_pred;
+        /* interface_detector.py LEVEL_SETTLED: the materials check's level */
+        s->settled = fabs(e) < MAX(s->rearm_level, DET_LEVEL_SETTLED * fabs(F_pred)) ? s->settled + 1.0 : 0.0;
+        s->steady = fabs(e) < MAX(s->rearm_level, DET_LEVEL_STEADY * fabs(F_pred)) ? s->steady + 1.0 : 0.0;
     } else {
         s->quiet = 0.0;
+        s->settled = 0.0;
+        s->steady = 0.0;
         if (s->trim != 0.0 && s->n_buf > s->N_min) {
             /* interface_detector.py: keep the window's last N_min samples */
             long nb = (long)s->n_buf, Nm = (long)s->N_min;
@@ -339,7 +362,7 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
     }
     flag = (int)s->flag;
     if (s->relative != 0.0 && 1 <= flag && flag <= n && isnan(s->levels[flag - 1])
-            && s->quiet >= s->need && s->F_level >= min_of(s->floor, 0, n))
+            && s->quiet >= s->need && s->settled >= s->N_min && cut_level(s))
         check_level(s, t, x);
     if (s->armed == 0.0 && may_arm(s, x)) {
         s->armed = 1.0;
@@ -371,6 +394,8 @@ static void restart_after(Detector *s, int k)
     if (s->restart != 0.0 && k == (int)s->flag - 1 && k < n && s->armed == 0.0) {
         s->n_buf = 0.0;
         s->quiet = 0.0;
+        s->settled = 0.0;
+        s->steady = 0.0;
         s->need = s->N_min;
         s->trim = k + 1 < n ? 1.0 : 0.0;   /* interface_detector.py: not for the exit's test */
     }
