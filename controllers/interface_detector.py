@@ -438,14 +438,9 @@ class InterfaceDetector(KernelBlock, Block):
         self.feed_rate = float(feed_rate)
         self.time_margin = float(time_margin)
         self.fail_disarms = bool(fail_disarms)
-        if not (mismatch_factor == 0.0 or mismatch_factor > 1.0):
-            raise ValueError(f"InterfaceDetector: mismatch_factor must be 0 (off) or > 1, got {mismatch_factor!r}")
-        self.mismatch_factor = float(mismatch_factor)
+        self._set_factors(mismatch_factor, thd_noise_factor)
         self.restart = bool(restart)
         self.thd_min = float(thd_min)
-        if not thd_noise_factor >= 0.0:
-            raise ValueError(f"InterfaceDetector: thd_noise_factor must be >= 0 (0 = off), got {thd_noise_factor!r}")
-        self.thd_noise_factor = float(thd_noise_factor)
         self.entry_confirm = bool(entry_confirm)
         self.step_signs = _step_signs(step_signs, kc, n)
         self.relative = kc is not None
@@ -457,6 +452,15 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_exit_loc(exit_orbit_period, exit_loc_after)
         self.windows = self._windows()
         self.reset(0.0)
+
+    def _set_factors(self, mismatch_factor, thd_noise_factor) -> None:
+        """The materials check's and the noise threshold's factors, checked (0 = off)."""
+        if not (mismatch_factor == 0.0 or mismatch_factor > 1.0):
+            raise ValueError(f"InterfaceDetector: mismatch_factor must be 0 (off) or > 1, got {mismatch_factor!r}")
+        self.mismatch_factor = float(mismatch_factor)
+        if not thd_noise_factor >= 0.0:
+            raise ValueError(f"InterfaceDetector: thd_noise_factor must be >= 0 (0 = off), got {thd_noise_factor!r}")
+        self.thd_noise_factor = float(thd_noise_factor)
 
     def _set_window(self, N, N_min) -> None:
         """The regression window, growing from ``N_min`` to ``N`` samples after a reset, and
