@@ -122,6 +122,10 @@ CASES = {
     # ends it in air, where the locator places the event (event_locator.open_gap)
     "plan_short_loc_window": (dict(PLAN, max_gap=1.0 * MM, interface_loc_after=[0.5 * MM, 0.5 * MM]),
                               dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.8, 0.0))),
+    # issue 23 round 2: the middle layer's level half the plan's ratio (a worn first layer)
+    # behind a gap: the materials check waits past the gap's reach before it takes it
+    "plan_low_level_gap": (dict(PLAN, max_gap=1.5 * MM),
+                           dict(levels=(120.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.4, 0.0))),
     "plan_mismatch_fails": (dict(PLAN, thicknesses=(3 * MM, 2.5 * MM), kc=[1.2e7, 4.0e7], feed_per_rev=[5e-6, 4e-6],
                                  mismatch_factor=1.5),
                             dict(levels=(60.0, 500.0), thick_mm=(3.0, 2.5), gaps_mm=(0, 0))),
@@ -154,6 +158,8 @@ def test_c_step_is_bit_identical_to_the_python_step(case):
     if case == "plan_gap_confirm":
         assert dropped >= 1                      # the ringing made candidates, the confirmation dropped them
         assert math.isfinite(p.loc["interface1"][0]) and abs(p.loc["interface1"][0] - 4.2 * MM) < 0.25 * MM
+    if case == "plan_low_level_gap":             # the plateaus' ratio, not a gap's or a ramp's
+        assert p.levels[1] == pytest.approx(160.0, rel=0.1) and p.levels[0] == pytest.approx(120.0, rel=0.1)
     if case == "plan_short_loc_window":          # located in the part of the gap its window saw
         assert 4.0 * MM <= p.loc["interface1"][0] <= 4.8 * MM, p.loc["interface1"]
     if case == "table4_nan_thinning":

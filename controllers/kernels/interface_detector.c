@@ -197,10 +197,15 @@ static int cut_level(const Detector *s)
 static void check_level(Detector *s, double t, double x)
 {
     int k = (int)s->flag - 1;
-    s->levels[k] = s->F_level;
-    if (!(s->mismatch_factor > 0.0 && k >= 1 && s->levels[k - 1] > 0.0))
+    if (!(s->mismatch_factor > 0.0 && k >= 1 && s->levels[k - 1] > 0.0)) {
+        s->levels[k] = s->F_level;
         return;
-    double ratio = (s->levels[k] / s->levels[k - 1]) / (s->level_plan[k] / s->level_plan[k - 1]);
+    }
+    double ratio = (s->F_level / s->levels[k - 1]) / (s->level_plan[k] / s->level_plan[k - 1]);
+    /* interface_detector.py _past_gap: a level below the plan ratio may be a gap.s or a ramp.s: final past the gap */
+    if (ratio < 1.0 && !(x - s->x_last >= s->max_gap + s->locate_margin))
+        return;
+    s->levels[k] = s->F_level;
     s->mismatch = ratio;
     if (!(1.0 / s->mismatch_factor <= ratio && ratio <= s->mismatch_factor))
         set_fail(s, (int)s->n + 2, t, x);
