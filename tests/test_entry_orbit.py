@@ -90,3 +90,18 @@ def test_the_c_step_with_the_orbit_fit_is_bit_identical_to_the_python_step():
     _run_both(c, p, t, x, F)
     assert p.flag == p.n + 1 and not p.fail
     assert abs(p.loc["entry"][0] - 1.0 * MM) <= 0.05 * MM, p.loc["entry"]
+
+
+def test_the_exported_step_with_the_orbit_fit_agrees_with_the_in_process_step():
+    """The exported FMU's C fit (event_locator.c, its entry_period) gives the in-process
+    step's outputs."""
+    from test_detector_kernel import PLAN, _trace
+    from test_export_detector import _assert_agree, _exported_step
+    det = InterfaceDetector(**dict(PLAN, entry_span=1.0 / 1.3, entry_orbit_period=1.0 / 1.3))
+    exported = _exported_step(det)
+    t, x, F = _trace(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.4, 0.0),
+                     ringing=25.0, feed_mm_min=15.0)
+    ys = [det.step(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
+    ye = [exported(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
+    _assert_agree(det.output_names(), ys, ye)
+    assert det.flag == det.n + 1 and math.isfinite(det.loc["entry"][0])
