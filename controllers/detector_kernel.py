@@ -169,17 +169,18 @@ def export_data_size(N: int, N_min: int, history: int) -> int:
 def export_state_type(detector_type, n_data: int):
     """ctypes mirror of DetectorFMU (kernels/interface_detector_fmu.c) with ``n_data`` doubles
     of arrays: the Detector's fields, then the fit's constants, then the arrays."""
-    fields = list(detector_type._fields_) + [("observer_delay", _D), ("exit_period", _D), ("engage_lengths", _D * _C_TABLES["ENGAGE_LENGTHS"]),
+    fields = list(detector_type._fields_) + [("observer_delay", _D), ("exit_period", _D), ("entry_period", _D), ("engage_lengths", _D * _C_TABLES["ENGAGE_LENGTHS"]),
                                               ("engage_fine", _D * FINE_LENGTHS),
                                               ("push_out_lengths", _D * _C_TABLES["PUSH_OUT_LENGTHS"]), ("push_out_fine", _D * FINE_LENGTHS),
                                               ("data", _D * n_data)]
     return type("DetectorFMU", (ctypes.Structure,), {"_fields_": fields})
 
 
-def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0) -> ctypes.Structure:
+def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
+                 entry_period: float = 0.0) -> ctypes.Structure:
     """The exported FMU's state: the in-process C state ``state`` (a Detector) with its
     pointers cleared (the FMU sets them from its own memory at every step), the delay [s],
-    the exit fit's orbit [samples, 0: none], the fit's tables and ``arrays`` (weights,
+    the exit fit's orbit [samples, 0: none], the entry fit's [samples, 0: none], the fit's tables and ``arrays`` (weights,
     window, |F~| ring, history t, x, F) copied in."""
     data = np.concatenate([np.asarray(a, dtype=float) for a in arrays])
     T = export_state_type(type(state), data.size)
@@ -189,6 +190,7 @@ def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0)
         setattr(out, name, None)
     out.observer_delay = float(observer_delay)
     out.exit_period = float(exit_period)
+    out.entry_period = float(entry_period)
     tables = locator_tables()
     ctypes.memmove(ctypes.addressof(out) + T.engage_lengths.offset, tables.ctypes.data, tables.nbytes)
     ctypes.memmove(ctypes.addressof(out) + T.data.offset, data.ctypes.data, data.nbytes)
@@ -212,8 +214,9 @@ class ExportKernel:
     state_tail: int
 
 
-def export_kernel(state, observer_delay: float, arrays, exit_period: float = 0.0) -> ExportKernel:
+def export_kernel(state, observer_delay: float, arrays, exit_period: float = 0.0,
+                  entry_period: float = 0.0) -> ExportKernel:
     """The exported FMU's C step started from the in-process C ``state`` (see export_state)."""
-    s = export_state(state, observer_delay, arrays, exit_period)
+    s = export_state(state, observer_delay, arrays, exit_period, entry_period)
     return ExportKernel(_source(EXPORT_NAME + ".c"), "interface_detector_fmu_step", s,
                         tuple(_source(n) for n in EXPORT_SOURCES[1:]), type(s).data.size)

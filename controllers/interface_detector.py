@@ -121,6 +121,11 @@ MAX_INTERFACES = MAX_LAYERS - 1
 
 N_MAX = 2000     # samples of the regression window (40 s at dt = 0.02 s)
 HISTORY = 4096   # samples kept for the localisation (82 s at dt = 0.02 s: 1.6 mm windows at 1.2 mm/min)
+# the entry's fit window reaches this many locate_margins before the candidate (with the
+# orbit's sinusoid fitted; else it is around the confirmation): a candidate confirmed up to
+# 0.48 mm later left the surface before the window (project holes 4, 95, 128, 157, 170 of
+# the 200-hole draw, 0.26-0.56 mm late); 1.5-3 margins put replayed entries 0.1-0.7 mm high
+ENTRY_BACK = 1.0
 ENTRY_SWING = 5  # samples: an entry candidate is dropped once the mean of its last F~ is negative
 # an entry candidate needs F~ past this fraction of the entry threshold (issue 23): on a slow
 # feed the engagement ramp lasts longer than the regression window, which follows it, and F~
@@ -407,6 +412,7 @@ class InterfaceDetector(KernelBlock, Block):
         entry_confirm: bool = False,
         entry_ramp: float = 0.0,
         entry_span: float = 0.0,
+        entry_orbit_period: float = 0.0,
         step_signs: Sequence[float] | None = None,
         localise: bool = True,
         locate_margin: float = 0.3e-3,
@@ -446,7 +452,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.relative = kc is not None
         self._set_thresholds(kc, feed_per_rev, feed_per_rev_min, entry_fraction, step_fraction,
                              engage_fraction, thd_min, rearm_level)
-        self._set_entry_ramp(entry_ramp, entry_span)
+        self._set_entry_ramp(entry_ramp, entry_span, entry_orbit_period)
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
         self._set_loc_after(interface_loc_after)
         self._set_exit_loc(exit_orbit_period, exit_loc_after)
@@ -498,13 +504,15 @@ class InterfaceDetector(KernelBlock, Block):
         self.thd_min = float(thd_min)
         self.rearm_level = 0.5 * self.thd_min if rearm_level is None else float(rearm_level)
 
-    def _set_entry_ramp(self, entry_ramp, entry_span) -> None:
+    def _set_entry_ramp(self, entry_ramp, entry_span, entry_orbit_period=0.0) -> None:
         """Scale the entry threshold to what the regression shows of the entry's ramp: a
         tool that engages over ``entry_ramp`` seconds (its engagement length at the first
         layer's feed) raises the thrust as a ramp, whose F~ is ``ramp_gain`` of its height
         (issue 23: a Ti entry at 5.2 mm/min over ~0.38 mm, F~ 69 N against 252 N). The
-        confirmation's span ``entry_span`` [s] in samples (0: off)."""
-        for name, v in (("entry_ramp", entry_ramp), ("entry_span", entry_span)):
+        confirmation's span ``entry_span`` [s] in samples (0: off); the entry fit's orbit
+        period ``entry_orbit_period`` [s] (0: none)."""
+        for name, v in (("entry_ramp", entry_ramp), ("entry_span", entry_span),
+                        ("entry_orbit_period", entry_orbit_period)):
             if not (isinstance(v, (int, float)) and v >= 0.0):
                 raise ValueError(f"InterfaceDetector: {name} must be >= 0 s (0: off), got {v!r}")
         self.entry_ramp = float(entry_ramp)
@@ -516,6 +524,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.entry_level_gain = self.entry_gain if self.relative else 1.0
         if self.relative:
             self.thd_entry *= self.entry_gain
+        self.entry_orbit_period = float(entry_orbit_period)
 
     def _set_localisation(self, localise, locate_margin, push_out, observer_delay) -> None:
         """The localisation settings (``drillcosim.controllers.event_locator``), checked."""
@@ -933,6 +942,8 @@ class InterfaceDetector(KernelBlock, Block):
         uncertainty [m] (event_locator.locate on the history's samples with x in [lo, hi]
         when ``h_n`` had been written) and, for the entry, the mean thrust in air before it
         [N]. Both steps call it (the C step through a callback)."""
+        if k == 0 and ENTRY_BACK and self.entry_orbit_period > 0.0 and math.isfinite(self.x_ev[0]):
+            lo = min(lo, self.x_ev[0] - ENTRY_BACK * self.locate_margin)
         ht, hx, hF = self._history(h_n)
         # each force sample against where the tool was when the observer saw it
         xs = np.interp(ht - self.observer_delay, ht, hx) if self.observer_delay > 0 else hx
@@ -942,7 +953,7 @@ class InterfaceDetector(KernelBlock, Block):
         # below the engagement floor of both layers around it (Al's is the lowest)
         floor = min(self.floor[k - 1], self.floor[k]) if self.relative and kind == "interface" and \
             self.loc_after[k - 1] < self.max_gap + self.locate_margin else None
-        period = self._exit_period_samples() if kind == "exit" else None
+        period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period)
         F_air = NAN
         if k == 0 and math.isfinite(x_loc):
@@ -954,6 +965,11 @@ class InterfaceDetector(KernelBlock, Block):
             in_air = (xs >= lo_air) & (xs <= hi) & (xs < x_loc - 0.5 * self.locate_margin)
             F_air = float(np.mean(hF[in_air])) if in_air.any() else NAN
         return x_loc, time_at(ht, hx, x_loc), dx, F_air
+
+    def _entry_period_samples(self) -> float | None:
+        """The entry's fit with the first layer's orbit sinusoid (event_locator.onset_face):
+        its period [samples], None without one."""
+        return self.entry_orbit_period / self.sample_period if self.entry_orbit_period > 0.0 else None
 
     def _exit_period_samples(self) -> float | None:
         """The exit's fit on means over one orbit of the last layer (event_locator.free_face):
@@ -1040,6 +1056,7 @@ class InterfaceDetector(KernelBlock, Block):
         "locate_margin": ("m", "travel on either side of an event the localisation fits"),
         "push_out": ("m", "travel above the exit's trigger its fall may start"),
         "exit_period": ("1", "last layer's orbit period in samples: the exit's fit on means over one orbit (0: none)"),
+        "entry_period": ("1", "first layer's orbit period in samples: the entry's fit takes out its sinusoid (0: none)"),
         "max_gap": ("m", "widest gap between two layers"),
         "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
     }
@@ -1054,7 +1071,7 @@ class InterfaceDetector(KernelBlock, Block):
             raise RuntimeError("InterfaceDetector: export needs the C step (kernel = 'auto' or 'c')")
         arrays = (self._W_flat, self.buf, self._c_err, self.h_t, self.h_x, self.h_F)
         return detector_kernel.export_kernel(self.c_kernel.state, self.observer_delay, arrays,
-                                             self._exit_period_samples() or 0.0)
+                                             self._exit_period_samples() or 0.0, self._entry_period_samples() or 0.0)
 
     def _c_supports(self) -> bool:
         return (detector_kernel.blas_ddot() is not None and detector_kernel.sums_like_python()

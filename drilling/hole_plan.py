@@ -342,6 +342,9 @@ class HolePlan:
             # entries 0.2-0.4 mm above the surface on the wide draw), which a whole orbit
             # averages out
             "entry_span": 60.0 / self.layer_process(0)["orbital_speed"],
+            # the entry's fit takes the same orbit's sinusoid out of the observed thrust
+            # (the ringing in air, docs/stacks.md "Entry (round 2)")
+            "entry_orbit_period": 60.0 / self.layer_process(0)["orbital_speed"],
             "interface_loc_after": self.interface_loc_after(window_s),
         }
 

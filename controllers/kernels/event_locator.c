@@ -26,6 +26,8 @@
 #define LOC_ENTRY 0
 #define LOC_INTERFACE 1
 #define LOC_EXIT 2
+#define LOC_TWO_PI (2.0 * 3.141592653589793)   /* 2.0 * numpy.pi */
+#define LOC_MAX_COLS 5             /* onset: level, trend, ramp and the orbit's sine and cosine */
 
 #define LOC_PYMAX(a, b) ((b) > (a) ? (b) : (a))   /* Python's max(a, b) */
 #define LOC_PYMIN(a, b) ((b) < (a) ? (b) : (a))   /* Python's min(a, b) */
@@ -50,6 +52,7 @@ typedef struct {
     const double *Fs;
     long m;
     double *work;
+    double orbit;                  /* samples: the onset's sinusoid of this period (0: none; onset_face's period) */
 } LocFit;
 
 /* numpy's sum of a contiguous float64 array: pairwise, 8 accumulators per block of 128 */
@@ -127,16 +130,23 @@ static double loc_clip01(double u)
     return u < 0.0 ? 0.0 : u > 1.0 ? 1.0 : u;      /* NaN stays NaN, as numpy.clip */
 }
 
-/* the design's columns at one sample: onset d = (x - x0)/L -> 1, d, shape(d); push-out
- * r = (xb - x)/L, g = shape(r) -> g, r g (and 1 when the air level is fitted) */
-static int loc_columns(const LocFit *f, double face, double L, int shape, double xi, double *c)
+/* the design's columns at sample i: onset d = (x - x0)/L -> 1, d, shape(d) (and the orbit's
+ * sine and cosine at phase 2 pi i / orbit); push-out r = (xb - x)/L, g = shape(r) -> g, r g
+ * (and 1 when the air level is fitted) */
+static int loc_columns(const LocFit *f, double face, double L, int shape, long i, double *c)
 {
+    double xi = f->x[i];
     if (!f->push_out) {
         double d = (xi - face) / L, u = loc_clip01(d);
         c[0] = 1.0;
         c[1] = d;
         c[2] = shape == 0 ? u : u * u * (3.0 - 2.0 * u);
-        return 3;
+        if (f->orbit == 0.0)
+            return 3;
+        double phase = LOC_TWO_PI * (double)i / f->orbit;     /* numpy: 2.0 * np.pi * arange(n) / period */
+        c[3] = sin(phase);
+        c[4] = cos(phase);
+        return 5;
     }
     double r = (face - xi) / L, u = loc_clip01(r), g = shape == 0 ? u : u * u;
     c[0] = g;
@@ -165,8 +175,8 @@ static long loc_orbit_mean(const double *a, long n, double period, double *S, do
     return n - 2 * K;
 }
 
-/* solve M a = r (k <= 3) by Gaussian elimination with partial pivoting, as LAPACK's gesv */
-static void loc_solve(double M[3][3], double *r, int k)
+/* solve M a = r (k <= LOC_MAX_COLS) by Gaussian elimination with partial pivoting, as LAPACK's gesv */
+static void loc_solve(double M[LOC_MAX_COLS][LOC_MAX_COLS], double *r, int k)
 {
     for (int j = 0; j < k; j++) {
         int p = j;
@@ -199,11 +209,12 @@ static void loc_solve(double M[3][3], double *r, int k)
 
 /* the normal equations of the fit on means over one orbit (free_face with a period): each
  * column at every sample, its orbit mean, then M = C C^T and r = C Fs over the m samples */
-static void loc_orbit_columns(const LocFit *f, double face, double L, int shape, double M[3][3], double *r, int *k)
+static void loc_orbit_columns(const LocFit *f, double face, double L, int shape, double M[LOC_MAX_COLS][LOC_MAX_COLS],
+                              double *r, int *k)
 {
-    double c[3], *col = f->work, *S = col + 3 * f->n, *mean = S + f->n + 1;
+    double c[LOC_MAX_COLS], *col = f->work, *S = col + 3 * f->n, *mean = S + f->n + 1;
     for (long i = 0; i < f->n; i++) {
-        *k = loc_columns(f, face, L, shape, f->x[i], c);
+        *k = loc_columns(f, face, L, shape, i, c);
         for (int a = 0; a < *k; a++)
             col[a * f->n + i] = c[a];
     }
@@ -225,14 +236,14 @@ static void loc_orbit_columns(const LocFit *f, double face, double L, int shape,
  * column that vanishes only drops out (the ridge of 1e-9 of the trace) */
 static double loc_sse(const LocFit *f, double face, double L, int shape, double FF)
 {
-    double M[3][3] = {{0}}, r[3] = {0}, coef[3], c[3];
+    double M[LOC_MAX_COLS][LOC_MAX_COLS] = {{0}}, r[LOC_MAX_COLS] = {0}, coef[LOC_MAX_COLS], c[LOC_MAX_COLS];
     int k = 3;
     if (f->period > 1.0) {
         loc_orbit_columns(f, face, L, shape, M, r, &k);
     } else {
         for (long i = 0; i < f->n; i++) {
             double Fi = f->F[i] - (isnan(f->air) ? 0.0 : f->air);
-            k = loc_columns(f, face, L, shape, f->x[i], c);
+            k = loc_columns(f, face, L, shape, i, c);
             for (int a = 0; a < k; a++) {
                 r[a] += c[a] * Fi;
                 for (int b = 0; b < k; b++)
@@ -453,7 +464,8 @@ static void loc_exit(LocFit *f, double period, double x0, double x1, double *x_l
 /* event_locator.locate: position [m] and uncertainty [m] of an event of ``kind`` from
  * samples x [m] (increasing), F [N]; NaN when there are too few. cut_floor [N]: NaN, or an
  * interface window cut short to a thin layer below (event_locator.floor_gap); period
- * [samples]: the exit's fit on means over one orbit (<= 1: none; locate's period) */
+ * [samples]: the exit's fit on means over one orbit, the entry's fits the orbit's sinusoid
+ * too (<= 1: none; locate's period) */
 void event_locate(int kind, const double *x_in, const double *F_in, long n_in, double air, double x_trig,
                   double cut_floor, double period, const LocGrid *engage, const LocGrid *push, double *x_loc,
                   double *dx)
@@ -475,7 +487,9 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
         return;
     }
     double x0 = x[0], x1 = x[n - 1];
-    LocFit onset = {x, F, n, 0, NAN, engage, 0.0, NULL, 0, NULL}, exit_ = {x, F, n, 1, NAN, push, 0.0, NULL, 0, NULL};
+    LocFit onset = {x, F, n, 0, NAN, engage, 0.0, NULL, 0, NULL, 0.0}, exit_ = {x, F, n, 1, NAN, push, 0.0, NULL, 0, NULL, 0.0};
+    if (kind == LOC_ENTRY && period > 1.0 && period <= (double)n)
+        onset.orbit = period;       /* event_locator.locate: the entry's window holds one orbit */
     if (kind == LOC_EXIT)
         loc_exit(&exit_, period, x0, x1, x_loc, dx);
     else if (kind == LOC_INTERFACE && loc_air_run(F, n, air, scratch, &g0, &g1))

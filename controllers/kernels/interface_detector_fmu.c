@@ -14,6 +14,7 @@
  * it at every step. Mirrored by controllers/detector_kernel.py:export_state_type.
  */
 #define DETECTOR_SELF_CONTAINED 1
+#define DET_ENTRY_BACK 1.0   /* interface_detector.ENTRY_BACK: margins before the entry candidate the fit reaches */
 #include "event_locator.c"
 #include "interface_detector.c"
 
@@ -21,6 +22,7 @@ typedef struct {
     Detector d;
     double observer_delay;                        /* s, the observer's lag (the fit's positions) */
     double exit_period;                           /* samples, the last layer's orbit (the exit's fit) */
+    double entry_period;                          /* samples, the first layer's orbit (the entry's fit; 0: none) */
     double engage_lengths[LOC_N_ENGAGE];          /* m, event_locator.ENGAGE_LENGTHS */
     double engage_fine[LOC_N_FINE];               /* around the best engage length */
     double push_out_lengths[LOC_N_PUSH_OUT];      /* m, event_locator.PUSH_OUT_LENGTHS */
@@ -136,6 +138,8 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     if (t == NULL)
         return;
     double *x = t + DET_HISTORY, *F = x + DET_HISTORY, *xs = F + DET_HISTORY, *xsel = xs + DET_HISTORY;
+    if (k == 0 && s->entry_period > 0.0 && isfinite(d->x_ev[0]))    /* the window reaches back to the candidate */
+        lo = LOC_PYMIN(lo, d->x_ev[0] - DET_ENTRY_BACK * d->locate_margin);
     double *Fsel = xsel + DET_HISTORY;
     long n = detector_history(s, h_n, t, x, F, xs), m = 0;
     for (long j = 0; j < n; j++)
@@ -150,7 +154,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
      * the engagement floor of both layers around it (InterfaceDetector._fit) */
     double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0 && d->loc_after[k - 1] < d->max_gap + d->locate_margin
         ? LOC_PYMIN(d->floor[k - 1], d->floor[k]) : NAN;
-    double period = kind == LOC_EXIT ? s->exit_period : 0.0;
+    double period = kind == LOC_EXIT ? s->exit_period : kind == LOC_ENTRY ? s->entry_period : 0.0;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, &engage, &push, &out[0], &out[2]);
     if (k == 0 && isfinite(out[0])) {
         long a = 0;         /* the samples in air before the entry, in the window (with a span: from a margin of air) */
