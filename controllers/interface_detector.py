@@ -726,6 +726,11 @@ class InterfaceDetector(KernelBlock, Block):
         """Mean thrust [N] of the history's samples j0..j1-1 (counted since the reset)."""
         return sum(self.h_F[np.arange(j0, j1) % HISTORY].tolist()) / (j1 - j0)
 
+    def _hist_var(self, j0: int, j1: int, mean: float) -> float:
+        """Mean square deviation [N^2] from ``mean`` of the history's samples j0..j1-1."""
+        d = self.h_F[np.arange(j0, j1) % HISTORY] - mean
+        return sum((d * d).tolist()) / (j1 - j0)
+
     def _entry_air(self, F_pred: float) -> float:
         """The air level [N] an entry candidate (the latest sample) is confirmed against:
         F^ there, or with ``entry_span`` the mean thrust of the entry_P samples before it.
@@ -996,7 +1001,10 @@ class InterfaceDetector(KernelBlock, Block):
         draw project holes 22 and 55), |F~| is never quiet for N_min samples and the exit was
         missed; over one orbit that ringing averages out, a cut level stays. The level must
         also reach thd_min (the exit's least drop): in a gap the orbit means of the decaying
-        ringing stay within +-6 N (hole 55), above a 2.4 N Al floor. It lags F's own
+        ringing stay within +-6 N (hole 55), above a 2.4 N Al floor; and the thrust's spread
+        over the orbit (rms about M) must stay below the level: after a 2400 N Ti plateau the
+        ringing (+-300 N, hole 60) left orbit means of 9-15 N, steady enough, whose exit
+        then fired 2.8 mm early; a level above the ringing's rms is no residue of it. It lags F's own
         test by about half an orbit, so where both are armed F's fires first."""
         P = self.exit_P
         if self.h_n - self.h_event < 2 * P:
@@ -1007,7 +1015,8 @@ class InterfaceDetector(KernelBlock, Block):
                 return
             M0 = self._hist_mean(self.h_n - 2 * P, self.h_n - P)
             if not (min(M, M0) >= max(self.floor[self.n - 1], self.thd_min)
-                    and abs(M - M0) < max(self.rearm_level, LEVEL_STEADY * M)):
+                    and abs(M - M0) < max(self.rearm_level, LEVEL_STEADY * M)
+                    and self._hist_var(self.h_n - P, self.h_n, M) < M * M):
                 return
         self.orb_ref = M if math.isnan(self.orb_ref) else max(self.orb_ref, M)
         if M < self.exit_ratio * self.orb_ref:

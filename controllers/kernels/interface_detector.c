@@ -243,6 +243,17 @@ static double hist_mean(const Detector *s, double j0, double j1)
     return py_sum_end(f, c) / (j1 - j0);
 }
 
+/* interface_detector.py _hist_var: mean square deviation from mean of the samples j0..j1-1 */
+static double hist_var(const Detector *s, double j0, double j1, double mean)
+{
+    double f = 0.0, c = 0.0;
+    for (long j = (long)j0; j < (long)j1; j++) {
+        double d = s->h_F[j % DET_HISTORY] - mean;
+        py_sum_add(s, &f, &c, d * d);
+    }
+    return py_sum_end(f, c) / (j1 - j0);
+}
+
 /* interface_detector.py _entry_air: the air level a candidate (the latest sample) is confirmed against */
 static double entry_air(const Detector *s, double F_pred)
 {
@@ -342,7 +353,8 @@ static void exit_orbit(Detector *s, double t, double x)
             return;
         M0 = hist_mean(s, s->h_n - 2.0 * P, s->h_n - P);
         if (!(MIN(M, M0) >= MAX(s->floor[(int)s->n - 1], s->thd_min)
-              && fabs(M - M0) < MAX(s->rearm_level, DET_LEVEL_STEADY * M)))
+              && fabs(M - M0) < MAX(s->rearm_level, DET_LEVEL_STEADY * M)
+              && hist_var(s, s->h_n - P, s->h_n, M) < M * M))
             return;
     }
     s->orb_ref = isnan(s->orb_ref) ? M : MAX(s->orb_ref, M);
