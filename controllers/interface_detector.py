@@ -141,6 +141,10 @@ LEVEL_SETTLED = 0.1
 # the ringing, fired there (a false interface 1.7 mm into the Al); half the level still lets Al's
 # plateau arm under the 5-10 N of orbital ripple the observer leaves on the foreign drives (hole 52)
 LEVEL_STEADY = 0.5
+# the exit's orbit test arms once two successive orbit means agree within this fraction of the
+# later one: the quadratic push-out of a Ti layer above Al (foreign drive) falls over ~0.8 mm,
+# and its orbit means, 127 -> 85 N, passed LEVEL_STEADY's half (hole 140: a false exit 4.9 mm early)
+ORBIT_STEADY = 0.1
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
                   ("t", "s", "time the encoder passed the located position"),
@@ -994,7 +998,8 @@ class InterfaceDetector(KernelBlock, Block):
     def _exit_orbit(self, t: float, x: float) -> None:
         """The exit's thinning test on the mean thrust over the last orbit (exit_P samples),
         beside the test on F~'s quiet samples: it arms once two successive orbit means after
-        the last event are both above the last layer's floor and agree within LEVEL_STEADY
+        the last event, inside the exit's window, are both above the last layer's floor, agree
+        within ORBIT_STEADY and fit the plan's level (:meth:`_orbit_level_fits`)
         (one orbit of the new layer is in), and fires once the orbit mean falls below
         exit_ratio of its highest value since. Why: after a Ti -> Al drop the observer rings
         at the orbit (+-15-20 N about a 30 N Al plateau for the whole of a 1.3 mm layer, wide
@@ -1007,7 +1012,7 @@ class InterfaceDetector(KernelBlock, Block):
         then fired 2.8 mm early; a level above the ringing's rms is no residue of it. It lags F's own
         test by about half an orbit, so where both are armed F's fires first."""
         P = self.exit_P
-        if self.h_n - self.h_event < 2 * P:
+        if self.h_n - self.h_event < 2 * P or self.windows is not None and x < self.windows[self.n][0]:
             return
         M = self._hist_mean(self.h_n - P, self.h_n)
         if math.isnan(self.orb_ref):
@@ -1015,14 +1020,26 @@ class InterfaceDetector(KernelBlock, Block):
                 return
             M0 = self._hist_mean(self.h_n - 2 * P, self.h_n - P)
             if not (min(M, M0) >= max(self.floor[self.n - 1], self.thd_min)
-                    and abs(M - M0) < max(self.rearm_level, LEVEL_STEADY * M)
-                    and self._hist_var(self.h_n - P, self.h_n, M) < M * M):
+                    and abs(M - M0) < max(self.rearm_level, ORBIT_STEADY * M)
+                    and self._hist_var(self.h_n - P, self.h_n, M) < M * M and self._orbit_level_fits(M)):
                 return
         self.orb_ref = M if math.isnan(self.orb_ref) else max(self.orb_ref, M)
         if M < self.exit_ratio * self.orb_ref:
             if math.isnan(self.t_thin):
                 self.t_thin, self.x_thin = t, x
             self._event(self.n, t, x)
+
+    def _orbit_level_fits(self, M: float) -> bool:
+        """Whether an orbit mean M [N] may be the last layer's level: with the materials check,
+        at most mismatch_factor above what the plan's ratio makes of the layer above's observed
+        level. Why: an interface found early on a slow push-out (the foreign drive's Ti above
+        Al, hole 100: 0.28 mm early at a 5 Hz orbit) leaves the upper layer's falling thrust,
+        412 -> 379 N over an orbit, which armed the test on a Ti level and fired a false exit
+        on the fall to Al's 40 N."""
+        k = self.n - 1
+        if not (self.mismatch_factor > 0.0 and k >= 1 and self.levels[k - 1] > 0.0):
+            return True
+        return M <= self.mismatch_factor * self.levels[k - 1] * self.level_plan[k] / self.level_plan[k - 1]
 
     def _may_arm(self, x: float) -> bool:
         """Whether the next event's test may arm now. The entry test: with a nominal stack,

@@ -28,6 +28,7 @@
 #define DET_ENTRY_CANDIDATE 0.5              /* interface_detector.py ENTRY_CANDIDATE */
 #define DET_LEVEL_SETTLED 0.1                /* interface_detector.py LEVEL_SETTLED */
 #define DET_LEVEL_STEADY 0.5                 /* interface_detector.py LEVEL_STEADY */
+#define DET_ORBIT_STEADY 0.1                 /* interface_detector.py ORBIT_STEADY */
 #define DET_N_OUT 48
 
 typedef double (*dot_fn)(long n, const double *x, long incx, const double *y, long incy);
@@ -341,11 +342,20 @@ static void exit_tests(Detector *s, double t, double x, double F, double F_pred,
     }
 }
 
+/* interface_detector.py _orbit_level_fits: 1 when M may be the last layer's level */
+static int orbit_level_fits(const Detector *s, double M)
+{
+    int k = (int)s->n - 1;
+    if (!(s->mismatch_factor > 0.0 && k >= 1 && s->levels[k - 1] > 0.0))
+        return 1;
+    return M <= s->mismatch_factor * s->levels[k - 1] * s->level_plan[k] / s->level_plan[k - 1];
+}
+
 /* interface_detector.py _exit_orbit: the exit's thinning test on the mean over the last orbit */
 static void exit_orbit(Detector *s, double t, double x)
 {
     double P = s->exit_P, M, M0;
-    if (s->h_n - s->h_event < 2.0 * P)
+    if (s->h_n - s->h_event < 2.0 * P || (s->has_windows != 0.0 && x < s->win_lo[(int)s->n]))
         return;
     M = hist_mean(s, s->h_n - P, s->h_n);
     if (isnan(s->orb_ref)) {
@@ -353,8 +363,8 @@ static void exit_orbit(Detector *s, double t, double x)
             return;
         M0 = hist_mean(s, s->h_n - 2.0 * P, s->h_n - P);
         if (!(MIN(M, M0) >= MAX(s->floor[(int)s->n - 1], s->thd_min)
-              && fabs(M - M0) < MAX(s->rearm_level, DET_LEVEL_STEADY * M)
-              && hist_var(s, s->h_n - P, s->h_n, M) < M * M))
+              && fabs(M - M0) < MAX(s->rearm_level, DET_ORBIT_STEADY * M)
+              && hist_var(s, s->h_n - P, s->h_n, M) < M * M && orbit_level_fits(s, M)))
             return;
     }
     s->orb_ref = isnan(s->orb_ref) ? M : MAX(s->orb_ref, M);
