@@ -146,6 +146,10 @@ LEVEL_SETTLED = 0.1
 # the ringing, fired there (a false interface 1.7 mm into the Al); half the level still lets Al's
 # plateau arm under the 5-10 N of orbital ripple the observer leaves on the foreign drives (hole 52)
 LEVEL_STEADY = 0.5
+# the exit's orbit test arms once two successive orbit means agree within this fraction of the
+# later one: the quadratic push-out of a Ti layer above Al (foreign drive) falls over ~0.8 mm,
+# and its orbit means, 127 -> 85 N, passed LEVEL_STEADY's half (hole 140: a false exit 4.9 mm early)
+ORBIT_STEADY = 0.1
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
                   ("t", "s", "time the encoder passed the located position"),
@@ -352,6 +356,10 @@ class InterfaceDetector(KernelBlock, Block):
         (``event_locator.free_face``: the observer's ripple estimate outlives the thrust
         at the exit and its ghost was fitted as the end of the fall); 0 (default): the
         samples as they are.
+    exit_orbit_arm [s]: the last layer's orbit period; > 0 (process-following thresholds
+        and the thinning criterion): the exit's thinning test also runs on the mean thrust
+        over one orbit, armed on two steady orbit means of the last layer
+        (:meth:`_exit_orbit`: a thin last layer under the observer's ringing); 0 (default): off.
     exit_loc_after [m]: travel after the exit's trigger its localisation window holds
         (default locate_margin; the hole plan adds half an orbit of the last layer's feed:
         the orbit means of the last half orbit need the samples after it).
@@ -423,6 +431,7 @@ class InterfaceDetector(KernelBlock, Block):
         interface_loc_after: Sequence[float] | None = None,
         exit_orbit_period: float = 0.0,
         exit_loc_after: float | None = None,
+        exit_orbit_arm: float = 0.0,
     ):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
@@ -456,6 +465,7 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
         self._set_loc_after(interface_loc_after)
         self._set_exit_loc(exit_orbit_period, exit_loc_after)
+        self._set_exit_arm(exit_orbit_arm)
         self.windows = self._windows()
         self.reset(0.0)
 
@@ -564,6 +574,19 @@ class InterfaceDetector(KernelBlock, Block):
             raise ValueError(f"InterfaceDetector: exit_loc_after must be >= locate_margin ({self.locate_margin:g} m), "
                              f"got {loc_after!r}")
 
+    def _set_exit_arm(self, orbit) -> None:
+        """The exit's thinning test on orbit means: ``orbit`` [s] the last layer's orbit
+        period in samples (exit_P, 0: off), checked."""
+        if not (isinstance(orbit, (int, float)) and orbit >= 0.0):
+            raise ValueError(f"InterfaceDetector: exit_orbit_arm must be >= 0 s (the last layer's orbit period; "
+                             f"0: off), got {orbit!r}")
+        self.exit_P = int(round(orbit / self.sample_period))
+        if orbit > 0.0 and not (self.relative and self.exit_criterion == "thinning" and 2 <= self.exit_P
+                                and 2 * self.exit_P <= HISTORY // 4):
+            raise ValueError("InterfaceDetector: exit_orbit_arm needs process-following thresholds (kc), "
+                             f"exit_criterion 'thinning' and an orbit of 2 to {HISTORY // 8} samples "
+                             f"({2 * self.sample_period:g} to {HISTORY // 8 * self.sample_period:g} s), got {orbit!r} s")
+
     def loc_window(self, k: int) -> tuple[float, float]:
         """Travel [m] (before, after) the trigger of event k (0 entry, 1..n-1 interface
         k, n exit) whose samples the localisation fits: an interface may have a gap of up
@@ -607,6 +630,8 @@ class InterfaceDetector(KernelBlock, Block):
         self.F_ref = NAN
         self.drop = False           # paper drop condition met in the last layer
         self.exit_armed = False     # the last layer's (exit) tests have been armed once
+        self.h_event = 0            # samples written when the last event fired
+        self.orb_ref = NAN          # highest orbit mean since the exit's orbit test armed (NaN: not armed)
         self.quiet = 0              # consecutive samples with |F~| < rearm level
         self.settled = 0            # ... and below LEVEL_SETTLED of the level (the materials check)
         self.steady = 0             # ... and below LEVEL_STEADY of the level (an interface test's arming)
@@ -727,6 +752,11 @@ class InterfaceDetector(KernelBlock, Block):
         """Mean thrust [N] of the history's samples j0..j1-1 (counted since the reset)."""
         return sum(self.h_F[np.arange(j0, j1) % HISTORY].tolist()) / (j1 - j0)
 
+    def _hist_var(self, j0: int, j1: int, mean: float) -> float:
+        """Mean square deviation [N^2] from ``mean`` of the history's samples j0..j1-1."""
+        d = self.h_F[np.arange(j0, j1) % HISTORY] - mean
+        return sum((d * d).tolist()) / (j1 - j0)
+
     def _entry_air(self, F_pred: float) -> float:
         """The air level [N] an entry candidate (the latest sample) is confirmed against:
         F^ there, or with ``entry_span`` the mean thrust of the entry_P samples before it.
@@ -772,6 +802,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.trim = False
         self.need = self.rearm_samples
         self.t_last, self.x_last = t, x
+        self.h_event = self.h_n
         if self.localise:
             self.pending.append((k, x, self.h_n if i_hist is None else i_hist))
         if self.windows is not None and x < self.windows[k][0]:
@@ -874,6 +905,8 @@ class InterfaceDetector(KernelBlock, Block):
                 self.exit_armed = True
                 self.thd = -self._thd_exit(self.F_level)
                 self._exit_tests(t, x, F, F_pred, e)
+        if self.exit_P and self.flag == self.n:
+            self._exit_orbit(t, x)
         # shift the regression window (oldest first)
         if self.n_buf < self.N:
             self.buf[self.n_buf] = F
@@ -991,6 +1024,52 @@ class InterfaceDetector(KernelBlock, Block):
             if self.exit_criterion == "thinning" and self.flag == self.n:
                 self._event(self.n, t, x)
 
+    def _exit_orbit(self, t: float, x: float) -> None:
+        """The exit's thinning test on the mean thrust over the last orbit (exit_P samples),
+        beside the test on F~'s quiet samples: it arms once two successive orbit means after
+        the last event, inside the exit's window, are both above the last layer's floor, agree
+        within ORBIT_STEADY and fit the plan's level (:meth:`_orbit_level_fits`)
+        (one orbit of the new layer is in), and fires once the orbit mean falls below
+        exit_ratio of its highest value since. Why: after a Ti -> Al drop the observer rings
+        at the orbit (+-15-20 N about a 30 N Al plateau for the whole of a 1.3 mm layer, wide
+        draw project holes 22 and 55), |F~| is never quiet for N_min samples and the exit was
+        missed; over one orbit that ringing averages out, a cut level stays. The level must
+        also reach thd_min (the exit's least drop): in a gap the orbit means of the decaying
+        ringing stay within +-6 N (hole 55), above a 2.4 N Al floor; and the thrust's spread
+        over the orbit (rms about M) must stay below the level: after a 2400 N Ti plateau the
+        ringing (+-300 N, hole 60) left orbit means of 9-15 N, steady enough, whose exit
+        then fired 2.8 mm early; a level above the ringing's rms is no residue of it. It lags F's own
+        test by about half an orbit, so where both are armed F's fires first."""
+        P = self.exit_P
+        if self.h_n - self.h_event < 2 * P or self.windows is not None and x < self.windows[self.n][0]:
+            return
+        M = self._hist_mean(self.h_n - P, self.h_n)
+        if math.isnan(self.orb_ref):
+            if self.fail and self.fail_disarms:
+                return
+            M0 = self._hist_mean(self.h_n - 2 * P, self.h_n - P)
+            if not (min(M, M0) >= max(self.floor[self.n - 1], self.thd_min)
+                    and abs(M - M0) < max(self.rearm_level, ORBIT_STEADY * M)
+                    and self._hist_var(self.h_n - P, self.h_n, M) < M * M and self._orbit_level_fits(M)):
+                return
+        self.orb_ref = M if math.isnan(self.orb_ref) else max(self.orb_ref, M)
+        if M < self.exit_ratio * self.orb_ref:
+            if math.isnan(self.t_thin):
+                self.t_thin, self.x_thin = t, x
+            self._event(self.n, t, x)
+
+    def _orbit_level_fits(self, M: float) -> bool:
+        """Whether an orbit mean M [N] may be the last layer's level: with the materials check,
+        at most mismatch_factor above what the plan's ratio makes of the layer above's observed
+        level. Why: an interface found early on a slow push-out (the foreign drive's Ti above
+        Al, hole 100: 0.28 mm early at a 5 Hz orbit) leaves the upper layer's falling thrust,
+        412 -> 379 N over an orbit, which armed the test on a Ti level and fired a false exit
+        on the fall to Al's 40 N."""
+        k = self.n - 1
+        if not (self.mismatch_factor > 0.0 and k >= 1 and self.levels[k - 1] > 0.0):
+            return True
+        return M <= self.mismatch_factor * self.levels[k - 1] * self.level_plan[k] / self.level_plan[k - 1]
+
     def _may_arm(self, x: float) -> bool:
         """Whether the next event's test may arm now. The entry test: with a nominal stack,
         once the tool is inside the entry window (above it the observer's start-up and the
@@ -1092,7 +1171,7 @@ class InterfaceDetector(KernelBlock, Block):
              thd_entry=getattr(self, "thd_entry", 0.0), exit_gain=getattr(self, "exit_gain", 0.0),
              localise=self.localise, locate_margin=self.locate_margin, push_out=self.push_out,
              max_gap=self.max_gap, py_sum_comp=detector_kernel.PY_SUM_COMPENSATED, exit_after=self.exit_after,
-             entry_P=self.entry_P, entry_gain=self.entry_level_gain)
+             entry_P=self.entry_P, entry_gain=self.entry_level_gain, exit_P=self.exit_P)
         c.loc_after[:n - 1] = self.loc_after
         if self.windows is not None:
             c.win_lo[:n + 1] = [float(w[0]) for w in self.windows]
@@ -1145,8 +1224,8 @@ class InterfaceDetector(KernelBlock, Block):
 
 
 # the C step's state readable as the Python step's attributes (InterfaceDetector.__getattr__)
-_C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n fail fail_code".split()},
+_C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n fail fail_code h_event".split()},
               **{name: bool for name in "armed drop exit_armed trim entry_rs".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last "
-                                         "F_pred F_err F_level thd F_air mismatch".split()}}
+                                         "F_pred F_err F_level thd F_air mismatch orb_ref".split()}}
 _C_LISTS = ("t_ev", "x_ev", "levels", "loc", "pending", "cand", "err_hist", "cand_F", "cand_e")

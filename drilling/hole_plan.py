@@ -345,6 +345,10 @@ class HolePlan:
             # the entry's fit takes the same orbit's sinusoid out of the observed thrust
             # (the ringing in air, docs/stacks.md "Entry (round 2)")
             "entry_orbit_period": 60.0 / self.layer_process(0)["orbital_speed"],
+            # the exit's thinning test also runs on means over one orbit of the last layer: a
+            # thin last layer under the observer's ringing after a Ti -> Al drop has no quiet
+            # F~ to arm on (issue 23, round 2: missed exits of the wide draw)
+            "exit_orbit_arm": 60.0 / self.layer_process(len(self.layers) - 1)["orbital_speed"],
             "interface_loc_after": self.interface_loc_after(window_s),
         }
 

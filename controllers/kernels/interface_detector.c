@@ -28,6 +28,7 @@
 #define DET_ENTRY_CANDIDATE 0.5              /* interface_detector.py ENTRY_CANDIDATE */
 #define DET_LEVEL_SETTLED 0.1                /* interface_detector.py LEVEL_SETTLED */
 #define DET_LEVEL_STEADY 0.5                 /* interface_detector.py LEVEL_STEADY */
+#define DET_ORBIT_STEADY 0.1                 /* interface_detector.py ORBIT_STEADY */
 #define DET_N_OUT 48
 
 typedef double (*dot_fn)(long n, const double *x, long incx, const double *y, long incy);
@@ -45,6 +46,8 @@ typedef struct {
     double entry_P;             /* entry confirmation span [samples] (0: N_min, mean since the candidate) */
     double entry_gain;          /* the entry threshold's ramp_gain (its level test divides it out) */
     double entry_rs;            /* state: restarted after the entry before it was located */
+    double exit_P;              /* the exit's orbit test: the last layer's orbit [samples] (0: off) */
+    double h_event, orb_ref;    /* state: samples written at the last event; its highest orbit mean */
     /* state */
     double n_buf, flag, t_ev[DET_EVENTS], x_ev[DET_EVENTS], t_paper, x_paper, t_thin, x_thin, F_ref;
     double drop, exit_armed, quiet, need, err_n, err_pos;
@@ -225,6 +228,7 @@ static void event(Detector *s, int k, double t, double x, double i_hist)
     s->need = s->rearm_samples;
     s->t_last = t;
     s->x_last = x;
+    s->h_event = s->h_n;
     if (s->localise != 0.0) {
         int j = (int)s->n_pending;
         s->pend_k[j] = k;
@@ -242,6 +246,17 @@ static double hist_mean(const Detector *s, double j0, double j1)
     double f = 0.0, c = 0.0;
     for (long j = (long)j0; j < (long)j1; j++)
         py_sum_add(s, &f, &c, s->h_F[j % DET_HISTORY]);
+    return py_sum_end(f, c) / (j1 - j0);
+}
+
+/* interface_detector.py _hist_var: mean square deviation from mean of the samples j0..j1-1 */
+static double hist_var(const Detector *s, double j0, double j1, double mean)
+{
+    double f = 0.0, c = 0.0;
+    for (long j = (long)j0; j < (long)j1; j++) {
+        double d = s->h_F[j % DET_HISTORY] - mean;
+        py_sum_add(s, &f, &c, d * d);
+    }
     return py_sum_end(f, c) / (j1 - j0);
 }
 
@@ -329,6 +344,41 @@ static void exit_tests(Detector *s, double t, double x, double F, double F_pred,
         s->x_thin = x;
         if (s->exit_thinning != 0.0 && (int)s->flag == n)
             event(s, n, t, x, -1.0);
+    }
+}
+
+/* interface_detector.py _orbit_level_fits: 1 when M may be the last layer's level */
+static int orbit_level_fits(const Detector *s, double M)
+{
+    int k = (int)s->n - 1;
+    if (!(s->mismatch_factor > 0.0 && k >= 1 && s->levels[k - 1] > 0.0))
+        return 1;
+    return M <= s->mismatch_factor * s->levels[k - 1] * s->level_plan[k] / s->level_plan[k - 1];
+}
+
+/* interface_detector.py _exit_orbit: the exit's thinning test on the mean over the last orbit */
+static void exit_orbit(Detector *s, double t, double x)
+{
+    double P = s->exit_P, M, M0;
+    if (s->h_n - s->h_event < 2.0 * P || (s->has_windows != 0.0 && x < s->win_lo[(int)s->n]))
+        return;
+    M = hist_mean(s, s->h_n - P, s->h_n);
+    if (isnan(s->orb_ref)) {
+        if (s->fail != 0.0 && s->fail_disarms != 0.0)
+            return;
+        M0 = hist_mean(s, s->h_n - 2.0 * P, s->h_n - P);
+        if (!(MIN(M, M0) >= MAX(s->floor[(int)s->n - 1], s->thd_min)
+              && fabs(M - M0) < MAX(s->rearm_level, DET_ORBIT_STEADY * M)
+              && hist_var(s, s->h_n - P, s->h_n, M) < M * M && orbit_level_fits(s, M)))
+            return;
+    }
+    s->orb_ref = isnan(s->orb_ref) ? M : MAX(s->orb_ref, M);
+    if (M < s->exit_ratio * s->orb_ref) {
+        if (isnan(s->t_thin)) {
+            s->t_thin = t;
+            s->x_thin = x;
+        }
+        event(s, (int)s->n, t, x, -1.0);
     }
 }
 
@@ -530,6 +580,8 @@ void interface_detector_step(Detector *s, double t, const double *u, double *y)
         tests(s, t, x, F, DET_DOT(s, nb, w));
         nb = (long)s->n_buf;    /* the tests may have trimmed the window */
     }
+    if (s->exit_P != 0.0 && (int)s->flag == (int)s->n)
+        exit_orbit(s, t, x);
     if (nb < N) {               /* shift the regression window (oldest first) */
         s->buf[nb] = F;
         s->n_buf = nb + 1;
