@@ -249,6 +249,12 @@ def _checked_table4(thd1, thd2, thd3, exit_criterion, exit_ratio, thicknesses) -
     return thicknesses
 
 
+def _check_seconds(name: str, v, meaning: str) -> None:
+    """A duration setting [s]: a number >= 0 (``meaning`` says what it is and what 0 does)."""
+    if not (isinstance(v, (int, float)) and v >= 0.0):
+        raise ValueError(f"InterfaceDetector: {name} must be >= 0 s ({meaning}), got {v!r}")
+
+
 def _step_signs(step_signs, kc, n: int) -> list[float]:
     """Per interface +1 (the next layer cuts harder) or -1; default from the plan's ``kc``
     when given, else Fang's stack (a harder layer below)."""
@@ -523,8 +529,7 @@ class InterfaceDetector(KernelBlock, Block):
         period ``entry_orbit_period`` [s] (0: none)."""
         for name, v in (("entry_ramp", entry_ramp), ("entry_span", entry_span),
                         ("entry_orbit_period", entry_orbit_period)):
-            if not (isinstance(v, (int, float)) and v >= 0.0):
-                raise ValueError(f"InterfaceDetector: {name} must be >= 0 s (0: off), got {v!r}")
+            _check_seconds(name, v, "0: off")
         self.entry_ramp = float(entry_ramp)
         self.entry_gain = ramp_gain(self.N, self.entry_ramp / self.sample_period)
         self.entry_P = 0 if entry_span == 0 else max(self.N_min, int(math.ceil(entry_span / self.sample_period)))
@@ -565,9 +570,7 @@ class InterfaceDetector(KernelBlock, Block):
     def _set_exit_loc(self, orbit_period, loc_after) -> None:
         """The exit's fit on orbit means (period [s], 0: none) and its window after the
         trigger [m] (default locate_margin), checked."""
-        if not orbit_period >= 0.0:
-            raise ValueError(f"InterfaceDetector: exit_orbit_period must be >= 0 s (the last layer's orbit "
-                             f"period; 0: none), got {orbit_period!r}")
+        _check_seconds("exit_orbit_period", orbit_period, "the last layer's orbit period; 0: none")
         self.exit_orbit_period = float(orbit_period)
         self.exit_after = self.locate_margin if loc_after is None else float(loc_after)
         if not self.exit_after >= self.locate_margin:
@@ -577,9 +580,7 @@ class InterfaceDetector(KernelBlock, Block):
     def _set_exit_arm(self, orbit) -> None:
         """The exit's thinning test on orbit means: ``orbit`` [s] the last layer's orbit
         period in samples (exit_P, 0: off), checked."""
-        if not (isinstance(orbit, (int, float)) and orbit >= 0.0):
-            raise ValueError(f"InterfaceDetector: exit_orbit_arm must be >= 0 s (the last layer's orbit period; "
-                             f"0: off), got {orbit!r}")
+        _check_seconds("exit_orbit_arm", orbit, "the last layer's orbit period; 0: off")
         self.exit_P = int(round(orbit / self.sample_period))
         if orbit > 0.0 and not (self.relative and self.exit_criterion == "thinning" and 2 <= self.exit_P
                                 and 2 * self.exit_P <= HISTORY // 4):

@@ -245,6 +245,10 @@ class HolePlan:
     def layer_process(self, k: int) -> dict:
         return self.process[self.layers[k]["material"]]
 
+    def orbit_period(self, k: int) -> float:
+        """One orbit [s] of layer k's process (k = -1: the last layer)."""
+        return 60.0 / self.layer_process(k)["orbital_speed"]
+
     def conservative(self) -> dict:
         """The fail-safe parameter set: the lowest feed per revolution of any material's
         process at the lowest spindle speed (so the lowest thrust and cutting speed any
@@ -292,7 +296,7 @@ class HolePlan:
         exit) and its window half an orbit longer; else nothing."""
         if not self.exit_orbit_mean:
             return {}
-        return {"exit_orbit_period": 60.0 / self.layer_process(len(self.layers) - 1)["orbital_speed"],
+        return {"exit_orbit_period": self.orbit_period(-1),
                 "exit_loc_after": self.locate_margin + self.half_orbit_travel()}
 
     def half_orbit_travel(self) -> float:
@@ -341,14 +345,14 @@ class HolePlan:
             # estimate rings at the orbit frequency (0.7-1 Hz, +-5..20 N: false aluminium
             # entries 0.2-0.4 mm above the surface on the wide draw), which a whole orbit
             # averages out
-            "entry_span": 60.0 / self.layer_process(0)["orbital_speed"],
+            "entry_span": self.orbit_period(0),
             # the entry's fit takes the same orbit's sinusoid out of the observed thrust
             # (the ringing in air, docs/stacks.md "Entry (round 2)")
-            "entry_orbit_period": 60.0 / self.layer_process(0)["orbital_speed"],
+            "entry_orbit_period": self.orbit_period(0),
             # the exit's thinning test also runs on means over one orbit of the last layer: a
             # thin last layer under the observer's ringing after a Ti -> Al drop has no quiet
             # F~ to arm on (issue 23, round 2: missed exits of the wide draw)
-            "exit_orbit_arm": 60.0 / self.layer_process(len(self.layers) - 1)["orbital_speed"],
+            "exit_orbit_arm": self.orbit_period(-1),
             "interface_loc_after": self.interface_loc_after(window_s),
         }
 
