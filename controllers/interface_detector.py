@@ -366,6 +366,9 @@ class InterfaceDetector(KernelBlock, Block):
         and the thinning criterion): the exit's thinning test also runs on the mean thrust
         over one orbit, armed on two steady orbit means of the last layer
         (:meth:`_exit_orbit`: a thin last layer under the observer's ringing); 0 (default): off.
+        With it on, an exit inside the reach of a gap above the last layer is a candidate
+        until the tool is past that reach, dropped if a cut level comes back
+        (:meth:`_exit_candidate`, :meth:`_exit_confirm`: both exit tests' one decision).
     exit_loc_after [m]: travel after the exit's trigger its localisation window holds
         (default locate_margin; the hole plan adds half an orbit of the last layer's feed:
         the orbit means of the last half orbit need the samples after it).
