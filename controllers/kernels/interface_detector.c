@@ -48,6 +48,7 @@ typedef struct {
     double entry_rs;            /* state: restarted after the entry before it was located */
     double exit_P;              /* the exit's orbit test: the last layer's orbit [samples] (0: off) */
     double h_event, orb_ref;    /* state: samples written at the last event; its highest orbit mean */
+    double exit_cand_t, exit_cand_x, exit_cand_i, exit_cand_M;   /* state: the exit candidate (t NaN: none) */
     /* state */
     double n_buf, flag, t_ev[DET_EVENTS], x_ev[DET_EVENTS], t_paper, x_paper, t_thin, x_thin, F_ref;
     double drop, exit_armed, quiet, need, err_n, err_pos;
@@ -326,24 +327,25 @@ static void entry_confirm(Detector *s, double t, double x, double F, double F_pr
     }
 }
 
+static void exit_candidate(Detector *s, double t, double x);
+
 static void exit_tests(Detector *s, double t, double x, double F, double F_pred, double e)
 {
-    int n = (int)s->n;
     if (s->drop == 0.0) {
         s->F_ref = isnan(s->F_ref) ? F_pred : MAX(s->F_ref, F_pred);
         if (e < thd_exit(s, s->F_level)) {
             s->drop = 1.0;
             s->t_paper = t;
             s->x_paper = x;
-            if (s->exit_thinning == 0.0 && (int)s->flag == n)
-                event(s, n, t, x, -1.0);
+            if (s->exit_thinning == 0.0)
+                exit_candidate(s, t, x);
         }
     }
     if (isnan(s->t_thin) && F < s->exit_ratio * s->F_ref) {
         s->t_thin = t;
         s->x_thin = x;
-        if (s->exit_thinning != 0.0 && (int)s->flag == n)
-            event(s, n, t, x, -1.0);
+        if (s->exit_thinning != 0.0)
+            exit_candidate(s, t, x);
     }
 }
 
@@ -354,6 +356,53 @@ static int orbit_level_fits(const Detector *s, double M)
     if (!(s->mismatch_factor > 0.0 && k >= 1 && s->levels[k - 1] > 0.0))
         return 1;
     return M <= s->mismatch_factor * s->levels[k - 1] * s->level_plan[k] / s->level_plan[k - 1];
+}
+
+/* interface_detector.py _orbit_cut_level: 1 when the last orbit's mean M may be a cut level */
+static int orbit_cut_level(const Detector *s, double M)
+{
+    double P = s->exit_P;
+    return M >= MAX(s->floor[(int)s->n - 1], s->thd_min)
+           && hist_var(s, s->h_n - P, s->h_n, M) < M * M && orbit_level_fits(s, M);
+}
+
+/* interface_detector.py _past_gap */
+static int past_gap(const Detector *s, double x)
+{
+    return x - s->x_last >= s->max_gap + s->locate_margin;
+}
+
+/* interface_detector.py _exit_candidate: the one exit decision of the exit tests */
+static void exit_candidate(Detector *s, double t, double x)
+{
+    int n = (int)s->n;
+    if ((int)s->flag != n || !isnan(s->exit_cand_t))
+        return;
+    if (s->exit_P == 0.0 || n == 1 || past_gap(s, x)) {
+        event(s, n, t, x, -1.0);
+        return;
+    }
+    s->exit_cand_t = t;
+    s->exit_cand_x = x;
+    s->exit_cand_i = s->h_n;
+    s->exit_cand_M = hist_mean(s, s->h_n - s->exit_P, s->h_n);
+}
+
+/* interface_detector.py _exit_confirm: decide the exit candidate (dropped on a cut level back) */
+static void exit_confirm(Detector *s, double t, double x)
+{
+    double M = hist_mean(s, s->h_n - s->exit_P, s->h_n);
+    (void)t;
+    if (M >= s->exit_cand_M + s->rearm_level && orbit_cut_level(s, M)) {
+        s->exit_cand_t = s->exit_cand_x = s->exit_cand_i = s->exit_cand_M = NAN;
+        s->orb_ref = s->F_ref = s->t_thin = s->x_thin = s->t_paper = s->x_paper = NAN;
+        s->drop = s->armed = s->exit_armed = 0.0;
+        s->quiet = s->settled = s->steady = 0.0;
+    } else if (past_gap(s, x) || (s->has_windows != 0.0 && x >= s->win_hi[(int)s->n])) {
+        double tc = s->exit_cand_t, xc = s->exit_cand_x, ic = s->exit_cand_i;
+        s->exit_cand_t = s->exit_cand_x = s->exit_cand_i = s->exit_cand_M = NAN;
+        event(s, (int)s->n, tc, xc, ic);
+    }
 }
 
 /* interface_detector.py _exit_orbit: the exit's thinning test on the mean over the last orbit */
@@ -367,9 +416,8 @@ static void exit_orbit(Detector *s, double t, double x)
         if (s->fail != 0.0 && s->fail_disarms != 0.0)
             return;
         M0 = hist_mean(s, s->h_n - 2.0 * P, s->h_n - P);
-        if (!(MIN(M, M0) >= MAX(s->floor[(int)s->n - 1], s->thd_min)
-              && fabs(M - M0) < MAX(s->rearm_level, DET_ORBIT_STEADY * M)
-              && hist_var(s, s->h_n - P, s->h_n, M) < M * M && orbit_level_fits(s, M)))
+        if (!(M0 >= MAX(s->floor[(int)s->n - 1], s->thd_min)
+              && fabs(M - M0) < MAX(s->rearm_level, DET_ORBIT_STEADY * M) && orbit_cut_level(s, M)))
             return;
     }
     s->orb_ref = isnan(s->orb_ref) ? M : MAX(s->orb_ref, M);
@@ -378,7 +426,7 @@ static void exit_orbit(Detector *s, double t, double x)
             s->t_thin = t;
             s->x_thin = x;
         }
-        event(s, (int)s->n, t, x, -1.0);
+        exit_candidate(s, t, x);
     }
 }
 
@@ -580,8 +628,11 @@ void interface_detector_step(Detector *s, double t, const double *u, double *y)
         tests(s, t, x, F, DET_DOT(s, nb, w));
         nb = (long)s->n_buf;    /* the tests may have trimmed the window */
     }
-    if (s->exit_P != 0.0 && (int)s->flag == (int)s->n)
+    if (s->exit_P != 0.0 && (int)s->flag == (int)s->n) {
         exit_orbit(s, t, x);
+        if (!isnan(s->exit_cand_t))
+            exit_confirm(s, t, x);
+    }
     if (nb < N) {               /* shift the regression window (oldest first) */
         s->buf[nb] = F;
         s->n_buf = nb + 1;
