@@ -380,6 +380,42 @@ _DET = ("t_entry", "t_interface1", "t_interface2", "t_interface3", "t_exit", "t_
 _LOC = tuple(f"{q}_{ev}_loc" for ev in ("entry", "interface1", "interface2", "interface3", "exit")
              for q in ("t", "dx", "tknown"))
 
+# The friction-drift note: the detector's air level F_air [N] (its entry fit's mean observed
+# thrust in air) is the drive's friction not explained by the commissioned one -- the observer
+# subtracts the commissioned friction, so with it the air level is zero up to the observer's
+# noise. A drift is reported when |F_air| exceeds FRICTION_K times the spread (rms of F~) of
+# the observed thrust in air and FRICTION_FLOOR_N (measured, docs: the worst |F_air| of
+# nominal-friction holes on the three drives with a margin).
+FRICTION_K = 3.0
+FRICTION_FLOOR_N = 3.0
+
+
+def friction_drift(result, detector="detector", k=FRICTION_K, floor_n=FRICTION_FLOOR_N) -> dict:
+    """The air level ``air_level_N`` the detector measured before the entry, its spread
+    ``air_spread_N`` (rms of the detector's F~ over the armed samples in air before the
+    located entry: the observer's noise one step ahead) and ``warnings``: a friction
+    drift when |air level| > max(k * spread, floor_n). Why: a drive whose friction
+    moved away from the commissioned one (wear, lubrication, temperature) shows the
+    difference as an offset on the observed thrust in every layer; the detector takes
+    its ratios against the air level, but the thrust record and any absolute threshold
+    are off by it, and the drive needs re-commissioning."""
+    t = np.asarray(result.time, float)
+    g = lambda name: np.asarray(result[f"{detector}.{name}"], float)  # noqa: E731
+    F_air, t_loc = last_value(g("F_air")), last_value(g("t_entry_loc"))
+    e = g("F_err")
+    air = (np.rint(g("flag")) == 0) & (g("armed") >= 0.5) & np.isfinite(e) & (t < t_loc)
+    spread = float(np.sqrt(np.mean(e[air] ** 2))) if air.any() else math.nan
+    out = {"air_level_N": F_air, "air_spread_N": spread, "warnings": []}
+    bound = max(k * spread if math.isfinite(spread) else 0.0, floor_n)
+    if math.isfinite(F_air) and abs(F_air) > bound:
+        out["warnings"].append(
+            f"friction drift: the observed thrust in air is {F_air:+.1f} N (beyond +-{bound:.1f} N: "
+            f"{k:g} x its spread {spread:.2f} N rms, at least {floor_n:g} N): the drive's friction differs "
+            f"from the commissioned one by about that axial force, so every observed thrust level is off by "
+            f"it; the detector takes its level ratios against the air level, but re-commission the drive "
+            f"(drillcosim commission) before trusting absolute thrust values")
+    return out
+
 
 def _event_dz(t, x_tool, xa, xb, td):
     """Depth error [m] of a detection at time td against the event between the tool-tip
@@ -398,7 +434,8 @@ def _located(result, detector, name, t, x_tool, td) -> dict:
 
 
 @needs("{plant}.tool_position_true", "{plant}.layer_index", *(f"{{detector}}.{n}" for n in _DET),
-       *(f"{{detector}}.{n}" for n in _LOC), "{adapt}.failsafe", "{adapt}.t_failsafe")
+       *(f"{{detector}}.{n}" for n in _LOC), "{adapt}.failsafe", "{adapt}.t_failsafe",
+       *(f"{{detector}}.{n}" for n in ("F_air", "F_err", "armed")))
 def score_stack(result, plant="drive", detector="detector", adapt="adapt", materials=("cfrp", "ti"),
                 plan_windows=None, match_tolerance=1.0e-3, fail_action="hold"):
     """Score of one hole of a hole plan (appended by :mod:`drillcosim.drilling.hole_plan`).
@@ -470,6 +507,7 @@ def score_stack(result, plant="drive", detector="detector", adapt="adapt", mater
     out["failsafe"] = ("none", "hold", "retract")[mode] if 0 <= mode <= 2 else f"code {mode}"
     out["t_failsafe_s"] = last_value(result[f"{adapt}.t_failsafe"])
     out["final_flag"] = det["flag"]
+    out.update(friction_drift(result, detector))
     if math.isfinite(det["t_exit"]):
         out["status"] = "completed"
     else:

@@ -231,6 +231,8 @@ _OUTPUTS = (
     Port("level_mismatch", "1", "observed over the plan's level ratio of the last two layers armed (1 = as planned)", NAN),
     *(Port(f"{q}_{ev}_loc", u, f"{what} of the {ev} (NaN until its localisation window is complete)", NAN)
       for ev in LOC_EVENTS for q, u, what in LOC_QUANTITIES),
+    Port("F_air", "N", "air level the level ratios and floors are taken against (the entry fit's mean "
+         "thrust in air; NaN until the entry is located: then against zero)", NAN),
 )
 
 
@@ -673,7 +675,17 @@ class InterfaceDetector(KernelBlock, Block):
         floor = min(self.floor)
         if self.mismatch_factor > 0.0:
             floor = max(floor, self.floor[self.flag - 1] / self.mismatch_factor)
-        return self.F_level >= floor
+        return self._above_air(self.F_level) >= floor
+
+    def _above_air(self, F: float) -> float:
+        """F [N] over the air level the entry's fit measured (F_air; 0 before the entry is
+        located). Why: the observer subtracts the commissioned friction, so a drive whose
+        friction differs shows the difference as an offset on every level, air included
+        (issue 23, plants drawn with Coulomb friction x1.12-1.49: +5-25 N). A ratio or a
+        floor taken against zero then misreads it -- the exit's thinning ratio never fired
+        (11 unfinished project holes) and a gap's air passed for a cut level. Against the
+        air level the offset cancels; without one the ratios are today's."""
+        return F - self.F_air if math.isfinite(self.F_air) else F
 
     def _check_level(self, t: float, x: float) -> None:
         """The first quiet level of a layer (the statistics its tests arm on; any
@@ -683,10 +695,11 @@ class InterfaceDetector(KernelBlock, Block):
         engagement ramp's) is only final once the tool may have crossed a gap
         (_past_gap): until then it is not taken, and a later settled level may be."""
         k = self.flag - 1
-        if not (self.mismatch_factor > 0 and k >= 1 and self.levels[k - 1] > 0):
+        if not (self.mismatch_factor > 0 and k >= 1 and self._above_air(self.levels[k - 1]) > 0):
             self.levels[k] = self.F_level
             return
-        ratio = (self.F_level / self.levels[k - 1]) / (self.level_plan[k] / self.level_plan[k - 1])
+        ratio = (self._above_air(self.F_level) / self._above_air(self.levels[k - 1])) \
+            / (self.level_plan[k] / self.level_plan[k - 1])
         if ratio < 1.0 and not self._past_gap(x):
             return
         self.levels[k] = self.F_level
@@ -813,7 +826,7 @@ class InterfaceDetector(KernelBlock, Block):
     def _thd_interface(self, k: int, F_pred: float) -> float:
         if not self.relative:
             return self.thd2
-        return max(self.thd_min, self.step_gain[k - 1] * F_pred)
+        return max(self.thd_min, self.step_gain[k - 1] * self._above_air(F_pred))
 
     def _thd_onset(self, k: int, e: float, thd: float) -> float:
         """Interface k's threshold for this F~: lowered to thd_noise_factor x the plateau
@@ -829,7 +842,7 @@ class InterfaceDetector(KernelBlock, Block):
     def _thd_exit(self, F_pred: float) -> float:
         if not self.relative:
             return self.thd3
-        return -max(self.thd_min, self.exit_gain * F_pred)
+        return -max(self.thd_min, self.exit_gain * self._above_air(F_pred))
 
     def _rearm_level(self, F_pred: float) -> float:
         """|F~| must stay below this for rearm_samples before the next test arms. Relative
@@ -848,7 +861,7 @@ class InterfaceDetector(KernelBlock, Block):
         layer's own floor, which keeps the tests from arming in a gap above it."""
         if not self.relative or not 1 <= self.flag <= self.n:
             return True
-        return F_pred >= (min(self.floor[self.flag - 1:]) if self.fail else self.floor[self.flag - 1])
+        return self._above_air(F_pred) >= (min(self.floor[self.flag - 1:]) if self.fail else self.floor[self.flag - 1])
 
     def step(self, t, u):
         F, x = float(u[0]), float(u[1])
@@ -1020,7 +1033,7 @@ class InterfaceDetector(KernelBlock, Block):
                 self.t_paper, self.x_paper = t, x
                 if self.exit_criterion == "paper" and self.flag == self.n:
                     self._event(self.n, t, x)
-        if math.isnan(self.t_thin) and F < self.exit_ratio * self.F_ref:
+        if math.isnan(self.t_thin) and self._above_air(F) < self.exit_ratio * self._above_air(self.F_ref):
             self.t_thin, self.x_thin = t, x
             if self.exit_criterion == "thinning" and self.flag == self.n:
                 self._event(self.n, t, x)
@@ -1049,12 +1062,13 @@ class InterfaceDetector(KernelBlock, Block):
             if self.fail and self.fail_disarms:
                 return
             M0 = self._hist_mean(self.h_n - 2 * P, self.h_n - P)
-            if not (min(M, M0) >= max(self.floor[self.n - 1], self.thd_min)
-                    and abs(M - M0) < max(self.rearm_level, ORBIT_STEADY * M)
-                    and self._hist_var(self.h_n - P, self.h_n, M) < M * M and self._orbit_level_fits(M)):
+            Ma = self._above_air(M)     # the level over the air level (friction offset)
+            if not (min(Ma, self._above_air(M0)) >= max(self.floor[self.n - 1], self.thd_min)
+                    and abs(M - M0) < max(self.rearm_level, ORBIT_STEADY * Ma)
+                    and self._hist_var(self.h_n - P, self.h_n, M) < Ma * Ma and self._orbit_level_fits(M)):
                 return
         self.orb_ref = M if math.isnan(self.orb_ref) else max(self.orb_ref, M)
-        if M < self.exit_ratio * self.orb_ref:
+        if self._above_air(M) < self.exit_ratio * self._above_air(self.orb_ref):
             if math.isnan(self.t_thin):
                 self.t_thin, self.x_thin = t, x
             self._event(self.n, t, x)
@@ -1067,9 +1081,10 @@ class InterfaceDetector(KernelBlock, Block):
         412 -> 379 N over an orbit, which armed the test on a Ti level and fired a false exit
         on the fall to Al's 40 N."""
         k = self.n - 1
-        if not (self.mismatch_factor > 0.0 and k >= 1 and self.levels[k - 1] > 0.0):
+        if not (self.mismatch_factor > 0.0 and k >= 1 and self._above_air(self.levels[k - 1]) > 0.0):
             return True
-        return M <= self.mismatch_factor * self.levels[k - 1] * self.level_plan[k] / self.level_plan[k - 1]
+        return self._above_air(M) <= \
+            self.mismatch_factor * self._above_air(self.levels[k - 1]) * self.level_plan[k] / self.level_plan[k - 1]
 
     def _may_arm(self, x: float) -> bool:
         """Whether the next event's test may arm now. The entry test: with a nominal stack,
@@ -1111,6 +1126,7 @@ class InterfaceDetector(KernelBlock, Block):
             *t_if, *x_if,
             self.t_fail, self.x_fail, self.thd, float(self.n), self.mismatch,
             *(v for ev in LOC_EVENTS for v in self.loc[ev]),
+            self.F_air,
         )
 
     # ------------------------------------------------------------------ the C step

@@ -29,7 +29,7 @@
 #define DET_LEVEL_SETTLED 0.1                /* interface_detector.py LEVEL_SETTLED */
 #define DET_LEVEL_STEADY 0.5                 /* interface_detector.py LEVEL_STEADY */
 #define DET_ORBIT_STEADY 0.1                 /* interface_detector.py ORBIT_STEADY */
-#define DET_N_OUT 48
+#define DET_N_OUT 49
 
 typedef double (*dot_fn)(long n, const double *x, long incx, const double *y, long incy);
 /* k, x_trig, lo, hi [m], samples written, air level [N] -> out: x_loc, t_loc, dx, F_air */
@@ -106,18 +106,24 @@ double detector_py_sum(double compensated, const double *x, long n)
     return py_sum_end(f, c);
 }
 
+/* interface_detector.py _above_air: F over the air level (F itself before the entry is located) */
+static double above_air(const Detector *s, double F)
+{
+    return isfinite(s->F_air) ? F - s->F_air : F;
+}
+
 static double thd_interface(const Detector *s, int k, double F_pred)
 {
     if (s->relative == 0.0)
         return s->thd2;
-    return MAX(s->thd_min, s->step_gain[k - 1] * F_pred);
+    return MAX(s->thd_min, s->step_gain[k - 1] * above_air(s, F_pred));
 }
 
 static double thd_exit(const Detector *s, double F_pred)
 {
     if (s->relative == 0.0)
         return s->thd3;
-    return -MAX(s->thd_min, s->exit_gain * F_pred);
+    return -MAX(s->thd_min, s->exit_gain * above_air(s, F_pred));
 }
 
 static double thd_onset(const Detector *s, int k, double e, double thd)
@@ -159,7 +165,7 @@ static int engaged(const Detector *s, double F_pred)
     int flag = (int)s->flag, n = (int)s->n;
     if (s->relative == 0.0 || !(1 <= flag && flag <= n))
         return 1;
-    return F_pred >= (s->fail != 0.0 ? min_of(s->floor, flag - 1, n) : s->floor[flag - 1]);
+    return above_air(s, F_pred) >= (s->fail != 0.0 ? min_of(s->floor, flag - 1, n) : s->floor[flag - 1]);
 }
 
 static int may_arm(const Detector *s, double x)
@@ -194,17 +200,17 @@ static int cut_level(const Detector *s)
     double floor = min_of(s->floor, 0, (int)s->n);
     if (s->mismatch_factor > 0.0)
         floor = MAX(floor, s->floor[(int)s->flag - 1] / s->mismatch_factor);
-    return s->F_level >= floor;
+    return above_air(s, s->F_level) >= floor;
 }
 
 static void check_level(Detector *s, double t, double x)
 {
     int k = (int)s->flag - 1;
-    if (!(s->mismatch_factor > 0.0 && k >= 1 && s->levels[k - 1] > 0.0)) {
+    if (!(s->mismatch_factor > 0.0 && k >= 1 && above_air(s, s->levels[k - 1]) > 0.0)) {
         s->levels[k] = s->F_level;
         return;
     }
-    double ratio = (s->F_level / s->levels[k - 1]) / (s->level_plan[k] / s->level_plan[k - 1]);
+    double ratio = (above_air(s, s->F_level) / above_air(s, s->levels[k - 1])) / (s->level_plan[k] / s->level_plan[k - 1]);
     /* interface_detector.py _past_gap: a level below the plan ratio may be a gap.s or a ramp.s: final past the gap */
     if (ratio < 1.0 && !(x - s->x_last >= s->max_gap + s->locate_margin))
         return;
@@ -339,7 +345,7 @@ static void exit_tests(Detector *s, double t, double x, double F, double F_pred,
                 event(s, n, t, x, -1.0);
         }
     }
-    if (isnan(s->t_thin) && F < s->exit_ratio * s->F_ref) {
+    if (isnan(s->t_thin) && above_air(s, F) < s->exit_ratio * above_air(s, s->F_ref)) {
         s->t_thin = t;
         s->x_thin = x;
         if (s->exit_thinning != 0.0 && (int)s->flag == n)
@@ -351,9 +357,9 @@ static void exit_tests(Detector *s, double t, double x, double F, double F_pred,
 static int orbit_level_fits(const Detector *s, double M)
 {
     int k = (int)s->n - 1;
-    if (!(s->mismatch_factor > 0.0 && k >= 1 && s->levels[k - 1] > 0.0))
+    if (!(s->mismatch_factor > 0.0 && k >= 1 && above_air(s, s->levels[k - 1]) > 0.0))
         return 1;
-    return M <= s->mismatch_factor * s->levels[k - 1] * s->level_plan[k] / s->level_plan[k - 1];
+    return above_air(s, M) <= s->mismatch_factor * above_air(s, s->levels[k - 1]) * s->level_plan[k] / s->level_plan[k - 1];
 }
 
 /* interface_detector.py _exit_orbit: the exit's thinning test on the mean over the last orbit */
@@ -367,13 +373,14 @@ static void exit_orbit(Detector *s, double t, double x)
         if (s->fail != 0.0 && s->fail_disarms != 0.0)
             return;
         M0 = hist_mean(s, s->h_n - 2.0 * P, s->h_n - P);
-        if (!(MIN(M, M0) >= MAX(s->floor[(int)s->n - 1], s->thd_min)
-              && fabs(M - M0) < MAX(s->rearm_level, DET_ORBIT_STEADY * M)
-              && hist_var(s, s->h_n - P, s->h_n, M) < M * M && orbit_level_fits(s, M)))
+        double Ma = above_air(s, M);   /* interface_detector.py: the level over the air level */
+        if (!(MIN(Ma, above_air(s, M0)) >= MAX(s->floor[(int)s->n - 1], s->thd_min)
+              && fabs(M - M0) < MAX(s->rearm_level, DET_ORBIT_STEADY * Ma)
+              && hist_var(s, s->h_n - P, s->h_n, M) < Ma * Ma && orbit_level_fits(s, M)))
             return;
     }
     s->orb_ref = isnan(s->orb_ref) ? M : MAX(s->orb_ref, M);
-    if (M < s->exit_ratio * s->orb_ref) {
+    if (above_air(s, M) < s->exit_ratio * above_air(s, s->orb_ref)) {
         if (isnan(s->t_thin)) {
             s->t_thin = t;
             s->x_thin = x;
@@ -556,6 +563,7 @@ static void outputs(const Detector *s, double *y)
     y[j++] = s->mismatch;
     for (int i = 0; i < 4 * DET_EVENTS; i++)
         y[j++] = s->loc[i];
+    y[j++] = s->F_air;
 }
 
 /* u: F [N], x [m]; y: the block's outputs in its order (interface_detector.py _OUTPUTS) */
