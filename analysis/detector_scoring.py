@@ -383,37 +383,48 @@ _LOC = tuple(f"{q}_{ev}_loc" for ev in ("entry", "interface1", "interface2", "in
 # The friction-drift note: the detector's air level F_air [N] (its entry fit's mean observed
 # thrust in air) is the drive's friction not explained by the commissioned one -- the observer
 # subtracts the commissioned friction, so with it the air level is zero up to the observer's
-# noise. A drift is reported when |F_air| exceeds FRICTION_K times the spread (rms of F~) of
-# the observed thrust in air and FRICTION_FLOOR_N (measured, docs: the worst |F_air| of
-# nominal-friction holes on the three drives with a margin).
+# noise. A drift is reported when |F_air| exceeds FRICTION_K standard errors of that mean and
+# FRICTION_FLOOR_N, the worst |F_air| of nominal-friction holes with a margin (measured on 45
+# holes of the three drives, docs/stacks.md).
 FRICTION_K = 3.0
 FRICTION_FLOOR_N = 3.0
 
 
-def friction_drift(result, detector="detector", k=FRICTION_K, floor_n=FRICTION_FLOOR_N) -> dict:
-    """The air level ``air_level_N`` the detector measured before the entry, its spread
-    ``air_spread_N`` (rms of the detector's F~ over the armed samples in air before the
-    located entry: the observer's noise one step ahead) and ``warnings``: a friction
-    drift when |air level| > max(k * spread, floor_n). Why: a drive whose friction
-    moved away from the commissioned one (wear, lubrication, temperature) shows the
-    difference as an offset on the observed thrust in every layer; the detector takes
-    its ratios against the air level, but the thrust record and any absolute threshold
-    are off by it, and the drive needs re-commissioning."""
+def air_level(result, detector="detector") -> tuple[float, float, float]:
+    """The detector's air level [N], the rms [N] of its one-step error F~ over the armed
+    samples in air before the located entry (the observer's noise and ringing there) and
+    the standard error [N] of the air level (that rms over the square root of the detector
+    samples it holds: a recorded value held between samples counts once)."""
     t = np.asarray(result.time, float)
     g = lambda name: np.asarray(result[f"{detector}.{name}"], float)  # noqa: E731
-    F_air, t_loc = last_value(g("F_air")), last_value(g("t_entry_loc"))
     e = g("F_err")
-    air = (np.rint(g("flag")) == 0) & (g("armed") >= 0.5) & np.isfinite(e) & (t < t_loc)
-    spread = float(np.sqrt(np.mean(e[air] ** 2))) if air.any() else math.nan
-    out = {"air_level_N": F_air, "air_spread_N": spread, "warnings": []}
-    bound = max(k * spread if math.isfinite(spread) else 0.0, floor_n)
+    air = (np.rint(g("flag")) == 0) & (g("armed") >= 0.5) & np.isfinite(e) & (t < last_value(g("t_entry_loc")))
+    if not air.any():
+        return last_value(g("F_air")), math.nan, math.nan
+    ea = e[air]
+    rms = float(np.sqrt(np.mean(ea * ea)))
+    n = 1 + int(np.count_nonzero(np.diff(ea)))
+    return last_value(g("F_air")), rms, rms / math.sqrt(n)
+
+
+def friction_drift(result, detector="detector", k=FRICTION_K, floor_n=FRICTION_FLOOR_N) -> dict:
+    """The air level ``air_level_N``, its spread ``air_spread_N`` and standard error
+    ``air_level_se_N`` (:func:`air_level`) and ``warnings``: a friction drift when
+    |air level| > max(k * standard error, floor_n). Why: a drive whose friction moved
+    away from the commissioned one (wear, lubrication, temperature) shows the difference
+    as an offset on the observed thrust in every layer; the detector takes its ratios
+    against the air level, but the thrust record and any absolute threshold are off by
+    it, and the drive needs re-commissioning."""
+    F_air, rms, se = air_level(result, detector)
+    out = {"air_level_N": F_air, "air_spread_N": rms, "air_level_se_N": se, "warnings": []}
+    bound = max(k * se if math.isfinite(se) else 0.0, floor_n)
     if math.isfinite(F_air) and abs(F_air) > bound:
         out["warnings"].append(
-            f"friction drift: the observed thrust in air is {F_air:+.1f} N (beyond +-{bound:.1f} N: "
-            f"{k:g} x its spread {spread:.2f} N rms, at least {floor_n:g} N): the drive's friction differs "
-            f"from the commissioned one by about that axial force, so every observed thrust level is off by "
-            f"it; the detector takes its level ratios against the air level, but re-commission the drive "
-            f"(drillcosim commission) before trusting absolute thrust values")
+            f"friction drift: the observed thrust in air is {F_air:+.1f} N +- {se:.1f} N (beyond {bound:.1f} N: "
+            f"{k:g} standard errors, at least {floor_n:g} N): the drive's friction differs from the commissioned "
+            f"one by about that axial force, so every observed thrust level is off by it; the detector takes its "
+            f"level ratios against the air level, but re-commission the drive (drillcosim commission) before "
+            f"trusting absolute thrust values")
     return out
 
 
