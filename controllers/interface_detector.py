@@ -997,8 +997,9 @@ class InterfaceDetector(KernelBlock, Block):
         sel = (xs >= lo) & (xs <= hi)
         kind = "entry" if k == 0 else "exit" if k == self.n else "interface"
         # an interface window shortened to a thin layer below may end in the gap: air is
-        # below the engagement floor of both layers around it (Al's is the lowest)
-        floor = min(self.floor[k - 1], self.floor[k]) if self.relative and kind == "interface" and \
+        # below the engagement floor of both layers around it (Al's is the lowest), over the
+        # air level (a friction offset lifts the gap's air above a bare floor)
+        floor = air + min(self.floor[k - 1], self.floor[k]) if self.relative and kind == "interface" and \
             self.loc_after[k - 1] < self.max_gap + self.locate_margin else None
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period)
