@@ -150,6 +150,12 @@ LEVEL_STEADY = 0.5
 # later one: the quadratic push-out of a Ti layer above Al (foreign drive) falls over ~0.8 mm,
 # and its orbit means, 127 -> 85 N, passed LEVEL_STEADY's half (hole 140: a false exit 4.9 mm early)
 ORBIT_STEADY = 0.1
+# the level ratios and floors are taken against the air level F_air only when it stands out of
+# the spread of the thrust samples it was measured on by this factor (a friction offset): within
+# it, it is the observer's ringing in air, not an offset (issue 23 round 8: +8.6 N over a
+# +-15 N start-up swing on a nominal-friction foreign hole, where 9-36 N offsets of the
+# plants drawn at coulomb x1.12-1.49 stood 3-20 spreads out)
+AIR_OFFSET_K = 2.0
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
                   ("t", "s", "time the encoder passed the located position"),
@@ -233,6 +239,8 @@ _OUTPUTS = (
       for ev in LOC_EVENTS for q, u, what in LOC_QUANTITIES),
     Port("F_air", "N", "air level the level ratios and floors are taken against (the entry fit's mean "
          "thrust in air; NaN until the entry is located: then against zero)", NAN),
+    Port("F_air_sd", "N", "rms deviation of the thrust samples F_air is the mean of (its uncertainty: the "
+         "observer's noise and ringing in air); F_air is taken only when |F_air| > AIR_OFFSET_K x this", NAN),
 )
 
 
@@ -660,6 +668,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.h_n = 0                # samples written since the reset
         self.pending = []           # (event index, x at trigger, index of the trigger sample)
         self.F_air = NAN            # observed thrust in air (the entry's level before contact)
+        self.F_air_sd = NAN         # rms deviation of the samples F_air is the mean of
         self.levels = [NAN] * self.n   # observed level of each layer when its tests armed
         self.mismatch = NAN         # last observed/plan level ratio between two layers
         self.loc = {ev: [NAN] * len(LOC_QUANTITIES) for ev in LOC_EVENTS}
@@ -685,7 +694,7 @@ class InterfaceDetector(KernelBlock, Block):
         floor taken against zero then misreads it -- the exit's thinning ratio never fired
         (11 unfinished project holes) and a gap's air passed for a cut level. Against the
         air level the offset cancels; without one the ratios are today's."""
-        return F - self.F_air if math.isfinite(self.F_air) else F
+        return F - self.F_air if abs(self.F_air) > AIR_OFFSET_K * self.F_air_sd else F
 
     def _check_level(self, t: float, x: float) -> None:
         """The first quiet level of a layer (the statistics its tests arm on; any
@@ -963,9 +972,9 @@ class InterfaceDetector(KernelBlock, Block):
         if k > 0 and math.isfinite(self.x_ev[k - 1]):    # not into the previous event's change
             lo = max(lo, self.x_ev[k - 1] + self.locate_margin)
         air = self.F_air if math.isfinite(self.F_air) else 0.0
-        x_loc, t_loc, dx, F_air = self._fit(k, x_trig, lo, x_trig + after, self.h_n, air)
+        x_loc, t_loc, dx, F_air, F_air_sd = self._fit(k, x_trig, lo, x_trig + after, self.h_n, air)
         if k == 0 and math.isfinite(x_loc):
-            self.F_air = F_air
+            self.F_air, self.F_air_sd = F_air, F_air_sd
         name = LOC_EVENTS[0] if k == 0 else LOC_EVENTS[-1] if k == self.n else f"interface{k}"
         self.loc[name] = [x_loc, t_loc, dx, t_now]
         if not (k == 0 and self.entry_rs):
@@ -1003,7 +1012,7 @@ class InterfaceDetector(KernelBlock, Block):
             self.loc_after[k - 1] < self.max_gap + self.locate_margin else None
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period)
-        F_air = NAN
+        F_air = F_air_sd = NAN
         if k == 0 and math.isfinite(x_loc):
             # with a span the window is around the confirmation, which may leave only a few
             # samples of it in air: the air level then from a locate_margin of air whatever the
@@ -1011,8 +1020,10 @@ class InterfaceDetector(KernelBlock, Block):
             # a ti/al interface located 0.39 mm inside the Ti)
             lo_air = min(lo, x_loc - 1.5 * self.locate_margin) if self.entry_P else lo
             in_air = (xs >= lo_air) & (xs <= hi) & (xs < x_loc - 0.5 * self.locate_margin)
-            F_air = float(np.mean(hF[in_air])) if in_air.any() else NAN
-        return x_loc, time_at(ht, hx, x_loc), dx, F_air
+            if in_air.any():
+                F_air = float(np.mean(hF[in_air]))
+                F_air_sd = float(np.sqrt(np.mean((hF[in_air] - F_air) ** 2)))
+        return x_loc, time_at(ht, hx, x_loc), dx, F_air, F_air_sd
 
     def _entry_period_samples(self) -> float | None:
         """The entry's fit with the first layer's orbit sinusoid (event_locator.onset_face):
@@ -1127,7 +1138,7 @@ class InterfaceDetector(KernelBlock, Block):
             *t_if, *x_if,
             self.t_fail, self.x_fail, self.thd, float(self.n), self.mismatch,
             *(v for ev in LOC_EVENTS for v in self.loc[ev]),
-            self.F_air,
+            self.F_air, self.F_air_sd,
         )
 
     # ------------------------------------------------------------------ the C step
@@ -1213,9 +1224,9 @@ class InterfaceDetector(KernelBlock, Block):
     def _c_locate(self, k, x_trig, lo, hi, h_n, air, out) -> None:
         """The C step's localisation callback: :meth:`_fit` into ``out``."""
         try:
-            out[0], out[1], out[2], out[3] = self._fit(int(k), x_trig, lo, hi, int(h_n), air)
+            out[0], out[1], out[2], out[3], out[4] = self._fit(int(k), x_trig, lo, hi, int(h_n), air)
         except Exception as exc:    # noqa: BLE001 -- a ctypes callback cannot raise into C: NaN, said loudly
-            out[0] = out[1] = out[2] = out[3] = NAN
+            out[0] = out[1] = out[2] = out[3] = out[4] = NAN
             warnings.warn(f"InterfaceDetector: the localisation of event {int(k)} failed, its outputs stay "
                           f"NaN: {exc!r}", RuntimeWarning, stacklevel=1)
 
@@ -1245,5 +1256,5 @@ class InterfaceDetector(KernelBlock, Block):
 _C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n fail fail_code h_event".split()},
               **{name: bool for name in "armed drop exit_armed trim entry_rs".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last "
-                                         "F_pred F_err F_level thd F_air mismatch orb_ref".split()}}
+                                         "F_pred F_err F_level thd F_air F_air_sd mismatch orb_ref".split()}}
 _C_LISTS = ("t_ev", "x_ev", "levels", "loc", "pending", "cand", "err_hist", "cand_F", "cand_e")

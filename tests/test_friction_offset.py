@@ -49,9 +49,24 @@ def test_exit_and_air_level_under_a_friction_offset(offset_n):
     assert rec["det.F_air"][-1] - ref["det.F_air"][-1] == pytest.approx(offset_n, abs=0.5)
 
 
+def test_air_level_taken_only_out_of_its_spread():
+    """A nominal-friction foreign hole measured +8.6 N in air over a +-15 N start-up swing of
+    the observer (spread 5.9 N): that is ringing, not an offset, and the ratios stay against
+    zero; the plants drawn at coulomb x1.12-1.49 stood 3.4-20 spreads out (+8 N over 1.5 N)."""
+    block = InterfaceDetector(surface=1e-3, thicknesses=[th for _, th in LAYERS], kc=[KC[m] for m, _ in LAYERS],
+                              feed_per_rev=[FEED / (2000 / 60)] * len(LAYERS))
+    block.kernel = "python"
+    block.reset(0.0)
+    assert block._above_air(20.0) == 20.0                   # no air level yet: against zero
+    block.F_air, block.F_air_sd = 8.6, 5.9
+    assert block._above_air(20.0) == 20.0
+    block.F_air, block.F_air_sd = 8.3, 1.5
+    assert block._above_air(20.0) == pytest.approx(11.7)
+
+
 def test_friction_drift_warning_only_beyond_the_floor():
     """The score's note: none on the trace without an offset (|F_air| 0.03 N), one naming the
-    measured offset at -10 and +10 N (beyond the 3 N floor and 3 standard errors)."""
+    measured offset at -10 and +10 N (beyond the 3 N floor and twice the air samples' 1 N spread)."""
     assert friction_drift(_run(0.0)[0], "det")["warnings"] == []
     for off in (-10.0, 10.0):
         fd = friction_drift(_run(off)[0], "det")

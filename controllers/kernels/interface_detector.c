@@ -29,10 +29,11 @@
 #define DET_LEVEL_SETTLED 0.1                /* interface_detector.py LEVEL_SETTLED */
 #define DET_LEVEL_STEADY 0.5                 /* interface_detector.py LEVEL_STEADY */
 #define DET_ORBIT_STEADY 0.1                 /* interface_detector.py ORBIT_STEADY */
-#define DET_N_OUT 49
+#define DET_AIR_OFFSET_K 2.0                 /* interface_detector.py AIR_OFFSET_K */
+#define DET_N_OUT 50
 
 typedef double (*dot_fn)(long n, const double *x, long incx, const double *y, long incy);
-/* k, x_trig, lo, hi [m], samples written, air level [N] -> out: x_loc, t_loc, dx, F_air */
+/* k, x_trig, lo, hi [m], samples written, air level [N] -> out: x_loc, t_loc, dx, F_air, F_air_sd */
 typedef void (*locate_fn)(double k, double x_trig, double lo, double hi, double h_n, double air, double *out);
 
 typedef struct {
@@ -55,7 +56,7 @@ typedef struct {
     double cand_e[DET_ENTRY_SWING], cand_e_n, cand_e_pos;
     double armed, fail, fail_code, t_fail, x_fail, t_last, x_last, F_pred, F_err, F_level, thd, h_n;
     double n_pending, pend_k[DET_EVENTS], pend_x[DET_EVENTS], pend_i[DET_EVENTS];
-    double F_air, levels[DET_MAX_LAYERS], mismatch, trim, settled, steady, loc[4 * DET_EVENTS];
+    double F_air, F_air_sd, levels[DET_MAX_LAYERS], mismatch, trim, settled, steady, loc[4 * DET_EVENTS];
     /* the block's arrays and functions */
     const double *W;            /* weights of every window length N_min..N, one after the other */
     double *buf, *h_t, *h_x, *h_F, *err;
@@ -106,10 +107,10 @@ double detector_py_sum(double compensated, const double *x, long n)
     return py_sum_end(f, c);
 }
 
-/* interface_detector.py _above_air: F over the air level (F itself before the entry is located) */
+/* interface_detector.py _above_air: F over the air level when it stands out of its spread (else F) */
 static double above_air(const Detector *s, double F)
 {
-    return isfinite(s->F_air) ? F - s->F_air : F;
+    return fabs(s->F_air) > DET_AIR_OFFSET_K * s->F_air_sd ? F - s->F_air : F;
 }
 
 static double thd_interface(const Detector *s, int k, double F_pred)
@@ -466,7 +467,7 @@ static void restart_after(Detector *s, int k)
 static void locate(Detector *s, int k, double x_trig, double before, double after, double t_now)
 {
     int n = (int)s->n;
-    double lo = x_trig - before, out[4];
+    double lo = x_trig - before, out[5];
     if (k > 0 && isfinite(s->x_ev[k - 1]))
         lo = MAX(lo, s->x_ev[k - 1] + s->locate_margin);
     double air = isfinite(s->F_air) ? s->F_air : 0.0;
@@ -474,7 +475,7 @@ static void locate(Detector *s, int k, double x_trig, double before, double afte
     detector_locate(s, k, x_trig, lo, x_trig + after, s->h_n, air, out);
 #else
     if (s->locate == NULL)      /* a state the block did not fill (it always sets the callback) */
-        out[0] = out[1] = out[2] = out[3] = NAN;
+        out[0] = out[1] = out[2] = out[3] = out[4] = NAN;
     else
         s->locate(k, x_trig, lo, x_trig + after, s->h_n, air, out);
 #endif
@@ -483,8 +484,10 @@ static void locate(Detector *s, int k, double x_trig, double before, double afte
     s->loc[4 * name + 1] = out[1];
     s->loc[4 * name + 2] = out[2];
     s->loc[4 * name + 3] = t_now;
-    if (k == 0 && isfinite(out[0]))
+    if (k == 0 && isfinite(out[0])) {
         s->F_air = out[3];
+        s->F_air_sd = out[4];
+    }
     if (!(k == 0 && s->entry_rs != 0.0))
         restart_after(s, k);
 }
@@ -564,6 +567,7 @@ static void outputs(const Detector *s, double *y)
     for (int i = 0; i < 4 * DET_EVENTS; i++)
         y[j++] = s->loc[i];
     y[j++] = s->F_air;
+    y[j++] = s->F_air_sd;
 }
 
 /* u: F [N], x [m]; y: the block's outputs in its order (interface_detector.py _OUTPUTS) */

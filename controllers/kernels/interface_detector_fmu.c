@@ -128,12 +128,12 @@ static long detector_history(const DetectorFMU *s, double h_n, double *t, double
     return n;
 }
 
-/* InterfaceDetector._fit: out = x_loc [m], t_loc [s], dx [m], F_air [N] */
+/* InterfaceDetector._fit: out = x_loc [m], t_loc [s], dx [m], F_air [N], F_air_sd [N] */
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
 {
     const DetectorFMU *s = (const DetectorFMU *)d;
-    out[0] = out[1] = out[2] = out[3] = NAN;
+    out[0] = out[1] = out[2] = out[3] = out[4] = NAN;
     double *t = malloc(6 * DET_HISTORY * sizeof(double));
     if (t == NULL)
         return;
@@ -163,6 +163,9 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
             if (xs[j] >= lo_air && xs[j] <= hi && xs[j] < out[0] - 0.5 * d->locate_margin)
                 xsel[a++] = F[j];
         out[3] = loc_mean(xsel, a);
+        for (long j = 0; j < a; j++)       /* the rms deviation, as numpy's mean of the squares */
+            xsel[j] = (xsel[j] - out[3]) * (xsel[j] - out[3]);
+        out[4] = sqrt(loc_mean(xsel, a));
     }
     out[1] = detector_time_at(t, x, n, out[0]);
     free(t);
