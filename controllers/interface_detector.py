@@ -694,7 +694,12 @@ class InterfaceDetector(KernelBlock, Block):
         floor taken against zero then misreads it -- the exit's thinning ratio never fired
         (11 unfinished project holes) and a gap's air passed for a cut level. Against the
         air level the offset cancels; without one the ratios are today's."""
-        return F - self.F_air if abs(self.F_air) > AIR_OFFSET_K * self.F_air_sd else F
+        return F - self._air_offset()
+
+    def _air_offset(self) -> float:
+        """The air level [N] when it stands out of its spread (AIR_OFFSET_K): a friction offset;
+        else 0 (within its spread it is the observer's ringing in air, no offset)."""
+        return self.F_air if abs(self.F_air) > AIR_OFFSET_K * self.F_air_sd else 0.0
 
     def _check_level(self, t: float, x: float) -> None:
         """The first quiet level of a layer (the statistics its tests arm on; any
@@ -1008,7 +1013,7 @@ class InterfaceDetector(KernelBlock, Block):
         # an interface window shortened to a thin layer below may end in the gap: air is
         # below the engagement floor of both layers around it (Al's is the lowest), over the
         # air level (a friction offset lifts the gap's air above a bare floor)
-        floor = air + min(self.floor[k - 1], self.floor[k]) if self.relative and kind == "interface" and \
+        floor = self._air_offset() + min(self.floor[k - 1], self.floor[k]) if self.relative and kind == "interface" and \
             self.loc_after[k - 1] < self.max_gap + self.locate_margin else None
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period)

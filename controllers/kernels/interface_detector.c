@@ -107,10 +107,16 @@ double detector_py_sum(double compensated, const double *x, long n)
     return py_sum_end(f, c);
 }
 
-/* interface_detector.py _above_air: F over the air level when it stands out of its spread (else F) */
+/* interface_detector.py _air_offset: the air level when it stands out of its spread, else 0 */
+static double air_offset(const Detector *s)
+{
+    return fabs(s->F_air) > DET_AIR_OFFSET_K * s->F_air_sd ? s->F_air : 0.0;
+}
+
+/* interface_detector.py _above_air: F over the air offset */
 static double above_air(const Detector *s, double F)
 {
-    return fabs(s->F_air) > DET_AIR_OFFSET_K * s->F_air_sd ? F - s->F_air : F;
+    return F - air_offset(s);
 }
 
 static double thd_interface(const Detector *s, int k, double F_pred)

@@ -153,7 +153,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     /* an interface window cut short to a thin layer below may end in the gap: air is below
      * the engagement floor of both layers around it (InterfaceDetector._fit) */
     double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0 && d->loc_after[k - 1] < d->max_gap + d->locate_margin
-        ? air + LOC_PYMIN(d->floor[k - 1], d->floor[k]) : NAN;     /* over the air level */
+        ? air_offset(d) + LOC_PYMIN(d->floor[k - 1], d->floor[k]) : NAN;     /* over the air offset */
     double period = kind == LOC_EXIT ? s->exit_period : kind == LOC_ENTRY ? s->entry_period : 0.0;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, &engage, &push, &out[0], &out[2]);
     if (k == 0 && isfinite(out[0])) {
