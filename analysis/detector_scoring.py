@@ -386,9 +386,10 @@ _LOC = tuple(f"{q}_{ev}_loc" for ev in ("entry", "interface1", "interface2", "in
 # subtracts the commissioned friction, so with it the air level is zero up to the observer's
 # noise and ringing. A drift is reported where the detector takes the air level as an offset
 # (|F_air| > AIR_OFFSET_K x F_air_sd, the spread of the samples it is the mean of) and it
-# exceeds FRICTION_FLOOR_N: on 45 nominal-friction holes of the three drives every air level
-# that stood out of its spread was below 0.6 N; 3 N is a Coulomb friction change of ~4 % on the
-# project drive, ~8 % on the foreign ones, below which re-commissioning is not worth a stop.
+# exceeds FRICTION_FLOOR_N: on 45 nominal-friction holes of the three drives no air level stood
+# two spreads out (at most 1.5) and |F_air| was <= 0.54 N but on four holes whose spread covered
+# it (1.8-10.5 N); 3 N is a Coulomb friction change of ~4 % on the project drive, ~8 % on the
+# foreign ones, below which re-commissioning is not worth a stop.
 FRICTION_FLOOR_N = 3.0
 
 
