@@ -687,13 +687,15 @@ class InterfaceDetector(KernelBlock, Block):
         return self._above_air(self.F_level) >= floor
 
     def _above_air(self, F: float) -> float:
-        """F [N] over the air level the entry's fit measured (F_air; 0 before the entry is
-        located). Why: the observer subtracts the commissioned friction, so a drive whose
-        friction differs shows the difference as an offset on every level, air included
-        (issue 23, plants drawn with Coulomb friction x1.12-1.49: +5-25 N). A ratio or a
-        floor taken against zero then misreads it -- the exit's thinning ratio never fired
-        (11 unfinished project holes) and a gap's air passed for a cut level. Against the
-        air level the offset cancels; without one the ratios are today's."""
+        """F [N] over the air offset (:meth:`_air_offset`; 0 before the entry is located).
+        Why: the observer subtracts the commissioned friction, so a drive whose friction
+        differs shows the difference as an offset on every level, air included (issue 23,
+        plants drawn with Coulomb friction x0.88-1.49: -9..+36 N). A ratio, floor or
+        level-proportional threshold taken against zero then misreads it -- the exit's
+        thinning ratio never fired (11 unfinished project holes), a gap's air passed for a
+        cut level, and an Al layer's interface threshold, scaled by the offset level, let
+        the interface pass 4-9 mm (opt holes 6, 23). Against the air level the offset
+        cancels; without one the ratios are today's."""
         return F - self._air_offset()
 
     def _air_offset(self) -> float:
