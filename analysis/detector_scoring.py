@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from drillcosim.analysis.signal_tools import centred_mean
+from drillcosim.controllers.interface_detector import AIR_OFFSET_K
 from drillcosim.cosim.scenario.needs import needs
 
 EVENTS = ("entry", "interface", "exit")
@@ -390,6 +391,38 @@ _DET = ("t_entry", "t_interface1", "t_interface2", "t_interface3", "t_exit", "t_
 _LOC = tuple(f"{q}_{ev}_loc" for ev in ("entry", "interface1", "interface2", "interface3", "exit")
              for q in ("t", "dx", "tknown"))
 
+# The friction-drift note: the detector's air level F_air [N] (its entry fit's mean observed
+# thrust in air) is the drive's friction not explained by the commissioned one -- the observer
+# subtracts the commissioned friction, so with it the air level is zero up to the observer's
+# noise and ringing. A drift is reported where the detector takes the air level as an offset
+# (|F_air| > AIR_OFFSET_K x F_air_sd, the spread of the samples it is the mean of) and it
+# exceeds FRICTION_FLOOR_N: on 45 nominal-friction holes of the three drives no air level stood
+# two spreads out (at most 1.5) and |F_air| was <= 0.54 N but on four holes whose spread covered
+# it (1.8-10.5 N); 3 N is a Coulomb friction change of ~4 % on the project drive, ~8 % on the
+# foreign ones, below which re-commissioning is not worth a stop.
+FRICTION_FLOOR_N = 3.0
+
+
+def friction_drift(result, detector="detector", floor_n=FRICTION_FLOOR_N) -> dict:
+    """The detector's air level ``air_level_N``, its spread ``air_level_sd_N`` and ``warnings``:
+    a friction drift when |air level| > max(AIR_OFFSET_K x spread, floor_n). Why: a drive whose
+    friction moved away from the commissioned one (wear, lubrication, temperature) shows the
+    difference as an offset on the observed thrust in every layer; the detector takes its
+    ratios against the air level, but the thrust record and any absolute threshold are off by
+    it, and the drive needs re-commissioning."""
+    F_air = last_value(result[f"{detector}.F_air"])
+    sd = last_value(result[f"{detector}.F_air_sd"])
+    out = {"air_level_N": F_air, "air_level_sd_N": sd, "warnings": []}
+    bound = max(AIR_OFFSET_K * sd, floor_n)
+    if abs(F_air) > bound:      # False for NaN: no entry located, no air level
+        out["warnings"].append(
+            f"friction drift: the observed thrust in air is {F_air:+.1f} N +- {sd:.1f} N (beyond {bound:.1f} N: "
+            f"{AIR_OFFSET_K:g} x its spread, at least {floor_n:g} N): the drive's friction differs from the "
+            f"commissioned one by about that axial force, so every observed thrust level is off by it; the "
+            f"detector takes its level ratios against the air level, but re-commission the drive "
+            f"(drillcosim commission) before trusting absolute thrust values")
+    return out
+
 
 def _event_dz(t, x_tool, xa, xb, td):
     """Depth error [m] of a detection at time td against the event between the tool-tip
@@ -408,7 +441,8 @@ def _located(result, detector, name, t, x_tool, td) -> dict:
 
 
 @needs("{plant}.tool_position_true", "{plant}.layer_index", *(f"{{detector}}.{n}" for n in _DET),
-       *(f"{{detector}}.{n}" for n in _LOC), "{adapt}.failsafe", "{adapt}.t_failsafe")
+       *(f"{{detector}}.{n}" for n in _LOC), "{adapt}.failsafe", "{adapt}.t_failsafe",
+       "{detector}.F_air", "{detector}.F_air_sd")
 def score_stack(result, plant="drive", detector="detector", adapt="adapt", materials=("cfrp", "ti"),
                 plan_windows=None, match_tolerance=1.0e-3, fail_action="hold"):
     """Score of one hole of a hole plan (appended by :mod:`drillcosim.drilling.hole_plan`).
@@ -480,6 +514,7 @@ def score_stack(result, plant="drive", detector="detector", adapt="adapt", mater
     out["failsafe"] = ("none", "hold", "retract")[mode] if 0 <= mode <= 2 else f"code {mode}"
     out["t_failsafe_s"] = last_value(result[f"{adapt}.t_failsafe"])
     out["final_flag"] = det["flag"]
+    out.update(friction_drift(result, detector))
     if math.isfinite(det["t_exit"]):
         out["status"] = "completed"
     else:

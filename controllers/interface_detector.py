@@ -150,6 +150,12 @@ LEVEL_STEADY = 0.5
 # later one: the quadratic push-out of a Ti layer above Al (foreign drive) falls over ~0.8 mm,
 # and its orbit means, 127 -> 85 N, passed LEVEL_STEADY's half (hole 140: a false exit 4.9 mm early)
 ORBIT_STEADY = 0.1
+# the level ratios and floors are taken against the air level F_air only when it stands out of
+# the spread of the thrust samples it was measured on by this factor (a friction offset): within
+# it, it is the observer's ringing in air, not an offset (issue 23 round 8: +8.6 N over a
+# +-15 N start-up swing on a nominal-friction foreign hole, where 9-36 N offsets of the
+# plants drawn at coulomb x1.12-1.49 stood 3-20 spreads out)
+AIR_OFFSET_K = 2.0
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
                   ("t", "s", "time the encoder passed the located position"),
@@ -231,6 +237,10 @@ _OUTPUTS = (
     Port("level_mismatch", "1", "observed over the plan's level ratio of the last two layers armed (1 = as planned)", NAN),
     *(Port(f"{q}_{ev}_loc", u, f"{what} of the {ev} (NaN until its localisation window is complete)", NAN)
       for ev in LOC_EVENTS for q, u, what in LOC_QUANTITIES),
+    Port("F_air", "N", "air level the level ratios and floors are taken against (the entry fit's mean "
+         "thrust in air; NaN until the entry is located: then against zero)", NAN),
+    Port("F_air_sd", "N", "rms deviation of the thrust samples F_air is the mean of (its uncertainty: the "
+         "observer's noise and ringing in air); F_air is taken only when |F_air| > AIR_OFFSET_K x this", NAN),
 )
 
 
@@ -664,6 +674,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.h_n = 0                # samples written since the reset
         self.pending = []           # (event index, x at trigger, index of the trigger sample)
         self.F_air = NAN            # observed thrust in air (the entry's level before contact)
+        self.F_air_sd = NAN         # rms deviation of the samples F_air is the mean of
         self.levels = [NAN] * self.n   # observed level of each layer when its tests armed
         self.mismatch = NAN         # last observed/plan level ratio between two layers
         self.loc = {ev: [NAN] * len(LOC_QUANTITIES) for ev in LOC_EVENTS}
@@ -679,7 +690,24 @@ class InterfaceDetector(KernelBlock, Block):
         floor = min(self.floor)
         if self.mismatch_factor > 0.0:
             floor = max(floor, self.floor[self.flag - 1] / self.mismatch_factor)
-        return self.F_level >= floor
+        return self._above_air(self.F_level) >= floor
+
+    def _above_air(self, F: float) -> float:
+        """F [N] over the air offset (:meth:`_air_offset`; 0 before the entry is located).
+        Why: the observer subtracts the commissioned friction, so a drive whose friction
+        differs shows the difference as an offset on every level, air included (issue 23,
+        plants drawn with Coulomb friction x0.88-1.49: -9..+36 N). A ratio, floor or
+        level-proportional threshold taken against zero then misreads it -- the exit's
+        thinning ratio never fired (11 unfinished project holes), a gap's air passed for a
+        cut level, and an Al layer's interface threshold, scaled by the offset level, let
+        the interface pass 4-9 mm (opt holes 6, 23). Against the air level the offset
+        cancels; without one the ratios are today's."""
+        return F - self._air_offset()
+
+    def _air_offset(self) -> float:
+        """The air level [N] when it stands out of its spread (AIR_OFFSET_K): a friction offset;
+        else 0 (within its spread it is the observer's ringing in air, no offset)."""
+        return self.F_air if abs(self.F_air) > AIR_OFFSET_K * self.F_air_sd else 0.0
 
     def _check_level(self, t: float, x: float) -> None:
         """The first quiet level of a layer (the statistics its tests arm on; any
@@ -689,10 +717,11 @@ class InterfaceDetector(KernelBlock, Block):
         engagement ramp's) is only final once the tool may have crossed a gap
         (_past_gap): until then it is not taken, and a later settled level may be."""
         k = self.flag - 1
-        if not (self.mismatch_factor > 0 and k >= 1 and self.levels[k - 1] > 0):
+        if not (self.mismatch_factor > 0 and k >= 1 and self._above_air(self.levels[k - 1]) > 0):
             self.levels[k] = self.F_level
             return
-        ratio = (self.F_level / self.levels[k - 1]) / (self.level_plan[k] / self.level_plan[k - 1])
+        ratio = (self._above_air(self.F_level) / self._above_air(self.levels[k - 1])) \
+            / (self.level_plan[k] / self.level_plan[k - 1])
         if ratio < 1.0 and not self._past_gap(x):
             return
         self.levels[k] = self.F_level
@@ -819,7 +848,7 @@ class InterfaceDetector(KernelBlock, Block):
     def _thd_interface(self, k: int, F_pred: float) -> float:
         if not self.relative:
             return self.thd2
-        return max(self.thd_min, self.step_gain[k - 1] * F_pred)
+        return max(self.thd_min, self.step_gain[k - 1] * self._above_air(F_pred))
 
     def _thd_onset(self, k: int, e: float, thd: float) -> float:
         """Interface k's threshold for this F~: lowered to thd_noise_factor x the plateau
@@ -835,7 +864,7 @@ class InterfaceDetector(KernelBlock, Block):
     def _thd_exit(self, F_pred: float) -> float:
         if not self.relative:
             return self.thd3
-        return -max(self.thd_min, self.exit_gain * F_pred)
+        return -max(self.thd_min, self.exit_gain * self._above_air(F_pred))
 
     def _rearm_level(self, F_pred: float) -> float:
         """|F~| must stay below this for rearm_samples before the next test arms. Relative
@@ -854,7 +883,7 @@ class InterfaceDetector(KernelBlock, Block):
         layer's own floor, which keeps the tests from arming in a gap above it."""
         if not self.relative or not 1 <= self.flag <= self.n:
             return True
-        return F_pred >= (min(self.floor[self.flag - 1:]) if self.fail else self.floor[self.flag - 1])
+        return self._above_air(F_pred) >= (min(self.floor[self.flag - 1:]) if self.fail else self.floor[self.flag - 1])
 
     def step(self, t, u):
         F, x = float(u[0]), float(u[1])
@@ -958,9 +987,9 @@ class InterfaceDetector(KernelBlock, Block):
         if k > 0 and math.isfinite(self.x_ev[k - 1]):    # not into the previous event's change
             lo = max(lo, self.x_ev[k - 1] + self.locate_margin)
         air = self.F_air if math.isfinite(self.F_air) else 0.0
-        x_loc, t_loc, dx, F_air = self._fit(k, x_trig, lo, x_trig + after, self.h_n, air)
+        x_loc, t_loc, dx, F_air, F_air_sd = self._fit(k, x_trig, lo, x_trig + after, self.h_n, air)
         if k == 0 and math.isfinite(x_loc):
-            self.F_air = F_air
+            self.F_air, self.F_air_sd = F_air, F_air_sd
         name = LOC_EVENTS[0] if k == 0 else LOC_EVENTS[-1] if k == self.n else f"interface{k}"
         self.loc[name] = [x_loc, t_loc, dx, t_now]
         if not (k == 0 and self.entry_rs):
@@ -992,12 +1021,13 @@ class InterfaceDetector(KernelBlock, Block):
         sel = (xs >= lo) & (xs <= hi)
         kind = "entry" if k == 0 else "exit" if k == self.n else "interface"
         # an interface window shortened to a thin layer below may end in the gap: air is
-        # below the engagement floor of both layers around it (Al's is the lowest)
-        floor = min(self.floor[k - 1], self.floor[k]) if self.relative and kind == "interface" and \
+        # below the engagement floor of both layers around it (Al's is the lowest), over the
+        # air level (a friction offset lifts the gap's air above a bare floor)
+        floor = self._air_offset() + min(self.floor[k - 1], self.floor[k]) if self.relative and kind == "interface" and \
             self.loc_after[k - 1] < self.max_gap + self.locate_margin else None
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period)
-        F_air = NAN
+        F_air = F_air_sd = NAN
         if k == 0 and math.isfinite(x_loc):
             # with a span the window is around the confirmation, which may leave only a few
             # samples of it in air: the air level then from a locate_margin of air whatever the
@@ -1005,8 +1035,10 @@ class InterfaceDetector(KernelBlock, Block):
             # a ti/al interface located 0.39 mm inside the Ti)
             lo_air = min(lo, x_loc - 1.5 * self.locate_margin) if self.entry_P else lo
             in_air = (xs >= lo_air) & (xs <= hi) & (xs < x_loc - 0.5 * self.locate_margin)
-            F_air = float(np.mean(hF[in_air])) if in_air.any() else NAN
-        return x_loc, time_at(ht, hx, x_loc), dx, F_air
+            if in_air.any():
+                F_air = float(np.mean(hF[in_air]))
+                F_air_sd = float(np.sqrt(np.mean((hF[in_air] - F_air) ** 2)))
+        return x_loc, time_at(ht, hx, x_loc), dx, F_air, F_air_sd
 
     def _entry_period_samples(self) -> float | None:
         """The entry's fit with the first layer's orbit sinusoid (event_locator.onset_face):
@@ -1028,7 +1060,7 @@ class InterfaceDetector(KernelBlock, Block):
                 self.t_paper, self.x_paper = t, x
                 if self.exit_criterion == "paper":
                     self._exit_candidate(t, x)
-        if math.isnan(self.t_thin) and F < self.exit_ratio * self.F_ref:
+        if math.isnan(self.t_thin) and self._above_air(F) < self.exit_ratio * self._above_air(self.F_ref):
             self.t_thin, self.x_thin = t, x
             if self.exit_criterion == "thinning":
                 self._exit_candidate(t, x)
@@ -1057,11 +1089,12 @@ class InterfaceDetector(KernelBlock, Block):
             if self.fail and self.fail_disarms:
                 return
             M0 = self._hist_mean(self.h_n - 2 * P, self.h_n - P)
-            if not (M0 >= max(self.floor[self.n - 1], self.thd_min)
-                    and abs(M - M0) < max(self.rearm_level, ORBIT_STEADY * M) and self._orbit_cut_level(M)):
+            if not (self._above_air(M0) >= max(self.floor[self.n - 1], self.thd_min)
+                    and abs(M - M0) < max(self.rearm_level, ORBIT_STEADY * self._above_air(M))
+                    and self._orbit_cut_level(M)):
                 return
         self.orb_ref = M if math.isnan(self.orb_ref) else max(self.orb_ref, M)
-        if M < self.exit_ratio * self.orb_ref:
+        if self._above_air(M) < self.exit_ratio * self._above_air(self.orb_ref):
             if math.isnan(self.t_thin):
                 self.t_thin, self.x_thin = t, x
             self._exit_candidate(t, x)
@@ -1071,9 +1104,9 @@ class InterfaceDetector(KernelBlock, Block):
         layer: above its floor and thd_min (the exit's least drop), the thrust's spread over the
         orbit below the level (no residue of the observer's ringing) and fitting the plan's level
         (:meth:`_orbit_level_fits`)."""
-        P = self.exit_P
-        return M >= max(self.floor[self.n - 1], self.thd_min) \
-            and self._hist_var(self.h_n - P, self.h_n, M) < M * M and self._orbit_level_fits(M)
+        P, Ma = self.exit_P, self._above_air(M)     # the level over the air level (friction offset)
+        return Ma >= max(self.floor[self.n - 1], self.thd_min) \
+            and self._hist_var(self.h_n - P, self.h_n, M) < Ma * Ma and self._orbit_level_fits(M)
 
     def _exit_candidate(self, t: float, x: float) -> None:
         """The one exit decision of the exit tests (the thinning test on F, the one on orbit
@@ -1119,9 +1152,10 @@ class InterfaceDetector(KernelBlock, Block):
         412 -> 379 N over an orbit, which armed the test on a Ti level and fired a false exit
         on the fall to Al's 40 N."""
         k = self.n - 1
-        if not (self.mismatch_factor > 0.0 and k >= 1 and self.levels[k - 1] > 0.0):
+        if not (self.mismatch_factor > 0.0 and k >= 1 and self._above_air(self.levels[k - 1]) > 0.0):
             return True
-        return M <= self.mismatch_factor * self.levels[k - 1] * self.level_plan[k] / self.level_plan[k - 1]
+        return self._above_air(M) <= \
+            self.mismatch_factor * self._above_air(self.levels[k - 1]) * self.level_plan[k] / self.level_plan[k - 1]
 
     def _may_arm(self, x: float) -> bool:
         """Whether the next event's test may arm now. The entry test: with a nominal stack,
@@ -1163,6 +1197,7 @@ class InterfaceDetector(KernelBlock, Block):
             *t_if, *x_if,
             self.t_fail, self.x_fail, self.thd, float(self.n), self.mismatch,
             *(v for ev in LOC_EVENTS for v in self.loc[ev]),
+            self.F_air, self.F_air_sd,
         )
 
     # ------------------------------------------------------------------ the C step
@@ -1248,9 +1283,9 @@ class InterfaceDetector(KernelBlock, Block):
     def _c_locate(self, k, x_trig, lo, hi, h_n, air, out) -> None:
         """The C step's localisation callback: :meth:`_fit` into ``out``."""
         try:
-            out[0], out[1], out[2], out[3] = self._fit(int(k), x_trig, lo, hi, int(h_n), air)
+            out[0], out[1], out[2], out[3], out[4] = self._fit(int(k), x_trig, lo, hi, int(h_n), air)
         except Exception as exc:    # noqa: BLE001 -- a ctypes callback cannot raise into C: NaN, said loudly
-            out[0] = out[1] = out[2] = out[3] = NAN
+            out[0] = out[1] = out[2] = out[3] = out[4] = NAN
             warnings.warn(f"InterfaceDetector: the localisation of event {int(k)} failed, its outputs stay "
                           f"NaN: {exc!r}", RuntimeWarning, stacklevel=1)
 
@@ -1280,6 +1315,6 @@ class InterfaceDetector(KernelBlock, Block):
 _C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n fail fail_code h_event".split()},
               **{name: bool for name in "armed drop exit_armed trim entry_rs".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last "
-                                         "F_pred F_err F_level thd F_air mismatch orb_ref exit_cand_t exit_cand_x "
-                                         "exit_cand_i exit_cand_M".split()}}
+                                         "F_pred F_err F_level thd F_air F_air_sd mismatch orb_ref exit_cand_t "
+                                         "exit_cand_x exit_cand_i exit_cand_M".split()}}
 _C_LISTS = ("t_ev", "x_ev", "levels", "loc", "pending", "cand", "err_hist", "cand_F", "cand_e")

@@ -70,7 +70,7 @@ def _bits(y) -> bytes:
     return np.asarray(y, dtype=float).tobytes()
 
 
-MIRRORED = ("flag", "armed", "n_buf", "quiet", "need", "fail", "fail_code", "F_level", "F_ref", "F_air",
+MIRRORED = ("flag", "armed", "n_buf", "quiet", "need", "fail", "fail_code", "F_level", "F_ref", "F_air", "F_air_sd",
             "t_ev", "x_ev", "levels", "loc", "pending", "cand")
 
 

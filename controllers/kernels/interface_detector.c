@@ -29,10 +29,11 @@
 #define DET_LEVEL_SETTLED 0.1                /* interface_detector.py LEVEL_SETTLED */
 #define DET_LEVEL_STEADY 0.5                 /* interface_detector.py LEVEL_STEADY */
 #define DET_ORBIT_STEADY 0.1                 /* interface_detector.py ORBIT_STEADY */
-#define DET_N_OUT 48
+#define DET_AIR_OFFSET_K 2.0                 /* interface_detector.py AIR_OFFSET_K */
+#define DET_N_OUT 50
 
 typedef double (*dot_fn)(long n, const double *x, long incx, const double *y, long incy);
-/* k, x_trig, lo, hi [m], samples written, air level [N] -> out: x_loc, t_loc, dx, F_air */
+/* k, x_trig, lo, hi [m], samples written, air level [N] -> out: x_loc, t_loc, dx, F_air, F_air_sd */
 typedef void (*locate_fn)(double k, double x_trig, double lo, double hi, double h_n, double air, double *out);
 
 typedef struct {
@@ -56,7 +57,7 @@ typedef struct {
     double cand_e[DET_ENTRY_SWING], cand_e_n, cand_e_pos;
     double armed, fail, fail_code, t_fail, x_fail, t_last, x_last, F_pred, F_err, F_level, thd, h_n;
     double n_pending, pend_k[DET_EVENTS], pend_x[DET_EVENTS], pend_i[DET_EVENTS];
-    double F_air, levels[DET_MAX_LAYERS], mismatch, trim, settled, steady, loc[4 * DET_EVENTS];
+    double F_air, F_air_sd, levels[DET_MAX_LAYERS], mismatch, trim, settled, steady, loc[4 * DET_EVENTS];
     /* the block's arrays and functions */
     const double *W;            /* weights of every window length N_min..N, one after the other */
     double *buf, *h_t, *h_x, *h_F, *err;
@@ -107,18 +108,30 @@ double detector_py_sum(double compensated, const double *x, long n)
     return py_sum_end(f, c);
 }
 
+/* interface_detector.py _air_offset: the air level when it stands out of its spread, else 0 */
+static double air_offset(const Detector *s)
+{
+    return fabs(s->F_air) > DET_AIR_OFFSET_K * s->F_air_sd ? s->F_air : 0.0;
+}
+
+/* interface_detector.py _above_air: F over the air offset */
+static double above_air(const Detector *s, double F)
+{
+    return F - air_offset(s);
+}
+
 static double thd_interface(const Detector *s, int k, double F_pred)
 {
     if (s->relative == 0.0)
         return s->thd2;
-    return MAX(s->thd_min, s->step_gain[k - 1] * F_pred);
+    return MAX(s->thd_min, s->step_gain[k - 1] * above_air(s, F_pred));
 }
 
 static double thd_exit(const Detector *s, double F_pred)
 {
     if (s->relative == 0.0)
         return s->thd3;
-    return -MAX(s->thd_min, s->exit_gain * F_pred);
+    return -MAX(s->thd_min, s->exit_gain * above_air(s, F_pred));
 }
 
 static double thd_onset(const Detector *s, int k, double e, double thd)
@@ -160,7 +173,7 @@ static int engaged(const Detector *s, double F_pred)
     int flag = (int)s->flag, n = (int)s->n;
     if (s->relative == 0.0 || !(1 <= flag && flag <= n))
         return 1;
-    return F_pred >= (s->fail != 0.0 ? min_of(s->floor, flag - 1, n) : s->floor[flag - 1]);
+    return above_air(s, F_pred) >= (s->fail != 0.0 ? min_of(s->floor, flag - 1, n) : s->floor[flag - 1]);
 }
 
 static int may_arm(const Detector *s, double x)
@@ -195,17 +208,17 @@ static int cut_level(const Detector *s)
     double floor = min_of(s->floor, 0, (int)s->n);
     if (s->mismatch_factor > 0.0)
         floor = MAX(floor, s->floor[(int)s->flag - 1] / s->mismatch_factor);
-    return s->F_level >= floor;
+    return above_air(s, s->F_level) >= floor;
 }
 
 static void check_level(Detector *s, double t, double x)
 {
     int k = (int)s->flag - 1;
-    if (!(s->mismatch_factor > 0.0 && k >= 1 && s->levels[k - 1] > 0.0)) {
+    if (!(s->mismatch_factor > 0.0 && k >= 1 && above_air(s, s->levels[k - 1]) > 0.0)) {
         s->levels[k] = s->F_level;
         return;
     }
-    double ratio = (s->F_level / s->levels[k - 1]) / (s->level_plan[k] / s->level_plan[k - 1]);
+    double ratio = (above_air(s, s->F_level) / above_air(s, s->levels[k - 1])) / (s->level_plan[k] / s->level_plan[k - 1]);
     /* interface_detector.py _past_gap: a level below the plan ratio may be a gap.s or a ramp.s: final past the gap */
     if (ratio < 1.0 && !(x - s->x_last >= s->max_gap + s->locate_margin))
         return;
@@ -341,7 +354,7 @@ static void exit_tests(Detector *s, double t, double x, double F, double F_pred,
                 exit_candidate(s, t, x);
         }
     }
-    if (isnan(s->t_thin) && F < s->exit_ratio * s->F_ref) {
+    if (isnan(s->t_thin) && above_air(s, F) < s->exit_ratio * above_air(s, s->F_ref)) {
         s->t_thin = t;
         s->x_thin = x;
         if (s->exit_thinning != 0.0)
@@ -353,17 +366,17 @@ static void exit_tests(Detector *s, double t, double x, double F, double F_pred,
 static int orbit_level_fits(const Detector *s, double M)
 {
     int k = (int)s->n - 1;
-    if (!(s->mismatch_factor > 0.0 && k >= 1 && s->levels[k - 1] > 0.0))
+    if (!(s->mismatch_factor > 0.0 && k >= 1 && above_air(s, s->levels[k - 1]) > 0.0))
         return 1;
-    return M <= s->mismatch_factor * s->levels[k - 1] * s->level_plan[k] / s->level_plan[k - 1];
+    return above_air(s, M) <= s->mismatch_factor * above_air(s, s->levels[k - 1]) * s->level_plan[k] / s->level_plan[k - 1];
 }
 
 /* interface_detector.py _orbit_cut_level: 1 when the last orbit's mean M may be a cut level */
 static int orbit_cut_level(const Detector *s, double M)
 {
-    double P = s->exit_P;
-    return M >= MAX(s->floor[(int)s->n - 1], s->thd_min)
-           && hist_var(s, s->h_n - P, s->h_n, M) < M * M && orbit_level_fits(s, M);
+    double P = s->exit_P, Ma = above_air(s, M);   /* the level over the air level (friction offset) */
+    return Ma >= MAX(s->floor[(int)s->n - 1], s->thd_min)
+           && hist_var(s, s->h_n - P, s->h_n, M) < Ma * Ma && orbit_level_fits(s, M);
 }
 
 /* interface_detector.py _past_gap */
@@ -416,12 +429,12 @@ static void exit_orbit(Detector *s, double t, double x)
         if (s->fail != 0.0 && s->fail_disarms != 0.0)
             return;
         M0 = hist_mean(s, s->h_n - 2.0 * P, s->h_n - P);
-        if (!(M0 >= MAX(s->floor[(int)s->n - 1], s->thd_min)
-              && fabs(M - M0) < MAX(s->rearm_level, DET_ORBIT_STEADY * M) && orbit_cut_level(s, M)))
+        if (!(above_air(s, M0) >= MAX(s->floor[(int)s->n - 1], s->thd_min)
+              && fabs(M - M0) < MAX(s->rearm_level, DET_ORBIT_STEADY * above_air(s, M)) && orbit_cut_level(s, M)))
             return;
     }
     s->orb_ref = isnan(s->orb_ref) ? M : MAX(s->orb_ref, M);
-    if (M < s->exit_ratio * s->orb_ref) {
+    if (above_air(s, M) < s->exit_ratio * above_air(s, s->orb_ref)) {
         if (isnan(s->t_thin)) {
             s->t_thin = t;
             s->x_thin = x;
@@ -507,7 +520,7 @@ static void restart_after(Detector *s, int k)
 static void locate(Detector *s, int k, double x_trig, double before, double after, double t_now)
 {
     int n = (int)s->n;
-    double lo = x_trig - before, out[4];
+    double lo = x_trig - before, out[5];
     if (k > 0 && isfinite(s->x_ev[k - 1]))
         lo = MAX(lo, s->x_ev[k - 1] + s->locate_margin);
     double air = isfinite(s->F_air) ? s->F_air : 0.0;
@@ -515,7 +528,7 @@ static void locate(Detector *s, int k, double x_trig, double before, double afte
     detector_locate(s, k, x_trig, lo, x_trig + after, s->h_n, air, out);
 #else
     if (s->locate == NULL)      /* a state the block did not fill (it always sets the callback) */
-        out[0] = out[1] = out[2] = out[3] = NAN;
+        out[0] = out[1] = out[2] = out[3] = out[4] = NAN;
     else
         s->locate(k, x_trig, lo, x_trig + after, s->h_n, air, out);
 #endif
@@ -524,8 +537,10 @@ static void locate(Detector *s, int k, double x_trig, double before, double afte
     s->loc[4 * name + 1] = out[1];
     s->loc[4 * name + 2] = out[2];
     s->loc[4 * name + 3] = t_now;
-    if (k == 0 && isfinite(out[0]))
+    if (k == 0 && isfinite(out[0])) {
         s->F_air = out[3];
+        s->F_air_sd = out[4];
+    }
     if (!(k == 0 && s->entry_rs != 0.0))
         restart_after(s, k);
 }
@@ -604,6 +619,8 @@ static void outputs(const Detector *s, double *y)
     y[j++] = s->mismatch;
     for (int i = 0; i < 4 * DET_EVENTS; i++)
         y[j++] = s->loc[i];
+    y[j++] = s->F_air;
+    y[j++] = s->F_air_sd;
 }
 
 /* u: F [N], x [m]; y: the block's outputs in its order (interface_detector.py _OUTPUTS) */

@@ -128,12 +128,12 @@ static long detector_history(const DetectorFMU *s, double h_n, double *t, double
     return n;
 }
 
-/* InterfaceDetector._fit: out = x_loc [m], t_loc [s], dx [m], F_air [N] */
+/* InterfaceDetector._fit: out = x_loc [m], t_loc [s], dx [m], F_air [N], F_air_sd [N] */
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
 {
     const DetectorFMU *s = (const DetectorFMU *)d;
-    out[0] = out[1] = out[2] = out[3] = NAN;
+    out[0] = out[1] = out[2] = out[3] = out[4] = NAN;
     double *t = malloc(6 * DET_HISTORY * sizeof(double));
     if (t == NULL)
         return;
@@ -153,7 +153,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     /* an interface window cut short to a thin layer below may end in the gap: air is below
      * the engagement floor of both layers around it (InterfaceDetector._fit) */
     double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0 && d->loc_after[k - 1] < d->max_gap + d->locate_margin
-        ? LOC_PYMIN(d->floor[k - 1], d->floor[k]) : NAN;
+        ? air_offset(d) + LOC_PYMIN(d->floor[k - 1], d->floor[k]) : NAN;     /* over the air offset */
     double period = kind == LOC_EXIT ? s->exit_period : kind == LOC_ENTRY ? s->entry_period : 0.0;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, &engage, &push, &out[0], &out[2]);
     if (k == 0 && isfinite(out[0])) {
@@ -163,6 +163,9 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
             if (xs[j] >= lo_air && xs[j] <= hi && xs[j] < out[0] - 0.5 * d->locate_margin)
                 xsel[a++] = F[j];
         out[3] = loc_mean(xsel, a);
+        for (long j = 0; j < a; j++)       /* the rms deviation, as numpy's mean of the squares */
+            xsel[j] = (xsel[j] - out[3]) * (xsel[j] - out[3]);
+        out[4] = sqrt(loc_mean(xsel, a));
     }
     out[1] = detector_time_at(t, x, n, out[0]);
     free(t);
