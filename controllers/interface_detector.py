@@ -659,6 +659,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.pending = []           # (event index, x at trigger, index of the trigger sample)
         self.F_air = NAN            # observed thrust in air (the entry's level before contact)
         self.levels = [NAN] * self.n   # observed level of each layer when its tests armed
+        self.x_arm = [NAN] * self.n    # encoder position [m] where each layer's tests first armed
         self.mismatch = NAN         # last observed/plan level ratio between two layers
         self.loc = {ev: [NAN] * len(LOC_QUANTITIES) for ev in LOC_EVENTS}
         self._c_attach()
@@ -889,6 +890,7 @@ class InterfaceDetector(KernelBlock, Block):
                 self._check_level(t, x)
             if not self.armed and self._may_arm(x):
                 self.armed, self.trim = True, False
+                self._armed_at(x)
             self.thd = NAN
             if self.flag == 0 and self.armed:
                 self.thd = self.thd1 if not self.relative else self.thd_entry
@@ -949,6 +951,12 @@ class InterfaceDetector(KernelBlock, Block):
         lo = x_trig - before
         if k > 0 and math.isfinite(self.x_ev[k - 1]):    # not into the previous event's change
             lo = max(lo, self.x_ev[k - 1] + self.locate_margin)
+        if 0 < k < self.n and math.isfinite(self.x_arm[k - 1]):
+            # interface k is below where layer k's tests armed on its plateau: a window reaching
+            # further up, on a thin layer, held the gap above it and the fit took the layer's own
+            # onset for its bottom (wide draw: project holes 21, 22, 25 0.25-0.79 mm, foreign 44,
+            # 45 1.1-1.2 mm, foreign2 44 1.5 mm early)
+            lo = max(lo, self.x_arm[k - 1])
         air = self.F_air if math.isfinite(self.F_air) else 0.0
         x_loc, t_loc, dx, F_air = self._fit(k, x_trig, lo, x_trig + after, self.h_n, air)
         if k == 0 and math.isfinite(x_loc):
@@ -957,6 +965,12 @@ class InterfaceDetector(KernelBlock, Block):
         self.loc[name] = [x_loc, t_loc, dx, t_now]
         if not (k == 0 and self.entry_rs):
             self._restart_after(k)
+
+    def _armed_at(self, x: float) -> None:
+        """The tests just armed at encoder position x [m]: the first arming in a layer marks
+        where the tool was on its plateau (the interface below it is further on)."""
+        if 1 <= self.flag <= self.n and math.isnan(self.x_arm[self.flag - 1]):
+            self.x_arm[self.flag - 1] = x
 
     def _restart_after(self, k: int) -> None:
         """Event k is behind the tool: restart the regression for the next test."""
@@ -1182,6 +1196,7 @@ class InterfaceDetector(KernelBlock, Block):
             c.step_gain[:n - 1], c.floor[:n], c.level_plan[:n] = self.step_gain, self.floor, self.level_plan
         fill(c, **{name: getattr(self, name) for name in _C_SCALARS})
         c.t_ev[:n + 1], c.x_ev[:n + 1], c.levels[:n] = self.t_ev, self.x_ev, self.levels
+        c.x_arm[:n] = self.x_arm
         c.loc[:] = [v for ev in LOC_EVENTS for v in self.loc[ev]]
         fill(c, err_n=0, err_pos=0, cand=0, cand_n=0, cand_e_n=0, cand_e_pos=0, n_pending=0)
         self._c_err = np.zeros(2 * self.N)       # |F~| of the last 2 N samples (a ring)
@@ -1212,8 +1227,8 @@ class InterfaceDetector(KernelBlock, Block):
             return _C_SCALARS[name](getattr(s, name))
         if name in ("t_ev", "x_ev"):
             return list(getattr(s, name)[:n + 1])
-        if name == "levels":
-            return list(s.levels[:n])
+        if name in ("levels", "x_arm"):
+            return list(getattr(s, name)[:n])
         if name == "loc":
             return {ev: list(s.loc[4 * j:4 * j + 4]) for j, ev in enumerate(LOC_EVENTS)}
         if name == "pending":
@@ -1229,4 +1244,4 @@ _C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n
               **{name: bool for name in "armed drop exit_armed trim entry_rs".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last "
                                          "F_pred F_err F_level thd F_air mismatch orb_ref".split()}}
-_C_LISTS = ("t_ev", "x_ev", "levels", "loc", "pending", "cand", "err_hist", "cand_F", "cand_e")
+_C_LISTS = ("t_ev", "x_ev", "levels", "x_arm", "loc", "pending", "cand", "err_hist", "cand_F", "cand_e")

@@ -48,6 +48,7 @@ typedef struct {
     double entry_rs;            /* state: restarted after the entry before it was located */
     double exit_P;              /* the exit's orbit test: the last layer's orbit [samples] (0: off) */
     double h_event, orb_ref;    /* state: samples written at the last event; its highest orbit mean */
+    double x_arm[DET_MAX_LAYERS];   /* state: encoder position where each layer's tests first armed */
     /* state */
     double n_buf, flag, t_ev[DET_EVENTS], x_ev[DET_EVENTS], t_paper, x_paper, t_thin, x_thin, F_ref;
     double drop, exit_armed, quiet, need, err_n, err_pos;
@@ -383,6 +384,14 @@ static void exit_orbit(Detector *s, double t, double x)
 }
 
 /* the prediction error's bookkeeping and the armed test of one sample */
+/* interface_detector.py _armed_at: the first arming in a layer marks the tool on its plateau */
+static void armed_at(Detector *s, double x)
+{
+    int flag = (int)s->flag;
+    if (1 <= flag && flag <= (int)s->n && isnan(s->x_arm[flag - 1]))
+        s->x_arm[flag - 1] = x;
+}
+
 static void tests(Detector *s, double t, double x, double F, double F_pred)
 {
     double e = F - F_pred;
@@ -422,6 +431,7 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
     if (s->armed == 0.0 && may_arm(s, x)) {
         s->armed = 1.0;
         s->trim = 0.0;
+        armed_at(s, x);
     }
     s->thd = NAN;
     flag = (int)s->flag;
@@ -462,6 +472,8 @@ static void locate(Detector *s, int k, double x_trig, double before, double afte
     double lo = x_trig - before, out[4];
     if (k > 0 && isfinite(s->x_ev[k - 1]))
         lo = MAX(lo, s->x_ev[k - 1] + s->locate_margin);
+    if (k > 0 && k < n && isfinite(s->x_arm[k - 1]))   /* interface_detector.py: below where layer k armed */
+        lo = MAX(lo, s->x_arm[k - 1]);
     double air = isfinite(s->F_air) ? s->F_air : 0.0;
 #ifdef DETECTOR_SELF_CONTAINED
     detector_locate(s, k, x_trig, lo, x_trig + after, s->h_n, air, out);
