@@ -150,6 +150,11 @@ LEVEL_STEADY = 0.5
 # later one: the quadratic push-out of a Ti layer above Al (foreign drive) falls over ~0.8 mm,
 # and its orbit means, 127 -> 85 N, passed LEVEL_STEADY's half (hole 140: a false exit 4.9 mm early)
 ORBIT_STEADY = 0.1
+# an interface's drop test on orbit means (interface_orbit_arm) runs only where the plan has the
+# layer below cut at most this fraction of the layer's level (its orbit-mean threshold is the
+# square root of the plan's ratio, at most 0.59 of the level): a smaller drop is within the
+# levels' spread with tool wear (the ratio moves by up to ~2.7, docs/plants.md)
+ORBIT_DROP = 0.35
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
                   ("t", "s", "time the encoder passed the located position"),
@@ -366,6 +371,11 @@ class InterfaceDetector(KernelBlock, Block):
         and the thinning criterion): the exit's thinning test also runs on the mean thrust
         over one orbit, armed on two steady orbit means of the last layer
         (:meth:`_exit_orbit`: a thin last layer under the observer's ringing); 0 (default): off.
+    interface_orbit_arm [s]: per interface, the orbit period of the layer above it (the hole
+        plan's); > 0 (process-following thresholds) and a planned drop into the layer below to
+        at most ORBIT_DROP of the level: while the layer's F~ test has not armed, a drop test
+        on the mean thrust over one orbit runs too (:meth:`_interface_orbit`: a thin layer at
+        a fast feed under the orbit's ripple); None or 0 (default): off.
     exit_loc_after [m]: travel after the exit's trigger its localisation window holds
         (default locate_margin; the hole plan adds half an orbit of the last layer's feed:
         the orbit means of the last half orbit need the samples after it).
@@ -438,6 +448,7 @@ class InterfaceDetector(KernelBlock, Block):
         exit_orbit_period: float = 0.0,
         exit_loc_after: float | None = None,
         exit_orbit_arm: float = 0.0,
+        interface_orbit_arm: Sequence[float] | None = None,
     ):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
@@ -454,10 +465,8 @@ class InterfaceDetector(KernelBlock, Block):
         self.thicknesses = thicknesses
         self.thickness_tolerances = _per_layer("thickness_tolerances", thickness_tolerances, n)
         self.max_gap = float(max_gap)
-        self.tolerance = float(tolerance)
-        self.exit_tolerance = float(exit_tolerance)
-        self.feed_rate = float(feed_rate)
-        self.time_margin = float(time_margin)
+        self.tolerance, self.exit_tolerance = float(tolerance), float(exit_tolerance)
+        self.feed_rate, self.time_margin = float(feed_rate), float(time_margin)
         self.fail_disarms = bool(fail_disarms)
         self._set_factors(mismatch_factor, thd_noise_factor)
         self.restart = bool(restart)
@@ -472,6 +481,7 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_loc_after(interface_loc_after)
         self._set_exit_loc(exit_orbit_period, exit_loc_after)
         self._set_exit_arm(exit_orbit_arm)
+        self._set_interface_arm(interface_orbit_arm)
         self.windows = self._windows()
         self.reset(0.0)
 
@@ -588,6 +598,24 @@ class InterfaceDetector(KernelBlock, Block):
                              f"exit_criterion 'thinning' and an orbit of 2 to {HISTORY // 8} samples "
                              f"({2 * self.sample_period:g} to {HISTORY // 8 * self.sample_period:g} s), got {orbit!r} s")
 
+    def _set_interface_arm(self, periods) -> None:
+        """The interfaces' drop test on orbit means: ``periods`` [s] the orbit period of each
+        layer but the last (None: off; 0 for a layer: off for its interface), in samples
+        (if_P), and the fraction of the orbit-mean reference it fires below (if_ratio:
+        sqrt of the plan's level ratio, 0: no drop test), checked."""
+        n_if = self.n - 1
+        vals = [0.0] * n_if if periods is None else [float(v) for v in periods]
+        if len(vals) != n_if or not all(v >= 0.0 for v in vals):
+            raise ValueError(f"InterfaceDetector: interface_orbit_arm needs one orbit period >= 0 s per "
+                             f"interface ({n_if}), got {periods!r}")
+        self.if_P = [int(round(v / self.sample_period)) for v in vals]
+        if any(vals) and not (self.relative and all(P == 0 or 2 <= P and 2 * P <= HISTORY // 4 for P in self.if_P)):
+            raise ValueError("InterfaceDetector: interface_orbit_arm needs process-following thresholds (kc) and "
+                             f"orbits of 2 to {HISTORY // 8} samples ({2 * self.sample_period:g} to "
+                             f"{HISTORY // 8 * self.sample_period:g} s), got {periods!r}")
+        ratios = [self.level_plan[k + 1] / self.level_plan[k] for k in range(n_if)] if self.relative else [1.0] * n_if
+        self.if_ratio = [math.sqrt(r) if P and r <= ORBIT_DROP else 0.0 for P, r in zip(self.if_P, ratios)]
+
     def loc_window(self, k: int) -> tuple[float, float]:
         """Travel [m] (before, after) the trigger of event k (0 entry, 1..n-1 interface
         k, n exit) whose samples the localisation fits: an interface may have a gap of up
@@ -633,6 +661,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.exit_armed = False     # the last layer's (exit) tests have been armed once
         self.h_event = 0            # samples written when the last event fired
         self.orb_ref = NAN          # highest orbit mean since the exit's orbit test armed (NaN: not armed)
+        self.if_ref = NAN           # ... since the interface's orbit test armed (NaN: not armed)
         self.quiet = 0              # consecutive samples with |F~| < rearm level
         self.settled = 0            # ... and below LEVEL_SETTLED of the level (the materials check)
         self.steady = 0             # ... and below LEVEL_STEADY of the level (an interface test's arming)
@@ -910,6 +939,8 @@ class InterfaceDetector(KernelBlock, Block):
                 self._exit_tests(t, x, F, F_pred, e)
         if self.exit_P and self.flag == self.n:
             self._exit_orbit(t, x)
+        elif 1 <= self.flag < self.n and self.if_ratio[self.flag - 1]:
+            self._interface_orbit(t, x)
         # shift the regression window (oldest first)
         if self.n_buf < self.N:
             self.buf[self.n_buf] = F
@@ -1073,14 +1104,50 @@ class InterfaceDetector(KernelBlock, Block):
                 self.t_thin, self.x_thin = t, x
             self._event(self.n, t, x)
 
-    def _orbit_level_fits(self, M: float) -> bool:
-        """Whether an orbit mean M [N] may be the last layer's level: with the materials check,
+    def _interface_orbit(self, t: float, x: float) -> None:
+        """Interface k's (the flag's) drop test on the mean thrust over the last orbit of layer
+        k (if_P samples), while layer k's F~ tests have not armed (x_arm): it arms, inside the
+        interface's window, on two successive orbit means after the last event that stand on
+        the layer (:meth:`_orbit_arms`) and fires once the orbit mean falls below if_ratio of
+        its highest value since (the geometric middle of the layer's and the next one's
+        planned levels). Why: a thin layer at a fast feed under the orbit's ripple (the
+        foreign drives: +-35-150 N at 3-4 Hz about a 400-2000 N Ti level) gives F~ no quiet
+        N_min samples before its push-out, and the drop into the softer layer below was
+        missed (wide draw: foreign holes 73, 144, 150, 167, 184 and foreign2 184, 1-1.4 mm Ti
+        at 17-24 mm/min); over an orbit the ripple averages out, the level stays."""
+        k = self.flag
+        P = self.if_P[k - 1]
+        if self.h_n - self.h_event < 2 * P or not math.isnan(self.x_arm[k - 1]) \
+                or self.windows is not None and x < self.windows[k][0]:
+            self.if_ref = NAN
+            return
+        M = self._hist_mean(self.h_n - P, self.h_n)
+        if math.isnan(self.if_ref) and not self._orbit_arms(M, P, k - 1):
+            return
+        self.if_ref = M if math.isnan(self.if_ref) else max(self.if_ref, M)
+        if M < self.if_ratio[k - 1] * self.if_ref:
+            self._event(k, t, x)
+
+    def _orbit_arms(self, M: float, P: int, k: int) -> bool:
+        """Whether an orbit test of layer k (0-based) arms on the last orbit mean M [N] (P
+        samples) and the one before: not after a fail that disarms, both above the layer's
+        floor (and thd_min), within ORBIT_STEADY of each other, the spread over the orbit
+        below the level and M fitting the plan's level (:meth:`_orbit_level_fits`): the
+        exit's rule (:meth:`_exit_orbit`, which explains each part)."""
+        if self.fail and self.fail_disarms:
+            return False
+        M0 = self._hist_mean(self.h_n - 2 * P, self.h_n - P)
+        return (min(M, M0) >= max(self.floor[k], self.thd_min) and abs(M - M0) < max(self.rearm_level, ORBIT_STEADY * M)
+                and self._hist_var(self.h_n - P, self.h_n, M) < M * M and self._orbit_level_fits(M, k))
+
+    def _orbit_level_fits(self, M: float, k: int | None = None) -> bool:
+        """Whether an orbit mean M [N] may be layer k's level (default the last layer's): with the materials check,
         at most mismatch_factor above what the plan's ratio makes of the layer above's observed
         level. Why: an interface found early on a slow push-out (the foreign drive's Ti above
         Al, hole 100: 0.28 mm early at a 5 Hz orbit) leaves the upper layer's falling thrust,
         412 -> 379 N over an orbit, which armed the test on a Ti level and fired a false exit
         on the fall to Al's 40 N."""
-        k = self.n - 1
+        k = self.n - 1 if k is None else k
         if not (self.mismatch_factor > 0.0 and k >= 1 and self.levels[k - 1] > 0.0):
             return True
         return M <= self.mismatch_factor * self.levels[k - 1] * self.level_plan[k] / self.level_plan[k - 1]
@@ -1197,6 +1264,7 @@ class InterfaceDetector(KernelBlock, Block):
         fill(c, **{name: getattr(self, name) for name in _C_SCALARS})
         c.t_ev[:n + 1], c.x_ev[:n + 1], c.levels[:n] = self.t_ev, self.x_ev, self.levels
         c.x_arm[:n] = self.x_arm
+        c.if_P[:n - 1], c.if_ratio[:n - 1] = self.if_P, self.if_ratio
         c.loc[:] = [v for ev in LOC_EVENTS for v in self.loc[ev]]
         fill(c, err_n=0, err_pos=0, cand=0, cand_n=0, cand_e_n=0, cand_e_pos=0, n_pending=0)
         self._c_err = np.zeros(2 * self.N)       # |F~| of the last 2 N samples (a ring)
@@ -1243,5 +1311,5 @@ class InterfaceDetector(KernelBlock, Block):
 _C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n fail fail_code h_event".split()},
               **{name: bool for name in "armed drop exit_armed trim entry_rs".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last "
-                                         "F_pred F_err F_level thd F_air mismatch orb_ref".split()}}
+                                         "F_pred F_err F_level thd F_air mismatch orb_ref if_ref".split()}}
 _C_LISTS = ("t_ev", "x_ev", "levels", "x_arm", "loc", "pending", "cand", "err_hist", "cand_F", "cand_e")

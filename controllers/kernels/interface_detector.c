@@ -49,6 +49,8 @@ typedef struct {
     double exit_P;              /* the exit's orbit test: the last layer's orbit [samples] (0: off) */
     double h_event, orb_ref;    /* state: samples written at the last event; its highest orbit mean */
     double x_arm[DET_MAX_LAYERS];   /* state: encoder position where each layer's tests first armed */
+    double if_P[DET_MAX_LAYERS - 1], if_ratio[DET_MAX_LAYERS - 1];   /* the interfaces' orbit tests (0: off) */
+    double if_ref;              /* state: the interface orbit test's highest orbit mean (NaN: not armed) */
     /* state */
     double n_buf, flag, t_ev[DET_EVENTS], x_ev[DET_EVENTS], t_paper, x_paper, t_thin, x_thin, F_ref;
     double drop, exit_armed, quiet, need, err_n, err_pos;
@@ -348,10 +350,9 @@ static void exit_tests(Detector *s, double t, double x, double F, double F_pred,
     }
 }
 
-/* interface_detector.py _orbit_level_fits: 1 when M may be the last layer's level */
-static int orbit_level_fits(const Detector *s, double M)
+/* interface_detector.py _orbit_level_fits: 1 when M may be layer k's level */
+static int orbit_level_fits(const Detector *s, double M, int k)
 {
-    int k = (int)s->n - 1;
     if (!(s->mismatch_factor > 0.0 && k >= 1 && s->levels[k - 1] > 0.0))
         return 1;
     return M <= s->mismatch_factor * s->levels[k - 1] * s->level_plan[k] / s->level_plan[k - 1];
@@ -370,7 +371,7 @@ static void exit_orbit(Detector *s, double t, double x)
         M0 = hist_mean(s, s->h_n - 2.0 * P, s->h_n - P);
         if (!(MIN(M, M0) >= MAX(s->floor[(int)s->n - 1], s->thd_min)
               && fabs(M - M0) < MAX(s->rearm_level, DET_ORBIT_STEADY * M)
-              && hist_var(s, s->h_n - P, s->h_n, M) < M * M && orbit_level_fits(s, M)))
+              && hist_var(s, s->h_n - P, s->h_n, M) < M * M && orbit_level_fits(s, M, (int)s->n - 1)))
             return;
     }
     s->orb_ref = isnan(s->orb_ref) ? M : MAX(s->orb_ref, M);
@@ -383,7 +384,6 @@ static void exit_orbit(Detector *s, double t, double x)
     }
 }
 
-/* the prediction error's bookkeeping and the armed test of one sample */
 /* interface_detector.py _armed_at: the first arming in a layer marks the tool on its plateau */
 static void armed_at(Detector *s, double x)
 {
@@ -392,6 +392,36 @@ static void armed_at(Detector *s, double x)
         s->x_arm[flag - 1] = x;
 }
 
+/* interface_detector.py _orbit_arms: an orbit test of layer k arms on the last two orbit means */
+static int orbit_arms(const Detector *s, double M, double P, int k)
+{
+    double M0;
+    if (s->fail != 0.0 && s->fail_disarms != 0.0)
+        return 0;
+    M0 = hist_mean(s, s->h_n - 2.0 * P, s->h_n - P);
+    return MIN(M, M0) >= MAX(s->floor[k], s->thd_min) && fabs(M - M0) < MAX(s->rearm_level, DET_ORBIT_STEADY * M)
+           && hist_var(s, s->h_n - P, s->h_n, M) < M * M && orbit_level_fits(s, M, k);
+}
+
+/* interface_detector.py _interface_orbit: interface k's drop test on the mean over the last orbit */
+static void interface_orbit(Detector *s, double t, double x)
+{
+    int k = (int)s->flag;
+    double P = s->if_P[k - 1], M;
+    if (s->h_n - s->h_event < 2.0 * P || !isnan(s->x_arm[k - 1])
+            || (s->has_windows != 0.0 && x < s->win_lo[k])) {
+        s->if_ref = NAN;
+        return;
+    }
+    M = hist_mean(s, s->h_n - P, s->h_n);
+    if (isnan(s->if_ref) && !orbit_arms(s, M, P, k - 1))
+        return;
+    s->if_ref = isnan(s->if_ref) ? M : MAX(s->if_ref, M);
+    if (M < s->if_ratio[k - 1] * s->if_ref)
+        event(s, k, t, x, -1.0);
+}
+
+/* the prediction error's bookkeeping and the armed test of one sample */
 static void tests(Detector *s, double t, double x, double F, double F_pred)
 {
     double e = F - F_pred;
@@ -594,6 +624,8 @@ void interface_detector_step(Detector *s, double t, const double *u, double *y)
     }
     if (s->exit_P != 0.0 && (int)s->flag == (int)s->n)
         exit_orbit(s, t, x);
+    else if (1 <= (int)s->flag && (int)s->flag < (int)s->n && s->if_ratio[(int)s->flag - 1] != 0.0)
+        interface_orbit(s, t, x);
     if (nb < N) {               /* shift the regression window (oldest first) */
         s->buf[nb] = F;
         s->n_buf = nb + 1;
