@@ -1114,11 +1114,16 @@ class InterfaceDetector(KernelBlock, Block):
         foreign drives: +-35-150 N at 3-4 Hz about a 400-2000 N Ti level) gives F~ no quiet
         N_min samples before its push-out, and the drop into the softer layer below was
         missed (wide draw: foreign holes 73, 144, 150, 167, 184 and foreign2 184, 1-1.4 mm Ti
-        at 17-24 mm/min); over an orbit the ripple averages out, the level stays."""
+        at 17-24 mm/min); over an orbit the ripple averages out, the level stays. Below an
+        interface it arms only once that interface is located (its window after the trigger
+        complete): an interface fired on the upper layer's push-out leaves its slowly falling
+        tail, steady over an orbit, and a test armed on it fired a false interface 0.2 mm
+        later (wide draw, foreign hole 45: a Ti push-out above a thin CFRP layer)."""
         k = self.flag
         P = self.if_P[k - 1]
         if self.h_n - self.h_event < 2 * P or not math.isnan(self.x_arm[k - 1]) \
-                or self.windows is not None and x < self.windows[k][0]:
+                or self.windows is not None and x < self.windows[k][0] \
+                or k >= 2 and math.isnan(self.loc[LOC_EVENTS[k - 1]][3]):
             self.if_ref = NAN
             return
         M = self._hist_mean(self.h_n - P, self.h_n)
@@ -1157,12 +1162,25 @@ class InterfaceDetector(KernelBlock, Block):
         once the tool is inside the entry window (above it the observer's start-up and the
         approach's deceleration are no contact). The others: as after every event (re-arming);
         an interface test, with process-following thresholds, also on a steady level
-        (LEVEL_STEADY)."""
+        (LEVEL_STEADY) that the thrust stands at (:meth:`_level_holds`)."""
         if self.flag == 0:
             return self.windows is None or x >= self.windows[0][0]
         if not (self.quiet >= self.need and self._engaged(self.F_level)):
             return False
-        return not self.relative or self.flag >= self.n or self.steady >= min(self.need, self.N_min)
+        return not self.relative or self.flag >= self.n or \
+            self.steady >= min(self.need, self.N_min) and self._level_holds()
+
+    def _level_holds(self) -> bool:
+        """Whether the thrust stands at the level F_level [N]: the mean of the last N_min
+        samples within LEVEL_STEADY of it (or the re-arm level). Why: a push-out slower than
+        the regression window (CFRP thinning out over 0.4 mm above a gap, 5 s at an Al feed of
+        5 mm/min) is a ramp the regression follows, quiet and steady by F~, and a test armed
+        on its tail (a 6.7 N level where the last 25 samples averaged 15 N) fired on the
+        noise at the fall's end: a false interface 3.9 mm early and every later event a layer
+        off (wide draw, foreign hole 84). The mean lags a ramp by half its span; on a level
+        with the orbit's ripple it stays within the ripple's share of it."""
+        M = self._hist_mean(self.h_n - self.N_min, self.h_n)
+        return abs(M - self.F_level) < max(self.rearm_level, LEVEL_STEADY * abs(self.F_level))
 
     def _check_windows(self, t, x):
         if self.windows is None or self.flag > self.n or self.fail:

@@ -60,14 +60,15 @@ def _thrust(x, t, rng):
 
 
 def _run(kernel: str, seed: int = 3, **over):
-    settings = {**_plan().detector(2 * DETECTOR_N_MIN * DETECTOR_DT), **over}
-    det = InterfaceDetector(sample_period=DETECTOR_DT, **settings)
+    """The plan's detector (``over`` replacing settings) on the synthetic hole, 2 mm past the gap."""
+    det = InterfaceDetector(sample_period=DETECTOR_DT,
+                            **{**_plan().detector(2 * DETECTOR_N_MIN * DETECTOR_DT), **over})
     det.kernel = kernel
     det.reset(0.0)
     rng = np.random.default_rng(seed)
-    t_end = (SURFACE + TI + GAP + 2.0 * MM) / FEED
-    out = [det.step(t, (_thrust(FEED * t, t, rng), FEED * t)) for t in np.arange(0.0, t_end, DETECTOR_DT)]
-    return det, np.array(out, float)
+    times = np.arange(0.0, (SURFACE + TI + GAP + 2.0 * MM) / FEED, DETECTOR_DT)
+    thrust = [_thrust(FEED * t, t, rng) for t in times]
+    return det, np.array([det.step(t, (F, FEED * t)) for t, F in zip(times, thrust)], float)
 
 
 def test_hole_plan_sets_each_layers_orbit():
@@ -105,12 +106,15 @@ def test_no_orbit_test_once_the_layers_f_test_armed(monkeypatch):
     assert np.array_equal(a, b, equal_nan=True)
 
 
-def test_c_step_is_the_python_step():
-    py, a = _run("python")
-    c, b = _run("c")
+@pytest.mark.parametrize("orbit_test", [True, False])
+def test_c_step_is_the_python_step(orbit_test):
+    """Bit for bit, with the orbit test finding the interface and without it (the miss)."""
+    over = {} if orbit_test else {"interface_orbit_arm": [0.0]}
+    c, in_c = _run("c", **over)
     if c.c_kernel is None:
         pytest.skip("the C step is not available on this machine")
-    assert np.array_equal(a, b, equal_nan=True)
+    _, in_python = _run("python", **over)
+    assert c.flag == (2 if orbit_test else 1) and np.array_equal(in_c, in_python, equal_nan=True)
 
 
 def test_bad_orbit_arm_is_named():

@@ -165,6 +165,15 @@ static int engaged(const Detector *s, double F_pred)
     return F_pred >= (s->fail != 0.0 ? min_of(s->floor, flag - 1, n) : s->floor[flag - 1]);
 }
 
+static double hist_mean(const Detector *s, double j0, double j1);
+
+/* interface_detector.py _level_holds: the mean of the last N_min samples stands at F_level */
+static int level_holds(const Detector *s)
+{
+    double M = hist_mean(s, s->h_n - s->N_min, s->h_n);
+    return fabs(M - s->F_level) < MAX(s->rearm_level, DET_LEVEL_STEADY * fabs(s->F_level));
+}
+
 static int may_arm(const Detector *s, double x)
 {
     if (s->flag == 0.0)
@@ -172,7 +181,7 @@ static int may_arm(const Detector *s, double x)
     if (!(s->quiet >= s->need && engaged(s, s->F_level)))
         return 0;
     /* interface_detector.py: an interface test arms on a steady level (LEVEL_STEADY) */
-    return s->relative == 0.0 || s->flag >= s->n || s->steady >= MIN(s->need, s->N_min);
+    return s->relative == 0.0 || s->flag >= s->n || (s->steady >= MIN(s->need, s->N_min) && level_holds(s));
 }
 
 static void set_fail(Detector *s, int code, double t, double x)
@@ -409,7 +418,7 @@ static void interface_orbit(Detector *s, double t, double x)
     int k = (int)s->flag;
     double P = s->if_P[k - 1], M;
     if (s->h_n - s->h_event < 2.0 * P || !isnan(s->x_arm[k - 1])
-            || (s->has_windows != 0.0 && x < s->win_lo[k])) {
+            || (s->has_windows != 0.0 && x < s->win_lo[k]) || (k >= 2 && isnan(s->loc[4 * (k - 1) + 3]))) {
         s->if_ref = NAN;
         return;
     }
