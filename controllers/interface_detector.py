@@ -156,6 +156,11 @@ ORBIT_STEADY = 0.1
 # +-15 N start-up swing on a nominal-friction foreign hole, where 9-36 N offsets of the
 # plants drawn at coulomb x1.12-1.49 stood 3-20 spreads out)
 AIR_OFFSET_K = 2.0
+# an interface's drop test on orbit means (interface_orbit_arm) runs only where the plan has the
+# layer below cut at most this fraction of the layer's level (its orbit-mean threshold is the
+# square root of the plan's ratio, at most 0.59 of the level): a smaller drop is within the
+# levels' spread with tool wear (the ratio moves by up to ~2.7, docs/plants.md)
+ORBIT_DROP = 0.35
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
                   ("t", "s", "time the encoder passed the located position"),
@@ -379,6 +384,11 @@ class InterfaceDetector(KernelBlock, Block):
         With it on, an exit inside the reach of a gap above the last layer is a candidate
         until the tool is past that reach, dropped if a cut level comes back
         (:meth:`_exit_candidate`, :meth:`_exit_confirm`: both exit tests' one decision).
+    interface_orbit_arm [s]: per interface, the orbit period of the layer above it (the hole
+        plan's); > 0 (process-following thresholds) and a planned drop into the layer below to
+        at most ORBIT_DROP of the level: while the layer's F~ test has not armed, a drop test
+        on the mean thrust over one orbit runs too (:meth:`_interface_orbit`: a thin layer at
+        a fast feed under the orbit's ripple); None or 0 (default): off.
     exit_loc_after [m]: travel after the exit's trigger its localisation window holds
         (default locate_margin; the hole plan adds half an orbit of the last layer's feed:
         the orbit means of the last half orbit need the samples after it).
@@ -451,6 +461,7 @@ class InterfaceDetector(KernelBlock, Block):
         exit_orbit_period: float = 0.0,
         exit_loc_after: float | None = None,
         exit_orbit_arm: float = 0.0,
+        interface_orbit_arm: Sequence[float] | None = None,
     ):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
@@ -467,10 +478,8 @@ class InterfaceDetector(KernelBlock, Block):
         self.thicknesses = thicknesses
         self.thickness_tolerances = _per_layer("thickness_tolerances", thickness_tolerances, n)
         self.max_gap = float(max_gap)
-        self.tolerance = float(tolerance)
-        self.exit_tolerance = float(exit_tolerance)
-        self.feed_rate = float(feed_rate)
-        self.time_margin = float(time_margin)
+        self.tolerance, self.exit_tolerance = float(tolerance), float(exit_tolerance)
+        self.feed_rate, self.time_margin = float(feed_rate), float(time_margin)
         self.fail_disarms = bool(fail_disarms)
         self._set_factors(mismatch_factor, thd_noise_factor)
         self.restart = bool(restart)
@@ -485,6 +494,7 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_loc_after(interface_loc_after)
         self._set_exit_loc(exit_orbit_period, exit_loc_after)
         self._set_exit_arm(exit_orbit_arm)
+        self._set_interface_arm(interface_orbit_arm)
         self.windows = self._windows()
         self.reset(0.0)
 
@@ -601,6 +611,24 @@ class InterfaceDetector(KernelBlock, Block):
                              f"exit_criterion 'thinning' and an orbit of 2 to {HISTORY // 8} samples "
                              f"({2 * self.sample_period:g} to {HISTORY // 8 * self.sample_period:g} s), got {orbit!r} s")
 
+    def _set_interface_arm(self, periods) -> None:
+        """The interfaces' drop test on orbit means: ``periods`` [s] the orbit period of each
+        layer but the last (None: off; 0 for a layer: off for its interface), in samples
+        (if_P), and the fraction of the orbit-mean reference it fires below (if_ratio:
+        sqrt of the plan's level ratio, 0: no drop test), checked."""
+        n_if = self.n - 1
+        vals = [0.0] * n_if if periods is None else [float(v) for v in periods]
+        if len(vals) != n_if or not all(v >= 0.0 for v in vals):
+            raise ValueError(f"InterfaceDetector: interface_orbit_arm needs one orbit period >= 0 s per "
+                             f"interface ({n_if}), got {periods!r}")
+        self.if_P = [int(round(v / self.sample_period)) for v in vals]
+        if any(vals) and not (self.relative and all(P == 0 or 2 <= P and 2 * P <= HISTORY // 4 for P in self.if_P)):
+            raise ValueError("InterfaceDetector: interface_orbit_arm needs process-following thresholds (kc) and "
+                             f"orbits of 2 to {HISTORY // 8} samples ({2 * self.sample_period:g} to "
+                             f"{HISTORY // 8 * self.sample_period:g} s), got {periods!r}")
+        ratios = [self.level_plan[k + 1] / self.level_plan[k] for k in range(n_if)] if self.relative else [1.0] * n_if
+        self.if_ratio = [math.sqrt(r) if P and r <= ORBIT_DROP else 0.0 for P, r in zip(self.if_P, ratios)]
+
     def loc_window(self, k: int) -> tuple[float, float]:
         """Travel [m] (before, after) the trigger of event k (0 entry, 1..n-1 interface
         k, n exit) whose samples the localisation fits: an interface may have a gap of up
@@ -649,6 +677,7 @@ class InterfaceDetector(KernelBlock, Block):
         # an exit candidate awaiting its decision (_exit_candidate): time, position, history index
         # and orbit mean there (NaN: none)
         self.exit_cand_t = self.exit_cand_x = self.exit_cand_i = self.exit_cand_M = NAN
+        self.if_ref = NAN           # highest orbit mean since the interface's orbit test armed (NaN: not armed)
         self.quiet = 0              # consecutive samples with |F~| < rearm level
         self.settled = 0            # ... and below LEVEL_SETTLED of the level (the materials check)
         self.steady = 0             # ... and below LEVEL_STEADY of the level (an interface test's arming)
@@ -676,6 +705,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.F_air = NAN            # observed thrust in air (the entry's level before contact)
         self.F_air_sd = NAN         # rms deviation of the samples F_air is the mean of
         self.levels = [NAN] * self.n   # observed level of each layer when its tests armed
+        self.x_arm = [NAN] * self.n    # encoder position [m] where each layer's tests first armed
         self.mismatch = NAN         # last observed/plan level ratio between two layers
         self.loc = {ev: [NAN] * len(LOC_QUANTITIES) for ev in LOC_EVENTS}
         self._c_attach()
@@ -924,6 +954,7 @@ class InterfaceDetector(KernelBlock, Block):
                 self._check_level(t, x)
             if not self.armed and self._may_arm(x):
                 self.armed, self.trim = True, False
+                self._armed_at(x)
             self.thd = NAN
             if self.flag == 0 and self.armed:
                 self.thd = self.thd1 if not self.relative else self.thd_entry
@@ -945,6 +976,8 @@ class InterfaceDetector(KernelBlock, Block):
             self._exit_orbit(t, x)
             if not math.isnan(self.exit_cand_t):
                 self._exit_confirm(t, x)
+        elif 1 <= self.flag < self.n and self.if_ratio[self.flag - 1]:
+            self._interface_orbit(t, x)
         # shift the regression window (oldest first)
         if self.n_buf < self.N:
             self.buf[self.n_buf] = F
@@ -986,6 +1019,12 @@ class InterfaceDetector(KernelBlock, Block):
         lo = x_trig - before
         if k > 0 and math.isfinite(self.x_ev[k - 1]):    # not into the previous event's change
             lo = max(lo, self.x_ev[k - 1] + self.locate_margin)
+        if 0 < k < self.n and math.isfinite(self.x_arm[k - 1]):
+            # interface k is below where layer k's tests armed on its plateau: a window reaching
+            # further up, on a thin layer, held the gap above it and the fit took the layer's own
+            # onset for its bottom (wide draw: project holes 21, 22, 25 0.25-0.79 mm, foreign 44,
+            # 45 1.1-1.2 mm, foreign2 44 1.5 mm early)
+            lo = max(lo, self.x_arm[k - 1])
         air = self.F_air if math.isfinite(self.F_air) else 0.0
         x_loc, t_loc, dx, F_air, F_air_sd = self._fit(k, x_trig, lo, x_trig + after, self.h_n, air)
         if k == 0 and math.isfinite(x_loc):
@@ -994,6 +1033,12 @@ class InterfaceDetector(KernelBlock, Block):
         self.loc[name] = [x_loc, t_loc, dx, t_now]
         if not (k == 0 and self.entry_rs):
             self._restart_after(k)
+
+    def _armed_at(self, x: float) -> None:
+        """The tests just armed at encoder position x [m]: the first arming in a layer marks
+        where the tool was on its plateau (the interface below it is further on)."""
+        if 1 <= self.flag <= self.n and math.isnan(self.x_arm[self.flag - 1]):
+            self.x_arm[self.flag - 1] = x
 
     def _restart_after(self, k: int) -> None:
         """Event k is behind the tool: restart the regression for the next test."""
@@ -1085,28 +1130,22 @@ class InterfaceDetector(KernelBlock, Block):
         if self.h_n - self.h_event < 2 * P or self.windows is not None and x < self.windows[self.n][0]:
             return
         M = self._hist_mean(self.h_n - P, self.h_n)
-        if math.isnan(self.orb_ref):
-            if self.fail and self.fail_disarms:
-                return
-            M0 = self._hist_mean(self.h_n - 2 * P, self.h_n - P)
-            if not (self._above_air(M0) >= max(self.floor[self.n - 1], self.thd_min)
-                    and abs(M - M0) < max(self.rearm_level, ORBIT_STEADY * self._above_air(M))
-                    and self._orbit_cut_level(M)):
-                return
+        if math.isnan(self.orb_ref) and not self._orbit_arms(M, P, self.n - 1):
+            return
         self.orb_ref = M if math.isnan(self.orb_ref) else max(self.orb_ref, M)
         if self._above_air(M) < self.exit_ratio * self._above_air(self.orb_ref):
             if math.isnan(self.t_thin):
                 self.t_thin, self.x_thin = t, x
             self._exit_candidate(t, x)
 
-    def _orbit_cut_level(self, M: float) -> bool:
-        """Whether the orbit mean M [N] of the last exit_P samples may be a cut level of the last
-        layer: above its floor and thd_min (the exit's least drop), the thrust's spread over the
-        orbit below the level (no residue of the observer's ringing) and fitting the plan's level
-        (:meth:`_orbit_level_fits`)."""
-        P, Ma = self.exit_P, self._above_air(M)     # the level over the air level (friction offset)
-        return Ma >= max(self.floor[self.n - 1], self.thd_min) \
-            and self._hist_var(self.h_n - P, self.h_n, M) < Ma * Ma and self._orbit_level_fits(M)
+    def _orbit_cut_level(self, M: float, P: int, k: int) -> bool:
+        """Whether the orbit mean M [N] of the last P samples may be a cut level of layer k
+        (0-based): above its floor and thd_min (the least drop a test fires on), the thrust's
+        spread over the orbit below the level (no residue of the observer's ringing) and
+        fitting the plan's level (:meth:`_orbit_level_fits`); all over the air level."""
+        Ma = self._above_air(M)
+        return Ma >= max(self.floor[k], self.thd_min) \
+            and self._hist_var(self.h_n - P, self.h_n, M) < Ma * Ma and self._orbit_level_fits(M, k)
 
     def _exit_candidate(self, t: float, x: float) -> None:
         """The one exit decision of the exit tests (the thinning test on F, the one on orbit
@@ -1134,7 +1173,7 @@ class InterfaceDetector(KernelBlock, Block):
         its face; in air after an exit they stay within the offset and the ringing's residue,
         +-6 N, hole 55 of the project's draw). The exit's tests then arm again on that layer."""
         M = self._hist_mean(self.h_n - self.exit_P, self.h_n)
-        if M >= self.exit_cand_M + self.rearm_level and self._orbit_cut_level(M):
+        if M >= self.exit_cand_M + self.rearm_level and self._orbit_cut_level(M, self.exit_P, self.n - 1):
             self.exit_cand_t = self.exit_cand_x = self.exit_cand_i = self.exit_cand_M = NAN
             self.orb_ref = self.F_ref = self.t_thin = self.x_thin = self.t_paper = self.x_paper = NAN
             self.drop = self.armed = self.exit_armed = False
@@ -1144,14 +1183,55 @@ class InterfaceDetector(KernelBlock, Block):
             self.exit_cand_t = self.exit_cand_x = self.exit_cand_i = self.exit_cand_M = NAN
             self._event(self.n, tc, xc, ic)
 
-    def _orbit_level_fits(self, M: float) -> bool:
-        """Whether an orbit mean M [N] may be the last layer's level: with the materials check,
+    def _interface_orbit(self, t: float, x: float) -> None:
+        """Interface k's (the flag's) drop test on the mean thrust over the last orbit of layer
+        k (if_P samples), while layer k's F~ tests have not armed (x_arm): it arms, inside the
+        interface's window, on two successive orbit means after the last event that stand on
+        the layer (:meth:`_orbit_arms`) and fires once the orbit mean falls below if_ratio of
+        its highest value since (the geometric middle of the layer's and the next one's
+        planned levels). Why: a thin layer at a fast feed under the orbit's ripple (the
+        foreign drives: +-35-150 N at 3-4 Hz about a 400-2000 N Ti level) gives F~ no quiet
+        N_min samples before its push-out, and the drop into the softer layer below was
+        missed (wide draw: foreign holes 73, 144, 150, 167, 184 and foreign2 184, 1-1.4 mm Ti
+        at 17-24 mm/min); over an orbit the ripple averages out, the level stays. Below an
+        interface it arms only once that interface is located (its window after the trigger
+        complete): an interface fired on the upper layer's push-out leaves its slowly falling
+        tail, steady over an orbit, and a test armed on it fired a false interface 0.2 mm
+        later (wide draw, foreign hole 45: a Ti push-out above a thin CFRP layer)."""
+        k = self.flag
+        P = self.if_P[k - 1]
+        if self.h_n - self.h_event < 2 * P or not math.isnan(self.x_arm[k - 1]) \
+                or self.windows is not None and x < self.windows[k][0] \
+                or k >= 2 and math.isnan(self.loc[LOC_EVENTS[k - 1]][3]):
+            self.if_ref = NAN
+            return
+        M = self._hist_mean(self.h_n - P, self.h_n)
+        if math.isnan(self.if_ref) and not self._orbit_arms(M, P, k - 1):
+            return
+        self.if_ref = M if math.isnan(self.if_ref) else max(self.if_ref, M)
+        if M < self.if_ratio[k - 1] * self.if_ref:
+            self._event(k, t, x)
+
+    def _orbit_arms(self, M: float, P: int, k: int) -> bool:
+        """Whether an orbit test of layer k (0-based) arms on the last orbit mean M [N] (P
+        samples) and the one before: not after a fail that disarms, both above the layer's
+        floor (and thd_min), within ORBIT_STEADY of each other, the spread over the orbit
+        below the level and M fitting the plan's level (:meth:`_orbit_level_fits`): the
+        exit's rule (:meth:`_exit_orbit`, which explains each part)."""
+        if self.fail and self.fail_disarms:
+            return False
+        M0 = self._hist_mean(self.h_n - 2 * P, self.h_n - P)
+        return (self._above_air(M0) >= max(self.floor[k], self.thd_min)
+                and abs(M - M0) < max(self.rearm_level, ORBIT_STEADY * self._above_air(M))
+                and self._orbit_cut_level(M, P, k))
+
+    def _orbit_level_fits(self, M: float, k: int) -> bool:
+        """Whether an orbit mean M [N] may be layer k's (0-based) level: with the materials check,
         at most mismatch_factor above what the plan's ratio makes of the layer above's observed
         level. Why: an interface found early on a slow push-out (the foreign drive's Ti above
         Al, hole 100: 0.28 mm early at a 5 Hz orbit) leaves the upper layer's falling thrust,
         412 -> 379 N over an orbit, which armed the test on a Ti level and fired a false exit
         on the fall to Al's 40 N."""
-        k = self.n - 1
         if not (self.mismatch_factor > 0.0 and k >= 1 and self._above_air(self.levels[k - 1]) > 0.0):
             return True
         return self._above_air(M) <= \
@@ -1162,12 +1242,25 @@ class InterfaceDetector(KernelBlock, Block):
         once the tool is inside the entry window (above it the observer's start-up and the
         approach's deceleration are no contact). The others: as after every event (re-arming);
         an interface test, with process-following thresholds, also on a steady level
-        (LEVEL_STEADY)."""
+        (LEVEL_STEADY) that the thrust stands at (:meth:`_level_holds`)."""
         if self.flag == 0:
             return self.windows is None or x >= self.windows[0][0]
         if not (self.quiet >= self.need and self._engaged(self.F_level)):
             return False
-        return not self.relative or self.flag >= self.n or self.steady >= min(self.need, self.N_min)
+        return not self.relative or self.flag >= self.n or \
+            self.steady >= min(self.need, self.N_min) and self._level_holds()
+
+    def _level_holds(self) -> bool:
+        """Whether the thrust stands at the level F_level [N]: the mean of the last N_min
+        samples within LEVEL_STEADY of it (or the re-arm level). Why: a push-out slower than
+        the regression window (CFRP thinning out over 0.4 mm above a gap, 5 s at an Al feed of
+        5 mm/min) is a ramp the regression follows, quiet and steady by F~, and a test armed
+        on its tail (a 6.7 N level where the last 25 samples averaged 15 N) fired on the
+        noise at the fall's end: a false interface 3.9 mm early and every later event a layer
+        off (wide draw, foreign hole 84). The mean lags a ramp by half its span; on a level
+        with the orbit's ripple it stays within the ripple's share of it."""
+        M = self._hist_mean(self.h_n - self.N_min, self.h_n)
+        return abs(M - self.F_level) < max(self.rearm_level, LEVEL_STEADY * abs(self.F_level))
 
     def _check_windows(self, t, x):
         if self.windows is None or self.flag > self.n or self.fail:
@@ -1269,6 +1362,8 @@ class InterfaceDetector(KernelBlock, Block):
             c.step_gain[:n - 1], c.floor[:n], c.level_plan[:n] = self.step_gain, self.floor, self.level_plan
         fill(c, **{name: getattr(self, name) for name in _C_SCALARS})
         c.t_ev[:n + 1], c.x_ev[:n + 1], c.levels[:n] = self.t_ev, self.x_ev, self.levels
+        c.x_arm[:n] = self.x_arm
+        c.if_P[:n - 1], c.if_ratio[:n - 1] = self.if_P, self.if_ratio
         c.loc[:] = [v for ev in LOC_EVENTS for v in self.loc[ev]]
         fill(c, err_n=0, err_pos=0, cand=0, cand_n=0, cand_e_n=0, cand_e_pos=0, n_pending=0)
         self._c_err = np.zeros(2 * self.N)       # |F~| of the last 2 N samples (a ring)
@@ -1299,8 +1394,8 @@ class InterfaceDetector(KernelBlock, Block):
             return _C_SCALARS[name](getattr(s, name))
         if name in ("t_ev", "x_ev"):
             return list(getattr(s, name)[:n + 1])
-        if name == "levels":
-            return list(s.levels[:n])
+        if name in ("levels", "x_arm"):
+            return list(getattr(s, name)[:n])
         if name == "loc":
             return {ev: list(s.loc[4 * j:4 * j + 4]) for j, ev in enumerate(LOC_EVENTS)}
         if name == "pending":
@@ -1316,5 +1411,5 @@ _C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n
               **{name: bool for name in "armed drop exit_armed trim entry_rs".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last "
                                          "F_pred F_err F_level thd F_air F_air_sd mismatch orb_ref exit_cand_t "
-                                         "exit_cand_x exit_cand_i exit_cand_M".split()}}
-_C_LISTS = ("t_ev", "x_ev", "levels", "loc", "pending", "cand", "err_hist", "cand_F", "cand_e")
+                                         "exit_cand_x exit_cand_i exit_cand_M if_ref".split()}}
+_C_LISTS = ("t_ev", "x_ev", "levels", "x_arm", "loc", "pending", "cand", "err_hist", "cand_F", "cand_e")

@@ -353,6 +353,10 @@ class HolePlan:
             # thin last layer under the observer's ringing after a Ti -> Al drop has no quiet
             # F~ to arm on (issue 23, round 2: missed exits of the wide draw)
             "exit_orbit_arm": self.orbit_period(-1),
+            # an interface above a much softer layer has a drop test on orbit means of its own
+            # layer too: a thin layer at a fast feed under the orbit's ripple has no quiet F~ to
+            # arm on before its push-out (issue 23, round 8: missed Ti -> Al interfaces)
+            "interface_orbit_arm": [self.orbit_period(k) for k in range(len(self.layers) - 1)],
             "interface_loc_after": self.interface_loc_after(window_s),
         }
 

@@ -50,6 +50,9 @@ typedef struct {
     double exit_P;              /* the exit's orbit test: the last layer's orbit [samples] (0: off) */
     double h_event, orb_ref;    /* state: samples written at the last event; its highest orbit mean */
     double exit_cand_t, exit_cand_x, exit_cand_i, exit_cand_M;   /* state: the exit candidate (t NaN: none) */
+    double x_arm[DET_MAX_LAYERS];   /* state: encoder position where each layer's tests first armed */
+    double if_P[DET_MAX_LAYERS - 1], if_ratio[DET_MAX_LAYERS - 1];   /* the interfaces' orbit tests (0: off) */
+    double if_ref;              /* state: the interface orbit test's highest orbit mean (NaN: not armed) */
     /* state */
     double n_buf, flag, t_ev[DET_EVENTS], x_ev[DET_EVENTS], t_paper, x_paper, t_thin, x_thin, F_ref;
     double drop, exit_armed, quiet, need, err_n, err_pos;
@@ -176,6 +179,15 @@ static int engaged(const Detector *s, double F_pred)
     return above_air(s, F_pred) >= (s->fail != 0.0 ? min_of(s->floor, flag - 1, n) : s->floor[flag - 1]);
 }
 
+static double hist_mean(const Detector *s, double j0, double j1);
+
+/* interface_detector.py _level_holds: the mean of the last N_min samples stands at F_level */
+static int level_holds(const Detector *s)
+{
+    double M = hist_mean(s, s->h_n - s->N_min, s->h_n);
+    return fabs(M - s->F_level) < MAX(s->rearm_level, DET_LEVEL_STEADY * fabs(s->F_level));
+}
+
 static int may_arm(const Detector *s, double x)
 {
     if (s->flag == 0.0)
@@ -183,7 +195,7 @@ static int may_arm(const Detector *s, double x)
     if (!(s->quiet >= s->need && engaged(s, s->F_level)))
         return 0;
     /* interface_detector.py: an interface test arms on a steady level (LEVEL_STEADY) */
-    return s->relative == 0.0 || s->flag >= s->n || s->steady >= MIN(s->need, s->N_min);
+    return s->relative == 0.0 || s->flag >= s->n || (s->steady >= MIN(s->need, s->N_min) && level_holds(s));
 }
 
 static void set_fail(Detector *s, int code, double t, double x)
@@ -362,21 +374,33 @@ static void exit_tests(Detector *s, double t, double x, double F, double F_pred,
     }
 }
 
-/* interface_detector.py _orbit_level_fits: 1 when M may be the last layer's level */
-static int orbit_level_fits(const Detector *s, double M)
+/* interface_detector.py _orbit_level_fits: 1 when M may be layer k's level */
+static int orbit_level_fits(const Detector *s, double M, int k)
 {
-    int k = (int)s->n - 1;
     if (!(s->mismatch_factor > 0.0 && k >= 1 && above_air(s, s->levels[k - 1]) > 0.0))
         return 1;
     return above_air(s, M) <= s->mismatch_factor * above_air(s, s->levels[k - 1]) * s->level_plan[k] / s->level_plan[k - 1];
 }
 
-/* interface_detector.py _orbit_cut_level: 1 when the last orbit's mean M may be a cut level */
-static int orbit_cut_level(const Detector *s, double M)
+/* interface_detector.py _orbit_cut_level: 1 when the mean M of the last P samples may be a cut
+   level of layer k (0-based) */
+static int orbit_cut_level(const Detector *s, double M, double P, int k)
 {
-    double P = s->exit_P, Ma = above_air(s, M);   /* the level over the air level (friction offset) */
-    return Ma >= MAX(s->floor[(int)s->n - 1], s->thd_min)
-           && hist_var(s, s->h_n - P, s->h_n, M) < Ma * Ma && orbit_level_fits(s, M);
+    double Ma = above_air(s, M);
+    return Ma >= MAX(s->floor[k], s->thd_min)
+           && hist_var(s, s->h_n - P, s->h_n, M) < Ma * Ma && orbit_level_fits(s, M, k);
+}
+
+/* interface_detector.py _orbit_arms: an orbit test of layer k arms on the last two orbit means */
+static int orbit_arms(const Detector *s, double M, double P, int k)
+{
+    double M0;
+    if (s->fail != 0.0 && s->fail_disarms != 0.0)
+        return 0;
+    M0 = hist_mean(s, s->h_n - 2.0 * P, s->h_n - P);
+    return above_air(s, M0) >= MAX(s->floor[k], s->thd_min)
+           && fabs(M - M0) < MAX(s->rearm_level, DET_ORBIT_STEADY * above_air(s, M))
+           && orbit_cut_level(s, M, P, k);
 }
 
 /* interface_detector.py _past_gap */
@@ -406,7 +430,7 @@ static void exit_confirm(Detector *s, double t, double x)
 {
     double M = hist_mean(s, s->h_n - s->exit_P, s->h_n);
     (void)t;
-    if (M >= s->exit_cand_M + s->rearm_level && orbit_cut_level(s, M)) {
+    if (M >= s->exit_cand_M + s->rearm_level && orbit_cut_level(s, M, s->exit_P, (int)s->n - 1)) {
         s->exit_cand_t = s->exit_cand_x = s->exit_cand_i = s->exit_cand_M = NAN;
         s->orb_ref = s->F_ref = s->t_thin = s->x_thin = s->t_paper = s->x_paper = NAN;
         s->drop = s->armed = s->exit_armed = 0.0;
@@ -421,18 +445,12 @@ static void exit_confirm(Detector *s, double t, double x)
 /* interface_detector.py _exit_orbit: the exit's thinning test on the mean over the last orbit */
 static void exit_orbit(Detector *s, double t, double x)
 {
-    double P = s->exit_P, M, M0;
+    double P = s->exit_P, M;
     if (s->h_n - s->h_event < 2.0 * P || (s->has_windows != 0.0 && x < s->win_lo[(int)s->n]))
         return;
     M = hist_mean(s, s->h_n - P, s->h_n);
-    if (isnan(s->orb_ref)) {
-        if (s->fail != 0.0 && s->fail_disarms != 0.0)
-            return;
-        M0 = hist_mean(s, s->h_n - 2.0 * P, s->h_n - P);
-        if (!(above_air(s, M0) >= MAX(s->floor[(int)s->n - 1], s->thd_min)
-              && fabs(M - M0) < MAX(s->rearm_level, DET_ORBIT_STEADY * above_air(s, M)) && orbit_cut_level(s, M)))
-            return;
-    }
+    if (isnan(s->orb_ref) && !orbit_arms(s, M, P, (int)s->n - 1))
+        return;
     s->orb_ref = isnan(s->orb_ref) ? M : MAX(s->orb_ref, M);
     if (above_air(s, M) < s->exit_ratio * above_air(s, s->orb_ref)) {
         if (isnan(s->t_thin)) {
@@ -441,6 +459,32 @@ static void exit_orbit(Detector *s, double t, double x)
         }
         exit_candidate(s, t, x);
     }
+}
+
+/* interface_detector.py _armed_at: the first arming in a layer marks the tool on its plateau */
+static void armed_at(Detector *s, double x)
+{
+    int flag = (int)s->flag;
+    if (1 <= flag && flag <= (int)s->n && isnan(s->x_arm[flag - 1]))
+        s->x_arm[flag - 1] = x;
+}
+
+/* interface_detector.py _interface_orbit: interface k's drop test on the mean over the last orbit */
+static void interface_orbit(Detector *s, double t, double x)
+{
+    int k = (int)s->flag;
+    double P = s->if_P[k - 1], M;
+    if (s->h_n - s->h_event < 2.0 * P || !isnan(s->x_arm[k - 1])
+            || (s->has_windows != 0.0 && x < s->win_lo[k]) || (k >= 2 && isnan(s->loc[4 * (k - 1) + 3]))) {
+        s->if_ref = NAN;
+        return;
+    }
+    M = hist_mean(s, s->h_n - P, s->h_n);
+    if (isnan(s->if_ref) && !orbit_arms(s, M, P, k - 1))
+        return;
+    s->if_ref = isnan(s->if_ref) ? M : MAX(s->if_ref, M);
+    if (M < s->if_ratio[k - 1] * s->if_ref)
+        event(s, k, t, x, -1.0);
 }
 
 /* the prediction error's bookkeeping and the armed test of one sample */
@@ -483,6 +527,7 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
     if (s->armed == 0.0 && may_arm(s, x)) {
         s->armed = 1.0;
         s->trim = 0.0;
+        armed_at(s, x);
     }
     s->thd = NAN;
     flag = (int)s->flag;
@@ -523,6 +568,8 @@ static void locate(Detector *s, int k, double x_trig, double before, double afte
     double lo = x_trig - before, out[5];
     if (k > 0 && isfinite(s->x_ev[k - 1]))
         lo = MAX(lo, s->x_ev[k - 1] + s->locate_margin);
+    if (k > 0 && k < n && isfinite(s->x_arm[k - 1]))   /* interface_detector.py: below where layer k armed */
+        lo = MAX(lo, s->x_arm[k - 1]);
     double air = isfinite(s->F_air) ? s->F_air : 0.0;
 #ifdef DETECTOR_SELF_CONTAINED
     detector_locate(s, k, x_trig, lo, x_trig + after, s->h_n, air, out);
@@ -649,7 +696,8 @@ void interface_detector_step(Detector *s, double t, const double *u, double *y)
         exit_orbit(s, t, x);
         if (!isnan(s->exit_cand_t))
             exit_confirm(s, t, x);
-    }
+    } else if (1 <= (int)s->flag && (int)s->flag < (int)s->n && s->if_ratio[(int)s->flag - 1] != 0.0)
+        interface_orbit(s, t, x);
     if (nb < N) {               /* shift the regression window (oldest first) */
         s->buf[nb] = F;
         s->n_buf = nb + 1;

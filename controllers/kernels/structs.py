@@ -134,6 +134,8 @@ class Detector(ctypes.Structure):
         _doubles("exit_after") + \
         _doubles("entry_P entry_gain entry_rs") + \
         _doubles("exit_P h_event orb_ref exit_cand_t exit_cand_x exit_cand_i exit_cand_M") + \
+        [("x_arm", _D * DET_LAYERS), ("if_P", _D * (DET_LAYERS - 1)), ("if_ratio", _D * (DET_LAYERS - 1)),
+         ("if_ref", _D)] + \
         _doubles("n_buf flag") + \
         [("t_ev", _D * DET_EVENTS), ("x_ev", _D * DET_EVENTS)] + \
         _doubles("t_paper x_paper t_thin x_thin F_ref drop exit_armed quiet need err_n err_pos "
