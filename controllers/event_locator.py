@@ -90,6 +90,14 @@ def _smoothstep(u):
 
 
 ENGAGE_SHAPES = (lambda u: np.clip(u, 0.0, 1.0), _smoothstep)
+# the entry of a drill point (a cone: its engaged edge grows linearly with depth) is the
+# linear ramp alone: offered the smoothstep too, the entry fit took it on the linear ramps
+# of the project's and the foreign2 drives (the ramp's top rounded by the frame and the
+# observer, its steps of orbital ripple) with its onset 0.02-0.08 mm early (replayed, 200-hole
+# wide draw: 19 of 200 foreign2 entries over 0.05 mm, the project's entries -0.017 mm biased;
+# the linear ramp alone: 2, and -0.000 mm); the foreign drive's point engages as a smoothstep,
+# which the linear ramp finds 0.02 mm late (docs: the plan's ``entry_linear``)
+LINEAR_ENGAGE = ENGAGE_SHAPES[:1]
 PUSH_OUT_SHAPES = (lambda r: np.clip(r, 0.0, 1.0), lambda r: np.clip(r, 0.0, 1.0) ** 2)
 
 
@@ -132,9 +140,11 @@ def _best_face(lo, hi, sse_of, lengths, shapes, n: int):
     return xf, max(0.5 * float(ok.max() - ok.min()), GRID_STEP)
 
 
-def onset_face(x, F, lo: float, hi: float, period: float | None = None) -> tuple[float, float]:
+def onset_face(x, F, lo: float, hi: float, period: float | None = None,
+               shapes=ENGAGE_SHAPES) -> tuple[float, float]:
     """Position [m] in [lo, hi] where the thrust leaves a level (with a trend) for a ramp
-    of fitted length and shape, and its uncertainty [m]. ``period`` [samples, > 1]: a
+    of fitted length and one of ``shapes`` (ENGAGE_SHAPES or a leading part of it), and its
+    uncertainty [m]. ``period`` [samples, > 1]: a
     sinusoid of this period (any phase and amplitude; the samples equally spaced in time)
     is fitted with the level: at a slow orbit the observer's DC estimate rings at the
     orbit frequency in air (+-5..20 N), which otherwise bends the level and the trend and
@@ -151,7 +161,7 @@ def onset_face(x, F, lo: float, hi: float, period: float | None = None) -> tuple
         # one on the cut level, 6 (docs/stacks.md "Entry (round 2)")
         return _lstsq_batch([np.ones_like(d), d, shape(d), *(np.broadcast_to(c, d.shape) for c in orbit)], F)
 
-    return _best_face(lo, hi, sse, ENGAGE_LENGTHS, ENGAGE_SHAPES, x.size)
+    return _best_face(lo, hi, sse, ENGAGE_LENGTHS, shapes, x.size)
 
 
 def orbit_mean(A, period: float):
@@ -218,7 +228,7 @@ def floor_gap(F, cut_floor: float | None) -> tuple[int, int] | None:
 
 
 def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cut_floor: float | None = None,
-           period: float | None = None):
+           period: float | None = None, linear_entry: bool = False):
     """Located position [m] of an event and its uncertainty [m] from the samples around
     its trigger: table positions ``x`` [m] (increasing along the feed), observed thrust
     ``F`` [N]. ``kind``: "entry", "interface" or "exit"; ``air`` [N]: the observed thrust
@@ -229,7 +239,9 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     exit's fit compares means over one orbit of this many samples (:func:`free_face`;
     None, or a window without one orbit plus 10 MIN_SEGMENT samples: the samples as
     they are); the entry's fits the orbit's sinusoid with its level (:func:`onset_face`;
-    None, or a window shorter than one orbit: none). A ramp of either sign is fitted. (NaN, NaN) when there are too few samples."""
+    None, or a window shorter than one orbit: none); ``linear_entry``: the entry's ramp is
+    linear (LINEAR_ENGAGE; else linear or a smoothstep). A ramp of either sign is fitted.
+    (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
     x, F = np.asarray(x, float), np.asarray(F, float)
@@ -240,7 +252,8 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     x0, x1 = float(x[0]), float(x[-1])
     xt = 0.5 * (x0 + x1) if x_trig is None else float(x_trig)
     if kind == ENTRY:
-        return onset_face(x, F, x0, min(xt, x1), period if period is not None and 1.0 < period <= x.size else None)
+        return onset_face(x, F, x0, min(xt, x1), period if period is not None and 1.0 < period <= x.size else None,
+                          LINEAR_ENGAGE if linear_entry else ENGAGE_SHAPES)
     if kind == EXIT:
         if period is not None and not (period > 1.0 and x.size >= period + 10 * MIN_SEGMENT):
             period = None

@@ -33,10 +33,12 @@
 #define LOC_PYMIN(a, b) ((b) < (a) ? (b) : (a))   /* Python's min(a, b) */
 
 /* The length grids of one family of shapes: the coarse lengths [m] and the factors of the
- * best coarse length tried on the fine grid (numpy.geomspace(1/ratio, ratio, 9)). */
+ * best coarse length tried on the fine grid (numpy.geomspace(1/ratio, ratio, 9)); the
+ * family's first n_shapes shapes are tried (2: both; 1: the linear ramp or push-out alone,
+ * event_locator.LINEAR_ENGAGE). */
 typedef struct {
     const double *lengths, *fine;
-    int n_lengths;
+    int n_lengths, n_shapes;
 } LocGrid;
 
 /* One fit problem: samples, the family (onset or push-out), the air level (NaN: fitted);
@@ -265,7 +267,7 @@ static double loc_sse(const LocFit *f, double face, double L, int shape, double 
     return FF - fit;
 }
 
-/* the best residual over lengths and both shapes at each position, and its length */
+/* the best residual over lengths and the grid's shapes at each position, and its length */
 static void loc_best_on(const LocFit *f, const double *pos, long G, const double *lengths, int nL, double FF,
                         double *best, double *arg)
 {
@@ -274,7 +276,7 @@ static void loc_best_on(const LocFit *f, const double *pos, long G, const double
         arg[g] = 0.0;
     }
     for (int j = 0; j < nL; j++)
-        for (int shape = 0; shape < 2; shape++)
+        for (int shape = 0; shape < f->grid->n_shapes; shape++)
             for (long g = 0; g < G; g++) {
                 double c = loc_sse(f, pos[g], lengths[j], shape, FF);
                 if (c < best[g])

@@ -1,0 +1,134 @@
+"""The entry's localisation on a linear ramp alone (issue 23, round 8): event_locator.locate
+``linear_entry``, InterfaceDetector ``entry_linear``, the hole plan's ``entry_linear``.
+
+A drill point's engaged edge grows linearly with depth, so its entry thrust is a linear ramp;
+the frame's deflection, the cut front's lag and the observer round its top. Offered the
+smoothstep too, the fit took it, with its onset 0.02-0.08 mm before the first contact
+(replayed, the 200-hole wide draw: 19 foreign2 entries over 0.05 mm, the project's entries
+biased -0.017 mm). A point that engages as a smoothstep (the foreign drive's) keeps both.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from drillcosim.controllers.event_locator import locate
+from drillcosim.controllers.interface_detector import InterfaceDetector
+
+MM = 1e-3
+DT = 0.02
+PERIOD = 12.0          # samples of the orbit (0.24 s: a 250 rpm orbit)
+
+
+def _rounded_ramp(x_mm, length_mm, round_mm):
+    """A linear ramp from 1.0 mm over ``length_mm`` whose last ``round_mm`` is a first-order
+    approach to its top (the frame and the observer), scaled to 1 at the end of ``x_mm``."""
+    u = np.clip((x_mm - 1.0) / length_mm, 0.0, None)
+    a = round_mm / length_mm
+    g = np.where(u < 1.0 - a, u, (1.0 - a) + a * (1.0 - np.exp(-(u - (1.0 - a)) / a)))
+    return g / g.max()
+
+
+def _entry_window(shape: str, feed_mm_min=15.0, length_mm=0.4, round_mm=0.15, seed=3):
+    """(x [m], F [N]) around an entry at 1.0 mm sampled every DT: 600 N over ``length_mm``,
+    ``shape`` "linear" with its last ``round_mm`` rounded (_rounded_ramp) or "smoothstep";
+    5 % orbital ripple of the thrust, 2 N of noise."""
+    rng = np.random.default_rng(seed)
+    step = feed_mm_min / 60.0 * DT
+    x_mm = 0.7 + step * np.arange(int(0.95 / step))
+    if shape == "linear":
+        g = _rounded_ramp(x_mm, length_mm, round_mm)
+    else:
+        u = np.clip((x_mm - 1.0) / length_mm, 0.0, None)
+        v = np.clip(u, 0.0, 1.0)
+        g = v * v * (3.0 - 2.0 * v)
+    F = 600.0 * g * (1.0 + 0.05 * np.sin(2 * np.pi * np.arange(x_mm.size) / PERIOD)) + rng.normal(0.0, 2.0, x_mm.size)
+    return x_mm * MM, F
+
+
+def _located_mm(x, F, linear: bool) -> float:
+    """Located entry minus the true one (1.0 mm) [mm]; the trigger 0.15 mm into the ramp."""
+    x_loc, _dx = locate("entry", x, F, x_trig=1.15 * MM, period=PERIOD, linear_entry=linear)
+    return (x_loc - 1.0 * MM) / MM
+
+
+@pytest.mark.parametrize("feed, length, seed", [(15.0, 0.4, 3), (12.0, 0.45, 4), (22.0, 0.3, 5)])
+def test_a_linear_ramp_with_a_rounded_top_is_located_at_its_first_contact(feed, length, seed):
+    """Within 0.01 mm (the issue's bias bar) with the linear ramp alone; the smoothstep,
+    offered too, fits the rounded top better and puts the onset over 0.03 mm early."""
+    x, F = _entry_window("linear", feed, length, seed=seed)
+    assert abs(_located_mm(x, F, linear=True)) <= 0.01
+    assert _located_mm(x, F, linear=False) < -0.03
+
+
+def test_a_smoothstep_engagement_needs_both_shapes():
+    """The foreign drive's point (a smoothstep): both shapes find it within 0.01 mm; the
+    linear ramp alone finds where the thrust visibly rises, later (why it is not the default)."""
+    x, F = _entry_window("smoothstep", length_mm=0.3)
+    assert abs(_located_mm(x, F, linear=False)) <= 0.01
+    assert _located_mm(x, F, linear=True) > 0.015
+
+
+def test_the_linear_entry_applies_to_the_entry_only():
+    """An interface's onset keeps both shapes: the same window, fitted as an interface, does
+    not depend on the setting."""
+    x, F = _entry_window("linear")
+    assert locate("interface", x, F, x_trig=1.15 * MM, linear_entry=True) == locate("interface", x, F, x_trig=1.15 * MM)
+    assert locate("entry", x, F, x_trig=1.15 * MM, linear_entry=True) != locate("entry", x, F, x_trig=1.15 * MM)
+
+
+@pytest.mark.parametrize("bad", [1, "yes", None])
+def test_a_bad_entry_linear_is_named(bad):
+    with pytest.raises(ValueError, match="entry_linear"):
+        InterfaceDetector(entry_linear=bad)
+
+
+def _plan(**hole):
+    from drillcosim.analysis.stack_montecarlo import PLANTS, plan_of
+    from drillcosim.drilling.hole_plan import DETECTOR_DT, DETECTOR_N_MIN, HolePlan
+    base = {k: v for k, v in plan_of(PLANTS["project"].removesuffix(".toml")).items() if k != "entry_linear"}
+    base.update(hole)
+    plan = HolePlan(base, lambda k, m: ValueError(f"{k}: {m}"))
+    return plan.detector(2 * DETECTOR_N_MIN * DETECTOR_DT)
+
+
+def test_the_hole_plan_s_default_follows_the_point_length():
+    """A plan that gives the point's length (``engagement``) gives a point: a linear ramp;
+    without one the shape is unknown (both); the key overrides either."""
+    assert _plan()["entry_linear"] is False
+    assert _plan(engagement=0.3e-3)["entry_linear"] is True
+    assert _plan(engagement=0.3e-3, entry_linear=False)["entry_linear"] is False
+    assert _plan(entry_linear=True)["entry_linear"] is True
+    with pytest.raises(ValueError, match="hole.entry_linear"):
+        _plan(entry_linear="linear")
+
+
+def test_the_shipped_plans_set_their_drive_s_point():
+    """The project's and foreign2's drives engage linearly, the foreign drive's as a smoothstep."""
+    from drillcosim.analysis.stack_montecarlo import PLANTS, plan_of
+    assert plan_of("cfrp_ti")["entry_linear"] is True
+    assert plan_of(PLANTS["foreign_ballscrew"].removesuffix(".toml"))["entry_linear"] is False
+    assert plan_of(PLANTS["foreign2_ballscrew"].removesuffix(".toml"))["engagement"] > 0.0
+
+
+def test_the_exported_step_with_the_linear_entry_agrees_with_the_in_process_step():
+    """The exported FMU's C fit (event_locator.c with one shape) gives the in-process step's
+    outputs, and the entry differs from the fit with both shapes (the setting reaches it)."""
+    from test_detector_kernel import PLAN, _trace
+    from test_export_detector import _assert_agree, _exported_step
+    settings = dict(PLAN, entry_span=1.0 / 1.3, entry_orbit_period=1.0 / 1.3)
+    t, x, F = _trace(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.4, 0.0),
+                     ringing=25.0, feed_mm_min=15.0, engage_mm=0.4)
+    # the first layer's ramp rounded at its top, as on the drives
+    first = x < 3.5 * MM
+    F[first] += 60.0 * (_rounded_ramp(x[first] / MM, 0.4, 0.2) - np.clip((x[first] / MM - 1.0) / 0.4, 0.0, 1.0))
+    located = {}
+    for linear in (True, False):
+        det = InterfaceDetector(**dict(settings, entry_linear=linear))
+        exported = _exported_step(det)
+        ys = [det.step(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
+        ye = [exported(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
+        _assert_agree(det.output_names(), ys, ye)
+        assert det.flag == det.n + 1 and math.isfinite(det.loc["entry"][0])
+        located[linear] = det.loc["entry"][0]
+    assert abs(located[True] - 1.0 * MM) <= 0.01 * MM and located[False] < located[True] - 0.01 * MM, located
