@@ -145,14 +145,20 @@ def onset_face(x, F, lo: float, hi: float, period: float | None = None,
     """Position [m] in [lo, hi] where the thrust leaves a level (with a trend) for a ramp
     of fitted length and one of ``shapes`` (ENGAGE_SHAPES or a leading part of it), and its
     uncertainty [m]. ``period`` [samples, > 1]: a
-    sinusoid of this period (any phase and amplitude; the samples equally spaced in time)
-    is fitted with the level: at a slow orbit the observer's DC estimate rings at the
-    orbit frequency in air (+-5..20 N), which otherwise bends the level and the trend and
-    pushes the onset onto its search bound (docs/stacks.md, "Entry (round 2)")."""
+    sinusoid of this period (any phase, an amplitude changing linearly over the window; the
+    samples equally spaced in time) is fitted with the level: at a slow orbit the
+    observer's DC estimate rings at the orbit frequency in air (+-5..20 N), which otherwise
+    bends the level and the trend and pushes the onset onto its search bound (docs/stacks.md,
+    "Entry (round 2)")."""
     orbit = []
     if period:
         phase = 2.0 * np.pi * np.arange(x.size) / period
-        orbit = [np.sin(phase), np.cos(phase)]
+        # the ringing decays (or the ripple grows with the cut): with a constant amplitude
+        # the aluminium entries at a slow orbit, +-10 N of ringing about a 15-25 N step, were
+        # located at the window's ends (project holes 4, 116: +0.47, -0.60 mm; replayed, 30
+        # holes per plant: over 0.05 mm project 3 -> 1, foreign 2 -> 0, foreign2 2 -> 1)
+        grow = np.arange(x.size) / x.size
+        orbit = [np.sin(phase), np.cos(phase), grow * np.sin(phase), grow * np.cos(phase)]
 
     def sse(x0, L, shape):
         d = (x[None, :] - x0) / L
