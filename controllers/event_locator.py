@@ -90,14 +90,14 @@ def _smoothstep(u):
 
 
 ENGAGE_SHAPES = (lambda u: np.clip(u, 0.0, 1.0), _smoothstep)
-# the entry of a drill point (a cone: its engaged edge grows linearly with depth) is the
-# linear ramp alone: offered the smoothstep too, the entry fit took it on the linear ramps
-# of the project's and the foreign2 drives (the ramp's top rounded by the frame and the
-# observer, its steps of orbital ripple) with its onset 0.02-0.08 mm early (replayed, 200-hole
-# wide draw: 19 of 200 foreign2 entries over 0.05 mm, the project's entries -0.017 mm biased;
-# the linear ramp alone: 2, and -0.000 mm); the foreign drive's point engages as a smoothstep,
-# which the linear ramp finds 0.02 mm late (docs: the plan's ``entry_linear``)
-LINEAR_ENGAGE = ENGAGE_SHAPES[:1]
+# the entry's shapes when the tool's is known (the plan's ``entry_shape``): offered the
+# smoothstep too, the entry fit took it on the linear ramps of the project's and the foreign2
+# drives (a drill point: its engaged edge grows linearly with depth; the ramp's top rounded by
+# the frame and the observer) with its onset 0.02-0.08 mm early (replayed, 200-hole wide draw:
+# 19 of 200 foreign2 entries over 0.05 mm, the project's entries -0.017 mm biased; the linear
+# ramp alone: 1, +0.000 mm); on the foreign drive's smoothstep point the linear ramp, when it
+# fitted better, was 0.02 mm late (its CFRP entries +0.016 mm biased; the smoothstep alone: 0.000)
+ENTRY_SHAPES = {"any": ENGAGE_SHAPES, "linear": ENGAGE_SHAPES[:1], "smoothstep": ENGAGE_SHAPES[1:]}
 PUSH_OUT_SHAPES = (lambda r: np.clip(r, 0.0, 1.0), lambda r: np.clip(r, 0.0, 1.0) ** 2)
 
 
@@ -234,7 +234,7 @@ def floor_gap(F, cut_floor: float | None) -> tuple[int, int] | None:
 
 
 def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cut_floor: float | None = None,
-           period: float | None = None, linear_entry: bool = False):
+           period: float | None = None, entry_shape: str = "any"):
     """Located position [m] of an event and its uncertainty [m] from the samples around
     its trigger: table positions ``x`` [m] (increasing along the feed), observed thrust
     ``F`` [N]. ``kind``: "entry", "interface" or "exit"; ``air`` [N]: the observed thrust
@@ -245,11 +245,14 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     exit's fit compares means over one orbit of this many samples (:func:`free_face`;
     None, or a window without one orbit plus 10 MIN_SEGMENT samples: the samples as
     they are); the entry's fits the orbit's sinusoid with its level (:func:`onset_face`;
-    None, or a window shorter than one orbit: none); ``linear_entry``: the entry's ramp is
-    linear (LINEAR_ENGAGE; else linear or a smoothstep). A ramp of either sign is fitted.
+    None, or a window shorter than one orbit: none); ``entry_shape``: the entry's ramp,
+    "linear", "smoothstep" or "any" (either, whichever fits better; ENTRY_SHAPES). A ramp of
+    either sign is fitted.
     (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
+    if entry_shape not in ENTRY_SHAPES:
+        raise ValueError(f"event_locator.locate: entry_shape must be one of {', '.join(ENTRY_SHAPES)}, got {entry_shape!r}")
     x, F = np.asarray(x, float), np.asarray(F, float)
     ok = np.isfinite(x) & np.isfinite(F)
     x, F = x[ok], F[ok]
@@ -259,7 +262,7 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     xt = 0.5 * (x0 + x1) if x_trig is None else float(x_trig)
     if kind == ENTRY:
         return onset_face(x, F, x0, min(xt, x1), period if period is not None and 1.0 < period <= x.size else None,
-                          LINEAR_ENGAGE if linear_entry else ENGAGE_SHAPES)
+                          ENTRY_SHAPES[entry_shape])
     if kind == EXIT:
         if period is not None and not (period > 1.0 and x.size >= period + 10 * MIN_SEGMENT):
             period = None

@@ -34,11 +34,11 @@
 
 /* The length grids of one family of shapes: the coarse lengths [m] and the factors of the
  * best coarse length tried on the fine grid (numpy.geomspace(1/ratio, ratio, 9)); the
- * family's first n_shapes shapes are tried (2: both; 1: the linear ramp or push-out alone,
- * event_locator.LINEAR_ENGAGE). */
+ * family's shapes first_shape .. first_shape + n_shapes - 1 are tried (0, 2: both; an
+ * entry of known shape: 0, 1 linear or 1, 1 smoothstep, event_locator.ENTRY_SHAPES). */
 typedef struct {
     const double *lengths, *fine;
-    int n_lengths, n_shapes;
+    int n_lengths, first_shape, n_shapes;
 } LocGrid;
 
 /* One fit problem: samples, the family (onset or push-out), the air level (NaN: fitted);
@@ -280,7 +280,7 @@ static void loc_best_on(const LocFit *f, const double *pos, long G, const double
         arg[g] = 0.0;
     }
     for (int j = 0; j < nL; j++)
-        for (int shape = 0; shape < f->grid->n_shapes; shape++)
+        for (int shape = f->grid->first_shape; shape < f->grid->first_shape + f->grid->n_shapes; shape++)
             for (long g = 0; g < G; g++) {
                 double c = loc_sse(f, pos[g], lengths[j], shape, FF);
                 if (c < best[g])

@@ -1,11 +1,12 @@
-"""The entry's localisation on a linear ramp alone (issue 23, round 8): event_locator.locate
-``linear_entry``, InterfaceDetector ``entry_linear``, the hole plan's ``entry_linear``.
+"""The entry's localisation with the tool's ramp shape (issue 23, round 8): event_locator.locate
+``entry_shape``, InterfaceDetector ``entry_shape``, the hole plan's ``entry_shape``.
 
 A drill point's engaged edge grows linearly with depth, so its entry thrust is a linear ramp;
 the frame's deflection, the cut front's lag and the observer round its top. Offered the
 smoothstep too, the fit took it, with its onset 0.02-0.08 mm before the first contact
 (replayed, the 200-hole wide draw: 19 foreign2 entries over 0.05 mm, the project's entries
-biased -0.017 mm). A point that engages as a smoothstep (the foreign drive's) keeps both.
+biased -0.017 mm). On a point that engages as a smoothstep (the foreign drive's) a linear
+ramp that fits better is 0.02 mm late: the smoothstep alone.
 The entry fit's orbit sinusoid has an amplitude changing linearly over the window: the
 observer's ringing in air decays.
 """
@@ -48,9 +49,9 @@ def _entry_window(shape: str, feed_mm_min=15.0, length_mm=0.4, round_mm=0.15, se
     return x_mm * MM, F
 
 
-def _located_mm(x, F, linear: bool) -> float:
+def _located_mm(x, F, shape: str) -> float:
     """Located entry minus the true one (1.0 mm) [mm]; the trigger 0.15 mm into the ramp."""
-    x_loc, _dx = locate("entry", x, F, x_trig=1.15 * MM, period=PERIOD, linear_entry=linear)
+    x_loc, _dx = locate("entry", x, F, x_trig=1.15 * MM, period=PERIOD, entry_shape=shape)
     return (x_loc - 1.0 * MM) / MM
 
 
@@ -59,24 +60,27 @@ def test_a_linear_ramp_with_a_rounded_top_is_located_at_its_first_contact(feed, 
     """Within 0.01 mm (the issue's bias bar) with the linear ramp alone; the smoothstep,
     offered too, fits the rounded top better and puts the onset over 0.03 mm early."""
     x, F = _entry_window("linear", feed, length, seed=seed)
-    assert abs(_located_mm(x, F, linear=True)) <= 0.01
-    assert _located_mm(x, F, linear=False) < -0.03
+    assert abs(_located_mm(x, F, "linear")) <= 0.01
+    assert _located_mm(x, F, "any") < -0.03
+    assert _located_mm(x, F, "smoothstep") < -0.03
 
 
-def test_a_smoothstep_engagement_needs_both_shapes():
-    """The foreign drive's point (a smoothstep): both shapes find it within 0.01 mm; the
-    linear ramp alone finds where the thrust visibly rises, later (why it is not the default)."""
+def test_a_smoothstep_engagement_is_located_with_the_smoothstep():
+    """The foreign drive's point (a smoothstep): the smoothstep, alone or offered with the
+    linear ramp, finds it within 0.01 mm; the linear ramp alone finds where the thrust
+    visibly rises, later."""
     x, F = _entry_window("smoothstep", length_mm=0.3)
-    assert abs(_located_mm(x, F, linear=False)) <= 0.01
-    assert _located_mm(x, F, linear=True) > 0.015
+    assert abs(_located_mm(x, F, "smoothstep")) <= 0.01
+    assert abs(_located_mm(x, F, "any")) <= 0.01
+    assert _located_mm(x, F, "linear") > 0.015
 
 
-def test_the_linear_entry_applies_to_the_entry_only():
+def test_the_entry_shape_applies_to_the_entry_only():
     """An interface's onset keeps both shapes: the same window, fitted as an interface, does
     not depend on the setting."""
     x, F = _entry_window("linear")
-    assert locate("interface", x, F, x_trig=1.15 * MM, linear_entry=True) == locate("interface", x, F, x_trig=1.15 * MM)
-    assert locate("entry", x, F, x_trig=1.15 * MM, linear_entry=True) != locate("entry", x, F, x_trig=1.15 * MM)
+    assert locate("interface", x, F, x_trig=1.15 * MM, entry_shape="linear") == locate("interface", x, F, x_trig=1.15 * MM)
+    assert locate("entry", x, F, x_trig=1.15 * MM, entry_shape="linear") != locate("entry", x, F, x_trig=1.15 * MM)
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -90,20 +94,22 @@ def test_an_aluminium_entry_under_decaying_ringing_at_a_slow_orbit(seed):
     i = np.arange(x_mm.size)
     F = 20.0 * np.clip((x_mm - 1.0) / 0.3, 0.0, 1.0) + rng.normal(0.0, 1.0, x_mm.size) + \
         12.0 * np.exp(-i / 150.0) * np.sin(2 * np.pi * i / period + seed)
-    x_loc, _dx = locate("entry", x_mm * MM, F, x_trig=1.4 * MM, period=period, linear_entry=True)
+    x_loc, _dx = locate("entry", x_mm * MM, F, x_trig=1.4 * MM, period=period, entry_shape="linear")
     assert abs(x_loc - 1.0 * MM) <= 0.04 * MM
 
 
-@pytest.mark.parametrize("bad", [1, "yes", None])
-def test_a_bad_entry_linear_is_named(bad):
-    with pytest.raises(ValueError, match="entry_linear"):
-        InterfaceDetector(entry_linear=bad)
+@pytest.mark.parametrize("bad", [1, "cone", None])
+def test_a_bad_entry_shape_is_named(bad):
+    with pytest.raises(ValueError, match="entry_shape"):
+        InterfaceDetector(entry_shape=bad)
+    with pytest.raises(ValueError, match="entry_shape"):
+        locate("entry", *_entry_window("linear"), entry_shape=bad)
 
 
 def _plan(**hole):
     from drillcosim.analysis.stack_montecarlo import PLANTS, plan_of
     from drillcosim.drilling.hole_plan import DETECTOR_DT, DETECTOR_N_MIN, HolePlan
-    base = {k: v for k, v in plan_of(PLANTS["project"].removesuffix(".toml")).items() if k != "entry_linear"}
+    base = {k: v for k, v in plan_of(PLANTS["project"].removesuffix(".toml")).items() if k != "entry_shape"}
     base.update(hole)
     plan = HolePlan(base, lambda k, m: ValueError(f"{k}: {m}"))
     return plan.detector(2 * DETECTOR_N_MIN * DETECTOR_DT)
@@ -111,26 +117,31 @@ def _plan(**hole):
 
 def test_the_hole_plan_s_default_follows_the_point_length():
     """A plan that gives the point's length (``engagement``) gives a point: a linear ramp;
-    without one the shape is unknown (both); the key overrides either."""
-    assert _plan()["entry_linear"] is False
-    assert _plan(engagement=0.3e-3)["entry_linear"] is True
-    assert _plan(engagement=0.3e-3, entry_linear=False)["entry_linear"] is False
-    assert _plan(entry_linear=True)["entry_linear"] is True
-    with pytest.raises(ValueError, match="hole.entry_linear"):
-        _plan(entry_linear="linear")
+    without one the shape is unknown (any); the key overrides either."""
+    from drillcosim.controllers.event_locator import ENTRY_SHAPES
+    from drillcosim.drilling import hole_plan
+    assert set(hole_plan.ENTRY_SHAPES) == set(ENTRY_SHAPES)
+    assert _plan()["entry_shape"] == "any"
+    assert _plan(engagement=0.3e-3)["entry_shape"] == "linear"
+    assert _plan(engagement=0.3e-3, entry_shape="smoothstep")["entry_shape"] == "smoothstep"
+    assert _plan(entry_shape="linear")["entry_shape"] == "linear"
+    with pytest.raises(ValueError, match="hole.entry_shape"):
+        _plan(entry_shape=True)
 
 
 def test_the_shipped_plans_set_their_drive_s_point():
     """The project's and foreign2's drives engage linearly, the foreign drive's as a smoothstep."""
     from drillcosim.analysis.stack_montecarlo import PLANTS, plan_of
-    assert plan_of("cfrp_ti")["entry_linear"] is True
-    assert plan_of(PLANTS["foreign_ballscrew"].removesuffix(".toml"))["entry_linear"] is False
+    assert plan_of("cfrp_ti")["entry_shape"] == "linear"
+    assert plan_of(PLANTS["foreign_ballscrew"].removesuffix(".toml"))["entry_shape"] == "smoothstep"
     assert plan_of(PLANTS["foreign2_ballscrew"].removesuffix(".toml"))["engagement"] > 0.0
 
 
-def test_the_exported_step_with_the_linear_entry_agrees_with_the_in_process_step():
+@pytest.mark.parametrize("shapes", [("linear", "any"), ("smoothstep",)])
+def test_the_exported_step_with_an_entry_shape_agrees_with_the_in_process_step(shapes):
     """The exported FMU's C fit (event_locator.c with one shape) gives the in-process step's
-    outputs, and the entry differs from the fit with both shapes (the setting reaches it)."""
+    outputs; on a linear ramp with a rounded top the linear ramp is within 0.01 mm and "any"
+    (the smoothstep) early (the setting reaches the C fit)."""
     from test_detector_kernel import PLAN, _trace
     from test_export_detector import _assert_agree, _exported_step
     settings = dict(PLAN, entry_span=1.0 / 1.3, entry_orbit_period=1.0 / 1.3)
@@ -140,12 +151,13 @@ def test_the_exported_step_with_the_linear_entry_agrees_with_the_in_process_step
     first = x < 3.5 * MM
     F[first] += 60.0 * (_rounded_ramp(x[first] / MM, 0.4, 0.2) - np.clip((x[first] / MM - 1.0) / 0.4, 0.0, 1.0))
     located = {}
-    for linear in (True, False):
-        det = InterfaceDetector(**dict(settings, entry_linear=linear))
+    for shape in shapes:
+        det = InterfaceDetector(**dict(settings, entry_shape=shape))
         exported = _exported_step(det)
         ys = [det.step(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
         ye = [exported(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
         _assert_agree(det.output_names(), ys, ye)
         assert det.flag == det.n + 1 and math.isfinite(det.loc["entry"][0])
-        located[linear] = det.loc["entry"][0]
-    assert abs(located[True] - 1.0 * MM) <= 0.01 * MM and located[False] < located[True] - 0.01 * MM, located
+        located[shape] = det.loc["entry"][0]
+    if "any" in located:
+        assert abs(located["linear"] - 1.0 * MM) <= 0.01 * MM and located["any"] < located["linear"] - 0.01 * MM, located
