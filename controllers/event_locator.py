@@ -90,6 +90,14 @@ def _smoothstep(u):
 
 
 ENGAGE_SHAPES = (lambda u: np.clip(u, 0.0, 1.0), _smoothstep)
+# the entry's shapes when the tool's is known (the plan's ``entry_shape``): offered the
+# smoothstep too, the entry fit took it on the linear ramps of the project's and the foreign2
+# drives (a drill point: its engaged edge grows linearly with depth; the ramp's top rounded by
+# the frame and the observer) with its onset 0.02-0.08 mm early (replayed, 200-hole wide draw:
+# 19 of 200 foreign2 entries over 0.05 mm, the project's entries -0.017 mm biased; the linear
+# ramp alone: 1, +0.000 mm); on the foreign drive's smoothstep point the linear ramp, when it
+# fitted better, was 0.02 mm late (its CFRP entries +0.016 mm biased; the smoothstep alone: 0.000)
+ENTRY_SHAPES = {"any": ENGAGE_SHAPES, "linear": ENGAGE_SHAPES[:1], "smoothstep": ENGAGE_SHAPES[1:]}
 PUSH_OUT_SHAPES = (lambda r: np.clip(r, 0.0, 1.0), lambda r: np.clip(r, 0.0, 1.0) ** 2)
 
 
@@ -132,17 +140,25 @@ def _best_face(lo, hi, sse_of, lengths, shapes, n: int):
     return xf, max(0.5 * float(ok.max() - ok.min()), GRID_STEP)
 
 
-def onset_face(x, F, lo: float, hi: float, period: float | None = None) -> tuple[float, float]:
+def onset_face(x, F, lo: float, hi: float, period: float | None = None,
+               shapes=ENGAGE_SHAPES) -> tuple[float, float]:
     """Position [m] in [lo, hi] where the thrust leaves a level (with a trend) for a ramp
-    of fitted length and shape, and its uncertainty [m]. ``period`` [samples, > 1]: a
-    sinusoid of this period (any phase and amplitude; the samples equally spaced in time)
-    is fitted with the level: at a slow orbit the observer's DC estimate rings at the
-    orbit frequency in air (+-5..20 N), which otherwise bends the level and the trend and
-    pushes the onset onto its search bound (docs/stacks.md, "Entry (round 2)")."""
+    of fitted length and one of ``shapes`` (ENGAGE_SHAPES or a leading part of it), and its
+    uncertainty [m]. ``period`` [samples, > 1]: a
+    sinusoid of this period (any phase, an amplitude changing linearly over the window; the
+    samples equally spaced in time) is fitted with the level: at a slow orbit the
+    observer's DC estimate rings at the orbit frequency in air (+-5..20 N), which otherwise
+    bends the level and the trend and pushes the onset onto its search bound (docs/stacks.md,
+    "Entry (round 2)")."""
     orbit = []
     if period:
         phase = 2.0 * np.pi * np.arange(x.size) / period
-        orbit = [np.sin(phase), np.cos(phase)]
+        # the ringing decays (or the ripple grows with the cut): with a constant amplitude
+        # the aluminium entries at a slow orbit, +-10 N of ringing about a 15-25 N step, were
+        # located at the window's ends (project holes 4, 116: +0.47, -0.60 mm; replayed, 30
+        # holes per plant: over 0.05 mm project 3 -> 1, foreign 2 -> 0, foreign2 2 -> 1)
+        grow = np.arange(x.size) / x.size
+        orbit = [np.sin(phase), np.cos(phase), grow * np.sin(phase), grow * np.cos(phase)]
 
     def sse(x0, L, shape):
         d = (x[None, :] - x0) / L
@@ -151,7 +167,7 @@ def onset_face(x, F, lo: float, hi: float, period: float | None = None) -> tuple
         # one on the cut level, 6 (docs/stacks.md "Entry (round 2)")
         return _lstsq_batch([np.ones_like(d), d, shape(d), *(np.broadcast_to(c, d.shape) for c in orbit)], F)
 
-    return _best_face(lo, hi, sse, ENGAGE_LENGTHS, ENGAGE_SHAPES, x.size)
+    return _best_face(lo, hi, sse, ENGAGE_LENGTHS, shapes, x.size)
 
 
 def orbit_mean(A, period: float):
@@ -218,7 +234,7 @@ def floor_gap(F, cut_floor: float | None) -> tuple[int, int] | None:
 
 
 def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cut_floor: float | None = None,
-           period: float | None = None):
+           period: float | None = None, entry_shape: str = "any"):
     """Located position [m] of an event and its uncertainty [m] from the samples around
     its trigger: table positions ``x`` [m] (increasing along the feed), observed thrust
     ``F`` [N]. ``kind``: "entry", "interface" or "exit"; ``air`` [N]: the observed thrust
@@ -229,9 +245,14 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     exit's fit compares means over one orbit of this many samples (:func:`free_face`;
     None, or a window without one orbit plus 10 MIN_SEGMENT samples: the samples as
     they are); the entry's fits the orbit's sinusoid with its level (:func:`onset_face`;
-    None, or a window shorter than one orbit: none). A ramp of either sign is fitted. (NaN, NaN) when there are too few samples."""
+    None, or a window shorter than one orbit: none); ``entry_shape``: the entry's ramp,
+    "linear", "smoothstep" or "any" (either, whichever fits better; ENTRY_SHAPES). A ramp of
+    either sign is fitted.
+    (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
+    if entry_shape not in ENTRY_SHAPES:
+        raise ValueError(f"event_locator.locate: entry_shape must be one of {', '.join(ENTRY_SHAPES)}, got {entry_shape!r}")
     x, F = np.asarray(x, float), np.asarray(F, float)
     ok = np.isfinite(x) & np.isfinite(F)
     x, F = x[ok], F[ok]
@@ -240,7 +261,8 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     x0, x1 = float(x[0]), float(x[-1])
     xt = 0.5 * (x0 + x1) if x_trig is None else float(x_trig)
     if kind == ENTRY:
-        return onset_face(x, F, x0, min(xt, x1), period if period is not None and 1.0 < period <= x.size else None)
+        return onset_face(x, F, x0, min(xt, x1), period if period is not None and 1.0 < period <= x.size else None,
+                          ENTRY_SHAPES[entry_shape])
     if kind == EXIT:
         if period is not None and not (period > 1.0 and x.size >= period + 10 * MIN_SEGMENT):
             period = None

@@ -107,7 +107,7 @@ from typing import Sequence
 import numpy as np
 
 from drillcosim.controllers import detector_kernel
-from drillcosim.controllers.event_locator import locate, time_at
+from drillcosim.controllers.event_locator import ENTRY_SHAPES, locate, time_at
 from drillcosim.controllers.kernels import KernelBlock
 from drillcosim.controllers.kernels.structs import Detector as _DetectorState
 from drillcosim.controllers.kernels.structs import fill
@@ -324,6 +324,9 @@ class InterfaceDetector(KernelBlock, Block):
         (the hole plan: one orbit of the first layer, whose frequency the observer's DC
         estimate rings at in air); 0 (default) keeps the N_min confirmation. See
         ``_entry_air``, ``_entry_holds`` and ``_entry_swings``.
+    entry_shape: the entry's localisation fits a "linear" ramp (a drill point, whose engaged
+        edge grows linearly with depth), a "smoothstep" (a rounded edge) or "any" (default:
+        either, whichever fits better; event_locator.ENTRY_SHAPES).
     Then entry: F~ > entry_fraction * kc_1 * f_1 * ramp_gain; interface k: |F~| >
     max(thd_min, step_fraction * |kc_{k+1}/kc_k - 1| * F^) (the step the
     observed level F^ makes when the material changes under an unchanged process);
@@ -449,7 +452,7 @@ class InterfaceDetector(KernelBlock, Block):
         entry_confirm: bool = False,
         entry_ramp: float = 0.0,
         entry_span: float = 0.0,
-        entry_orbit_period: float = 0.0,
+        entry_orbit_period: float = 0.0, entry_shape: str = "any",
         step_signs: Sequence[float] | None = None,
         localise: bool = True,
         locate_margin: float = 0.3e-3,
@@ -489,7 +492,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.relative = kc is not None
         self._set_thresholds(kc, feed_per_rev, feed_per_rev_min, entry_fraction, step_fraction,
                              engage_fraction, thd_min, rearm_level)
-        self._set_entry_ramp(entry_ramp, entry_span, entry_orbit_period)
+        self._set_entry_ramp(entry_ramp, entry_span, entry_orbit_period, entry_shape)
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
         self._set_loc_after(interface_loc_after)
         self._set_exit_loc(exit_orbit_period, exit_loc_after)
@@ -543,13 +546,17 @@ class InterfaceDetector(KernelBlock, Block):
         self.thd_min = float(thd_min)
         self.rearm_level = 0.5 * self.thd_min if rearm_level is None else float(rearm_level)
 
-    def _set_entry_ramp(self, entry_ramp, entry_span, entry_orbit_period=0.0) -> None:
+    def _set_entry_ramp(self, entry_ramp, entry_span, entry_orbit_period=0.0, entry_shape="any") -> None:
         """Scale the entry threshold to what the regression shows of the entry's ramp: a
         tool that engages over ``entry_ramp`` seconds (its engagement length at the first
         layer's feed) raises the thrust as a ramp, whose F~ is ``ramp_gain`` of its height
         (issue 23: a Ti entry at 5.2 mm/min over ~0.38 mm, F~ 69 N against 252 N). The
         confirmation's span ``entry_span`` [s] in samples (0: off); the entry fit's orbit
-        period ``entry_orbit_period`` [s] (0: none)."""
+        period ``entry_orbit_period`` [s] (0: none); that fit's ramp ``entry_shape``."""
+        if entry_shape not in ENTRY_SHAPES:
+            raise ValueError(f"InterfaceDetector: entry_shape must be one of {', '.join(ENTRY_SHAPES)}, "
+                             f"got {entry_shape!r}")
+        self.entry_shape = entry_shape
         for name, v in (("entry_ramp", entry_ramp), ("entry_span", entry_span),
                         ("entry_orbit_period", entry_orbit_period)):
             _check_seconds(name, v, "0: off")
@@ -1071,7 +1078,8 @@ class InterfaceDetector(KernelBlock, Block):
         floor = self._air_offset() + min(self.floor[k - 1], self.floor[k]) if self.relative and kind == "interface" and \
             self.loc_after[k - 1] < self.max_gap + self.locate_margin else None
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
-        x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period)
+        x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period,
+                           entry_shape=self.entry_shape)
         F_air = F_air_sd = NAN
         if k == 0 and math.isfinite(x_loc):
             # with a span the window is around the confirmation, which may leave only a few
@@ -1317,6 +1325,7 @@ class InterfaceDetector(KernelBlock, Block):
         "push_out": ("m", "travel above the exit's trigger its fall may start"),
         "exit_period": ("1", "last layer's orbit period in samples: the exit's fit on means over one orbit (0: none)"),
         "entry_period": ("1", "first layer's orbit period in samples: the entry's fit takes out its sinusoid (0: none)"),
+        "entry_shape": ("1", "the entry fit's ramp: 0 linear or smoothstep, 1 linear, 2 smoothstep"),
         "max_gap": ("m", "widest gap between two layers"),
         "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
     }
@@ -1331,7 +1340,8 @@ class InterfaceDetector(KernelBlock, Block):
             raise RuntimeError("InterfaceDetector: export needs the C step (kernel = 'auto' or 'c')")
         arrays = (self._W_flat, self.buf, self._c_err, self.h_t, self.h_x, self.h_F)
         return detector_kernel.export_kernel(self.c_kernel.state, self.observer_delay, arrays,
-                                             self._exit_period_samples() or 0.0, self._entry_period_samples() or 0.0)
+                                             self._exit_period_samples() or 0.0, self._entry_period_samples() or 0.0,
+                                             self.entry_shape)
 
     def _c_supports(self) -> bool:
         return (detector_kernel.blas_ddot() is not None and detector_kernel.sums_like_python()

@@ -42,7 +42,8 @@ OBSERVER_SETTLE_ORBITS = 6.0
 
 HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "approach", "breakthrough",
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
-             "match_tolerance", "locate_margin", "push_out", "orbital_harmonics", "exit_orbit_mean", "engagement"}
+             "match_tolerance", "locate_margin", "push_out", "orbital_harmonics", "exit_orbit_mean", "engagement",
+             "entry_shape"}
 # Localisation (controllers/event_locator.py): travel on either side of an event that holds its
 # change and a stretch of level (engagement up to ~0.35 mm on the drives measured, and the
 # trigger up to ~0.1 mm into it: with 0.3 mm, Ti entries with a 0.22 mm engagement were
@@ -57,6 +58,7 @@ ORBITS_PER_LAYER = 2.0
 MISMATCH_FACTOR = 4.0
 DETECTOR_DT, DETECTOR_N_MIN = 0.02, 25  # InterfaceDetector defaults (Table 4's dt, its shortest window)
 LAYER_KEYS = {"material", "thickness", "tolerance"}
+ENTRY_SHAPES = ("any", "linear", "smoothstep")   # the entry fit's ramps (event_locator.ENTRY_SHAPES)
 MAX_HARMONICS = 4       # orbital harmonics the adaptive observer models at most (fang_observer.MAX_HARMONICS)
 
 
@@ -93,6 +95,13 @@ class HolePlan:
         # follows what the regression shows of that ramp at the first layer's feed; 0 (default)
         # is a step, the threshold of the drives the detector was built on
         self.engagement = self._number(hole, "engagement", 0.0, minimum=0.0)
+        # the entry thrust's ramp (InterfaceDetector entry_shape): "linear" (a drill point: its
+        # engaged edge grows linearly with depth), "smoothstep" (a rounded edge) or "any" (either,
+        # fitted); the wrong one, or "any" on a linear point, puts the entries 0.02-0.08 mm off
+        # (docs/stacks.md); a plan that gives the point's length gives a point, the default then
+        self.entry_shape = hole.get("entry_shape", "linear" if self.engagement > 0.0 else "any")
+        if self.entry_shape not in ENTRY_SHAPES:
+            raise self.error("hole.entry_shape", f"expected one of {', '.join(ENTRY_SHAPES)}, got {self.entry_shape!r}")
         self.harmonics = self._harmonics(hole)
         # the exit's fit on orbit means (InterfaceDetector exit_orbit_period): off by default,
         # its wide-draw measurement is mixed (docs/stacks.md, "Exit (this round)")
@@ -349,6 +358,7 @@ class HolePlan:
             # the entry's fit takes the same orbit's sinusoid out of the observed thrust
             # (the ringing in air, docs/stacks.md "Entry (round 2)")
             "entry_orbit_period": self.orbit_period(0),
+            "entry_shape": self.entry_shape,
             # the exit's thinning test also runs on means over one orbit of the last layer: a
             # thin last layer under the observer's ringing after a Ti -> Al drop has no quiet
             # F~ to arm on (issue 23, round 2: missed exits of the wide draw)

@@ -27,16 +27,18 @@
 #define LOC_INTERFACE 1
 #define LOC_EXIT 2
 #define LOC_TWO_PI (2.0 * 3.141592653589793)   /* 2.0 * numpy.pi */
-#define LOC_MAX_COLS 5             /* onset: level, trend, ramp and the orbit's sine and cosine */
+#define LOC_MAX_COLS 7             /* onset: level, trend, ramp, the orbit's sine and cosine and both times i / n */
 
 #define LOC_PYMAX(a, b) ((b) > (a) ? (b) : (a))   /* Python's max(a, b) */
 #define LOC_PYMIN(a, b) ((b) < (a) ? (b) : (a))   /* Python's min(a, b) */
 
 /* The length grids of one family of shapes: the coarse lengths [m] and the factors of the
- * best coarse length tried on the fine grid (numpy.geomspace(1/ratio, ratio, 9)). */
+ * best coarse length tried on the fine grid (numpy.geomspace(1/ratio, ratio, 9)); the
+ * family's shapes first_shape .. first_shape + n_shapes - 1 are tried (0, 2: both; an
+ * entry of known shape: 0, 1 linear or 1, 1 smoothstep, event_locator.ENTRY_SHAPES). */
 typedef struct {
     const double *lengths, *fine;
-    int n_lengths;
+    int n_lengths, first_shape, n_shapes;
 } LocGrid;
 
 /* One fit problem: samples, the family (onset or push-out), the air level (NaN: fitted);
@@ -131,7 +133,8 @@ static double loc_clip01(double u)
 }
 
 /* the design's columns at sample i: onset d = (x - x0)/L -> 1, d, shape(d) (and the orbit's
- * sine and cosine at phase 2 pi i / orbit); push-out r = (xb - x)/L, g = shape(r) -> g, r g
+ * sine and cosine at phase 2 pi i / orbit, and both times i / n: an amplitude changing
+ * linearly); push-out r = (xb - x)/L, g = shape(r) -> g, r g
  * (and 1 when the air level is fitted) */
 static int loc_columns(const LocFit *f, double face, double L, int shape, long i, double *c)
 {
@@ -144,9 +147,12 @@ static int loc_columns(const LocFit *f, double face, double L, int shape, long i
         if (f->orbit == 0.0)
             return 3;
         double phase = LOC_TWO_PI * (double)i / f->orbit;     /* numpy: 2.0 * np.pi * arange(n) / period */
+        double grow = (double)i / (double)f->n;                /* numpy: arange(n) / n */
         c[3] = sin(phase);
         c[4] = cos(phase);
-        return 5;
+        c[5] = grow * c[3];
+        c[6] = grow * c[4];
+        return 7;
     }
     double r = (face - xi) / L, u = loc_clip01(r), g = shape == 0 ? u : u * u;
     c[0] = g;
@@ -265,7 +271,7 @@ static double loc_sse(const LocFit *f, double face, double L, int shape, double 
     return FF - fit;
 }
 
-/* the best residual over lengths and both shapes at each position, and its length */
+/* the best residual over lengths and the grid's shapes at each position, and its length */
 static void loc_best_on(const LocFit *f, const double *pos, long G, const double *lengths, int nL, double FF,
                         double *best, double *arg)
 {
@@ -274,7 +280,7 @@ static void loc_best_on(const LocFit *f, const double *pos, long G, const double
         arg[g] = 0.0;
     }
     for (int j = 0; j < nL; j++)
-        for (int shape = 0; shape < 2; shape++)
+        for (int shape = f->grid->first_shape; shape < f->grid->first_shape + f->grid->n_shapes; shape++)
             for (long g = 0; g < G; g++) {
                 double c = loc_sse(f, pos[g], lengths[j], shape, FF);
                 if (c < best[g])

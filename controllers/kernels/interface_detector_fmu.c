@@ -23,6 +23,7 @@ typedef struct {
     double observer_delay;                        /* s, the observer's lag (the fit's positions) */
     double exit_period;                           /* samples, the last layer's orbit (the exit's fit) */
     double entry_period;                          /* samples, the first layer's orbit (the entry's fit; 0: none) */
+    double entry_shape;                           /* the entry's ramp: 0 any, 1 linear, 2 smoothstep (event_locator.ENTRY_SHAPES) */
     double engage_lengths[LOC_N_ENGAGE];          /* m, event_locator.ENGAGE_LENGTHS */
     double engage_fine[LOC_N_FINE];               /* around the best engage length */
     double push_out_lengths[LOC_N_PUSH_OUT];      /* m, event_locator.PUSH_OUT_LENGTHS */
@@ -148,8 +149,10 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
             Fsel[m++] = F[j];
         }
     int nl = (int)d->n, kind = k == 0 ? LOC_ENTRY : k == nl ? LOC_EXIT : LOC_INTERFACE;
-    LocGrid engage = {s->engage_lengths, s->engage_fine, LOC_N_ENGAGE};
-    LocGrid push = {s->push_out_lengths, s->push_out_fine, LOC_N_PUSH_OUT};
+    /* the engage grid fits the entry's onset, or an interface's: only the entry's may be linear alone */
+    int shape = kind == LOC_ENTRY ? (int)s->entry_shape : 0;
+    LocGrid engage = {s->engage_lengths, s->engage_fine, LOC_N_ENGAGE, shape == 2 ? 1 : 0, shape == 0 ? 2 : 1};
+    LocGrid push = {s->push_out_lengths, s->push_out_fine, LOC_N_PUSH_OUT, 0, 2};
     /* an interface window cut short to a thin layer below may end in the gap: air is below
      * the engagement floor of both layers around it (InterfaceDetector._fit) */
     double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0 && d->loc_after[k - 1] < d->max_gap + d->locate_margin
@@ -202,9 +205,9 @@ void interface_detector_fmu_step(DetectorFMU *s, double t, const double *u, doub
 void event_locate_tables(int kind, const double *x, const double *F, long n, double air, double x_trig,
                          double cut_floor, double period, const double *tables, double *out)
 {
-    LocGrid engage = {tables, tables + LOC_N_ENGAGE, LOC_N_ENGAGE};
+    LocGrid engage = {tables, tables + LOC_N_ENGAGE, LOC_N_ENGAGE, 0, 2};
     LocGrid push = {tables + LOC_N_ENGAGE + LOC_N_FINE, tables + LOC_N_ENGAGE + LOC_N_FINE + LOC_N_PUSH_OUT,
-                    LOC_N_PUSH_OUT};
+                    LOC_N_PUSH_OUT, 0, 2};
     event_locate(kind, x, F, n, air, x_trig, cut_floor, period, &engage, &push, &out[0], &out[1]);
 }
 
