@@ -182,6 +182,17 @@ def test_no_ghost_without_an_orbit_in_the_window():
         locate("exit", x, F, x_trig=FACE)
 
 
+def test_no_ghost_when_the_plateau_rings_more_than_the_air():
+    """A ripple the observer does not model (here 10 % of the plateau at the orbit, gone with
+    the thrust) is no ghost: the window's air part scatters less than its plateau, so the
+    fit is the samples' own, in Python and in C."""
+    x, F = _observed_window("linear", 0.0, ripple=0.0)
+    t = np.arange(x.size) * DT
+    F = F + 0.1 * 30.0 * _law("linear", FACE - x) * np.sin(2 * math.pi * ORBIT_HZ * t)
+    assert locate("exit", x, F, x_trig=FACE, ghost=GHOST) == locate("exit", x, F, x_trig=FACE)
+    assert _assert_same_fit("exit", x, F, 0.0, FACE, ghost=GHOST) == locate("exit", x, F, x_trig=FACE)
+
+
 def test_hole_plan_gives_the_exit_fit_the_observers_forgetting():
     """The stacks scenarios: the last layer's orbit and the Fang observer's forgetting reach
     the detector; a detector without them (or with either 0) fits no ghost."""

@@ -27,6 +27,7 @@
 #define LOC_INTERFACE 1
 #define LOC_EXIT 2
 #define LOC_TWO_PI (2.0 * 3.141592653589793)   /* 2.0 * numpy.pi */
+#define LOC_GHOST_SNR 20.0        /* event_locator.GHOST_SNR */
 #define LOC_MAX_COLS 7             /* onset: level, trend, ramp and the orbit's sine and cosine; push-out:
                                       fall, its trend, air and four ghost columns */
 
@@ -107,6 +108,24 @@ static double loc_median(const double *a, long n, double *scratch)
     if (n % 2)
         return scratch[n / 2];
     return (scratch[n / 2 - 1] + scratch[n / 2]) / 2.0;
+}
+
+/* event_locator._ghost_visible: the last fifth of F (air) scatters more than its first
+ * (plateau), numpy.std, and the fall between their medians is above LOC_GHOST_SNR times the
+ * plateau's scatter; scratch: n doubles */
+static int loc_ghost_visible(const double *F, long n, double *scratch)
+{
+    long k = LOC_PYMAX(LOC_MIN_SEGMENT, n / 5);
+    double sd[2];
+    for (int part = 0; part < 2; part++) {
+        const double *a = part == 0 ? F + n - k : F;
+        double m = loc_mean(a, k);
+        for (long i = 0; i < k; i++)
+            scratch[i] = (a[i] - m) * (a[i] - m);
+        sd[part] = sqrt(loc_mean(scratch, k));
+    }
+    double fall = loc_median(F, k, scratch) - loc_median(F + n - k, k, scratch);
+    return sd[0] > sd[1] && fall > LOC_GHOST_SNR * sd[1];
 }
 
 /* numpy.arange(start, stop, step) of doubles: its length and filling (start + i * delta,
@@ -515,7 +534,8 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
     if (kind == LOC_ENTRY && period > 1.0 && period <= (double)n)
         onset.orbit = period;       /* event_locator.locate: the entry's window holds one orbit */
     if (kind == LOC_EXIT && ghost != NULL && ghost[0] > 1.0 && ghost[0] <= (double)n && ghost[1] >= 0.0 &&
-        ghost[1] < 1.0) {           /* event_locator.locate: the exit's window holds one orbit */
+        ghost[1] < 1.0 && loc_ghost_visible(F, n, scratch)) {   /* event_locator.locate: the exit's window
+                                                                   holds one orbit and shows a ghost */
         exit_.ghost_orbit = ghost[0];
         exit_.ghost_decay = ghost[1];
     }
