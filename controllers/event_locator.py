@@ -202,9 +202,9 @@ def _ghost_visible(F) -> bool:
     above GHOST_SNR times the plateau's scatter. The ghost is a share of the fall (5-15 %):
     below that it drowns in what the observer leaves on the plateau (other harmonics, the
     drive's own ripple), which its sine and cosine then fit instead. Measured in closed
-    loop on 45 good holes of the three drives: with GHOST_SNR 10 (or the scatter test alone)
-    6 good aluminium exits (10-35 N plateaus) moved by 0.06-0.22 mm, beyond 0.1 mm; with 20
-    the ghost is fitted on none of them (docs/stacks.md, "Exit localisation (round 8)")."""
+    loop on 45 good holes of the three drives: with the scatter test alone 5 good aluminium
+    exits (10-35 N plateaus) moved beyond 0.1 mm (to 0.13-0.23 mm), with GHOST_SNR 10 still
+    3, with 20 none (docs/stacks.md, "Exit localisation (round 8)")."""
     k = max(MIN_SEGMENT, F.size // 5)
     plateau, air = F[:k], F[-k:]
     return float(np.std(air)) > float(np.std(plateau)) and \
