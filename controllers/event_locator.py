@@ -46,6 +46,7 @@ MIN_SEGMENT = 3           # samples: a line through fewer points has no residual
 # (wide draw: -1.9 N at the entry, 0 after the exit), a 10-30 N aluminium push-out fitted down
 # to the entry's level was located 0.16-0.32 mm off
 FIXED_EXIT_AIR = False
+GHOST_SNR = 20.0          # the exit's fall over its plateau's scatter above which the observer's ghost is fitted
 AIR_SHARE = 0.5           # a level below this share of its neighbours' plateaus (above air) is air (a gap)
 
 
@@ -186,7 +187,48 @@ def orbit_mean(A, period: float):
     return (inner + edge * (A[..., i - K] + A[..., i + K])) / period
 
 
-def free_face(x, F, lo: float, hi: float, air: float | None, period: float | None = None) -> tuple[float, float]:
+def _lagged(A, decay: float):
+    """``A`` through a first-order lag along its last axis, from rest at its first sample:
+    y_i = y_(i-1) + (1 - decay) (A_i - y_(i-1)), ``decay`` in [0, 1) per sample."""
+    out = np.empty(A.shape)
+    y = A[..., 0].copy()
+    for i in range(A.shape[-1]):
+        y += (1.0 - decay) * (A[..., i] - y)
+        out[..., i] = y
+    return out
+
+
+def _ghost_columns(g, ghost):
+    """The observer's ripple error in its DC estimate at a push-out, as columns: ``ghost``
+    = (orbit [samples], decay [per sample]). The ripple is a share of the thrust and the
+    observer's estimate of it follows with its forgetting (a first-order lag of the fall
+    ``g``), so the DC estimate carries (g - lag(g)) times the orbit's sine and cosine --
+    the ghost that outlives the thrust -- plus the plateau's own ripple residual (a
+    constant sine and cosine)."""
+    orbit, decay = ghost
+    phase = 2.0 * np.pi * np.arange(g.shape[-1]) / orbit
+    S, C = np.broadcast_to(np.sin(phase), g.shape), np.broadcast_to(np.cos(phase), g.shape)
+    late = g - _lagged(g, decay)
+    return [S, C, late * S, late * C]
+
+
+def _ghost_visible(F) -> bool:
+    """Whether an exit window shows the observer's ghost: its air part (the last fifth)
+    scatters more than its plateau (the first fifth), and the fall between their medians is
+    above GHOST_SNR times the plateau's scatter. The ghost is a share of the fall (5-15 %):
+    below that it drowns in what the observer leaves on the plateau (other harmonics, the
+    drive's own ripple), which its sine and cosine then fit instead. Measured in closed
+    loop on 45 good holes of the three drives: with the scatter test alone 5 good aluminium
+    exits (10-35 N plateaus) moved beyond 0.1 mm (to 0.13-0.23 mm), with GHOST_SNR 10 still
+    3, with 20 none (docs/stacks.md, "Exit localisation (round 8)")."""
+    k = max(MIN_SEGMENT, F.size // 5)
+    plateau, air = F[:k], F[-k:]
+    return float(np.std(air)) > float(np.std(plateau)) and \
+        float(np.median(plateau)) - float(np.median(air)) > GHOST_SNR * float(np.std(plateau))
+
+
+def free_face(x, F, lo: float, hi: float, air: float | None, period: float | None = None,
+              ghost: tuple[float, float] | None = None) -> tuple[float, float]:
     """Position [m] in [lo, hi] where a layer pushed out ahead of the tool runs out: its
     thrust (a level with a trend) falls to the air level over a fitted length and law
     and stays there; and its uncertainty [m]. ``air`` None: the air level is fitted too
@@ -196,7 +238,10 @@ def free_face(x, F, lo: float, hi: float, air: float | None, period: float | Non
     while the thrust is gone, and its ghost, +-20-40 N at the orbit for seconds (wide
     draw, foreign hole 33, project hole 42), was fitted as the end of the fall, early or
     late; the mean over an orbit has none of it, and the model, averaged the same way,
-    still ends at the face."""
+    still ends at the face. ``ghost`` (orbit [samples], decay [per sample]; not with
+    ``period``): the observer's ripple error is fitted with the fall
+    (:func:`_ghost_columns`): left in the samples, it moved the end of the fall by
+    0.1-0.3 mm on the three drives (docs/stacks.md, "Exit localisation (round 8)")."""
     Fa = F - (0.0 if air is None else air)
     smooth = (lambda A: orbit_mean(A, period)) if period else (lambda A: A)
     Fs = smooth(Fa)
@@ -205,6 +250,8 @@ def free_face(x, F, lo: float, hi: float, air: float | None, period: float | Non
         r = (xb - x[None, :]) / L
         g = shape(r)
         cols = [g, r * g] if air is not None else [g, r * g, np.ones_like(g)]
+        if ghost is not None and not period:
+            cols += _ghost_columns(g, ghost)
         return _lstsq_batch([smooth(c) for c in cols], Fs)
 
     return _best_face(lo, hi, sse, PUSH_OUT_LENGTHS, PUSH_OUT_SHAPES, Fs.size)
@@ -234,7 +281,7 @@ def floor_gap(F, cut_floor: float | None) -> tuple[int, int] | None:
 
 
 def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cut_floor: float | None = None,
-           period: float | None = None, entry_shape: str = "any"):
+           period: float | None = None, entry_shape: str = "any", ghost: tuple[float, float] | None = None):
     """Located position [m] of an event and its uncertainty [m] from the samples around
     its trigger: table positions ``x`` [m] (increasing along the feed), observed thrust
     ``F`` [N]. ``kind``: "entry", "interface" or "exit"; ``air`` [N]: the observed thrust
@@ -246,9 +293,11 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     None, or a window without one orbit plus 10 MIN_SEGMENT samples: the samples as
     they are); the entry's fits the orbit's sinusoid with its level (:func:`onset_face`;
     None, or a window shorter than one orbit: none); ``entry_shape``: the entry's ramp,
-    "linear", "smoothstep" or "any" (either, whichever fits better; ENTRY_SHAPES). A ramp of
-    either sign is fitted.
-    (NaN, NaN) when there are too few samples."""
+    "linear", "smoothstep" or "any" (either, whichever fits better; ENTRY_SHAPES);
+    ``ghost`` (orbit [samples], decay of the observer's ripple estimate [per sample]): the
+    exit's fit on the samples takes out the observer's ripple error (:func:`free_face`; None,
+    a window shorter than one orbit, or one that shows no ghost, :func:`_ghost_visible`:
+    none). A ramp of either sign is fitted. (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
     if entry_shape not in ENTRY_SHAPES:
@@ -266,7 +315,9 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     if kind == EXIT:
         if period is not None and not (period > 1.0 and x.size >= period + 10 * MIN_SEGMENT):
             period = None
-        return free_face(x, F, x0, x1, air if FIXED_EXIT_AIR else None, period)
+        if ghost is not None and not (1.0 < ghost[0] <= x.size and 0.0 <= ghost[1] < 1.0 and _ghost_visible(F)):
+            ghost = None
+        return free_face(x, F, x0, x1, air if FIXED_EXIT_AIR else None, period, ghost)
     gap = air_run(x, F, air)
     if gap is None:
         gap = floor_gap(F, cut_floor)

@@ -392,6 +392,11 @@ class InterfaceDetector(KernelBlock, Block):
         at most ORBIT_DROP of the level: while the layer's F~ test has not armed, a drop test
         on the mean thrust over one orbit runs too (:meth:`_interface_orbit`: a thin layer at
         a fast feed under the orbit's ripple); None or 0 (default): off.
+    exit_ripple_period [s], observer_forgetting [1/s]: the last layer's orbit period and
+        the thrust observer's forgetting factor (FangObserver ``forgetting``); both > 0:
+        the exit's fit on the samples also fits the observer's ripple error
+        (``event_locator.free_face`` ghost: the ripple estimate follows the fall with the
+        forgetting, its ghost outlives the thrust); either 0 (default): off.
     exit_loc_after [m]: travel after the exit's trigger its localisation window holds
         (default locate_margin; the hole plan adds half an orbit of the last layer's feed:
         the orbit means of the last half orbit need the samples after it).
@@ -465,6 +470,7 @@ class InterfaceDetector(KernelBlock, Block):
         exit_loc_after: float | None = None,
         exit_orbit_arm: float = 0.0,
         interface_orbit_arm: Sequence[float] | None = None,
+        exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0,
     ):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
@@ -474,8 +480,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.n = n = len(thicknesses)
         self._set_window(N, N_min)
         self.thd1, self.thd2, self.thd3 = float(thd1), float(thd2), float(thd3)
-        self.exit_criterion = exit_criterion
-        self.exit_ratio = float(exit_ratio)
+        self.exit_criterion, self.exit_ratio = exit_criterion, float(exit_ratio)
         self.rearm_samples = int(self.N if rearm_samples is None else rearm_samples)
         self.surface = None if surface is None else float(surface)
         self.thicknesses = thicknesses
@@ -495,7 +500,7 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_entry_ramp(entry_ramp, entry_span, entry_orbit_period, entry_shape)
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
         self._set_loc_after(interface_loc_after)
-        self._set_exit_loc(exit_orbit_period, exit_loc_after)
+        self._set_exit_loc(exit_orbit_period, exit_loc_after, exit_ripple_period, observer_forgetting)
         self._set_exit_arm(exit_orbit_arm)
         self._set_interface_arm(interface_orbit_arm)
         self.windows = self._windows()
@@ -597,15 +602,32 @@ class InterfaceDetector(KernelBlock, Block):
                              f"({self.locate_margin:g} m) per interface ({n_if}), got {list(loc_after)}")
         self.loc_after = vals
 
-    def _set_exit_loc(self, orbit_period, loc_after) -> None:
-        """The exit's fit on orbit means (period [s], 0: none) and its window after the
-        trigger [m] (default locate_margin), checked."""
+    def _set_exit_loc(self, orbit_period, loc_after, ripple_period=0.0, forgetting=0.0) -> None:
+        """The exit's fit on orbit means (period [s], 0: none), its window after the
+        trigger [m] (default locate_margin) and its ghost (:meth:`_set_exit_ghost`), checked."""
+        self._set_exit_ghost(ripple_period, forgetting)
         _check_seconds("exit_orbit_period", orbit_period, "the last layer's orbit period; 0: none")
         self.exit_orbit_period = float(orbit_period)
         self.exit_after = self.locate_margin if loc_after is None else float(loc_after)
         if not self.exit_after >= self.locate_margin:
             raise ValueError(f"InterfaceDetector: exit_loc_after must be >= locate_margin ({self.locate_margin:g} m), "
                              f"got {loc_after!r}")
+
+    def _set_exit_ghost(self, orbit_period, forgetting) -> None:
+        """The exit's fit with the observer's ripple error (both > 0; either 0: off), checked."""
+        _check_seconds("exit_ripple_period", orbit_period, "the last layer's orbit period; 0: none")
+        if not (isinstance(forgetting, (int, float)) and math.isfinite(forgetting) and forgetting >= 0.0):
+            raise ValueError(f"InterfaceDetector: observer_forgetting must be a number >= 0 1/s (the thrust "
+                             f"observer's forgetting factor; 0: none), got {forgetting!r}")
+        self.exit_ripple_period, self.observer_forgetting = float(orbit_period), float(forgetting)
+
+    def _exit_ghost(self) -> tuple[float, float] | None:
+        """The exit's fit with the observer's ripple error (event_locator.free_face): the
+        last layer's orbit [samples] and the decay of the observer's ripple estimate per
+        sample; None when off."""
+        if not (self.exit_ripple_period > 0.0 and self.observer_forgetting > 0.0):
+            return None
+        return (self.exit_ripple_period / self.sample_period, math.exp(-self.observer_forgetting * self.sample_period))
 
     def _set_exit_arm(self, orbit) -> None:
         """The exit's thinning test on orbit means: ``orbit`` [s] the last layer's orbit
@@ -1079,7 +1101,7 @@ class InterfaceDetector(KernelBlock, Block):
             self.loc_after[k - 1] < self.max_gap + self.locate_margin else None
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period,
-                           entry_shape=self.entry_shape)
+                           entry_shape=self.entry_shape, ghost=self._exit_ghost() if kind == "exit" else None)
         F_air = F_air_sd = NAN
         if k == 0 and math.isfinite(x_loc):
             # with a span the window is around the confirmation, which may leave only a few
@@ -1326,6 +1348,8 @@ class InterfaceDetector(KernelBlock, Block):
         "exit_period": ("1", "last layer's orbit period in samples: the exit's fit on means over one orbit (0: none)"),
         "entry_period": ("1", "first layer's orbit period in samples: the entry's fit takes out its sinusoid (0: none)"),
         "entry_shape": ("1", "the entry fit's ramp: 0 linear or smoothstep, 1 linear, 2 smoothstep"),
+        "exit_ghost": ("1", "the exit's fit of the observer's ripple error: last layer's orbit in samples (0: none), "
+                            "decay of the ripple estimate per sample"),
         "max_gap": ("m", "widest gap between two layers"),
         "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
     }
@@ -1341,7 +1365,7 @@ class InterfaceDetector(KernelBlock, Block):
         arrays = (self._W_flat, self.buf, self._c_err, self.h_t, self.h_x, self.h_F)
         return detector_kernel.export_kernel(self.c_kernel.state, self.observer_delay, arrays,
                                              self._exit_period_samples() or 0.0, self._entry_period_samples() or 0.0,
-                                             self.entry_shape)
+                                             self.entry_shape, self._exit_ghost() or (0.0, 0.0))
 
     def _c_supports(self) -> bool:
         return (detector_kernel.blas_ddot() is not None and detector_kernel.sums_like_python()

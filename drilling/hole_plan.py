@@ -367,6 +367,10 @@ class HolePlan:
             # layer too: a thin layer at a fast feed under the orbit's ripple has no quiet F~ to
             # arm on before its push-out (issue 23, round 8: missed Ti -> Al interfaces)
             "interface_orbit_arm": [self.orbit_period(k) for k in range(len(self.layers) - 1)],
+            # the exit's fit takes out the observer's ripple error at the push-out, whose
+            # ghost outlives the thrust at this orbit (docs/stacks.md, "Localisation"); the
+            # observer's forgetting comes with it (expand)
+            "exit_ripple_period": self.orbit_period(-1),
             "interface_loc_after": self.interface_loc_after(window_s),
         }
 
@@ -413,6 +417,15 @@ def _derive(raw: dict, path: str, value, error, origin) -> None:
     cur[leaf] = value
 
 
+def _observer_forgetting(block) -> float | None:
+    """The forgetting factor [1/s] the plan's thrust observer is given (the detector's exit
+    fit models its ripple estimate's lag); None when the scenario's observer block is not
+    the Fang observer or does not set it (the exit's fit then fits no ghost)."""
+    if not isinstance(block, dict) or not str(block.get("class", "")).endswith("fang_observer:AdaptiveThrustObserver"):
+        return None
+    return (block.get("settings") or {}).get("forgetting")
+
+
 def expand(raw: dict, error, origin: str = "[hole]") -> dict:
     """A copy of the scenario ``raw`` with everything the plan derives filled in."""
     raw = copy.deepcopy(raw)
@@ -436,6 +449,9 @@ def expand(raw: dict, error, origin: str = "[hole]") -> dict:
         _derive(raw, f"blocks.{tname}.settings.{k}", v, error, origin)
     for k, v in plan.detector(window_s).items():
         _derive(raw, f"blocks.{dname}.settings.{k}", v, error, origin)
+    forgetting = _observer_forgetting(blocks.get(plan.names["observer"]))
+    if forgetting is not None:
+        _derive(raw, f"blocks.{dname}.settings.observer_forgetting", forgetting, error, origin)
     for k, v in plan.adaptation().items():
         _derive(raw, f"blocks.{aname}.settings.{k}", v, error, origin)
     if plan.names["orbit_delay"] in blocks:      # the delayed orbit command starts where the adaptation does

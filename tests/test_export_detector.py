@@ -48,21 +48,24 @@ KINDS = {"entry": 0, "interface": 1, "exit": 2}
 PREDICTION = ("F_pred", "F_err", "F_ref", "thd", "level_mismatch")
 
 
-def _c_locate(kind, x, F, air, x_trig, cut_floor=None, period=None):
+def _c_locate(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None):
     fn = detector_kernel.export_library().event_locate_tables
     fn.restype = None
     fn.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_long, ctypes.c_double,
-                   ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p]
+                   ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p,
+                   ctypes.c_void_p]
     x, F = np.ascontiguousarray(x, float), np.ascontiguousarray(F, float)
     tables, out = detector_kernel.locator_tables(), np.zeros(2)
+    g = None if ghost is None else np.array(ghost, float)
     fn(KINDS[kind], x.ctypes.data, F.ctypes.data, x.size, air, x_trig,
-       math.nan if cut_floor is None else cut_floor, period or 0.0, tables.ctypes.data, out.ctypes.data)
+       math.nan if cut_floor is None else cut_floor, period or 0.0, None if g is None else g.ctypes.data,
+       tables.ctypes.data, out.ctypes.data)
     return float(out[0]), float(out[1])
 
 
-def _assert_same_fit(kind, x, F, air, x_trig, cut_floor=None, period=None):
-    py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period)
-    c = _c_locate(kind, x, F, air, x_trig, cut_floor, period)
+def _assert_same_fit(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None):
+    py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost)
+    c = _c_locate(kind, x, F, air, x_trig, cut_floor, period, ghost)
     for a, b in zip(py, c):
         assert (math.isnan(a) and math.isnan(b)) or abs(a - b) <= 1e-12, (kind, py, c)   # 1e-9 mm
     return py
@@ -86,10 +89,10 @@ def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
     """The windows the Python step fitted in the synthetic holes, refitted in C."""
     calls = []
 
-    def spy(kind, x, F, *, air=0.0, x_trig=None, cut_floor=None, period=None, entry_shape="any"):
+    def spy(kind, x, F, *, air=0.0, x_trig=None, cut_floor=None, period=None, entry_shape="any", ghost=None):
         assert entry_shape == "any"     # the cases fit both shapes, as event_locate_tables does
-        calls.append((kind, np.array(x), np.array(F), air, x_trig, cut_floor, period))
-        return locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period)
+        calls.append((kind, np.array(x), np.array(F), air, x_trig, cut_floor, period, ghost))
+        return locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost)
 
     monkeypatch.setattr(idm, "locate", spy)
     for settings, trace in CASES.values():
@@ -100,8 +103,8 @@ def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
             det.step(ti, [Fi, xi])
     kinds = {c[0] for c in calls}
     assert len(calls) >= 15 and kinds == {"entry", "interface", "exit"}
-    for kind, x, F, air, x_trig, cut_floor, period in calls:
-        _assert_same_fit(kind, x, F, air, x_trig, cut_floor, period)
+    for kind, x, F, air, x_trig, cut_floor, period, ghost in calls:
+        _assert_same_fit(kind, x, F, air, x_trig, cut_floor, period, ghost)
 
 
 def test_c_fit_of_a_window_cut_short_to_a_thin_layer():

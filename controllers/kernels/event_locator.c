@@ -27,7 +27,9 @@
 #define LOC_INTERFACE 1
 #define LOC_EXIT 2
 #define LOC_TWO_PI (2.0 * 3.141592653589793)   /* 2.0 * numpy.pi */
-#define LOC_MAX_COLS 7             /* onset: level, trend, ramp, the orbit's sine and cosine and both times i / n */
+#define LOC_GHOST_SNR 20.0        /* event_locator.GHOST_SNR */
+#define LOC_MAX_COLS 7             /* onset: level, trend, ramp, the orbit's sine and cosine and both times i / n;
+                                      push-out: fall, its trend, air and four ghost columns */
 
 #define LOC_PYMAX(a, b) ((b) > (a) ? (b) : (a))   /* Python's max(a, b) */
 #define LOC_PYMIN(a, b) ((b) < (a) ? (b) : (a))   /* Python's min(a, b) */
@@ -55,6 +57,8 @@ typedef struct {
     long m;
     double *work;
     double orbit;                  /* samples: the onset's sinusoid of this period (0: none; onset_face's period) */
+    double ghost_orbit, ghost_decay;   /* the push-out's ghost columns: orbit [samples] (0: none), decay per
+                                          sample (free_face's ghost) */
 } LocFit;
 
 /* numpy's sum of a contiguous float64 array: pairwise, 8 accumulators per block of 128 */
@@ -106,6 +110,24 @@ static double loc_median(const double *a, long n, double *scratch)
     if (n % 2)
         return scratch[n / 2];
     return (scratch[n / 2 - 1] + scratch[n / 2]) / 2.0;
+}
+
+/* event_locator._ghost_visible: the last fifth of F (air) scatters more than its first
+ * (plateau), numpy.std, and the fall between their medians is above LOC_GHOST_SNR times the
+ * plateau's scatter; scratch: n doubles */
+static int loc_ghost_visible(const double *F, long n, double *scratch)
+{
+    long k = LOC_PYMAX(LOC_MIN_SEGMENT, n / 5);
+    double sd[2];
+    for (int part = 0; part < 2; part++) {
+        const double *a = part == 0 ? F + n - k : F;
+        double m = loc_mean(a, k);
+        for (long i = 0; i < k; i++)
+            scratch[i] = (a[i] - m) * (a[i] - m);
+        sd[part] = sqrt(loc_mean(scratch, k));
+    }
+    double fall = loc_median(F, k, scratch) - loc_median(F + n - k, k, scratch);
+    return sd[0] > sd[1] && fall > LOC_GHOST_SNR * sd[1];
 }
 
 /* numpy.arange(start, stop, step) of doubles: its length and filling (start + i * delta,
@@ -161,6 +183,23 @@ static int loc_columns(const LocFit *f, double face, double L, int shape, long i
         return 2;
     c[2] = 1.0;
     return 3;
+}
+
+/* free_face's ghost columns (event_locator._ghost_columns) after the push-out's k at sample i:
+ * the orbit's sine and cosine, and both times g - lag(g), g = c[0]; *y the lag's state (g at
+ * i = 0, the samples visited in order) */
+static int loc_ghost_columns(const LocFit *f, long i, double *c, int k, double *y)
+{
+    double g = c[0], phase = LOC_TWO_PI * (double)i / f->ghost_orbit, sn = sin(phase), cs = cos(phase);
+    if (i == 0)
+        *y = g;
+    *y += (1.0 - f->ghost_decay) * (g - *y);
+    double late = g - *y;
+    c[k] = sn;
+    c[k + 1] = cs;
+    c[k + 2] = late * sn;
+    c[k + 3] = late * cs;
+    return k + 4;
 }
 
 /* event_locator.orbit_mean: the centred mean of a[0..n) over ``period`` samples (the two end
@@ -247,9 +286,12 @@ static double loc_sse(const LocFit *f, double face, double L, int shape, double 
     if (f->period > 1.0) {
         loc_orbit_columns(f, face, L, shape, M, r, &k);
     } else {
+        double lagged = 0.0;
         for (long i = 0; i < f->n; i++) {
             double Fi = f->F[i] - (isnan(f->air) ? 0.0 : f->air);
             k = loc_columns(f, face, L, shape, i, c);
+            if (f->push_out && f->ghost_orbit > 0.0)
+                k = loc_ghost_columns(f, i, c, k, &lagged);
             for (int a = 0; a < k; a++) {
                 r[a] += c[a] * Fi;
                 for (int b = 0; b < k; b++)
@@ -471,10 +513,11 @@ static void loc_exit(LocFit *f, double period, double x0, double x1, double *x_l
  * samples x [m] (increasing), F [N]; NaN when there are too few. cut_floor [N]: NaN, or an
  * interface window cut short to a thin layer below (event_locator.floor_gap); period
  * [samples]: the exit's fit on means over one orbit, the entry's fits the orbit's sinusoid
- * too (<= 1: none; locate's period) */
+ * too (<= 1: none; locate's period); ghost: NULL, or the exit's {orbit [samples], decay per
+ * sample} of locate's ghost */
 void event_locate(int kind, const double *x_in, const double *F_in, long n_in, double air, double x_trig,
-                  double cut_floor, double period, const LocGrid *engage, const LocGrid *push, double *x_loc,
-                  double *dx)
+                  double cut_floor, double period, const double *ghost, const LocGrid *engage, const LocGrid *push,
+                  double *x_loc, double *dx)
 {
     *x_loc = *dx = NAN;
     double *x = malloc((size_t)(3 * (n_in > 0 ? n_in : 1)) * sizeof(double));
@@ -496,6 +539,12 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
     LocFit onset = {x, F, n, 0, NAN, engage, 0.0, NULL, 0, NULL, 0.0}, exit_ = {x, F, n, 1, NAN, push, 0.0, NULL, 0, NULL, 0.0};
     if (kind == LOC_ENTRY && period > 1.0 && period <= (double)n)
         onset.orbit = period;       /* event_locator.locate: the entry's window holds one orbit */
+    if (kind == LOC_EXIT && ghost != NULL && ghost[0] > 1.0 && ghost[0] <= (double)n && ghost[1] >= 0.0 &&
+        ghost[1] < 1.0 && loc_ghost_visible(F, n, scratch)) {   /* event_locator.locate: the exit's window
+                                                                   holds one orbit and shows a ghost */
+        exit_.ghost_orbit = ghost[0];
+        exit_.ghost_decay = ghost[1];
+    }
     if (kind == LOC_EXIT)
         loc_exit(&exit_, period, x0, x1, x_loc, dx);
     else if (kind == LOC_INTERFACE && loc_air_run(F, n, air, scratch, &g0, &g1))

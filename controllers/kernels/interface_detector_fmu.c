@@ -24,6 +24,7 @@ typedef struct {
     double exit_period;                           /* samples, the last layer's orbit (the exit's fit) */
     double entry_period;                          /* samples, the first layer's orbit (the entry's fit; 0: none) */
     double entry_shape;                           /* the entry's ramp: 0 any, 1 linear, 2 smoothstep (event_locator.ENTRY_SHAPES) */
+    double exit_ghost[2];                         /* the exit's fit: orbit [samples] (0: none), decay per sample */
     double engage_lengths[LOC_N_ENGAGE];          /* m, event_locator.ENGAGE_LENGTHS */
     double engage_fine[LOC_N_FINE];               /* around the best engage length */
     double push_out_lengths[LOC_N_PUSH_OUT];      /* m, event_locator.PUSH_OUT_LENGTHS */
@@ -158,7 +159,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0 && d->loc_after[k - 1] < d->max_gap + d->locate_margin
         ? air_offset(d) + LOC_PYMIN(d->floor[k - 1], d->floor[k]) : NAN;     /* over the air offset */
     double period = kind == LOC_EXIT ? s->exit_period : kind == LOC_ENTRY ? s->entry_period : 0.0;
-    event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, &engage, &push, &out[0], &out[2]);
+    event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, s->exit_ghost, &engage, &push, &out[0], &out[2]);
     if (k == 0 && isfinite(out[0])) {
         long a = 0;         /* the samples in air before the entry, in the window (with a span: from a margin of air) */
         double lo_air = d->entry_P != 0.0 ? LOC_PYMIN(lo, out[0] - 1.5 * d->locate_margin) : lo;
@@ -200,15 +201,15 @@ void interface_detector_fmu_step(DetectorFMU *s, double t, const double *u, doub
 }
 
 /* the localisation alone, for tests against event_locator.locate: kind 0 entry, 1
- * interface, 2 exit; out = x_loc, dx [m]; tables as in DetectorFMU; period [samples] as
- * event_locator.locate's */
+ * interface, 2 exit; out = x_loc, dx [m]; tables as in DetectorFMU; period [samples] and
+ * ghost (NULL: none) as event_locator.locate's */
 void event_locate_tables(int kind, const double *x, const double *F, long n, double air, double x_trig,
-                         double cut_floor, double period, const double *tables, double *out)
+                         double cut_floor, double period, const double *ghost, const double *tables, double *out)
 {
     LocGrid engage = {tables, tables + LOC_N_ENGAGE, LOC_N_ENGAGE, 0, 2};
     LocGrid push = {tables + LOC_N_ENGAGE + LOC_N_FINE, tables + LOC_N_ENGAGE + LOC_N_FINE + LOC_N_PUSH_OUT,
                     LOC_N_PUSH_OUT, 0, 2};
-    event_locate(kind, x, F, n, air, x_trig, cut_floor, period, &engage, &push, &out[0], &out[1]);
+    event_locate(kind, x, F, n, air, x_trig, cut_floor, period, ghost, &engage, &push, &out[0], &out[1]);
 }
 
 /* numpy.mean as the fit spells it, for the test that it is numpy's to the bit */
