@@ -165,7 +165,7 @@ def onset_face(x, F, lo: float, hi: float, period: float | None = None,
         d = (x[None, :] - x0) / L
         # one sinusoid over the whole window: limited to the air part (times 1 - the ramp)
         # it put 13 of 29 replayed project entries over 0.05 mm against 5; one in air and
-        # one on the cut level, 6 (docs/stacks.md "Entry (round 2)")
+        # one on the cut level, 6 (docs/stacks_history.md, "Entry (second pass)")
         return _lstsq_batch([np.ones_like(d), d, shape(d), *(np.broadcast_to(c, d.shape) for c in orbit)], F)
 
     return _best_face(lo, hi, sse, ENGAGE_LENGTHS, shapes, x.size)
@@ -220,7 +220,8 @@ def _ghost_visible(F) -> bool:
     drive's own ripple), which its sine and cosine then fit instead. Measured in closed
     loop on 45 good holes of the three drives: with the scatter test alone 5 good aluminium
     exits (10-35 N plateaus) moved beyond 0.1 mm (to 0.13-0.23 mm), with GHOST_SNR 10 still
-    3, with 20 none (docs/stacks.md, "Exit localisation (round 8)")."""
+    3, with 20 none (docs/stacks.md, "Localisation";
+    measured: docs/stacks_history.md, "Exit localisation: the observer's ghost")."""
     k = max(MIN_SEGMENT, F.size // 5)
     plateau, air = F[:k], F[-k:]
     return float(np.std(air)) > float(np.std(plateau)) and \
@@ -241,7 +242,8 @@ def free_face(x, F, lo: float, hi: float, air: float | None, period: float | Non
     still ends at the face. ``ghost`` (orbit [samples], decay [per sample]; not with
     ``period``): the observer's ripple error is fitted with the fall
     (:func:`_ghost_columns`): left in the samples, it moved the end of the fall by
-    0.1-0.3 mm on the three drives (docs/stacks.md, "Exit localisation (round 8)")."""
+    0.1-0.3 mm on the three drives (docs/stacks.md, "Localisation";
+    measured: docs/stacks_history.md, "Exit localisation: the observer's ghost")."""
     Fa = F - (0.0 if air is None else air)
     smooth = (lambda A: orbit_mean(A, period)) if period else (lambda A: A)
     Fs = smooth(Fa)

@@ -104,7 +104,7 @@ class HolePlan:
             raise self.error("hole.entry_shape", f"expected one of {', '.join(ENTRY_SHAPES)}, got {self.entry_shape!r}")
         self.harmonics = self._harmonics(hole)
         # the exit's fit on orbit means (InterfaceDetector exit_orbit_period): off by default,
-        # its wide-draw measurement is mixed (docs/stacks.md, "Exit (this round)")
+        # its wide-draw measurement is mixed (docs/stacks_history.md, "Exit (first pass)")
         self.exit_orbit_mean = hole.get("exit_orbit_mean", False)
         if not isinstance(self.exit_orbit_mean, bool):
             raise self.error("hole.exit_orbit_mean", f"expected true or false, got {self.exit_orbit_mean!r}")
@@ -356,7 +356,7 @@ class HolePlan:
             # averages out
             "entry_span": self.orbit_period(0),
             # the entry's fit takes the same orbit's sinusoid out of the observed thrust
-            # (the ringing in air, docs/stacks.md "Entry (round 2)")
+            # (the ringing in air, docs/stacks_history.md "Entry (second pass)")
             "entry_orbit_period": self.orbit_period(0),
             "entry_shape": self.entry_shape,
             # the exit's thinning test also runs on means over one orbit of the last layer: a

@@ -5,7 +5,7 @@ Al's plateau. The trace: Ti 1760 N / Al 20 N / CFRP 168 N (the foreign drive's l
 hole) at 18 mm/min on the detector's 0.02 s grid, linear 0.1 mm engagements and 0.3 mm
 push-outs, a decaying 0.625 Hz ringing of 150 N (4 s time constant) from the Ti/Al face,
 plateau noise of 1 % + 1 N. (At 150 N, decaying over the Al, the Al/CFRP test still arms
-on its tail and fires in the Al: docs/stacks.md, "Interfaces and thin layers".) Plan levels kc f (new tool): Ti 6.5e7 x 15 um = 975 N, Al
+on its tail and fires in the Al: docs/stacks_history.md, "Interfaces and thin layers".) Plan levels kc f (new tool): Ti 6.5e7 x 15 um = 975 N, Al
 2.5e6 x 4.6 um = 11.5 N, CFRP 2e7 x 14.3 um = 286 N -- the true ratios are within the
 mismatch factor 4 of the plan's (Al/Ti 0.96, CFRP/Al 0.34)."""
 from __future__ import annotations

@@ -265,7 +265,7 @@ def test_montecarlo_wide_short():
     Seed 6: since the window after an interface shrinks to a thin layer (issue 23, fewer
     refused plans) seed 5 draws al/cfrp/al with a 1.2 mm Al last layer at a 0.7 Hz orbit
     after CFRP at 3.4 Hz, whose exit test never arms (the observer's ripple re-converges in
-    6-8 s after an orbit change; docs/stacks.md "Open") -- a known limit, not this test's."""
+    6-8 s after an orbit change; docs/stacks_history.md) -- a known limit, not this test's."""
     from drillcosim.analysis import stack_montecarlo as mc
     jobs, refused = mc.draw_wide_campaign(2, seed=6)
     rows = mc.run_campaign(jobs, workers=1, progress=False, base=STACKS / mc.PLANTS["project"])
