@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from drillcosim.controllers.event_locator import ENTRY_SHAPES
 from drillcosim.controllers.kernels import HERE, build, library
 from drillcosim.cosim.loop.native import NativeUnavailable, lib_path
 
@@ -194,7 +195,7 @@ def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
     out.observer_delay = float(observer_delay)
     out.exit_period = float(exit_period)
     out.entry_period = float(entry_period)
-    out.entry_shape = float(("any", "linear", "smoothstep").index(entry_shape))
+    out.entry_shape = float(list(ENTRY_SHAPES).index(entry_shape))    # the C codes: 0 any, 1 linear, 2 smoothstep
     out.exit_ghost[:] = [float(v) for v in exit_ghost]
     tables = locator_tables()
     ctypes.memmove(ctypes.addressof(out) + T.engage_lengths.offset, tables.ctypes.data, tables.nbytes)

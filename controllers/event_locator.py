@@ -141,6 +141,13 @@ def _best_face(lo, hi, sse_of, lengths, shapes, n: int):
     return xf, max(0.5 * float(ok.max() - ok.min()), GRID_STEP)
 
 
+def _orbit_sin_cos(n: int, period: float) -> tuple[np.ndarray, np.ndarray]:
+    """The orbit's sine and cosine at n samples equally spaced in time, ``period`` samples
+    per orbit (phase 0 at the first sample)."""
+    phase = 2.0 * np.pi * np.arange(n) / period
+    return np.sin(phase), np.cos(phase)
+
+
 def onset_face(x, F, lo: float, hi: float, period: float | None = None,
                shapes=ENGAGE_SHAPES) -> tuple[float, float]:
     """Position [m] in [lo, hi] where the thrust leaves a level (with a trend) for a ramp
@@ -150,16 +157,16 @@ def onset_face(x, F, lo: float, hi: float, period: float | None = None,
     samples equally spaced in time) is fitted with the level: at a slow orbit the
     observer's DC estimate rings at the orbit frequency in air (+-5..20 N), which otherwise
     bends the level and the trend and pushes the onset onto its search bound (docs/stacks.md,
-    "Entry (round 2)")."""
+    "Localisation")."""
     orbit = []
     if period:
-        phase = 2.0 * np.pi * np.arange(x.size) / period
+        sin, cos = _orbit_sin_cos(x.size, period)
         # the ringing decays (or the ripple grows with the cut): with a constant amplitude
         # the aluminium entries at a slow orbit, +-10 N of ringing about a 15-25 N step, were
         # located at the window's ends (project holes 4, 116: +0.47, -0.60 mm; replayed, 30
         # holes per plant: over 0.05 mm project 3 -> 1, foreign 2 -> 0, foreign2 2 -> 1)
         grow = np.arange(x.size) / x.size
-        orbit = [np.sin(phase), np.cos(phase), grow * np.sin(phase), grow * np.cos(phase)]
+        orbit = [sin, cos, grow * sin, grow * cos]
 
     def sse(x0, L, shape):
         d = (x[None, :] - x0) / L
@@ -206,8 +213,7 @@ def _ghost_columns(g, ghost):
     the ghost that outlives the thrust -- plus the plateau's own ripple residual (a
     constant sine and cosine)."""
     orbit, decay = ghost
-    phase = 2.0 * np.pi * np.arange(g.shape[-1]) / orbit
-    S, C = np.broadcast_to(np.sin(phase), g.shape), np.broadcast_to(np.cos(phase), g.shape)
+    S, C = (np.broadcast_to(c, g.shape) for c in _orbit_sin_cos(g.shape[-1], orbit))
     late = g - _lagged(g, decay)
     return [S, C, late * S, late * C]
 

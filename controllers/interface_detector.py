@@ -270,6 +270,12 @@ def _check_seconds(name: str, v, meaning: str) -> None:
         raise ValueError(f"InterfaceDetector: {name} must be >= 0 s ({meaning}), got {v!r}")
 
 
+def _orbit_fits(P: int) -> bool:
+    """Whether an orbit test of P samples per orbit fits: two orbit means need 2 P samples of
+    the history's quarter the tests read, and a mean needs two samples."""
+    return 2 <= P and 2 * P <= HISTORY // 4
+
+
 def _step_signs(step_signs, kc, n: int) -> list[float]:
     """Per interface +1 (the next layer cuts harder) or -1; default from the plan's ``kc``
     when given, else Fang's stack (a harder layer below)."""
@@ -634,11 +640,13 @@ class InterfaceDetector(KernelBlock, Block):
         period in samples (exit_P, 0: off), checked."""
         _check_seconds("exit_orbit_arm", orbit, "the last layer's orbit period; 0: off")
         self.exit_P = int(round(orbit / self.sample_period))
-        if orbit > 0.0 and not (self.relative and self.exit_criterion == "thinning" and 2 <= self.exit_P
-                                and 2 * self.exit_P <= HISTORY // 4):
+        if orbit > 0.0 and not (self.relative and self.exit_criterion == "thinning" and _orbit_fits(self.exit_P)):
             raise ValueError("InterfaceDetector: exit_orbit_arm needs process-following thresholds (kc), "
-                             f"exit_criterion 'thinning' and an orbit of 2 to {HISTORY // 8} samples "
-                             f"({2 * self.sample_period:g} to {HISTORY // 8 * self.sample_period:g} s), got {orbit!r} s")
+                             f"exit_criterion 'thinning' and an orbit of {self._orbit_range()}, got {orbit!r} s")
+
+    def _orbit_range(self) -> str:
+        """The orbits an orbit test takes (:func:`_orbit_fits`), in samples and seconds."""
+        return f"2 to {HISTORY // 8} samples ({2 * self.sample_period:g} to {HISTORY // 8 * self.sample_period:g} s)"
 
     def _set_interface_arm(self, periods) -> None:
         """The interfaces' drop test on orbit means: ``periods`` [s] the orbit period of each
@@ -651,10 +659,9 @@ class InterfaceDetector(KernelBlock, Block):
             raise ValueError(f"InterfaceDetector: interface_orbit_arm needs one orbit period >= 0 s per "
                              f"interface ({n_if}), got {periods!r}")
         self.if_P = [int(round(v / self.sample_period)) for v in vals]
-        if any(vals) and not (self.relative and all(P == 0 or 2 <= P and 2 * P <= HISTORY // 4 for P in self.if_P)):
+        if any(vals) and not (self.relative and all(P == 0 or _orbit_fits(P) for P in self.if_P)):
             raise ValueError("InterfaceDetector: interface_orbit_arm needs process-following thresholds (kc) and "
-                             f"orbits of 2 to {HISTORY // 8} samples ({2 * self.sample_period:g} to "
-                             f"{HISTORY // 8 * self.sample_period:g} s), got {periods!r}")
+                             f"orbits of {self._orbit_range()}, got {periods!r}")
         ratios = [self.level_plan[k + 1] / self.level_plan[k] for k in range(n_if)] if self.relative else [1.0] * n_if
         self.if_ratio = [math.sqrt(r) if P and r <= ORBIT_DROP else 0.0 for P, r in zip(self.if_P, ratios)]
 

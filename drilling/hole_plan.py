@@ -313,8 +313,7 @@ class HolePlan:
         means over one orbit (InterfaceDetector exit_orbit_period), the last of which is
         centred half an orbit before the window's end, so the window reaches that much
         further past the trigger (exit_loc_after) and the feed past the bottom."""
-        p = self.layer_process(len(self.layers) - 1)
-        return 0.5 * 60.0 / p["orbital_speed"] * p["feed_rate"]
+        return 0.5 * self.orbit_period(-1) * self.layer_process(-1)["feed_rate"]
 
     def stop_time(self, traj: dict) -> float:
         """Time to the deepest point at the slowest feed the plan may command, approach

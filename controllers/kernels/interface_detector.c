@@ -223,6 +223,12 @@ static int cut_level(const Detector *s)
     return above_air(s, s->F_level) >= floor;
 }
 
+/* interface_detector.py _past_gap */
+static int past_gap(const Detector *s, double x)
+{
+    return x - s->x_last >= s->max_gap + s->locate_margin;
+}
+
 static void check_level(Detector *s, double t, double x)
 {
     int k = (int)s->flag - 1;
@@ -232,7 +238,7 @@ static void check_level(Detector *s, double t, double x)
     }
     double ratio = (above_air(s, s->F_level) / above_air(s, s->levels[k - 1])) / (s->level_plan[k] / s->level_plan[k - 1]);
     /* interface_detector.py _past_gap: a level below the plan ratio may be a gap.s or a ramp.s: final past the gap */
-    if (ratio < 1.0 && !(x - s->x_last >= s->max_gap + s->locate_margin))
+    if (ratio < 1.0 && !past_gap(s, x))
         return;
     s->levels[k] = s->F_level;
     s->mismatch = ratio;
@@ -401,12 +407,6 @@ static int orbit_arms(const Detector *s, double M, double P, int k)
     return above_air(s, M0) >= MAX(s->floor[k], s->thd_min)
            && fabs(M - M0) < MAX(s->rearm_level, DET_ORBIT_STEADY * above_air(s, M))
            && orbit_cut_level(s, M, P, k);
-}
-
-/* interface_detector.py _past_gap */
-static int past_gap(const Detector *s, double x)
-{
-    return x - s->x_last >= s->max_gap + s->locate_margin;
 }
 
 /* interface_detector.py _exit_candidate: the one exit decision of the exit tests */
