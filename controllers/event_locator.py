@@ -102,16 +102,18 @@ ENTRY_SHAPES = {"any": ENGAGE_SHAPES, "linear": ENGAGE_SHAPES[:1], "smoothstep":
 PUSH_OUT_SHAPES = (lambda r: np.clip(r, 0.0, 1.0), lambda r: np.clip(r, 0.0, 1.0) ** 2)
 
 
-def _lstsq_batch(cols, F):
+def _lstsq_batch(cols, F, rising: int | None = None):
     """Residual sum of squares of F against the columns, for a batch of designs: each
     column has shape (G, n); returns (G,). A column that vanishes (a face outside the
-    samples) only drops out of the fit."""
+    samples) only drops out of the fit. ``rising``: the index of a column whose coefficient
+    must be positive; a design that fits it negative or zero gets an infinite residual."""
     C = np.stack(cols, axis=1)                            # (G, k, n)
     M = C @ C.transpose(0, 2, 1)                          # (G, k, k)
     r = C @ F                                             # (G, k)
     M += np.eye(len(cols)) * (1e-9 * np.trace(M, axis1=1, axis2=2) + 1e-30)[:, None, None]
     coef = np.linalg.solve(M, r[..., None])[..., 0]
-    return float(F @ F) - np.einsum("gk,gk->g", coef, r)
+    sse = float(F @ F) - np.einsum("gk,gk->g", coef, r)
+    return sse if rising is None else np.where(coef[:, rising] > 0.0, sse, np.inf)
 
 
 def _best_face(lo, hi, sse_of, lengths, shapes, n: int):
@@ -149,10 +151,12 @@ def _orbit_sin_cos(n: int, period: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def onset_face(x, F, lo: float, hi: float, period: float | None = None,
-               shapes=ENGAGE_SHAPES) -> tuple[float, float]:
+               shapes=ENGAGE_SHAPES, rise: bool = False) -> tuple[float, float]:
     """Position [m] in [lo, hi] where the thrust leaves a level (with a trend) for a ramp
     of fitted length and one of ``shapes`` (ENGAGE_SHAPES or a leading part of it), and its
-    uncertainty [m]. ``period`` [samples, > 1]: a
+    uncertainty [m]. ``rise``: only a rising ramp is a fit (an entry: the tool goes from air
+    into material; none anywhere: every face is as good, the uncertainty the whole range).
+    ``period`` [samples, > 1]: a
     sinusoid of this period (any phase, an amplitude changing linearly over the window; the
     samples equally spaced in time) is fitted with the level: at a slow orbit the
     observer's DC estimate rings at the orbit frequency in air (+-5..20 N), which otherwise
@@ -173,7 +177,8 @@ def onset_face(x, F, lo: float, hi: float, period: float | None = None,
         # one sinusoid over the whole window: limited to the air part (times 1 - the ramp)
         # it put 13 of 29 replayed project entries over 0.05 mm against 5; one in air and
         # one on the cut level, 6 (docs/stacks_history.md, "Entry (second pass)")
-        return _lstsq_batch([np.ones_like(d), d, shape(d), *(np.broadcast_to(c, d.shape) for c in orbit)], F)
+        return _lstsq_batch([np.ones_like(d), d, shape(d), *(np.broadcast_to(c, d.shape) for c in orbit)], F,
+                            2 if rise else None)
 
     return _best_face(lo, hi, sse, ENGAGE_LENGTHS, shapes, x.size)
 
@@ -305,7 +310,8 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     ``ghost`` (orbit [samples], decay of the observer's ripple estimate [per sample]): the
     exit's fit on the samples takes out the observer's ripple error (:func:`free_face`; None,
     a window shorter than one orbit, or one that shows no ghost, :func:`_ghost_visible`:
-    none). A ramp of either sign is fitted. (NaN, NaN) when there are too few samples."""
+    none). An entry's ramp rises; an interface's may have either sign. (NaN, NaN) when there
+    are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
     if entry_shape not in ENTRY_SHAPES:
@@ -318,8 +324,11 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     x0, x1 = float(x[0]), float(x[-1])
     xt = 0.5 * (x0 + x1) if x_trig is None else float(x_trig)
     if kind == ENTRY:
+        # a falling "ramp" is no entry: on a late entry at a slow orbit (plant options, project
+        # hole 4: 0.3 mm of ringing air under a 20 N friction offset, a 0.6 mm rise to 46 N, then
+        # the cut level sagging) the fit took the sag for a ramp down at its search bound, +0.61 mm
         return onset_face(x, F, x0, min(xt, x1), period if period is not None and 1.0 < period <= x.size else None,
-                          ENTRY_SHAPES[entry_shape])
+                          ENTRY_SHAPES[entry_shape], rise=True)
     if kind == EXIT:
         if period is not None and not (period > 1.0 and x.size >= period + 10 * MIN_SEGMENT):
             period = None

@@ -59,6 +59,7 @@ typedef struct {
     double orbit;                  /* samples: the onset's sinusoid of this period (0: none; onset_face's period) */
     double ghost_orbit, ghost_decay;   /* the push-out's ghost columns: orbit [samples] (0: none), decay per
                                           sample (free_face's ghost) */
+    int rise;                      /* onset: only a rising ramp is a fit (onset_face's rise: the entry) */
 } LocFit;
 
 /* numpy's sum of a contiguous float64 array: pairwise, 8 accumulators per block of 128 */
@@ -310,6 +311,8 @@ static double loc_sse(const LocFit *f, double face, double L, int shape, double 
     double fit = 0.0;
     for (int a = 0; a < k; a++)
         fit += coef[a] * r[a];
+    if (f->rise && !f->push_out && !(coef[2] > 0.0))
+        return INFINITY;           /* _lstsq_batch's rising: a falling ramp is no entry */
     return FF - fit;
 }
 
@@ -539,6 +542,7 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
     LocFit onset = {x, F, n, 0, NAN, engage, 0.0, NULL, 0, NULL, 0.0}, exit_ = {x, F, n, 1, NAN, push, 0.0, NULL, 0, NULL, 0.0};
     if (kind == LOC_ENTRY && period > 1.0 && period <= (double)n)
         onset.orbit = period;       /* event_locator.locate: the entry's window holds one orbit */
+    onset.rise = kind == LOC_ENTRY;     /* event_locator.locate: an entry's ramp rises */
     if (kind == LOC_EXIT && ghost != NULL && ghost[0] > 1.0 && ghost[0] <= (double)n && ghost[1] >= 0.0 &&
         ghost[1] < 1.0 && loc_ghost_visible(F, n, scratch)) {   /* event_locator.locate: the exit's window
                                                                    holds one orbit and shows a ghost */

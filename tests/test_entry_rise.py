@@ -1,0 +1,56 @@
+"""Issue 23, round 9: the entry's ramp rises (event_locator.locate, kind "entry";
+onset_face ``rise``; the exported FMU's C fit does the same)."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from drillcosim.controllers.event_locator import ENTRY_SHAPES, locate, onset_face
+from test_export_detector import _assert_same_fit
+
+UM = 1e-6
+WINDOW = Path(__file__).parent / "data" / "entry_window_late_al.json"
+
+
+def _late_window():
+    d = json.loads(WINDOW.read_text())
+    return np.array(d["x_um"]) * UM, np.array(d["F_N"]), d
+
+
+def test_a_late_entry_under_an_air_offset_is_not_taken_at_its_sag():
+    """The recorded window of the plant-options draw's project hole 4 (Al at a 1.5 s orbit,
+    20 N of friction offset in air, a 0.6 mm rise to 46 N, then the cut level sagging): fitted
+    with a ramp of either sign, the onset went to the search bound at the trigger, 0.61 mm
+    late (a ramp down onto the sag); with the entry's ramp rising it is within 0.07 mm of the
+    face (the ringing in air, as large as the step, leaves that)."""
+    x, F, d = _late_window()
+    face, x_trig, period = d["face_um"] * UM, d["x_trig_um"] * UM, d["period_samples"]
+    either, _ = onset_face(x, F, x[0], x_trig, period, ENTRY_SHAPES["linear"], rise=False)
+    assert either - face > 0.5e-3
+    x_loc, dx = locate("entry", x, F, air=d["air_N"], x_trig=x_trig, period=period, entry_shape="linear")
+    assert abs(x_loc - face) < 0.07e-3, (x_loc - face) / 1e-3
+    assert 0.0 < dx < 0.02e-3
+
+
+def test_a_window_without_a_rise_has_no_located_face():
+    """Only a fall in the window (no entry in it): every face fits equally badly, and the
+    uncertainty spans the whole search range instead of a precise wrong position."""
+    x = np.linspace(0.0, 1.0e-3, 200)
+    F = 40.0 - 20.0 * np.clip((x - 0.4e-3) / 0.2e-3, 0.0, 1.0)
+    x_loc, dx = locate("entry", x, F, air=0.0, x_trig=0.8e-3, entry_shape="linear")
+    assert dx >= 0.35e-3 and 0.0 <= x_loc <= 0.8e-3
+    # an interface's ramp may fall: the same window locates the drop's onset
+    x_if, dx_if = locate("interface", x, F, air=0.0, x_trig=0.8e-3)
+    assert abs(x_if - 0.4e-3) <= 0.01e-3 and dx_if < 0.02e-3
+
+
+def test_the_c_fit_keeps_the_rising_ramp_too():
+    x, F, d = _late_window()
+    x_loc, _ = _assert_same_fit("entry", x, F, d["air_N"], d["x_trig_um"] * UM, period=d["period_samples"])
+    assert math.isfinite(x_loc)
+    xs = np.linspace(0.0, 1.0e-3, 200)
+    Fs = 40.0 - 20.0 * np.clip((xs - 0.4e-3) / 0.2e-3, 0.0, 1.0)
+    assert _assert_same_fit("entry", xs, Fs, 0.0, 0.8e-3)[1] >= 0.35e-3
