@@ -1,5 +1,7 @@
 """Issue 23, round 9: the entry's ramp rises (event_locator.locate, kind "entry";
-onset_face ``rise``; the exported FMU's C fit does the same)."""
+onset_face ``rise``; the exported FMU's C fit does the same), and the air level's spread
+leaves the orbit's ringing out (interface_detector.air_level; its C twin in the exported FMU
+is compared bit for bit in test_entry_orbit)."""
 from __future__ import annotations
 
 import json
@@ -7,8 +9,10 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from drillcosim.controllers.event_locator import ENTRY_SHAPES, locate, onset_face
+from drillcosim.controllers.interface_detector import AIR_OFFSET_K, air_level
 from test_export_detector import _assert_same_fit
 
 UM = 1e-6
@@ -54,3 +58,39 @@ def test_the_c_fit_keeps_the_rising_ramp_too():
     xs = np.linspace(0.0, 1.0e-3, 200)
     Fs = 40.0 - 20.0 * np.clip((xs - 0.4e-3) / 0.2e-3, 0.0, 1.0)
     assert _assert_same_fit("entry", xs, Fs, 0.0, 0.8e-3)[1] >= 0.35e-3
+
+
+# ------------------------------------------------------------------ the air level's spread
+def _air(offset, ringing, period, n, seed=3):
+    """n samples in air [N]: an offset, the observer's ringing at the orbit (period [samples],
+    random phase) and 2 N of noise."""
+    rng = np.random.default_rng(seed)
+    i = np.arange(n)
+    return offset + ringing * np.sin(2 * np.pi * i / period + rng.uniform(0, 2 * np.pi)) + rng.normal(0.0, 2.0, n)
+
+
+def test_a_friction_offset_under_the_orbit_s_ringing_stands_out():
+    """A 21 N offset under +-15 N of ringing over less than one orbit of air (the plant-options
+    draw's project hole 4 with its entry located right): against the samples' rms (about 11 N)
+    it stood under AIR_OFFSET_K spreads and was ignored, and the hole's aluminium exit was
+    missed; the spread without the ringing (2 N of noise, and at most 15 N x P / (pi n) of a
+    sinusoid's mean, about 5 N) lets it count. Without an offset the ringing alone stays under."""
+    P, n = 75.0, 70
+    missed_by_rms = 0
+    for seed in range(5):
+        F = _air(21.0, 15.0, P, n, seed)
+        F_air, sd = air_level(F, P)
+        assert F_air == pytest.approx(float(np.mean(F)))
+        missed_by_rms += abs(F_air) < AIR_OFFSET_K * float(np.std(F))
+        assert abs(F_air) > 1.3 * AIR_OFFSET_K * sd, (F_air, sd)       # measured 2.7-3.0 spreads out
+        F0 = _air(0.0, 15.0, P, n, seed)
+        assert abs(float(np.mean(F0))) < 0.5 * AIR_OFFSET_K * air_level(F0, P)[1]   # measured <= 0.14
+    assert missed_by_rms >= 4       # the rms test: 1.83-2.03 spreads out
+
+
+def test_the_spread_is_the_rms_without_an_orbit_or_over_many_orbits():
+    F = _air(2.0, 3.0, 12.0, 263)
+    rms = float(np.sqrt(np.mean((F - F.mean()) ** 2)))
+    assert air_level(F, None)[1] == rms
+    assert air_level(F, 12.0)[1] == rms          # 22 orbits >= AIR_RING_ORBITS: drift is no ringing
+    assert air_level(F[:20], 12.0)[1] <= float(np.sqrt(np.mean((F[:20] - F[:20].mean()) ** 2)))

@@ -15,6 +15,8 @@
  */
 #define DETECTOR_SELF_CONTAINED 1
 #define DET_ENTRY_BACK 1.0   /* interface_detector.ENTRY_BACK: margins before the entry candidate the fit reaches */
+#define DET_AIR_RING_ORBITS 2.0   /* interface_detector.AIR_RING_ORBITS */
+#define DET_PI 3.141592653589793  /* math.pi */
 #include "event_locator.c"
 #include "interface_detector.c"
 
@@ -130,6 +132,25 @@ static long detector_history(const DetectorFMU *s, double h_n, double *t, double
     return n;
 }
 
+/* interface_detector.air_level: F[0..a) the air samples (overwritten), period [samples] the
+ * first layer's orbit (<= 0: none) -> out[0] the air level [N], out[1] its spread [N] */
+static void detector_air_level(double *F, long a, double period, double *out)
+{
+    out[0] = loc_mean(F, a);
+    double *dev = F + a;      /* scratch after the samples: the caller's history holds room */
+    for (long j = 0; j < a; j++)       /* the rms deviation, as numpy's mean of the squares */
+        dev[j] = (F[j] - out[0]) * (F[j] - out[0]);
+    double sd = sqrt(loc_mean(dev, a));
+    out[1] = sd;
+    if (!(period > 0.0) || a < 2 || (double)a >= DET_AIR_RING_ORBITS * period)
+        return;
+    for (long j = 0; j + 1 < a; j++)   /* numpy.diff, squared */
+        dev[j] = (F[j + 1] - F[j]) * (F[j + 1] - F[j]);
+    double noise = sqrt(loc_mean(dev, a - 1) / 2.0);
+    double ring = sqrt(2.0 * LOC_PYMAX(sd * sd - noise * noise, 0.0)) * LOC_PYMIN(1.0, period / (DET_PI * (double)a));
+    out[1] = LOC_PYMIN(sd, noise + ring);
+}
+
 /* InterfaceDetector._fit: out = x_loc [m], t_loc [s], dx [m], F_air [N], F_air_sd [N] */
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
@@ -166,10 +187,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
         for (long j = 0; j < n; j++)
             if (xs[j] >= lo_air && xs[j] <= hi && xs[j] < out[0] - 0.5 * d->locate_margin)
                 xsel[a++] = F[j];
-        out[3] = loc_mean(xsel, a);
-        for (long j = 0; j < a; j++)       /* the rms deviation, as numpy's mean of the squares */
-            xsel[j] = (xsel[j] - out[3]) * (xsel[j] - out[3]);
-        out[4] = sqrt(loc_mean(xsel, a));
+        detector_air_level(xsel, a, s->entry_period, &out[3]);
     }
     out[1] = detector_time_at(t, x, n, out[0]);
     free(t);
