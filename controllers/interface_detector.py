@@ -479,8 +479,7 @@ class InterfaceDetector(KernelBlock, Block):
         exit_loc_after: float | None = None,
         exit_orbit_arm: float = 0.0,
         interface_orbit_arm: Sequence[float] | None = None,
-        exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0,
-        exit_shape: str = "any",
+        exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0, exit_shape: str = "any",
     ):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
@@ -510,8 +509,7 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_entry_ramp(entry_ramp, entry_span, entry_orbit_period, entry_shape)
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
         self._set_loc_after(interface_loc_after)
-        self._set_exit_loc(exit_orbit_period, exit_loc_after, exit_ripple_period, observer_forgetting)
-        self._set_exit_shape(exit_shape)
+        self._set_exit_loc(exit_orbit_period, exit_loc_after, exit_ripple_period, observer_forgetting, exit_shape)
         self._set_exit_arm(exit_orbit_arm)
         self._set_interface_arm(interface_orbit_arm)
         self.windows = self._windows()
@@ -613,10 +611,12 @@ class InterfaceDetector(KernelBlock, Block):
                              f"({self.locate_margin:g} m) per interface ({n_if}), got {list(loc_after)}")
         self.loc_after = vals
 
-    def _set_exit_loc(self, orbit_period, loc_after, ripple_period=0.0, forgetting=0.0) -> None:
+    def _set_exit_loc(self, orbit_period, loc_after, ripple_period=0.0, forgetting=0.0, exit_shape="any") -> None:
         """The exit's fit on orbit means (period [s], 0: none), its window after the
-        trigger [m] (default locate_margin) and its ghost (:meth:`_set_exit_ghost`), checked."""
+        trigger [m] (default locate_margin), its ghost (:meth:`_set_exit_ghost`) and its
+        push-out law (:meth:`_set_exit_shape`), checked."""
         self._set_exit_ghost(ripple_period, forgetting)
+        self._set_exit_shape(exit_shape)
         _check_seconds("exit_orbit_period", orbit_period, "the last layer's orbit period; 0: none")
         self.exit_orbit_period = float(orbit_period)
         self.exit_after = self.locate_margin if loc_after is None else float(loc_after)
