@@ -91,9 +91,10 @@ def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
 
     def spy(kind, x, F, *, air=0.0, x_trig=None, cut_floor=None, period=None, entry_shape="any", ghost=None,
             exit_shape="any"):
-        assert entry_shape == "any" and exit_shape == "any"     # the cases fit both shapes, as event_locate_tables does
-        calls.append((kind, np.array(x), np.array(F), air, x_trig, cut_floor, period, ghost))
-        return locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost)
+        assert entry_shape == "any"     # the cases fit both ramps, as event_locate_tables does
+        calls.append((kind, np.array(x), np.array(F), air, x_trig, cut_floor, period, ghost, exit_shape))
+        return locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost,
+                      exit_shape=exit_shape)
 
     monkeypatch.setattr(idm, "locate", spy)
     for settings, trace in CASES.values():
@@ -104,8 +105,9 @@ def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
             det.step(ti, [Fi, xi])
     kinds = {c[0] for c in calls}
     assert len(calls) >= 15 and kinds == {"entry", "interface", "exit"}
-    for kind, x, F, air, x_trig, cut_floor, period, ghost in calls:
-        _assert_same_fit(kind, x, F, air, x_trig, cut_floor, period, ghost)
+    assert {c[-1] for c in calls} == {"any", "bending"}
+    for kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape in calls:
+        _assert_same_fit(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape)
 
 
 def test_c_fit_of_a_window_cut_short_to_a_thin_layer():
