@@ -105,8 +105,8 @@ class HolePlan:
             raise self.error("hole.entry_shape", f"expected one of {', '.join(ENTRY_SHAPES)}, got {self.entry_shape!r}")
         # the last layer's push-out law (InterfaceDetector exit_shape): "linear" (a plate thinning
         # out), "quadratic" (ligament yield), "bending" (the 1.5th power) or "any" (linear or
-        # quadratic, fitted); left to the fit, a drive's law between the two was located 0.05 mm
-        # off, and the fit's choice put 5-8 % of the exits 0.05-0.15 mm off (docs/stacks.md)
+        # quadratic, fitted); left to the fit, foreign2's r^1.5 exits were located +0.05 mm late
+        # and foreign exits taken as linear up to 0.17 mm early (re-run wide-draw holes, round 9)
         self.exit_shape = hole.get("exit_shape", "any")
         if self.exit_shape not in EXIT_SHAPES:
             raise self.error("hole.exit_shape", f"expected one of {', '.join(EXIT_SHAPES)}, got {self.exit_shape!r}")
