@@ -108,8 +108,9 @@ PUSH_OUT_SHAPES = (lambda r: np.clip(r, 0.0, 1.0), lambda r: np.clip(r, 0.0, 1.0
 # its face +0.05 mm late or -0.05 mm early (its CFRP exits all +0.04..+0.085 mm, 200-hole wide
 # draw; on the plant's own thrust the same, so not the observer); offered r^1.5 beside them,
 # the fit took it on synthetic linear and quadratic push-outs 0.06-0.07 mm off, and on three
-# of the foreign drive's quadratic ones 0.06-0.08 mm early (replayed): the law is a property of the drive's tool and stack,
-# not something the window's residual decides well (docs/stacks.md, "Localisation").
+# of the foreign drive's quadratic ones 0.06-0.08 mm early (replayed): the law is a property
+# of the drive's tool and stack, not something the window's residual decides well
+# (docs/stacks.md, "Localisation").
 EXIT_SHAPES = {"any": PUSH_OUT_SHAPES, "linear": PUSH_OUT_SHAPES[:1], "quadratic": PUSH_OUT_SHAPES[1:],
                "bending": (lambda r: np.clip(r, 0.0, 1.0) ** 1.5,)}
 
