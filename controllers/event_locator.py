@@ -13,9 +13,10 @@ the boundary (docs/stacks.md, "Localisation"):
   trend) at the face and ramps over the engagement length, linearly or as a smoothstep
   (:func:`onset_face`) -> the **onset** of the ramp;
 * a layer pushed out ahead of the tool (the last layer at the exit; the upper layer of a
-  gap): its thrust falls as it thins -- linearly, quadratically (ligament yield) or at
-  once (break-off) -- and reaches the air level at its free face (:func:`free_face`)
-  -> the **end** of the fall;
+  gap): its thrust falls as it thins -- linearly, quadratically (ligament yield), as the
+  1.5th power between them (a layer bending away; at the exit, when the plan says so) or at
+  once (break-off) -- and reaches the air level at its free face (:func:`free_face`) -> the
+  **end** of the fall;
 * a gap (a run at the air level between two cut levels, :func:`air_run`): any position
   between the faces is exact; the middle of the two faces found as above.
 
@@ -100,6 +101,18 @@ ENGAGE_SHAPES = (lambda u: np.clip(u, 0.0, 1.0), _smoothstep)
 # fitted better, was 0.02 mm late (its CFRP entries +0.016 mm biased; the smoothstep alone: 0.000)
 ENTRY_SHAPES = {"any": ENGAGE_SHAPES, "linear": ENGAGE_SHAPES[:1], "smoothstep": ENGAGE_SHAPES[1:]}
 PUSH_OUT_SHAPES = (lambda r: np.clip(r, 0.0, 1.0), lambda r: np.clip(r, 0.0, 1.0) ** 2)
+# the exit's push-out law when the plan knows it (``exit_shape``): "linear" (a plate thinning
+# out; the project's drive), "quadratic" (ligament yield; the foreign drive), "bending" (the
+# 1.5th power: a layer that bends away; the foreign2 drive), "any": linear or quadratic,
+# whichever fits better. Offered r and r^2, the fit took either for foreign2's r^1.5 and put
+# its face +0.05 mm late or -0.05 mm early (its CFRP exits all +0.04..+0.085 mm, 200-hole wide
+# draw; on the plant's own thrust the same, so not the observer); offered r^1.5 beside them,
+# the fit took it on synthetic linear and quadratic push-outs 0.06-0.07 mm off, and on three
+# of the foreign drive's quadratic ones 0.06-0.08 mm early (replayed): the law is a property
+# of the drive's tool and stack, not something the window's residual decides well
+# (docs/stacks.md, "Localisation").
+EXIT_SHAPES = {"any": PUSH_OUT_SHAPES, "linear": PUSH_OUT_SHAPES[:1], "quadratic": PUSH_OUT_SHAPES[1:],
+               "bending": (lambda r: np.clip(r, 0.0, 1.0) ** 1.5,)}
 
 
 def _lstsq_batch(cols, F, rising: int | None = None):
@@ -240,7 +253,7 @@ def _ghost_visible(F) -> bool:
 
 
 def free_face(x, F, lo: float, hi: float, air: float | None, period: float | None = None,
-              ghost: tuple[float, float] | None = None) -> tuple[float, float]:
+              ghost: tuple[float, float] | None = None, shapes=PUSH_OUT_SHAPES) -> tuple[float, float]:
     """Position [m] in [lo, hi] where a layer pushed out ahead of the tool runs out: its
     thrust (a level with a trend) falls to the air level over a fitted length and law
     and stays there; and its uncertainty [m]. ``air`` None: the air level is fitted too
@@ -254,7 +267,8 @@ def free_face(x, F, lo: float, hi: float, air: float | None, period: float | Non
     ``period``): the observer's ripple error is fitted with the fall
     (:func:`_ghost_columns`): left in the samples, it moved the end of the fall by
     0.1-0.3 mm on the three drives (docs/stacks.md, "Localisation";
-    measured: docs/stacks_history.md, "Exit localisation: the observer's ghost")."""
+    measured: docs/stacks_history.md, "Exit localisation: the observer's ghost").
+    ``shapes``: the push-out laws tried (PUSH_OUT_SHAPES, or one of EXIT_SHAPES at the exit)."""
     Fa = F - (0.0 if air is None else air)
     smooth = (lambda A: orbit_mean(A, period)) if period else (lambda A: A)
     Fs = smooth(Fa)
@@ -267,7 +281,7 @@ def free_face(x, F, lo: float, hi: float, air: float | None, period: float | Non
             cols += _ghost_columns(g, ghost)
         return _lstsq_batch([smooth(c) for c in cols], Fs)
 
-    return _best_face(lo, hi, sse, PUSH_OUT_LENGTHS, PUSH_OUT_SHAPES, Fs.size)
+    return _best_face(lo, hi, sse, PUSH_OUT_LENGTHS, shapes, Fs.size)
 
 
 def floor_gap(F, cut_floor: float | None) -> tuple[int, int] | None:
@@ -294,7 +308,8 @@ def floor_gap(F, cut_floor: float | None) -> tuple[int, int] | None:
 
 
 def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cut_floor: float | None = None,
-           period: float | None = None, entry_shape: str = "any", ghost: tuple[float, float] | None = None):
+           period: float | None = None, entry_shape: str = "any", ghost: tuple[float, float] | None = None,
+           exit_shape: str = "any"):
     """Located position [m] of an event and its uncertainty [m] from the samples around
     its trigger: table positions ``x`` [m] (increasing along the feed), observed thrust
     ``F`` [N]. ``kind``: "entry", "interface" or "exit"; ``air`` [N]: the observed thrust
@@ -310,12 +325,14 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     ``ghost`` (orbit [samples], decay of the observer's ripple estimate [per sample]): the
     exit's fit on the samples takes out the observer's ripple error (:func:`free_face`; None,
     a window shorter than one orbit, or one that shows no ghost, :func:`_ghost_visible`:
-    none). An entry's ramp rises; an interface's may have either sign. (NaN, NaN) when there
-    are too few samples."""
+    none); ``exit_shape``: the exit's push-out law, one of EXIT_SHAPES. An entry's ramp rises;
+    an interface's may have either sign. (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
     if entry_shape not in ENTRY_SHAPES:
         raise ValueError(f"event_locator.locate: entry_shape must be one of {', '.join(ENTRY_SHAPES)}, got {entry_shape!r}")
+    if exit_shape not in EXIT_SHAPES:
+        raise ValueError(f"event_locator.locate: exit_shape must be one of {', '.join(EXIT_SHAPES)}, got {exit_shape!r}")
     x, F = np.asarray(x, float), np.asarray(F, float)
     ok = np.isfinite(x) & np.isfinite(F)
     x, F = x[ok], F[ok]
@@ -334,7 +351,7 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
             period = None
         if ghost is not None and not (1.0 < ghost[0] <= x.size and 0.0 <= ghost[1] < 1.0 and _ghost_visible(F)):
             ghost = None
-        return free_face(x, F, x0, x1, air if FIXED_EXIT_AIR else None, period, ghost)
+        return free_face(x, F, x0, x1, air if FIXED_EXIT_AIR else None, period, ghost, EXIT_SHAPES[exit_shape])
     gap = air_run(x, F, air)
     if gap is None:
         gap = floor_gap(F, cut_floor)

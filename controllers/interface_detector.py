@@ -107,7 +107,7 @@ from typing import Sequence
 import numpy as np
 
 from drillcosim.controllers import detector_kernel
-from drillcosim.controllers.event_locator import ENTRY_SHAPES, locate, time_at
+from drillcosim.controllers.event_locator import ENTRY_SHAPES, EXIT_SHAPES, locate, time_at
 from drillcosim.controllers.kernels import KernelBlock
 from drillcosim.controllers.kernels.structs import Detector as _DetectorState
 from drillcosim.controllers.kernels.structs import fill
@@ -428,6 +428,9 @@ class InterfaceDetector(KernelBlock, Block):
         the exit's fit on the samples also fits the observer's ripple error
         (``event_locator.free_face`` ghost: the ripple estimate follows the fall with the
         forgetting, its ghost outlives the thrust); either 0 (default): off.
+    exit_shape: the last layer's push-out law the exit's fit takes: "linear", "quadratic",
+        "bending" (the 1.5th power) or "any" (default: linear or quadratic, whichever fits
+        better; event_locator.EXIT_SHAPES).
     exit_loc_after [m]: travel after the exit's trigger its localisation window holds
         (default locate_margin; the hole plan adds half an orbit of the last layer's feed:
         the orbit means of the last half orbit need the samples after it).
@@ -501,7 +504,7 @@ class InterfaceDetector(KernelBlock, Block):
         exit_loc_after: float | None = None,
         exit_orbit_arm: float = 0.0,
         interface_orbit_arm: Sequence[float] | None = None,
-        exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0,
+        exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0, exit_shape: str = "any",
     ):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
@@ -531,7 +534,7 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_entry_ramp(entry_ramp, entry_span, entry_orbit_period, entry_shape)
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
         self._set_loc_after(interface_loc_after)
-        self._set_exit_loc(exit_orbit_period, exit_loc_after, exit_ripple_period, observer_forgetting)
+        self._set_exit_loc(exit_orbit_period, exit_loc_after, exit_ripple_period, observer_forgetting, exit_shape)
         self._set_exit_arm(exit_orbit_arm)
         self._set_interface_arm(interface_orbit_arm)
         self.windows = self._windows()
@@ -633,16 +636,25 @@ class InterfaceDetector(KernelBlock, Block):
                              f"({self.locate_margin:g} m) per interface ({n_if}), got {list(loc_after)}")
         self.loc_after = vals
 
-    def _set_exit_loc(self, orbit_period, loc_after, ripple_period=0.0, forgetting=0.0) -> None:
+    def _set_exit_loc(self, orbit_period, loc_after, ripple_period=0.0, forgetting=0.0, exit_shape="any") -> None:
         """The exit's fit on orbit means (period [s], 0: none), its window after the
-        trigger [m] (default locate_margin) and its ghost (:meth:`_set_exit_ghost`), checked."""
+        trigger [m] (default locate_margin), its ghost (:meth:`_set_exit_ghost`) and its
+        push-out law (:meth:`_set_exit_shape`), checked."""
         self._set_exit_ghost(ripple_period, forgetting)
+        self._set_exit_shape(exit_shape)
         _check_seconds("exit_orbit_period", orbit_period, "the last layer's orbit period; 0: none")
         self.exit_orbit_period = float(orbit_period)
         self.exit_after = self.locate_margin if loc_after is None else float(loc_after)
         if not self.exit_after >= self.locate_margin:
             raise ValueError(f"InterfaceDetector: exit_loc_after must be >= locate_margin ({self.locate_margin:g} m), "
                              f"got {loc_after!r}")
+
+    def _set_exit_shape(self, exit_shape) -> None:
+        """The exit fit's push-out law (event_locator.EXIT_SHAPES), checked."""
+        if exit_shape not in EXIT_SHAPES:
+            raise ValueError(f"InterfaceDetector: exit_shape must be one of {', '.join(EXIT_SHAPES)}, "
+                             f"got {exit_shape!r}")
+        self.exit_shape = exit_shape
 
     def _set_exit_ghost(self, orbit_period, forgetting) -> None:
         """The exit's fit with the observer's ripple error (both > 0; either 0: off), checked."""
@@ -1133,7 +1145,8 @@ class InterfaceDetector(KernelBlock, Block):
             self.loc_after[k - 1] < self.max_gap + self.locate_margin else None
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period,
-                           entry_shape=self.entry_shape, ghost=self._exit_ghost() if kind == "exit" else None)
+                           entry_shape=self.entry_shape, ghost=self._exit_ghost() if kind == "exit" else None,
+                           exit_shape=self.exit_shape)
         F_air = F_air_sd = NAN
         if k == 0 and math.isfinite(x_loc):
             # with a span the window is around the confirmation, which may leave only a few
@@ -1381,6 +1394,7 @@ class InterfaceDetector(KernelBlock, Block):
         "entry_shape": ("1", "the entry fit's ramp: 0 linear or smoothstep, 1 linear, 2 smoothstep"),
         "exit_ghost": ("1", "the exit's fit of the observer's ripple error: last layer's orbit in samples (0: none), "
                             "decay of the ripple estimate per sample"),
+        "exit_shape": ("1", "the exit fit's push-out law: 0 linear or quadratic, 1 linear, 2 quadratic, 3 bending (r^1.5)"),
         "max_gap": ("m", "widest gap between two layers"),
         "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
     }
@@ -1396,7 +1410,7 @@ class InterfaceDetector(KernelBlock, Block):
         arrays = (self._W_flat, self.buf, self._c_err, self.h_t, self.h_x, self.h_F)
         return detector_kernel.export_kernel(self.c_kernel.state, self.observer_delay, arrays,
                                              self._exit_period_samples() or 0.0, self._entry_period_samples() or 0.0,
-                                             self.entry_shape, self._exit_ghost() or (0.0, 0.0))
+                                             self.entry_shape, self._exit_ghost() or (0.0, 0.0), self.exit_shape)
 
     def _c_supports(self) -> bool:
         return (detector_kernel.blas_ddot() is not None and detector_kernel.sums_like_python()

@@ -43,7 +43,7 @@ OBSERVER_SETTLE_ORBITS = 6.0
 HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "approach", "breakthrough",
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
              "match_tolerance", "locate_margin", "push_out", "orbital_harmonics", "exit_orbit_mean", "engagement",
-             "entry_shape"}
+             "entry_shape", "exit_shape"}
 # Localisation (controllers/event_locator.py): travel on either side of an event that holds its
 # change and a stretch of level (engagement up to ~0.35 mm on the drives measured, and the
 # trigger up to ~0.1 mm into it: with 0.3 mm, Ti entries with a 0.22 mm engagement were
@@ -59,6 +59,7 @@ MISMATCH_FACTOR = 4.0
 DETECTOR_DT, DETECTOR_N_MIN = 0.02, 25  # InterfaceDetector defaults (Table 4's dt, its shortest window)
 LAYER_KEYS = {"material", "thickness", "tolerance"}
 ENTRY_SHAPES = ("any", "linear", "smoothstep")   # the entry fit's ramps (event_locator.ENTRY_SHAPES)
+EXIT_SHAPES = ("any", "linear", "quadratic", "bending")   # the exit fit's push-out laws (event_locator.EXIT_SHAPES)
 MAX_HARMONICS = 4       # orbital harmonics the adaptive observer models at most (fang_observer.MAX_HARMONICS)
 
 
@@ -102,6 +103,13 @@ class HolePlan:
         self.entry_shape = hole.get("entry_shape", "linear" if self.engagement > 0.0 else "any")
         if self.entry_shape not in ENTRY_SHAPES:
             raise self.error("hole.entry_shape", f"expected one of {', '.join(ENTRY_SHAPES)}, got {self.entry_shape!r}")
+        # the last layer's push-out law (InterfaceDetector exit_shape): "linear" (a plate thinning
+        # out), "quadratic" (ligament yield), "bending" (the 1.5th power) or "any" (linear or
+        # quadratic, fitted); left to the fit, foreign2's r^1.5 exits were located +0.05 mm late
+        # and foreign exits taken as linear up to 0.17 mm early (re-run wide-draw holes, round 9)
+        self.exit_shape = hole.get("exit_shape", "any")
+        if self.exit_shape not in EXIT_SHAPES:
+            raise self.error("hole.exit_shape", f"expected one of {', '.join(EXIT_SHAPES)}, got {self.exit_shape!r}")
         self.harmonics = self._harmonics(hole)
         # the exit's fit on orbit means (InterfaceDetector exit_orbit_period): off by default,
         # its wide-draw measurement is mixed (docs/stacks_history.md, "Exit (first pass)")
@@ -358,6 +366,7 @@ class HolePlan:
             # (the ringing in air, docs/stacks_history.md "Entry (second pass)")
             "entry_orbit_period": self.orbit_period(0),
             "entry_shape": self.entry_shape,
+            "exit_shape": self.exit_shape,
             # the exit's thinning test also runs on means over one orbit of the last layer: a
             # thin last layer under the observer's ringing after a Ti -> Al drop has no quiet
             # F~ to arm on (issue 23, round 2: missed exits of the wide draw)

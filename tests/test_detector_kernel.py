@@ -132,6 +132,9 @@ CASES = {
     "one_layer_short_window": (dict(N=20, N_min=5, thicknesses=(4 * MM,), localise=False),
                                dict(levels=(150.0,), thick_mm=(4.0,), gaps_mm=(0.0,), engage_mm=0.02,
                                     thinning_mm=0.05)),
+    # issue 23 round 9: the plan's push-out law for the exit's fit (the exported FMU's C fit too)
+    "plan_bending_exit": (dict(PLAN, exit_shape="bending"),
+                          dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.0, 0.0))),
     "four_layers": (dict(thicknesses=(2 * MM, 2 * MM, 2 * MM, 2 * MM), thd2=30.0, N=60, N_min=10, rearm_samples=40),
                     dict(levels=(120.0, 300.0, 150.0, 350.0), thick_mm=(2.0, 2.0, 2.0, 2.0), gaps_mm=(0, 0, 0, 0),
                          engage_mm=0.02, thinning_mm=0.05)),

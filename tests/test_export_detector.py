@@ -32,7 +32,7 @@ from fmpy.validation import validate_fmu
 
 from drillcosim.controllers import detector_kernel
 from drillcosim.controllers import interface_detector as idm
-from drillcosim.controllers.event_locator import locate
+from drillcosim.controllers.event_locator import EXIT_SHAPES, locate
 from drillcosim.controllers.interface_detector import InterfaceDetector
 from drillcosim.cosim.exchange.export_fmu import export_blocks, has_c_step, with_exported_blocks
 from drillcosim.cosim.loop.algorithm import run
@@ -48,24 +48,24 @@ KINDS = {"entry": 0, "interface": 1, "exit": 2}
 PREDICTION = ("F_pred", "F_err", "F_ref", "thd", "level_mismatch")
 
 
-def _c_locate(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None):
+def _c_locate(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any"):
     fn = detector_kernel.export_library().event_locate_tables
     fn.restype = None
     fn.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_long, ctypes.c_double,
                    ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p,
-                   ctypes.c_void_p]
+                   ctypes.c_void_p, ctypes.c_int]
     x, F = np.ascontiguousarray(x, float), np.ascontiguousarray(F, float)
     tables, out = detector_kernel.locator_tables(), np.zeros(2)
     g = None if ghost is None else np.array(ghost, float)
     fn(KINDS[kind], x.ctypes.data, F.ctypes.data, x.size, air, x_trig,
        math.nan if cut_floor is None else cut_floor, period or 0.0, None if g is None else g.ctypes.data,
-       tables.ctypes.data, out.ctypes.data)
+       tables.ctypes.data, out.ctypes.data, list(EXIT_SHAPES).index(exit_shape))
     return float(out[0]), float(out[1])
 
 
-def _assert_same_fit(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None):
-    py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost)
-    c = _c_locate(kind, x, F, air, x_trig, cut_floor, period, ghost)
+def _assert_same_fit(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any"):
+    py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost, exit_shape=exit_shape)
+    c = _c_locate(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape)
     for a, b in zip(py, c):
         assert (math.isnan(a) and math.isnan(b)) or abs(a - b) <= 1e-12, (kind, py, c)   # 1e-9 mm
     return py
@@ -89,10 +89,12 @@ def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
     """The windows the Python step fitted in the synthetic holes, refitted in C."""
     calls = []
 
-    def spy(kind, x, F, *, air=0.0, x_trig=None, cut_floor=None, period=None, entry_shape="any", ghost=None):
-        assert entry_shape == "any"     # the cases fit both shapes, as event_locate_tables does
-        calls.append((kind, np.array(x), np.array(F), air, x_trig, cut_floor, period, ghost))
-        return locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost)
+    def spy(kind, x, F, *, air=0.0, x_trig=None, cut_floor=None, period=None, entry_shape="any", ghost=None,
+            exit_shape="any"):
+        assert entry_shape == "any"     # the cases fit both ramps, as event_locate_tables does
+        calls.append((kind, np.array(x), np.array(F), air, x_trig, cut_floor, period, ghost, exit_shape))
+        return locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost,
+                      exit_shape=exit_shape)
 
     monkeypatch.setattr(idm, "locate", spy)
     for settings, trace in CASES.values():
@@ -103,8 +105,9 @@ def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
             det.step(ti, [Fi, xi])
     kinds = {c[0] for c in calls}
     assert len(calls) >= 15 and kinds == {"entry", "interface", "exit"}
-    for kind, x, F, air, x_trig, cut_floor, period, ghost in calls:
-        _assert_same_fit(kind, x, F, air, x_trig, cut_floor, period, ghost)
+    assert {c[-1] for c in calls} == {"any", "bending"}
+    for kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape in calls:
+        _assert_same_fit(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape)
 
 
 def test_c_fit_of_a_window_cut_short_to_a_thin_layer():

@@ -157,8 +157,8 @@ static double loc_clip01(double u)
 
 /* the design's columns at sample i: onset d = (x - x0)/L -> 1, d, shape(d) (and the orbit's
  * sine and cosine at phase 2 pi i / orbit, and both times i / n: an amplitude changing
- * linearly); push-out r = (xb - x)/L, g = shape(r) -> g, r g
- * (and 1 when the air level is fitted) */
+ * linearly); push-out r = (xb - x)/L, g = shape(r) (0: r, 1: r^2, 2: r^1.5, clipped to [0, 1];
+ * event_locator.EXIT_SHAPES) -> g, r g (and 1 when the air level is fitted) */
 static int loc_columns(const LocFit *f, double face, double L, int shape, long i, double *c)
 {
     double xi = f->x[i];
@@ -177,13 +177,23 @@ static int loc_columns(const LocFit *f, double face, double L, int shape, long i
         c[6] = grow * c[4];
         return 7;
     }
-    double r = (face - xi) / L, u = loc_clip01(r), g = shape == 0 ? u : u * u;
+    double r = (face - xi) / L, u = loc_clip01(r), g = shape == 0 ? u : shape == 1 ? u * u : pow(u, 1.5);
     c[0] = g;
     c[1] = r * g;
     if (!isnan(f->air))
         return 2;
     c[2] = 1.0;
     return 3;
+}
+
+/* the exit's push-out grid: ``push``'s lengths with the law of event_locator.EXIT_SHAPES's
+ * code exit_shape (0 any: linear or quadratic, 1 linear, 2 quadratic, 3 bending: r^1.5) */
+static LocGrid loc_exit_grid(const LocGrid *push, int exit_shape)
+{
+    LocGrid g = *push;
+    g.first_shape = exit_shape == 0 ? 0 : exit_shape - 1;
+    g.n_shapes = exit_shape == 0 ? 2 : 1;
+    return g;
 }
 
 /* free_face's ghost columns (event_locator._ghost_columns) after the push-out's k at sample i:

@@ -27,6 +27,8 @@ typedef struct {
     double entry_period;                          /* samples, the first layer's orbit (the entry's fit; 0: none) */
     double entry_shape;                           /* the entry's ramp: 0 any, 1 linear, 2 smoothstep (event_locator.ENTRY_SHAPES) */
     double exit_ghost[2];                         /* the exit's fit: orbit [samples] (0: none), decay per sample */
+    double exit_shape;                            /* the exit's push-out law: 0 any, 1 linear, 2 quadratic, 3 bending
+                                                     (event_locator.EXIT_SHAPES) */
     double engage_lengths[LOC_N_ENGAGE];          /* m, event_locator.ENGAGE_LENGTHS */
     double engage_fine[LOC_N_FINE];               /* around the best engage length */
     double push_out_lengths[LOC_N_PUSH_OUT];      /* m, event_locator.PUSH_OUT_LENGTHS */
@@ -175,6 +177,8 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     int shape = kind == LOC_ENTRY ? (int)s->entry_shape : 0;
     LocGrid engage = {s->engage_lengths, s->engage_fine, LOC_N_ENGAGE, shape == 2 ? 1 : 0, shape == 0 ? 2 : 1};
     LocGrid push = {s->push_out_lengths, s->push_out_fine, LOC_N_PUSH_OUT, 0, 2};
+    if (kind == LOC_EXIT)
+        push = loc_exit_grid(&push, (int)s->exit_shape);
     /* an interface window cut short to a thin layer below may end in the gap: air is below
      * the engagement floor of both layers around it (InterfaceDetector._fit) */
     double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0 && d->loc_after[k - 1] < d->max_gap + d->locate_margin
@@ -219,14 +223,17 @@ void interface_detector_fmu_step(DetectorFMU *s, double t, const double *u, doub
 }
 
 /* the localisation alone, for tests against event_locator.locate: kind 0 entry, 1
- * interface, 2 exit; out = x_loc, dx [m]; tables as in DetectorFMU; period [samples] and
- * ghost (NULL: none) as event_locator.locate's */
+ * interface, 2 exit; out = x_loc, dx [m]; tables as in DetectorFMU; period [samples],
+ * ghost (NULL: none) and exit_shape (DetectorFMU's code) as event_locator.locate's */
 void event_locate_tables(int kind, const double *x, const double *F, long n, double air, double x_trig,
-                         double cut_floor, double period, const double *ghost, const double *tables, double *out)
+                         double cut_floor, double period, const double *ghost, const double *tables, double *out,
+                         int exit_shape)
 {
     LocGrid engage = {tables, tables + LOC_N_ENGAGE, LOC_N_ENGAGE, 0, 2};
     LocGrid push = {tables + LOC_N_ENGAGE + LOC_N_FINE, tables + LOC_N_ENGAGE + LOC_N_FINE + LOC_N_PUSH_OUT,
                     LOC_N_PUSH_OUT, 0, 2};
+    if (kind == LOC_EXIT)
+        push = loc_exit_grid(&push, exit_shape);
     event_locate(kind, x, F, n, air, x_trig, cut_floor, period, ghost, &engage, &push, &out[0], &out[1]);
 }
 
