@@ -336,9 +336,10 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
 
 
 def _gap_faces(x, F, gap, air, open_end: bool = False):
-    """The middle of a gap's two faces and its uncertainty: the upper layer's free face,
-    the lower layer's onset (``open_end``: the window ends in the gap, its last sample
-    bounds the part seen). ``air`` None: the air level is fitted."""
+    """The middle of a gap's two faces and its uncertainty: the lower layer's onset after
+    the run's middle (``open_end``: the window ends in the gap, its last sample bounds the
+    part seen), then the upper layer's free face on the samples before that onset. ``air``
+    None: the air level is fitted."""
     x0, x1 = float(x[0]), float(x[-1])
     # the upper layer runs out at its free face, the lower one's rise leaves the air level
     # at its face: the middle of the two is inside the gap whatever its width
@@ -346,8 +347,13 @@ def _gap_faces(x, F, gap, air, open_end: bool = False):
     up, down = x <= mid, x >= mid
     if up.sum() < 2 * MIN_SEGMENT or down.sum() < 2 * MIN_SEGMENT:
         return NAN, NAN
-    lo, dlo = free_face(x[up], F[up], x0, mid, air)
     hi, dhi = (x1, 0.0) if open_end else onset_face(x[down], F[down], mid, x1)
+    # the upper layer's fall is fitted up to the lower layer's onset, not only to the run's
+    # middle: the run below AIR_SHARE of a soft upper layer (Al, 10-30 N) holds the tail of its
+    # push-out, and a free face bounded by the middle ended the fall early (wide draw, foreign
+    # holes 8, 73, 133, 172, 184, 199: 0.055-0.10 mm early; replayed: within 0.016 mm)
+    up = x <= hi
+    lo, dlo = free_face(x[up], F[up], x0, hi, air)
     return 0.5 * (lo + hi), 0.5 * abs(hi - lo) + max(dlo, dhi)
 
 

@@ -476,15 +476,18 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
     double *Fu = xu + n, *xd = Fu + n, *Fd = xd + n;
     long n_up = loc_select(x, F, n, -INFINITY, mid, xu, Fu), n_down = loc_select(x, F, n, mid, INFINITY, xd, Fd);
     if (n_up >= 2 * LOC_MIN_SEGMENT && n_down >= 2 * LOC_MIN_SEGMENT) {
-        LocFit up = {xu, Fu, n_up, 1, air, push}, down = {xd, Fd, n_down, 0, NAN, engage};
+        LocFit down = {xd, Fd, n_down, 0, NAN, engage};
         double lo, dlo, hi, dhi;
-        loc_best_face(&up, x[0], mid, &lo, &dlo);
         if (open_end) {                      /* the window ends in the gap: its last sample bounds it */
             hi = x[n - 1];
             dhi = 0.0;
         } else {
             loc_best_face(&down, mid, x[n - 1], &hi, &dhi);
         }
+        /* the upper layer's fall up to the lower layer's onset (event_locator._gap_faces) */
+        n_up = loc_select(x, F, n, -INFINITY, hi, xu, Fu);
+        LocFit up = {xu, Fu, n_up, 1, air, push};
+        loc_best_face(&up, x[0], hi, &lo, &dlo);
         *x_loc = 0.5 * (lo + hi);
         *dx = 0.5 * fabs(hi - lo) + LOC_PYMAX(dlo, dhi);
     }
