@@ -50,15 +50,25 @@ GHOST_SNR = 20.0          # the exit's fall over its plateau's scatter above whi
 AIR_SHARE = 0.5           # a level below this share of its neighbours' plateaus (above air) is air (a gap)
 
 
+def _end_counts(x) -> tuple[int, int]:
+    """Samples in the first and in the last fifth of the window's travel (at least
+    MIN_SEGMENT each). By travel, not by count: the feed changes at the trigger (the lower
+    layer's process), and a window reaching the push-out and a gap past a slow Al layer into a
+    fast Ti one held more samples per mm of Ti, so its first fifth by count reached into the
+    gap and no cut level was left above it (wide draw, foreign2 hole 132: -0.57 mm)."""
+    span = 0.2 * (x[-1] - x[0])
+    return (max(MIN_SEGMENT, int(np.count_nonzero(x <= x[0] + span))),
+            max(MIN_SEGMENT, int(np.count_nonzero(x >= x[-1] - span))))
+
+
 def air_run(x, F, air: float) -> tuple[int, int] | None:
     """(first, last + 1) sample of the longest run at the air level between two cut
     levels (a gap between two layers), or None. The levels are the medians of the first
-    and the last fifth of the window; a sample is at the air level below AIR_SHARE of the
-    lower of them, and the run must hold 2 MIN_SEGMENT samples with its median below
-    half of that (a low cut level, Al after CFRP, is not air)."""
-    n = F.size
-    k = max(MIN_SEGMENT, n // 5)
-    low = AIR_SHARE * min(float(np.median(F[:k])) - air, float(np.median(F[-k:])) - air)
+    and the last fifth of the window's travel (:func:`_end_counts`); a sample is at the air
+    level below AIR_SHARE of the lower of them, and the run must hold 2 MIN_SEGMENT samples
+    with its median below half of that (a low cut level, Al after CFRP, is not air)."""
+    k0, k1 = _end_counts(x)
+    low = AIR_SHARE * min(float(np.median(F[:k0])) - air, float(np.median(F[-k1:])) - air)
     if not low > 0:
         return None
     below = np.concatenate(([False], F - air < low, [False]))

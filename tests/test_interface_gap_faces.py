@@ -45,3 +45,36 @@ def test_c_fit_agrees_on_a_soft_push_out():
     x, F, face, top = _window(20.0, 0.3, 0.001, seed=4)
     x_loc, _ = _assert_same_fit("interface", x, F, 0.0, top + 0.02 * MM)
     assert face - 0.01 * MM <= x_loc <= top + 0.01 * MM
+
+
+def _feed_change_window(seed):
+    """Al (20 N, 7 um per sample at its slow feed) falling over 0.45 mm to its free face at
+    1.9 mm, a 0.7 mm gap where the observer reads 2 N, Ti (850 N) from 2.6 mm at 1.5 um per
+    sample; 1 N of seeded noise."""
+    x = np.concatenate((np.arange(1.0 * MM, 2.6 * MM, 0.007 * MM), np.arange(2.6 * MM, 4.0 * MM, 0.0015 * MM)))
+    F = np.interp(x, [1.45 * MM, 1.9 * MM, 2.6 * MM, 2.95 * MM], [20.0, 2.0, 2.0, 850.0])
+    return x, F + np.random.default_rng(seed).normal(0.0, 1.0, x.size)
+
+
+def test_end_levels_by_travel_when_the_feed_changes():
+    """Al (20 N, 7 um per sample at its slow feed) falling over 0.45 mm to its free face at
+    1.9 mm, a 0.7 mm gap where the observer reads 2 N, Ti (850 N) fed 4.7 times further per
+    mm (1.5 um per sample) from 2.6 mm. By count, the window's first fifth reaches the gap's
+    end: its median, 6 N, left the gap's 2 N above the air share, no air run was found,
+    and the fit took the fall's start for the interface (wide draw, foreign2 hole 132: -0.57
+    mm). By travel the first fifth is the Al's plateau; the located position lies in the gap."""
+    from drillcosim.controllers.event_locator import _end_counts
+    x, F = _feed_change_window(5)
+    assert float(np.median(F[:x.size // 5])) < 0.5 * 20.0       # by count: below the Al's air share
+    k0, _ = _end_counts(x)
+    assert float(np.median(F[:k0])) == pytest.approx(20.0, abs=1.5)
+    x_loc, _ = locate("interface", x, F, air=0.0, x_trig=1.5 * MM)
+    assert 1.9 * MM - 0.01 * MM <= x_loc <= 2.6 * MM + 0.01 * MM
+
+
+def test_c_fit_agrees_on_end_levels_by_travel():
+    """The C air run (kernels/event_locator.c loc_air_run) takes its end levels by travel too."""
+    from test_export_detector import _assert_same_fit
+    x, F = _feed_change_window(6)
+    x_loc, _ = _assert_same_fit("interface", x, F, 0.0, 1.5 * MM)
+    assert 1.9 * MM - 0.01 * MM <= x_loc <= 2.6 * MM + 0.01 * MM
