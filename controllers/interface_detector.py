@@ -623,18 +623,26 @@ class InterfaceDetector(KernelBlock, Block):
 
     def _set_loc_after(self, loc_after) -> None:
         """Travel [m] after each interface's trigger that its localisation window holds:
-        default max_gap + locate_margin (a gap of up to max_gap may follow a trigger on the
-        upper layer's push-out); shorter on a thin layer below (the hole plan: what the layer
-        leaves before its own tests must arm), never under locate_margin."""
+        default :meth:`_full_loc_after`; shorter on a thin layer below (the hole plan: what
+        the layer leaves before its own tests must arm), never under locate_margin."""
         n_if = self.n - 1
         if loc_after is None:
-            self.loc_after = [self.max_gap + self.locate_margin] * n_if
+            self.loc_after = [self._full_loc_after()] * n_if
             return
         vals = [float(v) for v in loc_after]
         if len(vals) != n_if or not all(self.locate_margin <= v for v in vals):
             raise ValueError(f"InterfaceDetector: interface_loc_after needs one value >= locate_margin "
                              f"({self.locate_margin:g} m) per interface ({n_if}), got {list(loc_after)}")
         self.loc_after = vals
+
+    def _full_loc_after(self) -> float:
+        """Travel [m] after an interface's trigger that the lower layer's onset may lie and be
+        fitted in: the upper layer's push-out fires the trigger up to push_out above its free
+        face, a gap of up to max_gap follows, and the onset's fit needs locate_margin of the
+        lower layer. A window without the push_out ended inside a 1 mm gap or on the lower
+        layer's ramp, and the fit took the push-out's start for the interface (wideopt40 draw,
+        foreign / foreign2 holes 13 and 38: 0.44-0.68 mm early, docs/stacks.md)."""
+        return self.max_gap + self.push_out + self.locate_margin
 
     def _set_exit_loc(self, orbit_period, loc_after, ripple_period=0.0, forgetting=0.0, exit_shape="any") -> None:
         """The exit's fit on orbit means (period [s], 0: none), its window after the
@@ -1142,7 +1150,7 @@ class InterfaceDetector(KernelBlock, Block):
         # below the engagement floor of both layers around it (Al's is the lowest), over the
         # air level (a friction offset lifts the gap's air above a bare floor)
         floor = self._air_offset() + min(self.floor[k - 1], self.floor[k]) if self.relative and kind == "interface" and \
-            self.loc_after[k - 1] < self.max_gap + self.locate_margin else None
+            self.loc_after[k - 1] < self._full_loc_after() else None
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_loc, dx = locate(kind, xs[sel], hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period,
                            entry_shape=self.entry_shape, ghost=self._exit_ghost() if kind == "exit" else None,

@@ -241,8 +241,8 @@ class HolePlan:
 
     def interface_loc_after(self, window_s: float) -> list[float]:
         """Travel [m] after each interface's trigger that its localisation window holds:
-        gap_tolerance + locate_margin (a gap may follow a trigger on the upper layer's
-        push-out), at most what the layer below leaves, at its thinnest, for the
+        gap_tolerance + push_out + locate_margin (the upper layer's push-out may fire the
+        trigger up to push_out above its free face, a gap may follow), at most what the layer below leaves, at its thinnest, for the
         regression window its tests then need (``window_s`` [s] at its feed) and for its
         own push-out (push_out: where its thrust already falls towards the next event, no
         plateau to arm on): the event is located, and the tests restart and arm, before
@@ -255,7 +255,7 @@ class HolePlan:
         for layer in self.layers[1:]:
             thin = layer["thickness"] - layer["tolerance"]
             room = thin - window_s * self.process[layer["material"]]["feed_rate"] - self.push_out
-            out.append(max(self.locate_margin, min(self.gap_tolerance + self.locate_margin, room)))
+            out.append(max(self.locate_margin, min(self.gap_tolerance + self.push_out + self.locate_margin, room)))
         return out
 
     # ------------------------------------------------------------------ derived

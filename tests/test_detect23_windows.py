@@ -45,9 +45,10 @@ def test_thin_layer_below_an_interface_gets_a_shorter_window_or_is_refused():
     assert e.value.key == "hole.layers[1].thickness", e.value.key
     assert "ti layer 2 is 0.80 mm" in e.value.detail and "regression window" in e.value.detail
     assert "0.85 mm" in e.value.detail, e.value.detail
-    # a thick layer keeps the full window (the default, bit-identical to before)
+    # a thick layer keeps the full window: a trigger up to push_out above the upper layer's
+    # free face, a gap of up to gap_tolerance, locate_margin of the lower layer (1 + 0.5 + 0.45 mm)
     sc = load_scenario(CFRP_TI, overrides={"hole.gap_tolerance": 1.0e-3})
-    assert sc.raw["blocks"]["detector"]["settings"]["interface_loc_after"] == pytest.approx([1.45e-3])
+    assert sc.raw["blocks"]["detector"]["settings"]["interface_loc_after"] == pytest.approx([1.95e-3])
 
 
 def test_detector_refuses_a_window_shorter_than_the_engagement():
@@ -99,3 +100,26 @@ def test_wide_draw_refusals_are_named_and_counted():
     assert all("hole." in r for r in refused), refused[:5]
     assert 0.0 < len(refused) / len(reasons) < 0.05
     assert not any("validated" in r for r in refused)
+
+
+def test_interface_window_reaches_past_a_push_out_and_a_full_gap():
+    """Ti (600 N) pushed out over 0.47 mm (a plant option's push-out length) to its free
+    face at 2.0 mm, a 1 mm gap (gap_tolerance), Al (30 N) rising over 0.1 mm from 3.0 mm;
+    the detector fires 0.05 mm into the fall. Its default window after the trigger,
+    max_gap + push_out + locate_margin = 1.95 mm, holds the Al's plateau: the gap is found
+    and the located position lies in it. The old window (max_gap + locate_margin, 1.45 mm)
+    ended 0.03 mm into the Al's ramp and located the push-out's start, 0.42 mm early
+    (wideopt40 draw, foreign hole 13: -0.46 mm)."""
+    det = InterfaceDetector(thicknesses=(2 * MM, 3 * MM), max_gap=1 * MM, locate_margin=0.45 * MM, push_out=0.5 * MM)
+    before, after = det.loc_window(1)
+    assert after == pytest.approx(1.95 * MM)
+    x = np.arange(0.0, 5.0 * MM, 0.004 * MM)
+    F = np.interp(x, [1.53 * MM, 2.0 * MM, 3.0 * MM, 3.1 * MM], [600.0, 0.0, 0.0, 30.0])
+    x_trig = 1.58 * MM
+
+    def located(after_):
+        sel = (x >= x_trig - before) & (x <= x_trig + after_)
+        return locate("interface", x[sel], F[sel], x_trig=x_trig)[0]
+
+    assert 2.0 * MM <= located(after) <= 3.0 * MM
+    assert located(1.45 * MM) < 1.6 * MM

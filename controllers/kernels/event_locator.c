@@ -410,11 +410,19 @@ static void loc_best_face(const LocFit *f, double lo, double hi, double *face, d
     free(pc);
 }
 
-/* air_run: [i0, i1) of the longest run at the air level between two cut levels, or 0 */
-static int loc_air_run(const double *F, long n, double air, double *scratch, long *i0, long *i1)
+/* air_run: [i0, i1) of the longest run at the air level between two cut levels, or 0; the
+ * levels over the first and the last fifth of the window's travel (event_locator._end_counts) */
+static int loc_air_run(const double *x, const double *F, long n, double air, double *scratch, long *i0, long *i1)
 {
-    long k = LOC_PYMAX((long)LOC_MIN_SEGMENT, n / 5);
-    double low = LOC_AIR_SHARE * LOC_PYMIN(loc_median(F, k, scratch) - air, loc_median(F + n - k, k, scratch) - air);
+    double span = 0.2 * (x[n - 1] - x[0]);
+    long k0 = 0, k1 = 0;
+    for (long i = 0; i < n; i++) {
+        k0 += x[i] <= x[0] + span;
+        k1 += x[i] >= x[n - 1] - span;
+    }
+    k0 = LOC_PYMAX((long)LOC_MIN_SEGMENT, k0);
+    k1 = LOC_PYMAX((long)LOC_MIN_SEGMENT, k1);
+    double low = LOC_AIR_SHARE * LOC_PYMIN(loc_median(F, k0, scratch) - air, loc_median(F + n - k1, k1, scratch) - air);
     if (!(low > 0.0))
         return 0;
     long best = 0, start = -1;
@@ -489,15 +497,18 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
     double *Fu = xu + n, *xd = Fu + n, *Fd = xd + n;
     long n_up = loc_select(x, F, n, -INFINITY, mid, xu, Fu), n_down = loc_select(x, F, n, mid, INFINITY, xd, Fd);
     if (n_up >= 2 * LOC_MIN_SEGMENT && n_down >= 2 * LOC_MIN_SEGMENT) {
-        LocFit up = {xu, Fu, n_up, 1, air, push}, down = {xd, Fd, n_down, 0, NAN, engage};
+        LocFit down = {xd, Fd, n_down, 0, NAN, engage};
         double lo, dlo, hi, dhi;
-        loc_best_face(&up, x[0], mid, &lo, &dlo);
         if (open_end) {                      /* the window ends in the gap: its last sample bounds it */
             hi = x[n - 1];
             dhi = 0.0;
         } else {
             loc_best_face(&down, mid, x[n - 1], &hi, &dhi);
         }
+        /* the upper layer's fall up to the lower layer's onset (event_locator._gap_faces) */
+        n_up = loc_select(x, F, n, -INFINITY, hi, xu, Fu);
+        LocFit up = {xu, Fu, n_up, 1, air, push};
+        loc_best_face(&up, x[0], hi, &lo, &dlo);
         *x_loc = 0.5 * (lo + hi);
         *dx = 0.5 * fabs(hi - lo) + LOC_PYMAX(dlo, dhi);
     }
@@ -561,7 +572,7 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
     }
     if (kind == LOC_EXIT)
         loc_exit(&exit_, period, x0, x1, x_loc, dx);
-    else if (kind == LOC_INTERFACE && loc_air_run(F, n, air, scratch, &g0, &g1))
+    else if (kind == LOC_INTERFACE && loc_air_run(x, F, n, air, scratch, &g0, &g1))
         loc_gap(x, F, n, air, g0, g1, 0, engage, push, x_loc, dx);
     else if (kind == LOC_INTERFACE && loc_floor_gap(F, n, cut_floor, scratch, &g0, &g1))
         loc_gap(x, F, n, NAN, g0, g1, n - g1 < 2 * LOC_MIN_SEGMENT, engage, push, x_loc, dx);   /* air fitted */

@@ -180,8 +180,8 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     if (kind == LOC_EXIT)
         push = loc_exit_grid(&push, (int)s->exit_shape);
     /* an interface window cut short to a thin layer below may end in the gap: air is below
-     * the engagement floor of both layers around it (InterfaceDetector._fit) */
-    double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0 && d->loc_after[k - 1] < d->max_gap + d->locate_margin
+     * the engagement floor of both layers around it (InterfaceDetector._fit; full: _full_loc_after) */
+    double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0 && d->loc_after[k - 1] < d->max_gap + d->push_out + d->locate_margin
         ? air_offset(d) + LOC_PYMIN(d->floor[k - 1], d->floor[k]) : NAN;     /* over the air offset */
     double period = kind == LOC_EXIT ? s->exit_period : kind == LOC_ENTRY ? s->entry_period : 0.0;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, s->exit_ghost, &engage, &push, &out[0], &out[2]);
