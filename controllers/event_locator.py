@@ -154,6 +154,10 @@ def _best_face(lo, hi, sse_of, lengths, shapes, n: int):
         return best, arg
 
     coarse = np.arange(lo, hi + 0.5 * COARSE_STEP, COARSE_STEP)
+    if coarse.size == 0:
+        # no position to search (the ring of samples no longer holds the trigger's side of
+        # the window): not located, as the C twin's empty grid
+        return NAN, NAN
     bc, Lc = best_on(coarse, lengths)
     i = int(np.argmin(bc))
     ratio = lengths[1] / lengths[0]

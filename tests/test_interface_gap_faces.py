@@ -78,3 +78,16 @@ def test_c_fit_agrees_on_end_levels_by_travel():
     x, F = _feed_change_window(6)
     x_loc, _ = _assert_same_fit("interface", x, F, 0.0, 1.5 * MM)
     assert 1.9 * MM - 0.01 * MM <= x_loc <= 2.6 * MM + 0.01 * MM
+
+
+def test_a_trigger_before_the_windows_samples_is_not_located():
+    """A window whose samples all lie past the trigger (the detector's ring of samples no
+    longer holds the trigger's side: a long window after it at a fast feed) leaves no face
+    to search: NaN in Python as in the C fit, never an exception in the detector's step."""
+    import math
+
+    from test_export_detector import _assert_same_fit
+    x, F = np.linspace(2.0 * MM, 2.5 * MM, 300), np.full(300, 80.0)     # on a cut level, no onset
+    for kind in ("interface", "entry"):
+        x_loc, dx = _assert_same_fit(kind, x, F, 0.0, 1.9 * MM)
+        assert math.isnan(x_loc) and math.isnan(dx)
