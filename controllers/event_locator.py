@@ -405,7 +405,7 @@ def _onset_from(x, F, gap, mid: float) -> float:
     upper layer (Al, 10-40 N) leaves the run with its push-out's tail below AIR_SHARE and no
     flat air: the run's second half held a few samples before the harder layer's rise, the
     ramp's level was fitted below air on them and the onset placed early (wide draw,
-    foreign2 holes 184, 172: -0.062, -0.054 mm; replayed from the start: -0.012, -0.018).
+    foreign2 holes 184, 172: -0.062, -0.054 mm; from the start, closed loop: -0.012, -0.018).
     After a large drop (a hard upper layer) the run's first half holds the observer's
     ringing at the orbit, which the level must not see (replayed from the start: foreign
     hole 132 -0.039 -> -0.063 mm, project hole 185 +0.045 -> +0.065 mm)."""
