@@ -387,6 +387,7 @@ def _gap_faces(x, F, gap, air, open_end: bool = False):
     up, down = x <= mid, x >= mid
     if up.sum() < 2 * MIN_SEGMENT or down.sum() < 2 * MIN_SEGMENT:
         return NAN, NAN
+    down = x >= _onset_from(x, F, gap, mid)
     hi, dhi = (x1, 0.0) if open_end else onset_face(x[down], F[down], mid, x1)
     # the upper layer's fall is fitted up to the lower layer's onset, not only to the run's
     # middle: the run below AIR_SHARE of a soft upper layer (Al, 10-30 N) holds the tail of its
@@ -395,6 +396,21 @@ def _gap_faces(x, F, gap, air, open_end: bool = False):
     up = x <= hi
     lo, dlo = free_face(x[up], F[up], x0, hi, air)
     return 0.5 * (lo + hi), 0.5 * abs(hi - lo) + max(dlo, dhi)
+
+
+def _onset_from(x, F, gap, mid: float) -> float:
+    """First position [m] of the samples the lower layer's onset is fitted on (its level and
+    trend before the ramp): the air run's start when the lower layer cuts higher than the
+    upper one (the last fifth's median above the first's), else the run's middle. A soft
+    upper layer (Al, 10-40 N) leaves the run with its push-out's tail below AIR_SHARE and no
+    flat air: the run's second half held a few samples before the harder layer's rise, the
+    ramp's level was fitted below air on them and the onset placed early (wide draw,
+    foreign2 holes 184, 172: -0.062, -0.054 mm; from the start, closed loop: -0.012, -0.018).
+    After a large drop (a hard upper layer) the run's first half holds the observer's
+    ringing at the orbit, which the level must not see (replayed from the start: foreign
+    hole 132 -0.039 -> -0.063 mm, project hole 185 +0.045 -> +0.065 mm)."""
+    k0, k1 = _end_counts(x)
+    return float(x[gap[0]]) if float(np.median(F[-k1:])) > float(np.median(F[:k0])) else mid
 
 
 def time_at(t, x, x_loc: float) -> float:
