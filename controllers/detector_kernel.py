@@ -26,7 +26,7 @@ import numpy as np
 
 from drillcosim.controllers.event_locator import ENTRY_SHAPES, EXIT_SHAPES
 from drillcosim.controllers.kernels import HERE, build, library
-from drillcosim.cosim.loop.native import NativeUnavailable, lib_path
+from drillcosim.cosim.loop.native import NativeUnavailable
 
 _D = ctypes.c_double
 # ILP64 ddot (64-bit n and strides) of the BLAS numpy wheels ship (scipy-openblas64) and of
@@ -119,11 +119,8 @@ def _source(name: str) -> Path:
 @lru_cache(maxsize=None)
 def export_library() -> ctypes.CDLL:
     """The self-contained build, loaded here (for its checks and tests), rebuilt when any of
-    the files it includes is newer than it."""
-    lib = lib_path(_source(EXPORT_NAME + ".c"))
-    newest = max(_source(n).stat().st_mtime_ns for n in EXPORT_SOURCES)
-    stale = not lib.exists() or lib.stat().st_mtime_ns < newest
-    return ctypes.CDLL(str(build(EXPORT_NAME, force=stale)))
+    the files it includes is newer than it (cosim.loop.native.build)."""
+    return ctypes.CDLL(str(build(EXPORT_NAME)))
 
 
 def export_available() -> bool:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import ctypes
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -50,15 +51,33 @@ def compile_shared(src: Path, out: Path, flags=(), includes=(), what: str | None
         raise NativeUnavailable(f"{what}: compiling failed:\n{' '.join(cmd)}\n{res.stderr}")
 
 
+_LOCAL_INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.MULTILINE)
+
+
+def _included(src: Path, seen: set | None = None) -> list[Path]:
+    """``src`` and every file it includes by ``#include "..."`` (beside it), recursively: a C
+    file that includes another one is stale when that one changed too (a source edited
+    alone left its includer's library as it was)."""
+    seen = set() if seen is None else seen
+    if src in seen or not src.exists():
+        return []
+    seen.add(src)
+    out = [src]
+    for name in _LOCAL_INCLUDE.findall(src.read_text(errors="replace")):
+        out += _included(src.parent / name, seen)
+    return out
+
+
 def build(src: Path, force: bool = False, verbose: bool = False) -> Path:
     """Compile ``src`` into ``build/lib<stem>.so`` beside it when stale (atomically:
     concurrent builds of campaign workers each write a temporary file and rename it).
-    Headers next to ``src`` count as its sources."""
+    Headers next to ``src`` and the files it includes by ``#include "..."`` count as its
+    sources."""
     src = Path(src)
     lib = lib_path(src)
     if not src.exists():
         raise NativeUnavailable(f"C source {src} does not exist")
-    newest = max(p.stat().st_mtime_ns for p in [src, *src.parent.glob("*.h")])
+    newest = max(p.stat().st_mtime_ns for p in [*_included(src), *src.parent.glob("*.h")])
     if not force and lib.exists() and lib.stat().st_mtime_ns >= newest:
         return lib
     lib.parent.mkdir(exist_ok=True)
