@@ -51,25 +51,27 @@ GHOST_SNR = 20.0          # the exit's fall over its plateau's scatter above whi
 AIR_SHARE = 0.5           # a level below this share of its neighbours' plateaus (above air) is air (a gap)
 
 
-def _end_counts(x) -> tuple[int, int]:
-    """Samples in the first and in the last fifth of the window's travel (at least
-    MIN_SEGMENT each). By travel, not by count: the feed changes at the trigger (the lower
-    layer's process), and a window reaching the push-out and a gap past a slow Al layer into a
-    fast Ti one held more samples per mm of Ti, so its first fifth by count reached into the
-    gap and no cut level was left above it (wide draw, foreign2 hole 132: -0.57 mm)."""
+def _end_levels(x, F) -> tuple[float, float]:
+    """The window's two cut levels [N]: the medians of F over the first and over the last
+    fifth of the window's travel (at least MIN_SEGMENT samples each). By travel, not by
+    count: the feed changes at the trigger (the lower layer's process), and a window reaching
+    the push-out and a gap past a slow Al layer into a fast Ti one held more samples per mm of
+    Ti, so its first fifth by count reached into the gap and no cut level was left above it
+    (wide draw, foreign2 hole 132: -0.57 mm)."""
     span = 0.2 * (x[-1] - x[0])
-    return (max(MIN_SEGMENT, int(np.count_nonzero(x <= x[0] + span))),
-            max(MIN_SEGMENT, int(np.count_nonzero(x >= x[-1] - span))))
+    k0 = max(MIN_SEGMENT, int(np.count_nonzero(x <= x[0] + span)))
+    k1 = max(MIN_SEGMENT, int(np.count_nonzero(x >= x[-1] - span)))
+    return float(np.median(F[:k0])), float(np.median(F[-k1:]))
 
 
 def air_run(x, F, air: float) -> tuple[int, int] | None:
     """(first, last + 1) sample of the longest run at the air level between two cut
     levels (a gap between two layers), or None. The levels are the medians of the first
-    and the last fifth of the window's travel (:func:`_end_counts`); a sample is at the air
+    and the last fifth of the window's travel (:func:`_end_levels`); a sample is at the air
     level below AIR_SHARE of the lower of them, and the run must hold 2 MIN_SEGMENT samples
     with its median below half of that (a low cut level, Al after CFRP, is not air)."""
-    k0, k1 = _end_counts(x)
-    low = AIR_SHARE * min(float(np.median(F[:k0])) - air, float(np.median(F[-k1:])) - air)
+    first, last = _end_levels(x, F)
+    low = AIR_SHARE * min(first - air, last - air)
     if not low > 0:
         return None
     below = np.concatenate(([False], F - air < low, [False]))
@@ -409,8 +411,8 @@ def _onset_from(x, F, gap, mid: float) -> float:
     After a large drop (a hard upper layer) the run's first half holds the observer's
     ringing at the orbit, which the level must not see (replayed from the start: foreign
     hole 132 -0.039 -> -0.063 mm, project hole 185 +0.045 -> +0.065 mm)."""
-    k0, k1 = _end_counts(x)
-    return float(x[gap[0]]) if float(np.median(F[-k1:])) > float(np.median(F[:k0])) else mid
+    first, last = _end_levels(x, F)
+    return float(x[gap[0]]) if last > first else mid
 
 
 def time_at(t, x, x_loc: float) -> float:

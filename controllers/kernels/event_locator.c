@@ -410,27 +410,29 @@ static void loc_best_face(const LocFit *f, double lo, double hi, double *face, d
     free(pc);
 }
 
-/* the samples in the first and the last fifth of the window's travel, at least MIN_SEGMENT
- * each (event_locator._end_counts) */
-static void loc_end_counts(const double *x, long n, long *k0, long *k1)
+/* the medians of F over the first and the last fifth of the window's travel, at least
+ * MIN_SEGMENT samples each (event_locator._end_levels) */
+static void loc_end_levels(const double *x, const double *F, long n, double *scratch, double *first, double *last)
 {
     double span = 0.2 * (x[n - 1] - x[0]);
-    *k0 = *k1 = 0;
+    long k0 = 0, k1 = 0;
     for (long i = 0; i < n; i++) {
-        *k0 += x[i] <= x[0] + span;
-        *k1 += x[i] >= x[n - 1] - span;
+        k0 += x[i] <= x[0] + span;
+        k1 += x[i] >= x[n - 1] - span;
     }
-    *k0 = LOC_PYMAX((long)LOC_MIN_SEGMENT, *k0);
-    *k1 = LOC_PYMAX((long)LOC_MIN_SEGMENT, *k1);
+    k0 = LOC_PYMAX((long)LOC_MIN_SEGMENT, k0);
+    k1 = LOC_PYMAX((long)LOC_MIN_SEGMENT, k1);
+    *first = loc_median(F, k0, scratch);
+    *last = loc_median(F + n - k1, k1, scratch);
 }
 
 /* air_run: [i0, i1) of the longest run at the air level between two cut levels, or 0; the
- * levels over the first and the last fifth of the window's travel (loc_end_counts) */
+ * levels over the first and the last fifth of the window's travel (loc_end_levels) */
 static int loc_air_run(const double *x, const double *F, long n, double air, double *scratch, long *i0, long *i1)
 {
-    long k0, k1;
-    loc_end_counts(x, n, &k0, &k1);
-    double low = LOC_AIR_SHARE * LOC_PYMIN(loc_median(F, k0, scratch) - air, loc_median(F + n - k1, k1, scratch) - air);
+    double first, last;
+    loc_end_levels(x, F, n, scratch, &first, &last);
+    double low = LOC_AIR_SHARE * LOC_PYMIN(first - air, last - air);
     if (!(low > 0.0))
         return 0;
     long best = 0, start = -1;
@@ -507,9 +509,9 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
     if (n_up >= 2 * LOC_MIN_SEGMENT && n_down >= 2 * LOC_MIN_SEGMENT) {
         /* the lower layer's level from the air run's start when it cuts higher than the upper
            one (event_locator._onset_from) */
-        long k0, k1;
-        loc_end_counts(x, n, &k0, &k1);
-        if (loc_median(F + n - k1, k1, scratch) > loc_median(F, k0, scratch))
+        double first, last;
+        loc_end_levels(x, F, n, scratch, &first, &last);
+        if (last > first)
             n_down = loc_select(x, F, n, x[g0], INFINITY, xd, Fd);
         LocFit down = {xd, Fd, n_down, 0, NAN, engage};
         double lo, dlo, hi, dhi;
