@@ -100,16 +100,12 @@ class HolePlan:
         # engaged edge grows linearly with depth), "smoothstep" (a rounded edge) or "any" (either,
         # fitted); the wrong one, or "any" on a linear point, puts the entries 0.02-0.08 mm off
         # (docs/stacks.md); a plan that gives the point's length gives a point, the default then
-        self.entry_shape = hole.get("entry_shape", "linear" if self.engagement > 0.0 else "any")
-        if self.entry_shape not in ENTRY_SHAPES:
-            raise self.error("hole.entry_shape", f"expected one of {', '.join(ENTRY_SHAPES)}, got {self.entry_shape!r}")
+        self.entry_shape = self._choice(hole, "entry_shape", ENTRY_SHAPES, "linear" if self.engagement > 0.0 else "any")
         # the last layer's push-out law (InterfaceDetector exit_shape): "linear" (a plate thinning
         # out), "quadratic" (ligament yield), "bending" (the 1.5th power) or "any" (linear or
         # quadratic, fitted); left to the fit, foreign2's r^1.5 exits were located +0.05 mm late
         # and foreign exits taken as linear up to 0.17 mm early (re-run wide-draw holes, round 9)
-        self.exit_shape = hole.get("exit_shape", "any")
-        if self.exit_shape not in EXIT_SHAPES:
-            raise self.error("hole.exit_shape", f"expected one of {', '.join(EXIT_SHAPES)}, got {self.exit_shape!r}")
+        self.exit_shape = self._choice(hole, "exit_shape", EXIT_SHAPES, "any")
         self.harmonics = self._harmonics(hole)
         # the exit's fit on orbit means (InterfaceDetector exit_orbit_period): off by default,
         # its wide-draw measurement is mixed (docs/stacks_history.md, "Exit (first pass)")
@@ -127,6 +123,13 @@ class HolePlan:
         self.process = self._process(hole.get("process"))
 
     # ------------------------------------------------------------------ checks
+    def _choice(self, d, key, choices, default, where="hole"):
+        """d[key], one of ``choices`` (default when absent); else an error naming the key."""
+        v = d.get(key, default)
+        if v not in choices:
+            raise self.error(f"{where}.{key}", f"expected one of {', '.join(choices)}, got {v!r}")
+        return v
+
     def _number(self, d, key, default=None, *, required=False, positive=False, minimum=None, where="hole"):
         if key not in d:
             if required:
