@@ -504,12 +504,10 @@ class InterfaceDetector(KernelBlock, Block):
         mismatch_factor: float = 0.0,
         restart: bool = False,
         interface_loc_after: Sequence[float] | None = None,
-        exit_orbit_period: float = 0.0,
-        exit_loc_after: float | None = None,
+        exit_orbit_period: float = 0.0, exit_loc_after: float | None = None, exit_compliance: float = 0.0,
         exit_orbit_arm: float = 0.0,
         interface_orbit_arm: Sequence[float] | None = None,
         exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0, exit_shape: str = "any",
-        exit_compliance: float = 0.0,
     ):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
@@ -539,8 +537,8 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_entry_ramp(entry_ramp, entry_span, entry_orbit_period, entry_shape)
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
         self._set_loc_after(interface_loc_after)
-        self._set_exit_loc(exit_orbit_period, exit_loc_after, exit_ripple_period, observer_forgetting, exit_shape)
-        self._set_exit_compliance(exit_compliance)
+        self._set_exit_loc(exit_orbit_period, exit_loc_after, exit_ripple_period, observer_forgetting,
+                           exit_shape, exit_compliance)
         self._set_exit_arm(exit_orbit_arm)
         self._set_interface_arm(interface_orbit_arm)
         self.windows = self._windows()
@@ -650,12 +648,15 @@ class InterfaceDetector(KernelBlock, Block):
         foreign / foreign2 holes 13 and 38: 0.44-0.68 mm early, docs/stacks.md)."""
         return self.max_gap + self.push_out + self.locate_margin
 
-    def _set_exit_loc(self, orbit_period, loc_after, ripple_period=0.0, forgetting=0.0, exit_shape="any") -> None:
+    def _set_exit_loc(self, orbit_period, loc_after, ripple_period=0.0, forgetting=0.0, exit_shape="any",
+                      compliance=0.0) -> None:
         """The exit's fit on orbit means (period [s], 0: none), its window after the
-        trigger [m] (default locate_margin), its ghost (:meth:`_set_exit_ghost`) and its
-        push-out law (:meth:`_set_exit_shape`), checked."""
+        trigger [m] (default locate_margin), its ghost (:meth:`_set_exit_ghost`), its
+        push-out law (:meth:`_set_exit_shape`) and the drive's compliance
+        (:meth:`_set_exit_compliance`), checked."""
         self._set_exit_ghost(ripple_period, forgetting)
         self._set_exit_shape(exit_shape)
+        self._set_exit_compliance(compliance)
         _check_seconds("exit_orbit_period", orbit_period, "the last layer's orbit period; 0: none")
         self.exit_orbit_period = float(orbit_period)
         self.exit_after = self.locate_margin if loc_after is None else float(loc_after)
