@@ -298,6 +298,11 @@ def test_the_exit_fit_takes_the_drives_compliance_out(F0, early_mm):
 
 
 def test_the_plans_exit_compliance_reaches_the_detector_and_bad_ones_are_named():
+    """hole.exit_compliance: the foreign drive's plan gives 1 / its 20 N/um contact; the
+    project's (and so every plan extending cfrp_ti.toml without its own) is rigid."""
+    stacks = Path(__file__).resolve().parents[1] / "scenarios" / "stacks"
+    for name, compliance in (("cfrp_ti", 0.0), ("foreign_cfrp_ti", 1.0 / K_CONTACT)):
+        assert load_scenario(stacks / f"{name}.toml").system.blocks["detector"].exit_compliance == compliance
     hole = {"surface": 1e-3, "layers": [{"material": "ti", "thickness": 4e-3, "tolerance": 0.5e-3}],
             "process": {"ti": {"feed_rate": 2e-4, "spindle_speed": 1000.0, "orbital_speed": 60.0}}}
 
