@@ -43,7 +43,7 @@ OBSERVER_SETTLE_ORBITS = 6.0
 HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "approach", "breakthrough",
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
              "match_tolerance", "locate_margin", "push_out", "orbital_harmonics", "exit_orbit_mean", "engagement",
-             "entry_shape", "exit_shape"}
+             "entry_shape", "exit_shape", "exit_compliance"}
 # Localisation (controllers/event_locator.py): travel on either side of an event that holds its
 # change and a stretch of level (engagement up to ~0.35 mm on the drives measured, and the
 # trigger up to ~0.1 mm into it: with 0.3 mm, Ti entries with a 0.22 mm engagement were
@@ -106,6 +106,11 @@ class HolePlan:
         # quadratic, fitted); left to the fit, foreign2's r^1.5 exits were located +0.05 mm late
         # and foreign exits taken as linear up to 0.17 mm early (re-run wide-draw holes, round 9)
         self.exit_shape = self._choice(hole, "exit_shape", EXIT_SHAPES, "any")
+        # the drive's compliance between the encoder and the cutting front [m/N] (frame, spindle,
+        # tool/workpiece contact; InterfaceDetector exit_compliance): the exit's fit takes the
+        # front's lag out; 0 (default) is rigid, where the foreign drive's 20 N/um contact put
+        # its Ti exits 0.018 mm early on average (docs/stacks.md, "Localisation")
+        self.exit_compliance = self._number(hole, "exit_compliance", 0.0, minimum=0.0)
         self.harmonics = self._harmonics(hole)
         # the exit's fit on orbit means (InterfaceDetector exit_orbit_period): off by default,
         # its wide-draw measurement is mixed (docs/stacks_history.md, "Exit (first pass)")
@@ -370,6 +375,7 @@ class HolePlan:
             "entry_orbit_period": self.orbit_period(0),
             "entry_shape": self.entry_shape,
             "exit_shape": self.exit_shape,
+            "exit_compliance": self.exit_compliance,
             # the exit's thinning test also runs on means over one orbit of the last layer: a
             # thin last layer under the observer's ringing after a Ti -> Al drop has no quiet
             # F~ to arm on (issue 23, round 2: missed exits of the wide draw)

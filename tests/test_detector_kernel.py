@@ -135,6 +135,9 @@ CASES = {
     # issue 23 round 9: the plan's push-out law for the exit's fit (the exported FMU's C fit too)
     "plan_bending_exit": (dict(PLAN, exit_shape="bending"),
                           dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.0, 0.0))),
+    # issue 23 round 11: the exit's fit in the cutting front's positions (a compliant drive)
+    "plan_compliant_exit": (dict(PLAN, exit_compliance=2e-7),
+                            dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.0, 0.0))),
     "four_layers": (dict(thicknesses=(2 * MM, 2 * MM, 2 * MM, 2 * MM), thd2=30.0, N=60, N_min=10, rearm_samples=40),
                     dict(levels=(120.0, 300.0, 150.0, 350.0), thick_mm=(2.0, 2.0, 2.0, 2.0), gaps_mm=(0, 0, 0, 0),
                          engage_mm=0.02, thinning_mm=0.05)),

@@ -110,7 +110,7 @@ BUILTIN_UNITS: dict[str, UnitDef] = {u.name: u for u in [
     _u("deg/s", _PI / 180, s=-1, rad=1),
     _u("Hz", s=-1), _u("1/s", s=-1), _u("rad/s2", s=-2, rad=1),
     _u("kg.m2", kg=1, m=2), _u("kg*m^2", kg=1, m=2),
-    _u("N.s/m", kg=1, s=-1), _u("N/m", kg=1, s=-2), _u("N/(m/rev)", kg=1, s=-2, rad=1),
+    _u("N.s/m", kg=1, s=-1), _u("N/m", kg=1, s=-2), _u("N/(m/rev)", kg=1, s=-2, rad=1), _u("m/N", kg=-1, s=2),
     _u("m/rad", m=1, rad=-1), _u("mm/rad", 1e-3, m=1, rad=-1),
 ]}
 
