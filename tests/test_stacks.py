@@ -78,6 +78,26 @@ def test_plan_derived_key_written_elsewhere_is_an_error():
     assert e.value.key == "blocks.trajectory.settings.z_end" and "derived from [hole]" in e.value.detail
 
 
+@pytest.mark.parametrize("approach, wait", [
+    (0.9e-3, 3.0 - 0.4e-3 / 2.0e-4),     # 0.4 mm of air above the entry window at 0.2 mm/s: 2 s, wait 1 s
+    (0.5e-3, 3.0),                       # the window opens at once: the whole settling time
+    (1.0e-3, 0.5),                       # the default's own choice on this plan (below)
+])
+def test_a_plans_own_approach_waits_for_the_observer_to_settle(approach, wait):
+    # fed at once from its approach, a wide-draw aluminium entry (project hole 116, 1 mm at
+    # 0.8 Hz) met the observer's start-up ringing and was missed; the wait is the default's
+    sc = load_scenario(STACKS / "cfrp_ti_cfrp.toml", overrides={"hole.approach": approach})
+    traj = sc.raw["blocks"]["trajectory"]["settings"]
+    assert traj["z_approach_end"] == pytest.approx(1e-3 - approach, abs=1e-12)
+    assert traj["t_start"] == pytest.approx(wait)
+
+
+def test_a_plans_approach_long_enough_does_not_wait():
+    # 0.7 mm of air above the entry window at 0.2 mm/s: 3.5 s, more than the 3 s (6 orbits) it needs
+    sc = load_scenario(STACKS / "cfrp_ti_cfrp.toml", overrides={"hole.approach": 1.2e-3, "hole.surface": 2.0e-3})
+    assert "t_start" not in sc.raw["blocks"]["trajectory"]["settings"]
+
+
 def test_plan_derives_trajectory_detector_adaptation_stop_time():
     sc = load_scenario(STACKS / "cfrp_ti_cfrp.toml")
     b = sc.raw["blocks"]
