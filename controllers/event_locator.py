@@ -390,9 +390,10 @@ def _ghost_drop(x, F, ghost) -> bool:
     window). The observer's ripple estimate lags the drop and rings at the orbit for
     seconds, +-40-80 N about an Al or CFRP level of 10-30 N and 0.3 mm of travel an orbit:
     a trough of it was taken for the gap and the lower layer's onset placed in the ringing
-    (wide draw, project holes 199, 182, 185, 3: +0.127, +0.050, +0.049, -0.044 mm). The
+    (wide draw, project holes 199, 182, 185, 3: +0.127, +0.050, +0.049, -0.044 mm; now, closed
+    loop: 0, -0.023, -0.009, 0; docs/stacks.md, "Localisation"). The
     upper layer's free face fitted with the ghost (:func:`_ghost_columns`) over the whole
-    window ends in the gap or at its upper face (replayed: within -0.020..+0.016 mm on 16
+    window ends in the gap or at its upper face (replayed: within -0.020..+0.016 mm on 14
     slow-orbit drops of the project's drive), and any position in the gap is exact."""
     first, last = _end_levels(x, F)
     return IF_GHOST_ORBIT <= ghost[0] <= x.size and 0.0 <= ghost[1] < 1.0 and last < first

@@ -684,9 +684,10 @@ class InterfaceDetector(KernelBlock, Block):
         """Interface k's fit with the observer's ripple error (event_locator._ghost_drop): the
         lower layer's orbit [samples] (if_P, the last layer's: the exit's) and the exit's decay
         per sample; None without an exit ghost, an orbit for that layer, or on a drive whose
-        push-out is not linear (``exit_shape``): the quadratic and the bending laws' soft tails
-        left the fitted free face 0.04-0.19 mm above the gap on 10 of the foreign drive's
-        slow-orbit drops that the gap's two faces locate within 0.03 mm (replayed)."""
+        push-out is not linear (``exit_shape``): on the slow-orbit drops of 16 good holes that
+        the gap's two faces locate within 0.03 mm, the fitted free face was 0.035-0.19 mm above
+        the gap on all 10 of the foreign drive's (quadratic law, soft tails) and beyond 0.03 mm
+        on 7 of 10 of the foreign2 drive's (bending law; replayed)."""
         ghost = self._exit_ghost()
         if ghost is None or self.exit_shape != "linear":
             return None
