@@ -106,7 +106,8 @@ def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
             det.step(ti, [Fi, xi])
     kinds = {c[0] for c in calls}
     assert len(calls) >= 15 and kinds == {"entry", "interface", "exit"}
-    assert {c[-1] for c in calls} == {"any", "bending"}
+    assert {c[-1] for c in calls} == {"any", "bending", "linear"}
+    assert any(c[0] == "interface" and c[7] is not None for c in calls)    # a drop's ghost (plan_slow_drops_ghost)
     for kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape in calls:
         _assert_same_fit(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape)
 
