@@ -49,6 +49,9 @@ MIN_SEGMENT = 3           # samples: a line through fewer points has no residual
 FIXED_EXIT_AIR = False
 GHOST_SNR = 20.0          # the exit's fall over its plateau's scatter above which the observer's ghost is fitted
 AIR_SHARE = 0.5           # a level below this share of its neighbours' plateaus (above air) is air (a gap)
+# an interface's drop at an orbit of at least this many samples (0.8 s at the detector's 0.02 s) is
+# located at the upper layer's free face fitted with the observer's ghost (:func:`_ghost_drop`)
+IF_GHOST_ORBIT = 40.0
 
 
 def _end_levels(x, F) -> tuple[float, float]:
@@ -341,6 +344,7 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     ``ghost`` (orbit [samples], decay of the observer's ripple estimate [per sample]): the
     exit's fit on the samples takes out the observer's ripple error (:func:`free_face`; None,
     a window shorter than one orbit, or one that shows no ghost, :func:`_ghost_visible`:
+    none); an interface's: the lower layer's orbit and the same decay (:func:`_ghost_drop`; None:
     none); ``exit_shape``: the exit's push-out law, one of EXIT_SHAPES. An entry's ramp rises;
     an interface's may have either sign. (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
@@ -368,6 +372,8 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
         if ghost is not None and not (1.0 < ghost[0] <= x.size and 0.0 <= ghost[1] < 1.0 and _ghost_visible(F)):
             ghost = None
         return free_face(x, F, x0, x1, air if FIXED_EXIT_AIR else None, period, ghost, EXIT_SHAPES[exit_shape])
+    if ghost is not None and _ghost_drop(x, F, ghost):
+        return free_face(x, F, x0, x1, None, None, ghost)
     gap = air_run(x, F, air)
     if gap is None:
         gap = floor_gap(F, cut_floor)
@@ -375,6 +381,22 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
             return _gap_faces(x, F, gap, None, open_end=x.size - gap[1] < 2 * MIN_SEGMENT)
         return onset_face(x, F, x0, min(xt, x1))
     return _gap_faces(x, F, gap, air)
+
+
+def _ghost_drop(x, F, ghost) -> bool:
+    """Whether an interface's window is a drop onto a lower cut level (the last fifth's
+    median below the first's, :func:`_end_levels`) at a slow orbit (``ghost`` = (orbit
+    [samples], decay per sample), the orbit at least IF_GHOST_ORBIT samples and within the
+    window). The observer's ripple estimate lags the drop and rings at the orbit for
+    seconds, +-40-80 N about an Al or CFRP level of 10-30 N and 0.3 mm of travel an orbit:
+    a trough of it was taken for the gap and the lower layer's onset placed in the ringing
+    (wide draw, project holes 199, 182, 185, 3: +0.127, +0.050, +0.049, -0.044 mm; now, closed
+    loop: 0, -0.023, -0.009, 0; docs/stacks.md, "Localisation"). The
+    upper layer's free face fitted with the ghost (:func:`_ghost_columns`) over the whole
+    window ends in the gap or at its upper face (replayed: within -0.020..+0.016 mm on 14
+    slow-orbit drops of the project's drive), and any position in the gap is exact."""
+    first, last = _end_levels(x, F)
+    return IF_GHOST_ORBIT <= ghost[0] <= x.size and 0.0 <= ghost[1] < 1.0 and last < first
 
 
 def _gap_faces(x, F, gap, air, open_end: bool = False):

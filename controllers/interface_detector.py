@@ -705,6 +705,20 @@ class InterfaceDetector(KernelBlock, Block):
             return None
         return (self.exit_ripple_period / self.sample_period, math.exp(-self.observer_forgetting * self.sample_period))
 
+    def _interface_ghost(self, k: int) -> tuple[float, float] | None:
+        """Interface k's fit with the observer's ripple error (event_locator._ghost_drop): the
+        lower layer's orbit [samples] (if_P, the last layer's: the exit's) and the exit's decay
+        per sample; None without an exit ghost, an orbit for that layer, or on a drive whose
+        push-out is not linear (``exit_shape``): on the slow-orbit drops of 16 good holes that
+        the gap's two faces locate within 0.03 mm, the fitted free face was 0.035-0.19 mm above
+        the gap on all 10 of the foreign drive's (quadratic law, soft tails) and beyond 0.03 mm
+        on 7 of 10 of the foreign2 drive's (bending law; replayed)."""
+        ghost = self._exit_ghost()
+        if ghost is None or self.exit_shape != "linear":
+            return None
+        orbit = float(self.if_P[k]) if k < self.n - 1 else ghost[0]
+        return (orbit, ghost[1]) if orbit > 0.0 else None
+
     def _set_exit_arm(self, orbit) -> None:
         """The exit's thinning test on orbit means: ``orbit`` [s] the last layer's orbit
         period in samples (exit_P, 0: off), checked."""
@@ -1179,7 +1193,8 @@ class InterfaceDetector(KernelBlock, Block):
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_fit = self._exit_positions(xs[sel], hF[sel], air) if kind == "exit" else xs[sel]
         x_loc, dx = locate(kind, x_fit, hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period,
-                           entry_shape=self.entry_shape, ghost=self._exit_ghost() if kind == "exit" else None,
+                           entry_shape=self.entry_shape,
+                           ghost=self._exit_ghost() if kind == "exit" else self._interface_ghost(k) if k else None,
                            exit_shape=self.exit_shape)
         F_air = F_air_sd = NAN
         if k == 0 and math.isfinite(x_loc):

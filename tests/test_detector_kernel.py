@@ -138,6 +138,12 @@ CASES = {
     # issue 23 round 11: the exit's fit in the cutting front's positions (a compliant drive)
     "plan_compliant_exit": (dict(PLAN, exit_compliance=2e-7),
                             dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.0, 0.0))),
+    # issue 23 round 11: two drops at a slow orbit (1.3 s = 65 samples) on a linear push-out drive:
+    # the interfaces' fit with the observer's ghost (the lower layer's orbit: interface_orbit_arm,
+    # the last layer's: the exit's), in Python, the C step and the exported FMU's C fit
+    "plan_slow_drops_ghost": (dict(PLAN, kc=[4.0e7, 1.5e7, 1.2e7], feed_per_rev=[4e-6, 5e-6, 5e-6], exit_shape="linear",
+                                   interface_orbit_arm=[1.3, 1.3], exit_ripple_period=1.3, observer_forgetting=0.5),
+                              dict(levels=(160.0, 75.0, 60.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.1, 0.0))),
     "four_layers": (dict(thicknesses=(2 * MM, 2 * MM, 2 * MM, 2 * MM), thd2=30.0, N=60, N_min=10, rearm_samples=40),
                     dict(levels=(120.0, 300.0, 150.0, 350.0), thick_mm=(2.0, 2.0, 2.0, 2.0), gaps_mm=(0, 0, 0, 0),
                          engage_mm=0.02, thinning_mm=0.05)),

@@ -28,6 +28,7 @@
 #define LOC_EXIT 2
 #define LOC_TWO_PI (2.0 * 3.141592653589793)   /* 2.0 * numpy.pi */
 #define LOC_GHOST_SNR 20.0        /* event_locator.GHOST_SNR */
+#define LOC_IF_GHOST_ORBIT 40.0   /* samples, event_locator.IF_GHOST_ORBIT */
 #define LOC_MAX_COLS 7             /* onset: level, trend, ramp, the orbit's sine and cosine and both times i / n;
                                       push-out: fall, its trend, air and four ghost columns */
 
@@ -496,6 +497,16 @@ static long loc_select(const double *x, const double *F, long n, double lo, doub
     return m;
 }
 
+/* event_locator._ghost_drop: an interface's window drops onto a lower cut level at an orbit
+ * (ghost[0] samples) of at least LOC_IF_GHOST_ORBIT within the window, decay ghost[1] in [0, 1) */
+static int loc_ghost_drop(const double *x, const double *F, long n, const double *ghost, double *scratch)
+{
+    double first, last;
+    loc_end_levels(x, F, n, scratch, &first, &last);
+    return LOC_IF_GHOST_ORBIT <= ghost[0] && ghost[0] <= (double)n && ghost[1] >= 0.0 && ghost[1] < 1.0 &&
+           last < first;
+}
+
 /* a gap: the upper layer's free face and the lower one's onset around the air run */
 static void loc_gap(const double *x, const double *F, long n, double air, long g0, long g1, int open_end,
                     const LocGrid *engage, const LocGrid *push, double *x_loc, double *dx)
@@ -554,7 +565,7 @@ static void loc_exit(LocFit *f, double period, double x0, double x1, double *x_l
  * interface window cut short to a thin layer below (event_locator.floor_gap); period
  * [samples]: the exit's fit on means over one orbit, the entry's fits the orbit's sinusoid
  * too (<= 1: none; locate's period); ghost: NULL, or the exit's {orbit [samples], decay per
- * sample} of locate's ghost */
+ * sample} of locate's ghost, or an interface's (the lower layer's orbit) */
 void event_locate(int kind, const double *x_in, const double *F_in, long n_in, double air, double x_trig,
                   double cut_floor, double period, const double *ghost, const LocGrid *engage, const LocGrid *push,
                   double *x_loc, double *dx)
@@ -586,7 +597,11 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
         exit_.ghost_orbit = ghost[0];
         exit_.ghost_decay = ghost[1];
     }
-    if (kind == LOC_EXIT)
+    if (kind == LOC_INTERFACE && ghost != NULL && loc_ghost_drop(x, F, n, ghost, scratch)) {
+        exit_.ghost_orbit = ghost[0];   /* the upper layer's free face with the observer's ghost */
+        exit_.ghost_decay = ghost[1];
+        loc_best_face(&exit_, x0, x1, x_loc, dx);
+    } else if (kind == LOC_EXIT)
         loc_exit(&exit_, period, x0, x1, x_loc, dx);
     else if (kind == LOC_INTERFACE && loc_air_run(x, F, n, air, scratch, &g0, &g1))
         loc_gap(x, F, n, air, g0, g1, 0, engage, push, x_loc, dx);

@@ -154,6 +154,17 @@ static void detector_air_level(double *F, long a, double period, double *out)
     out[1] = LOC_PYMIN(sd, noise + ring);
 }
 
+/* InterfaceDetector._interface_ghost: interface k's {lower layer's orbit [samples], the exit's
+ * decay} in ghost, or NULL (no exit ghost, no orbit, a push-out law other than linear: code 1) */
+static const double *interface_ghost(const DetectorFMU *s, int k, double *ghost)
+{
+    if (!(s->exit_ghost[0] > 0.0 && s->exit_ghost[1] > 0.0) || s->exit_shape != 1.0)
+        return NULL;
+    ghost[0] = k < (int)s->d.n - 1 ? s->d.if_P[k] : s->exit_ghost[0];
+    ghost[1] = s->exit_ghost[1];
+    return ghost[0] > 0.0 ? ghost : NULL;
+}
+
 /* InterfaceDetector._fit: out = x_loc [m], t_loc [s], dx [m], F_air [N], F_air_sd [N] */
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
@@ -187,7 +198,9 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0 && d->loc_after[k - 1] < d->max_gap + d->push_out + d->locate_margin
         ? air_offset(d) + LOC_PYMIN(d->floor[k - 1], d->floor[k]) : NAN;     /* over the air offset */
     double period = kind == LOC_EXIT ? s->exit_period : kind == LOC_ENTRY ? s->entry_period : 0.0;
-    event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, s->exit_ghost, &engage, &push, &out[0], &out[2]);
+    double if_ghost[2];
+    const double *ghost = kind == LOC_EXIT ? s->exit_ghost : kind == LOC_INTERFACE ? interface_ghost(s, k, if_ghost) : NULL;
+    event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, &out[0], &out[2]);
     if (k == 0 && isfinite(out[0])) {
         long a = 0;         /* the samples in air before the entry, in the window (with a span: from a margin of air) */
         double lo_air = d->entry_P != 0.0 ? LOC_PYMIN(lo, out[0] - 1.5 * d->locate_margin) : lo;
