@@ -208,3 +208,20 @@ def test_fang_observer_orbital_speed_input_matches_setting():
         yo = o.step(t, (*u, 120.0))
         yp = p.step(t, u)
     assert np.allclose(yo, yp, rtol=1e-6, atol=1e-9)
+
+
+def test_fang_observer_thrust_scaled_ripple_rings_less_after_a_thrust_drop():
+    """Issue 23: a Ti -> Al-like drop 500 -> 20 N at a slow 0.75 Hz orbit, the ripple 10 % of
+    the thrust (as the plants'). Fang eq. 8's theta must shrink from 50 to 2 N of ripple with
+    1/lambda = 2 s and the DC estimate rings at the orbit meanwhile: measured +-42.9 N over
+    the 1.5 s after the drop, +-15.1 N over the next 1.5 s. With ``ripple_scaling = "thrust"``
+    theta holds the share of the thrust, which the drop does not change: +-11.1 and +-3.8 N
+    (the rest: the drop's own Kalman transient and the 10 mA current noise, +-4 N before the
+    drop too). The contact is eq. 8's own (the switch to the share comes 1/lambda after it;
+    scaled from the start it was +-180 against +-75 N, and the closed loop's entries were
+    located late). Bars with ~1.3x margin."""
+    base = dict(T=11.0, F_dc=500.0, ripple=0.1, f_orb=0.75, switch=(8.0, 20.0, 0.75))
+    off, on = _fang_run(**base), _fang_run(ripple_scaling="thrust", **base)
+    assert _dc_swing(on, 1.0, 2.5) == _dc_swing(off, 1.0, 2.5)
+    assert _dc_swing(on, 8.0, 9.5) < 15.0 < 0.4 * _dc_swing(off, 8.0, 9.5)
+    assert _dc_swing(on, 9.5, 11.0) < 5.0 < 0.4 * _dc_swing(off, 9.5, 11.0)

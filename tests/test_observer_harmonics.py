@@ -40,8 +40,22 @@ def _inputs(n: int):
 
 @pytest.mark.parametrize("harmonics", [2, 3, MAX_HARMONICS])
 def test_c_step_is_the_python_step(harmonics):
-    kw = dict(harmonics=harmonics, orbital_speed_input=True, tau_coulomb=0.05, D_viscous=0.01,
-              tau_ripple=[[6, 0.008, 0.0]])
+    _assert_c_step_is_python_step(harmonics=harmonics)
+
+
+@pytest.mark.parametrize("harmonics", [1, 2])
+def test_c_step_is_the_python_step_with_thrust_scaled_ripple(harmonics):
+    """ripple_scaling = "thrust": after 1/lambda above 3 floors (0.05 s here) theta, Y and
+    Gamma^-1 change to the share and the regressor is scaled by the previous sample's F_dc_hat
+    (~800 N on these inputs, 80x the floor), in C as in Python."""
+    c = _assert_c_step_is_python_step(harmonics=harmonics, ripple_scaling="thrust", forgetting=20.0)
+    assert c.c_kernel.state.switched == 1
+
+
+def _assert_c_step_is_python_step(**settings):
+    kw = dict(orbital_speed_input=True, tau_coulomb=0.05, D_viscous=0.01, tau_ripple=[[6, 0.008, 0.0]],
+              **settings)
+    harmonics = kw.get("harmonics", 1)
     c, p = AdaptiveThrustObserver(**kw), AdaptiveThrustObserver(kernel="python", **kw)
     assert c.c_kernel is not None and c.step == c.c_kernel.step and p.c_kernel is None
     amp = c.output_names().index("ripple_amplitude_hat")
@@ -55,6 +69,7 @@ def test_c_step_is_the_python_step(harmonics):
         assert np.asarray(c.theta_hat).tobytes() == np.asarray(p.theta_hat).tobytes()
         assert len(c.theta_hat) == 2 * harmonics
         assert np.array_equal(c.Gamma, p.Gamma)
+    return c
 
 
 def test_settings_are_checked():
@@ -66,6 +81,10 @@ def test_settings_are_checked():
     for bad in (-0.1, 1.0):
         with pytest.raises(ValueError, match="gain_restart"):
             AdaptiveThrustObserver(gain_restart=bad)
+    with pytest.raises(ValueError, match="ripple_scaling"):
+        AdaptiveThrustObserver(ripple_scaling="force")
+    with pytest.raises(ValueError, match="ripple_scale_floor"):
+        AdaptiveThrustObserver(ripple_scaling="thrust", ripple_scale_floor=0.0)
     # one (sine, cosine) pair of Gamma0 serves every harmonic
     assert np.allclose(np.diag(AdaptiveThrustObserver(harmonics=2, Gamma0=[100.0, 50.0]).Gamma),
                        [100.0, 50.0, 100.0, 50.0])

@@ -32,6 +32,11 @@ typedef struct {
     /* gain restart at a commanded orbit-speed change (_restart_gain): relative change, the
      * orbital frequency [Hz] Gamma was last rescaled for */
     double gain_restart, f_gain;
+    /* ripple regressor scaled by the previous sample's F_dc_hat [N] (_ripple_scale): on,
+     * samples above 3 floors before the switch, switched, samples above so far, floor [N],
+     * the previous F_dc_hat [N] */
+    int scale_thrust, n_switch, switched, n_above;
+    double scale_floor, F_prev;
 } FangObserver;
 
 static double friction(const FangObserver *o, double v)
@@ -104,7 +109,7 @@ static void sample(FangObserver *o, double t, const double *u, double *i_m_, dou
 
 /* the outputs at t (_outputs) from the updated state and the ripple torque tau_r */
 static void outputs(FangObserver *o, double xn1, double xn2, double theta, double th0, double th1,
-                    double tau_r, double *out)
+                    double tau_r, double rs, double *out)
 {
     double kf = o->kf, w_f, Ts = o->Ts;
     if (o->use_theta) {
@@ -119,14 +124,52 @@ static void outputs(FangObserver *o, double xn1, double xn2, double theta, doubl
     if (o->use_theta)
         tau_f += position_ripple(o, theta);
     double F_dc = kf * (xn2 - tau_f);
+    o->F_prev = F_dc;
     double F_r = kf * tau_r;
     out[0] = F_dc;
     out[1] = F_r;
     out[2] = xn2 + tau_r;
     out[3] = F_dc + F_r;
-    out[4] = kf * hypot(th0, th1);
+    out[4] = kf * rs * hypot(th0, th1);
     out[5] = atan2(th1, th0);
     out[6] = xn1;
+}
+
+/* eq. 8's ripple parameters -> the share at scale rs (_to_share) */
+static void to_share(FangObserver *o, double rs)
+{
+    int n = 2 * o->harmonics;
+    double q = rs * rs;
+    o->switched = 1;
+    for (int i = 0; i < 2; i++)
+        o->th[i] = o->th[i] / rs;
+    for (int i = 0; i < n; i++)
+        o->th_h[i] = o->th_h[i] / rs;
+    for (int i = 0; i < 6; i++)
+        o->Y[i] = o->Y[i] * rs;
+    for (int i = 0; i < 3 * n; i++)
+        o->Y_h[i] = o->Y_h[i] * rs;
+    for (int i = 0; i < 3; i++)
+        o->Si[i] = o->Si[i] * q;
+    for (int i = 0; i < n * n; i++)
+        o->Si_h[i] = o->Si_h[i] * q;
+}
+
+/* the factor on the ripple regressor (_ripple_scale): 1, or after 1/lambda above 3 floors
+ * max(F_prev, floor) / floor */
+static double ripple_scale(FangObserver *o)
+{
+    if (!o->scale_thrust)
+        return 1.0;
+    double fl = o->scale_floor, F = o->F_prev;
+    double rs = (F > fl ? F : fl) / fl;
+    if (o->switched)
+        return rs;
+    o->n_above = F > 3.0 * fl ? o->n_above + 1 : 0;
+    if (o->n_above < o->n_switch)
+        return 1.0;
+    to_share(o, rs);
+    return rs;
 }
 
 static void regressor(double phi, int harmonics, double *reg)
@@ -169,7 +212,10 @@ static void step_harmonics(FangObserver *o, double i_m, double y, double theta, 
     int n = 2 * o->harmonics;
     double Ts = o->Ts, reg[FANG_NH], z[FANG_NH], d[FANG_NH], Yn[3 * FANG_NH], xn[3];
     double phim = phi + PI * f_orb * Ts;
+    double rs = ripple_scale(o);
     regressor(phim, o->harmonics, reg);
+    for (int j = 0; j < n; j++)
+        reg[j] = rs * reg[j];
     double x0 = o->x[0], x1 = o->x[1], x2 = o->x[2];
     const double *Y = o->Y_h, *P = o->Phi, *G = o->Bg, *U = o->Bu, *B = o->By;
     double e = y - x0;
@@ -202,7 +248,7 @@ static void step_harmonics(FangObserver *o, double i_m, double y, double theta, 
     double tau_r = 0.0;
     for (int j = 0; j < n; j++)
         tau_r += o->th_h[j] * reg[j];
-    outputs(o, xn[1], xn[2], theta, o->th_h[0], o->th_h[1], tau_r, out);
+    outputs(o, xn[1], xn[2], theta, o->th_h[0], o->th_h[1], rs * tau_r, rs, out);
 }
 
 /* u: the block's inputs in port order (i_m, x[, theta][, orbital_speed]);
@@ -217,7 +263,8 @@ void fang_observer_step(FangObserver *o, double t, const double *u, double *out)
         return;
     }
     double phim = phi + PI * f_orb * Ts;
-    double sm = sin(phim), cm = cos(phim);
+    double rs = ripple_scale(o);
+    double sm = rs * sin(phim), cm = rs * cos(phim);
 
     double x0 = o->x[0], x1 = o->x[1], x2 = o->x[2];
     double th0 = o->th[0], th1 = o->th[1];
@@ -252,5 +299,5 @@ void fang_observer_step(FangObserver *o, double t, const double *u, double *out)
     o->Si[2] = a * s11 + b * n1 * n1;
 
     double s = sin(phi), c = cos(phi);
-    outputs(o, xn1, xn2, theta, th0, th1, th0 * s + th1 * c, out);
+    outputs(o, xn1, xn2, theta, th0, th1, rs * (th0 * s + th1 * c), rs, out);
 }
