@@ -417,10 +417,13 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         change. No orbit before or after (0): nothing to scale."""
         if self._f_gain > 0.0 and f_orb > 0.0:
             r = f_orb / self._f_gain
-            s = r * r
-            self._Si = [v * s for v in self._Si]
-            self._Si_h = [v * s for v in self._Si_h]
+            self._scale_gain_inverse(r * r)
         self._f_gain = f_orb
+
+    def _scale_gain_inverse(self, q: float) -> None:
+        """Gamma^-1, one harmonic's and H harmonics', times ``q``."""
+        self._Si = [v * q for v in self._Si]
+        self._Si_h = [v * q for v in self._Si_h]
 
     def _step_python_harmonics(self, t, u):
         """One sample with H > 1 orbital harmonics (Fang eq. 8 generalised: Psi(t) theta
@@ -543,9 +546,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._th_h = [v / rs for v in self._th_h]
         self._Y = [v * rs for v in self._Y]
         self._Y_h = [v * rs for v in self._Y_h]
-        q = rs * rs
-        self._Si = [v * q for v in self._Si]
-        self._Si_h = [v * q for v in self._Si_h]
+        self._scale_gain_inverse(rs * rs)
 
     def _outputs(self, xn, th0, th1, theta, phi, Ts, tau_r=None, rs=1.0):
         """The outputs at t (eq. 5-9) from the updated state ``xn`` and ripple parameters

@@ -58,17 +58,23 @@ static double position_ripple(const FangObserver *o, double p)
     return f;
 }
 
+/* Gamma^-1 (one harmonic's and H harmonics') times q (_scale_gain_inverse) */
+static void scale_gain_inverse(FangObserver *o, double q)
+{
+    int n = 2 * o->harmonics;
+    for (int i = 0; i < 3; i++)
+        o->Si[i] *= q;
+    for (int i = 0; i < n * n; i++)
+        o->Si_h[i] *= q;
+}
+
 /* Gamma^-1 rescaled to the new orbit's regressor at a commanded orbit-speed change
  * (_restart_gain): by (f_new / f_old)^2, when both are > 0 */
 static void restart_gain(FangObserver *o, double f_orb)
 {
     if (o->f_gain > 0.0 && f_orb > 0.0) {
-        int n = 2 * o->harmonics;
-        double r = f_orb / o->f_gain, s = r * r;
-        for (int i = 0; i < 3; i++)
-            o->Si[i] *= s;
-        for (int i = 0; i < n * n; i++)
-            o->Si_h[i] *= s;
+        double r = f_orb / o->f_gain;
+        scale_gain_inverse(o, r * r);
     }
     o->f_gain = f_orb;
 }
@@ -139,7 +145,6 @@ static void outputs(FangObserver *o, double xn1, double xn2, double theta, doubl
 static void to_share(FangObserver *o, double rs)
 {
     int n = 2 * o->harmonics;
-    double q = rs * rs;
     o->switched = 1;
     for (int i = 0; i < 2; i++)
         o->th[i] = o->th[i] / rs;
@@ -149,10 +154,7 @@ static void to_share(FangObserver *o, double rs)
         o->Y[i] = o->Y[i] * rs;
     for (int i = 0; i < 3 * n; i++)
         o->Y_h[i] = o->Y_h[i] * rs;
-    for (int i = 0; i < 3; i++)
-        o->Si[i] = o->Si[i] * q;
-    for (int i = 0; i < n * n; i++)
-        o->Si_h[i] = o->Si_h[i] * q;
+    scale_gain_inverse(o, rs * rs);
 }
 
 /* the factor on the ripple regressor (_ripple_scale): 1, or after 1/lambda above 3 floors
