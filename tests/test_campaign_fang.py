@@ -1,5 +1,5 @@
-"""Fang Tables 3 and 5 campaign (analysis/campaign_fang.py): calibration, the 4-hole
-CI variant (Table 5 bounds), and the full 24 holes (long)."""
+"""Fang Tables 3 and 5 campaign (analysis/campaign_fang.py): calibration, the 2-hole
+CI variant (Table 5 bounds on the sharpest and the most worn tool), and the full 24 holes (long)."""
 from __future__ import annotations
 
 import csv
@@ -84,9 +84,19 @@ def _check_campaign(summary, out: Path, n):
     assert set(js["events"]) == set(cf.EVENT_KEYS)
 
 
+def test_campaign_2_holes(tmp_path):
+    """CI variant: the campaign's two ends, hole 1 (sharp tool, no gap) and hole 24 (the
+    most worn tool, with a gap), in parallel on the machine's cores; the 4 holes of
+    ``--holes 4`` (1, 8, 17, 24) and all 24 run in the long suite."""
+    holes = cf.select_holes(2)
+    assert holes == [1, 24]
+    assert [p["gap_mm"] > 0 for p in cf.hole_plan(holes)] == [False, True]
+    summary = cf.run(holes, tmp_path, workers=None, progress=False)
+    _check_campaign(summary, tmp_path, 2)
+
+
+@pytest.mark.long
 def test_campaign_4_holes(tmp_path):
-    """CI variant: holes 1, 8, 17, 24 (sharp to worn tool, 8 and 24 with a gap), in
-    parallel on the machine's cores."""
     summary = cf.run(cf.select_holes(4), tmp_path, workers=None, progress=False)
     _check_campaign(summary, tmp_path, 4)
 
