@@ -79,7 +79,12 @@ def air_run(x, F, air: float) -> tuple[int, int] | None:
     its lowest sample below V_DIP_SHARE of it: a gap of 10-20 um between a Ti layer pushed out
     over 0.1 mm and a CFRP one engaging over 0.1 mm is crossed in a few samples, the run holds
     the two faces' feet and its median (60 N of 114) failed the test; the fit then took the
-    push-out's start for the interface (wide draw, project hole 70: -0.087 mm)."""
+    push-out's start for the interface (wide draw, project hole 70: -0.087 mm). A run to the
+    window's last sample has no cut level after it: None, the window ends in the gap (a window
+    shortened to a thin lower layer: :func:`floor_gap` takes it with its open end). Taken for
+    a closed gap, its middle bounded the lower onset's search with a few samples or none after
+    it (wide draw, foreign2 hole 127: a 0.25 mm Ti/CFRP gap not located; foreign hole 87:
+    -0.055 mm)."""
     first, last = _end_levels(x, F)
     low = AIR_SHARE * min(first - air, last - air)
     if not low > 0:
@@ -91,7 +96,7 @@ def air_run(x, F, air: float) -> tuple[int, int] | None:
         return None
     j = int(np.argmax(ends - starts))
     i0, i1 = int(starts[j]), int(ends[j])
-    if i1 - i0 < 2 * MIN_SEGMENT or not (np.median(F[i0:i1]) - air < 0.5 * low or
+    if i1 - i0 < 2 * MIN_SEGMENT or i1 == F.size or not (np.median(F[i0:i1]) - air < 0.5 * low or
                                          float(np.min(F[i0:i1])) - air < V_DIP_SHARE * low):
         return None
     return i0, i1

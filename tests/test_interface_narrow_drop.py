@@ -66,3 +66,22 @@ def test_c_fit_agrees_on_narrow_drops():
     for x, F, face, top in (_slow_soft_drop(seed=13), _v_dip(seed=14)):
         x_loc, _ = _assert_same_fit("interface", x, F, 0.0, face + 0.03 * MM)
         assert face - 0.021 * MM <= x_loc <= top + 0.021 * MM
+
+
+def test_a_window_ending_in_the_gap_is_located_in_it():
+    """The recorded window of wide-draw foreign2 hole 127's Ti/CFRP interface (a 0.25 mm gap;
+    the window shortened to the thin CFRP below ends in the gap). Its longest run at the air
+    level reaches the last sample: no cut level after it, so not a closed gap (air_run: None);
+    taken for one, its middle left 5 samples for the lower onset and the interface was not
+    located. As a gap the window does not close (event_locator.floor_gap, open end), the
+    located position lies between the gap's faces, in Python and in C."""
+    import json
+    from pathlib import Path
+
+    from test_export_detector import _assert_same_fit
+    w = json.loads((Path(__file__).parent / "data" / "interface_window_ti_cfrp_open_gap.json").read_text())
+    x, F = np.asarray(w["x_m"]), np.asarray(w["F_N"])
+    assert air_run(x, F, w["air_N"]) is None
+    x_loc, _ = _assert_same_fit("interface", x, F, w["air_N"], w["x_trig_m"], cut_floor=w["cut_floor_N"])
+    face, top = w["gap_faces_encoder_m"]
+    assert face <= x_loc <= top

@@ -452,7 +452,7 @@ static int loc_air_run(const double *x, const double *F, long n, double air, dou
             start = -1;
         }
     }
-    if (best == 0 || *i1 - *i0 < 2 * LOC_MIN_SEGMENT)
+    if (best == 0 || *i1 - *i0 < 2 * LOC_MIN_SEGMENT || *i1 == n)   /* a run to the window's end: no gap */
         return 0;
     double lowest = F[*i0];
     for (long i = *i0 + 1; i < *i1; i++)
