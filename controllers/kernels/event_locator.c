@@ -18,6 +18,7 @@
 
 #define LOC_MIN_SEGMENT 3          /* event_locator.MIN_SEGMENT */
 #define LOC_AIR_SHARE 0.5          /* event_locator.AIR_SHARE */
+#define LOC_V_DIP_SHARE 0.1        /* event_locator.V_DIP_SHARE */
 #define LOC_COARSE_STEP 10e-6      /* m, event_locator.COARSE_STEP */
 #define LOC_GRID_STEP 1e-6         /* m, event_locator.GRID_STEP */
 #define LOC_N_ENGAGE 25            /* len(event_locator.ENGAGE_LENGTHS) */
@@ -451,10 +452,13 @@ static int loc_air_run(const double *x, const double *F, long n, double air, dou
             start = -1;
         }
     }
-    if (best == 0 || *i1 - *i0 < 2 * LOC_MIN_SEGMENT
-            || !(loc_median(F + *i0, *i1 - *i0, scratch) - air < 0.5 * low))
+    if (best == 0 || *i1 - *i0 < 2 * LOC_MIN_SEGMENT || *i1 == n)   /* a run to the window's end: no gap */
         return 0;
-    return 1;
+    double lowest = F[*i0];
+    for (long i = *i0 + 1; i < *i1; i++)
+        lowest = LOC_PYMIN(lowest, F[i]);
+    /* the run's median below half the threshold, or a V: its lowest sample below V_DIP_SHARE of it */
+    return loc_median(F + *i0, *i1 - *i0, scratch) - air < 0.5 * low || lowest - air < LOC_V_DIP_SHARE * low;
 }
 
 /* floor_gap: [i0, i1) of the longest run below cut_floor [N] after a cut level (the first
@@ -519,18 +523,21 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
     long n_up = loc_select(x, F, n, -INFINITY, mid, xu, Fu), n_down = loc_select(x, F, n, mid, INFINITY, xd, Fd);
     if (n_up >= 2 * LOC_MIN_SEGMENT && n_down >= 2 * LOC_MIN_SEGMENT) {
         /* the lower layer's level from the air run's start when it cuts higher than the upper
-           one (event_locator._onset_from) */
-        double first, last;
+           one; a drop whose run ends 2 MIN_SEGMENT samples before the window: its onset
+           searched from there too (event_locator._onset_from) */
+        double first, last, lo_onset = mid;
         loc_end_levels(x, F, n, scratch, &first, &last);
-        if (last > first)
+        if (last > first || (last < first && g1 <= n - 2 * LOC_MIN_SEGMENT))
             n_down = loc_select(x, F, n, x[g0], INFINITY, xd, Fd);
+        if (last < first && g1 <= n - 2 * LOC_MIN_SEGMENT)
+            lo_onset = x[g0];
         LocFit down = {xd, Fd, n_down, 0, NAN, engage};
         double lo, dlo, hi, dhi;
         if (open_end) {                      /* the window ends in the gap: its last sample bounds it */
             hi = x[n - 1];
             dhi = 0.0;
         } else {
-            loc_best_face(&down, mid, x[n - 1], &hi, &dhi);
+            loc_best_face(&down, lo_onset, x[n - 1], &hi, &dhi);
         }
         /* the upper layer's fall up to the lower layer's onset (event_locator._gap_faces) */
         n_up = loc_select(x, F, n, -INFINITY, hi, xu, Fu);
