@@ -99,8 +99,8 @@ Implementation choices (the paper leaves them open)
   carries along instead of theta re-adapting for seconds while F_dc_hat rings at the orbit
   (:meth:`_ripple_scale`). Measured on a 500 -> 20 N drop at 0.75 Hz: +-42.9 -> +-11.1 N.
 * **Ripple held in air** (issue 23, off by default): ``ripple_adapt_from`` [N] > 0 holds theta
-  (its update zeroed; Y and Gamma^-1 run on) until F_dc_hat rises that far above its own air
-  mean (:meth:`_ripple_held`). In air there is no thrust ripple to estimate, but the motion's
+  (its update zeroed; Y and Gamma^-1 run on) until F_dc_hat has stayed that far above its own
+  air mean for more than ``ripple_adapt_time`` [s] (:meth:`_ripple_held`). In air there is no thrust ripple to estimate, but the motion's
   start reached theta through Gamma0 and F_dc_hat rang at the orbit for seconds (measured on a
   0.75 Hz orbit before any thrust: +-11.4 -> +-3.5 N, tests/test_observer_blocks.py).
 * **Speed**: ``kernel = "auto"`` (default) runs each sample in C
@@ -165,7 +165,9 @@ class _KernelState(ctypes.Structure):
                 ("scale_thrust", ctypes.c_int), ("n_switch", ctypes.c_int), ("switched", ctypes.c_int),
                 ("n_above", ctypes.c_int), ("scale_floor", _D), ("F_prev", _D),
                 # theta held until F_dc_hat first rises adapt_from [N] above its air level F_air
-                ("adapt", ctypes.c_int), ("n_held", ctypes.c_int), ("adapt_from", _D), ("F_air", _D)]
+                # for more than n_adapt samples in a row (n_rise so far)
+                ("adapt", ctypes.c_int), ("n_held", ctypes.c_int), ("adapt_from", _D), ("F_air", _D),
+                ("n_rise", ctypes.c_int), ("n_adapt", ctypes.c_int)]
 
 
 class AdaptiveThrustObserver(DiscretisedBlock):
@@ -182,7 +184,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
                  tau_offset: float | None = None, tau_ripple=None, w_eps: float = 1e-3,
                  g_fric_vel: float = 50.0, harmonics: int = 1, gain_restart: float = 0.05,
                  ripple_scaling: str = "none", ripple_scale_floor: float = 10.0,
-                 ripple_adapt_from: float = 0.0, friction_file: str | None = None, kernel: str = "auto", sample_period: float = 1e-4,
+                 ripple_adapt_from: float = 0.0, ripple_adapt_time: float = 0.0, friction_file: str | None = None, kernel: str = "auto", sample_period: float = 1e-4,
                  commissioning_file: str | None = None, accept_unverified=()):
         super().__init__(sample_period)
         com = None
@@ -223,7 +225,10 @@ class AdaptiveThrustObserver(DiscretisedBlock):
             raise ValueError(f"AdaptiveThrustObserver: ripple_adapt_from must be >= 0 N (the rise of the DC thrust "
                              f"estimate above its air level at which theta starts adapting; 0: from the first "
                              f"sample), got {ripple_adapt_from!r}")
-        self.ripple_adapt_from = float(ripple_adapt_from)
+        if not ripple_adapt_time >= 0:
+            raise ValueError(f"AdaptiveThrustObserver: ripple_adapt_time must be >= 0 s (how long F_dc_hat must "
+                             f"stay ripple_adapt_from above its air level), got {ripple_adapt_time!r}")
+        self.ripple_adapt_from, self.ripple_adapt_time = float(ripple_adapt_from), float(ripple_adapt_time)
         self.position_unit, self.measurement = position_unit, measurement
         # the orbital speed comes from the input `orbital_speed` when asked for, or when the
         # setting is None / 0 (TOML has no null; 0 rpm would make the ripple a constant)
@@ -349,12 +354,13 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._fgain = (1.0 - self._fdecay) / lam
         self._avel = math.exp(-self.g_fric_vel * Ts)
         self._n_switch = max(1, round(1.0 / (lam * Ts)))    # samples of contact before the share
+        self._n_adapt = round(self.ripple_adapt_time / Ts)   # samples above the air level before theta adapts
         self.bandwidth = float(np.max(np.abs(np.linalg.eigvals(AK))))
         k = getattr(self, "_k", None)
         if k is not None:
             k.Phi[:], k.Bu[:], k.By[:], k.Bg[:] = self._Phi, self._Bu, self._By, self._Bg
             k.fdecay, k.fgain, k.avel, k.Ts = self._fdecay, self._fgain, self._avel, Ts
-            k.n_switch = self._n_switch
+            k.n_switch, k.n_adapt = self._n_switch, self._n_adapt
 
     def reset(self, t0: float) -> None:
         self.ensure_discretised()
@@ -373,6 +379,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._switched, self._n_above = False, 0    # on the share yet; samples above 3 floors
         self._adapt = self.ripple_adapt_from <= 0.0   # theta adapting yet (_ripple_held)
         self._n_held, self._F_air = 0, 0.0     # samples held so far; F_dc_hat's mean while held [N]
+        self._n_rise = 0                       # samples in a row ripple_adapt_from above F_air
         n = 2 * self.harmonics
         self._th_h = [0.0] * n
         self._Y_h = [0.0] * (3 * n)            # row-major 3 x 2H
@@ -381,7 +388,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         if k is not None:
             k.first, k.t0, k.phase, k.th_prev, k.w_enc, k.f_gain = 1, t0, 0.0, 0.0, 0.0, 0.0
             k.F_prev, k.switched, k.n_above, k.adapt = 0.0, 0, 0, self._adapt
-            k.n_held, k.F_air = 0, 0.0
+            k.n_held, k.F_air, k.n_rise = 0, 0.0, 0
             k.x[:], k.Y[:], k.th[:], k.Si[:] = self._x, self._Y, self._th, self._Si
             k.th_h[:n], k.Y_h[:3 * n], k.Si_h[:n * n] = self._th_h, self._Y_h, self._Si_h
 
@@ -532,11 +539,14 @@ class AdaptiveThrustObserver(DiscretisedBlock):
 
     def _ripple_held(self) -> bool:
         """True while theta is held (its update zeroed): with ``ripple_adapt_from`` > 0 until
-        F_dc_hat of the previous sample first rises that far above its air level, then never
-        again. The air level is F_dc_hat's mean while held, exponential over 1/lambda, from
-        the first sample's estimate on (at rest F_dc_hat holds the stiction the friction
-        model cannot know: 16-30 N measured; with the plants' friction drawn the air level
-        lies anywhere in -22..39 N, so an absolute level would not do).
+        F_dc_hat of the previous sample has stayed that far above its air level for more than
+        ``ripple_adapt_time``, then never again. The air level is F_dc_hat's mean while held,
+        exponential over 1/lambda, from the first sample's estimate on (at rest F_dc_hat holds
+        the stiction the friction model cannot know: 16-30 N measured; with the plants'
+        friction drawn the air level lies anywhere in -22..39 N, so an absolute level would
+        not do). The time: the approach's end and the start-up leave non-orbital swings of
+        15-25 N lasting 0.1-0.5 s in air (measured, project drive), which a first crossing
+        took for the contact.
 
         In air there is no orbital thrust ripple to estimate (the plants' ripple is a share of
         the thrust), but at the start of the motion the innovation's transient reaches theta
@@ -550,10 +560,11 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         F = self._F_prev
         if self._n_held < 2:          # before the first sample's outputs F_prev is no estimate
             self._F_air = F
-        elif F - self._F_air > self.ripple_adapt_from:
-            self._adapt = True
-            return False
         else:
+            self._n_rise = self._n_rise + 1 if F - self._F_air > self.ripple_adapt_from else 0
+            if self._n_rise > self._n_adapt:
+                self._adapt = True
+                return False
             a = self._fdecay
             self._F_air = a * self._F_air + (1.0 - a) * F
         self._n_held += 1

@@ -232,14 +232,17 @@ def test_fang_observer_ripple_held_in_air_does_not_ring():
     """Issue 23: at the start of the motion the innovation's transient reaches theta through
     Gamma0 and the DC estimate rings at the orbit in air, decaying with the forgetting (at a
     0.75 Hz orbit measured +-11.4 N over 3-6 s, before any thrust; in the closed loop it
-    pushed slow-orbit aluminium entries up to 0.06 mm early). With ``ripple_adapt_from``
-    theta is held until F_dc_hat rises that far above its air level: +-3.5 N (the 10 mA
-    current noise's share). After the contact (150 N, 10 % ripple) theta adapts as without
-    the hold: ripple amplitude 14.4 against 13.8 N (the plant's 15 N). Bars ~1.3x margin."""
+    pushed slow-orbit aluminium entries up to 0.18 mm early). With ``ripple_adapt_from`` and
+    ``ripple_adapt_time`` (the stacks plans' 20 N, 0.25 s) theta is held until F_dc_hat has
+    stayed that far above its air level that long: +-3.5 N (the 10 mA current noise's
+    share). After the contact (150 N, 10 % ripple) theta adapts as without the hold: ripple
+    amplitude 14.1 against 13.8 N (the plant's 15 N). Bars ~1.3x margin."""
     base = dict(T=11.0, ripple=0.1, f_orb=0.75, t_on=6.0)
-    off, on = _fang_run(**base), _fang_run(ripple_adapt_from=10.0, **base)
+    off, on = _fang_run(**base), _fang_run(ripple_adapt_from=20.0, ripple_adapt_time=0.25, **base)
     assert _dc_swing(on, 3.0, 6.0) < 4.5 < 0.45 * _dc_swing(off, 3.0, 6.0)
     t = on[:, 0]
     assert np.mean(on[t > 9.0, 7]) == pytest.approx(15.0, rel=0.1)
     with pytest.raises(ValueError, match="ripple_adapt_from"):
         AdaptiveThrustObserver(ripple_adapt_from=-1.0)
+    with pytest.raises(ValueError, match="ripple_adapt_time"):
+        AdaptiveThrustObserver(ripple_adapt_time=-0.1)

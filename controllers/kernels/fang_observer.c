@@ -38,9 +38,11 @@ typedef struct {
     int scale_thrust, n_switch, switched, n_above;
     double scale_floor, F_prev;
     /* theta held until F_dc_hat first rises adapt_from [N] above its air level F_air [N]
-     * (_ripple_held): adapting yet, samples held so far */
+     * for more than n_adapt samples in a row (_ripple_held): adapting yet, samples held so
+     * far, samples in a row above so far */
     int adapt, n_held;
     double adapt_from, F_air;
+    int n_rise, n_adapt;
 } FangObserver;
 
 static double friction(const FangObserver *o, double v)
@@ -178,7 +180,8 @@ static double ripple_scale(FangObserver *o)
     return rs;
 }
 
-/* 1 while theta is held (_ripple_held): until F_prev first rises adapt_from above F_air,
+/* 1 while theta is held (_ripple_held): until F_prev stays adapt_from above F_air for more
+ * than n_adapt samples,
  * F_dc_hat's mean while held (exponential over 1/lambda) */
 static int ripple_held(FangObserver *o)
 {
@@ -187,10 +190,12 @@ static int ripple_held(FangObserver *o)
     double F = o->F_prev;
     if (o->n_held < 2) {
         o->F_air = F;
-    } else if (F - o->F_air > o->adapt_from) {
-        o->adapt = 1;
-        return 0;
     } else {
+        o->n_rise = F - o->F_air > o->adapt_from ? o->n_rise + 1 : 0;
+        if (o->n_rise > o->n_adapt) {
+            o->adapt = 1;
+            return 0;
+        }
         double a = o->fdecay;
         o->F_air = a * o->F_air + (1.0 - a) * F;
     }
