@@ -141,6 +141,10 @@ TWO_PI = 2.0 * math.pi
 _D = ctypes.c_double
 MAX_RIPPLE = 8            # rows of tau_ripple the C kernel holds (FANG_MAX_RIPPLE)
 MAX_HARMONICS = 4         # orbital harmonics the observer models at most (FANG_MAX_HARMONICS)
+# motor speed [rad/s] below which the drive counts as still for the hold in air (_ripple_held;
+# FANG_STILL_RAD_S): a third of the slowest plan feed (0.1 mm/s on a 0.637 mm/rad drive is
+# 0.16 rad/s), 20x the low-passed encoder's one-count step
+STILL_RAD_S = 0.05
 _NH = 2 * MAX_HARMONICS
 
 
@@ -546,7 +550,9 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         friction drawn the air level lies anywhere in -22..39 N, so an absolute level would
         not do). The time: the approach's end and the start-up leave non-orbital swings of
         15-25 N lasting 0.1-0.5 s in air (measured, project drive), which a first crossing
-        took for the contact.
+        took for the contact. Only while the motor turns (``STILL_RAD_S``): at rest before the
+        feed starts F_dc_hat swung 36 N for 0.5 s (project hole 27), and no contact comes
+        without a feed.
 
         In air there is no orbital thrust ripple to estimate (the plants' ripple is a share of
         the thrust), but at the start of the motion the innovation's transient reaches theta
@@ -561,7 +567,9 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         if self._n_held < 2:          # before the first sample's outputs F_prev is no estimate
             self._F_air = F
         else:
-            self._n_rise = self._n_rise + 1 if F - self._F_air > self.ripple_adapt_from else 0
+            w = self._w_enc if self._use_theta else self._x[1]
+            moving = w > STILL_RAD_S or w < -STILL_RAD_S
+            self._n_rise = self._n_rise + 1 if moving and F - self._F_air > self.ripple_adapt_from else 0
             if self._n_rise > self._n_adapt:
                 self._adapt = True
                 return False

@@ -13,6 +13,7 @@
 #define FANG_NH (2 * FANG_MAX_HARMONICS)
 #define TWO_PI 6.283185307179586
 #define PI 3.141592653589793
+#define FANG_STILL_RAD_S 0.05                /* fang_observer.py STILL_RAD_S */
 
 typedef struct {
     /* constants: discretised observer (row-major Phi), forgetting, friction */
@@ -181,7 +182,7 @@ static double ripple_scale(FangObserver *o)
 }
 
 /* 1 while theta is held (_ripple_held): until F_prev stays adapt_from above F_air for more
- * than n_adapt samples,
+ * than n_adapt samples while the motor turns,
  * F_dc_hat's mean while held (exponential over 1/lambda) */
 static int ripple_held(FangObserver *o)
 {
@@ -191,7 +192,9 @@ static int ripple_held(FangObserver *o)
     if (o->n_held < 2) {
         o->F_air = F;
     } else {
-        o->n_rise = F - o->F_air > o->adapt_from ? o->n_rise + 1 : 0;
+        double w = o->use_theta ? o->w_enc : o->x[1];
+        int moving = w > FANG_STILL_RAD_S || w < -FANG_STILL_RAD_S;
+        o->n_rise = moving && F - o->F_air > o->adapt_from ? o->n_rise + 1 : 0;
         if (o->n_rise > o->n_adapt) {
             o->adapt = 1;
             return 0;
