@@ -218,21 +218,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
             raise ValueError(f"AdaptiveThrustObserver: gain_restart must be in [0, 1) (relative orbit-speed "
                              f"change that rescales Gamma; 0: never), got {gain_restart!r}")
         self.gain_restart = float(gain_restart)
-        if ripple_scaling not in ("none", "thrust"):
-            raise ValueError(f"AdaptiveThrustObserver: ripple_scaling must be 'none' (Fang eq. 8) or 'thrust' "
-                             f"(regressor times the DC thrust estimate), got {ripple_scaling!r}")
-        if not ripple_scale_floor > 0:
-            raise ValueError(f"AdaptiveThrustObserver: ripple_scale_floor must be > 0 N (the least thrust the "
-                             f"ripple regressor is scaled by), got {ripple_scale_floor!r}")
-        self.ripple_scaling, self.ripple_scale_floor = ripple_scaling, float(ripple_scale_floor)
-        if not ripple_adapt_from >= 0:
-            raise ValueError(f"AdaptiveThrustObserver: ripple_adapt_from must be >= 0 N (the rise of the DC thrust "
-                             f"estimate above its air level at which theta starts adapting; 0: from the first "
-                             f"sample), got {ripple_adapt_from!r}")
-        if not ripple_adapt_time >= 0:
-            raise ValueError(f"AdaptiveThrustObserver: ripple_adapt_time must be >= 0 s (how long F_dc_hat must "
-                             f"stay ripple_adapt_from above its air level), got {ripple_adapt_time!r}")
-        self.ripple_adapt_from, self.ripple_adapt_time = float(ripple_adapt_from), float(ripple_adapt_time)
+        self._ripple_options(ripple_scaling, ripple_scale_floor, ripple_adapt_from, ripple_adapt_time)
         self.position_unit, self.measurement = position_unit, measurement
         # the orbital speed comes from the input `orbital_speed` when asked for, or when the
         # setting is None / 0 (TOML has no null; 0 rpm would make the ripple a constant)
@@ -262,6 +248,26 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self.step = self.c_kernel.step if self._k is not None else python_step
         self.ensure_discretised()
         self.reset(0.0)
+
+    def _ripple_options(self, ripple_scaling: str, ripple_scale_floor: float, ripple_adapt_from: float,
+                        ripple_adapt_time: float) -> None:
+        """The ripple estimate's issue-23 options, checked: the regressor's scaling and its
+        floor [N], the hold in air (level [N] above the air mean, time [s])."""
+        if ripple_scaling not in ("none", "thrust"):
+            raise ValueError(f"AdaptiveThrustObserver: ripple_scaling must be 'none' (Fang eq. 8) or 'thrust' "
+                             f"(regressor times the DC thrust estimate), got {ripple_scaling!r}")
+        if not ripple_scale_floor > 0:
+            raise ValueError(f"AdaptiveThrustObserver: ripple_scale_floor must be > 0 N (the least thrust the "
+                             f"ripple regressor is scaled by), got {ripple_scale_floor!r}")
+        self.ripple_scaling, self.ripple_scale_floor = ripple_scaling, float(ripple_scale_floor)
+        if not ripple_adapt_from >= 0:
+            raise ValueError(f"AdaptiveThrustObserver: ripple_adapt_from must be >= 0 N (the rise of the DC thrust "
+                             f"estimate above its air level at which theta starts adapting; 0: from the first "
+                             f"sample), got {ripple_adapt_from!r}")
+        if not ripple_adapt_time >= 0:
+            raise ValueError(f"AdaptiveThrustObserver: ripple_adapt_time must be >= 0 s (how long F_dc_hat must "
+                             f"stay ripple_adapt_from above its air level), got {ripple_adapt_time!r}")
+        self.ripple_adapt_from, self.ripple_adapt_time = float(ripple_adapt_from), float(ripple_adapt_time)
 
     def _ports(self) -> tuple[tuple[Port, ...], tuple[Port, ...]]:
         """Inputs (the motor angle when the observer or its friction ripple needs it, the
