@@ -98,6 +98,11 @@ Implementation choices (the paper leaves them open)
   F_dc_hat has passed 3 floors on; theta then holds the ripple's share, which a thrust drop
   carries along instead of theta re-adapting for seconds while F_dc_hat rings at the orbit
   (:meth:`_ripple_scale`). Measured on a 500 -> 20 N drop at 0.75 Hz: +-42.9 -> +-11.1 N.
+* **Ripple held in air** (issue 23, off by default): ``ripple_adapt_from`` [N] > 0 holds theta
+  (its update zeroed; Y and Gamma^-1 run on) until F_dc_hat has stayed that far above its own
+  air mean for more than ``ripple_adapt_time`` [s] (:meth:`_ripple_held`). In air there is no thrust ripple to estimate, but the motion's
+  start reached theta through Gamma0 and F_dc_hat rang at the orbit for seconds (measured on a
+  0.75 Hz orbit before any thrust: +-11.4 -> +-3.5 N, tests/test_observer_blocks.py).
 * **Speed**: ``kernel = "auto"`` (default) runs each sample in C
   (``controllers/kernels/fang_observer.c``, the same arithmetic in the same order, built with
   the FMUs), about 0.5 us against ~4 us for the Python reference step (``_step_python``),
@@ -136,6 +141,10 @@ TWO_PI = 2.0 * math.pi
 _D = ctypes.c_double
 MAX_RIPPLE = 8            # rows of tau_ripple the C kernel holds (FANG_MAX_RIPPLE)
 MAX_HARMONICS = 4         # orbital harmonics the observer models at most (FANG_MAX_HARMONICS)
+# motor speed [rad/s] below which the drive counts as still for the hold in air (_ripple_held;
+# FANG_STILL_RAD_S): a third of the slowest plan feed (0.1 mm/s on a 0.637 mm/rad drive is
+# 0.16 rad/s), 20x the low-passed encoder's one-count step
+STILL_RAD_S = 0.05
 _NH = 2 * MAX_HARMONICS
 
 
@@ -158,7 +167,11 @@ class _KernelState(ctypes.Structure):
                 ("gain_restart", _D), ("f_gain", _D),
                 # ripple regressor scaled by the previous sample's DC thrust (ripple_scaling = "thrust")
                 ("scale_thrust", ctypes.c_int), ("n_switch", ctypes.c_int), ("switched", ctypes.c_int),
-                ("n_above", ctypes.c_int), ("scale_floor", _D), ("F_prev", _D)]
+                ("n_above", ctypes.c_int), ("scale_floor", _D), ("F_prev", _D),
+                # theta held until F_dc_hat first rises adapt_from [N] above its air level F_air
+                # for more than n_adapt samples in a row (n_rise so far)
+                ("adapt", ctypes.c_int), ("n_held", ctypes.c_int), ("adapt_from", _D), ("F_air", _D),
+                ("n_rise", ctypes.c_int), ("n_adapt", ctypes.c_int)]
 
 
 class AdaptiveThrustObserver(DiscretisedBlock):
@@ -175,7 +188,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
                  tau_offset: float | None = None, tau_ripple=None, w_eps: float = 1e-3,
                  g_fric_vel: float = 50.0, harmonics: int = 1, gain_restart: float = 0.05,
                  ripple_scaling: str = "none", ripple_scale_floor: float = 10.0,
-                 friction_file: str | None = None, kernel: str = "auto", sample_period: float = 1e-4,
+                 ripple_adapt_from: float = 0.0, ripple_adapt_time: float = 0.0, friction_file: str | None = None, kernel: str = "auto", sample_period: float = 1e-4,
                  commissioning_file: str | None = None, accept_unverified=()):
         super().__init__(sample_period)
         com = None
@@ -205,13 +218,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
             raise ValueError(f"AdaptiveThrustObserver: gain_restart must be in [0, 1) (relative orbit-speed "
                              f"change that rescales Gamma; 0: never), got {gain_restart!r}")
         self.gain_restart = float(gain_restart)
-        if ripple_scaling not in ("none", "thrust"):
-            raise ValueError(f"AdaptiveThrustObserver: ripple_scaling must be 'none' (Fang eq. 8) or 'thrust' "
-                             f"(regressor times the DC thrust estimate), got {ripple_scaling!r}")
-        if not ripple_scale_floor > 0:
-            raise ValueError(f"AdaptiveThrustObserver: ripple_scale_floor must be > 0 N (the least thrust the "
-                             f"ripple regressor is scaled by), got {ripple_scale_floor!r}")
-        self.ripple_scaling, self.ripple_scale_floor = ripple_scaling, float(ripple_scale_floor)
+        self._ripple_options(ripple_scaling, ripple_scale_floor, ripple_adapt_from, ripple_adapt_time)
         self.position_unit, self.measurement = position_unit, measurement
         # the orbital speed comes from the input `orbital_speed` when asked for, or when the
         # setting is None / 0 (TOML has no null; 0 rpm would make the ripple a constant)
@@ -241,6 +248,26 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self.step = self.c_kernel.step if self._k is not None else python_step
         self.ensure_discretised()
         self.reset(0.0)
+
+    def _ripple_options(self, ripple_scaling: str, ripple_scale_floor: float, ripple_adapt_from: float,
+                        ripple_adapt_time: float) -> None:
+        """The ripple estimate's issue-23 options, checked: the regressor's scaling and its
+        floor [N], the hold in air (level [N] above the air mean, time [s])."""
+        if ripple_scaling not in ("none", "thrust"):
+            raise ValueError(f"AdaptiveThrustObserver: ripple_scaling must be 'none' (Fang eq. 8) or 'thrust' "
+                             f"(regressor times the DC thrust estimate), got {ripple_scaling!r}")
+        if not ripple_scale_floor > 0:
+            raise ValueError(f"AdaptiveThrustObserver: ripple_scale_floor must be > 0 N (the least thrust the "
+                             f"ripple regressor is scaled by), got {ripple_scale_floor!r}")
+        self.ripple_scaling, self.ripple_scale_floor = ripple_scaling, float(ripple_scale_floor)
+        if not ripple_adapt_from >= 0:
+            raise ValueError(f"AdaptiveThrustObserver: ripple_adapt_from must be >= 0 N (the rise of the DC thrust "
+                             f"estimate above its air level at which theta starts adapting; 0: from the first "
+                             f"sample), got {ripple_adapt_from!r}")
+        if not ripple_adapt_time >= 0:
+            raise ValueError(f"AdaptiveThrustObserver: ripple_adapt_time must be >= 0 s (how long F_dc_hat must "
+                             f"stay ripple_adapt_from above its air level), got {ripple_adapt_time!r}")
+        self.ripple_adapt_from, self.ripple_adapt_time = float(ripple_adapt_from), float(ripple_adapt_time)
 
     def _ports(self) -> tuple[tuple[Port, ...], tuple[Port, ...]]:
         """Inputs (the motor angle when the observer or its friction ripple needs it, the
@@ -315,6 +342,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         k.harmonics = self.harmonics
         k.gain_restart = self.gain_restart
         k.scale_thrust, k.scale_floor = self.ripple_scaling == "thrust", self.ripple_scale_floor
+        k.adapt_from = self.ripple_adapt_from
         names = [p.name for p in self.inputs]
         k.k_theta = names.index("theta") if "theta" in names else -1
         k.k_orbital = names.index("orbital_speed") if "orbital_speed" in names else -1
@@ -336,12 +364,13 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._fgain = (1.0 - self._fdecay) / lam
         self._avel = math.exp(-self.g_fric_vel * Ts)
         self._n_switch = max(1, round(1.0 / (lam * Ts)))    # samples of contact before the share
+        self._n_adapt = round(self.ripple_adapt_time / Ts)   # samples above the air level before theta adapts
         self.bandwidth = float(np.max(np.abs(np.linalg.eigvals(AK))))
         k = getattr(self, "_k", None)
         if k is not None:
             k.Phi[:], k.Bu[:], k.By[:], k.Bg[:] = self._Phi, self._Bu, self._By, self._Bg
             k.fdecay, k.fgain, k.avel, k.Ts = self._fdecay, self._fgain, self._avel, Ts
-            k.n_switch = self._n_switch
+            k.n_switch, k.n_adapt = self._n_switch, self._n_adapt
 
     def reset(self, t0: float) -> None:
         self.ensure_discretised()
@@ -358,6 +387,9 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._f_gain = 0.0           # orbital frequency [Hz] Gamma was last rescaled for (0: none yet)
         self._F_prev = 0.0           # the previous sample's F_dc_hat [N] (ripple_scaling = "thrust")
         self._switched, self._n_above = False, 0    # on the share yet; samples above 3 floors
+        self._adapt = self.ripple_adapt_from <= 0.0   # theta adapting yet (_ripple_held)
+        self._n_held, self._F_air = 0, 0.0     # samples held so far; F_dc_hat's mean while held [N]
+        self._n_rise = 0                       # samples in a row ripple_adapt_from above F_air
         n = 2 * self.harmonics
         self._th_h = [0.0] * n
         self._Y_h = [0.0] * (3 * n)            # row-major 3 x 2H
@@ -365,7 +397,8 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         k = getattr(self, "_k", None)
         if k is not None:
             k.first, k.t0, k.phase, k.th_prev, k.w_enc, k.f_gain = 1, t0, 0.0, 0.0, 0.0, 0.0
-            k.F_prev, k.switched, k.n_above = 0.0, 0, 0
+            k.F_prev, k.switched, k.n_above, k.adapt = 0.0, 0, 0, self._adapt
+            k.n_held, k.F_air, k.n_rise = 0, 0.0, 0
             k.x[:], k.Y[:], k.th[:], k.Si[:] = self._x, self._Y, self._th, self._Si
             k.th_h[:n], k.Y_h[:3 * n], k.Si_h[:n * n] = self._th_h, self._Y_h, self._Si_h
 
@@ -440,6 +473,8 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         e = y - x0
         z = _spd_solve(self._Si_h, Y[:n], n)      # Gamma (C Y)^T
         d = [Ts * z[j] * e for j in range(n)]
+        if self._ripple_held():
+            d = [0.0] * n
         P, G, U, B = self._Phi, self._Bg, self._Bu, self._By
         Yn = [P[3 * r] * Y[j] + P[3 * r + 1] * Y[n + j] + P[3 * r + 2] * Y[2 * n + j] + G[r] * reg[j]
               for r in range(3) for j in range(n)]
@@ -480,6 +515,8 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         cy0, cy1 = self._Y[0], self._Y[1]             # C Y
         d0 = Ts * (g00 * cy0 + g01 * cy1) * e         # dtheta = Ts Gamma Y^T C^T e
         d1 = Ts * (g01 * cy0 + g11 * cy1) * e
+        if self._ripple_held():
+            d0 = d1 = 0.0
 
         p00, p01, p02, p10, p11, p12, p20, p21, p22 = self._Phi
         g0, g1, g2 = self._Bg
@@ -509,6 +546,43 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._Si = (a * s00 + b * c0 * c0, a * s01 + b * c0 * c1, a * s11 + b * c1 * c1)
 
         return self._outputs(xn, th0, th1, theta, phi, Ts, None, rs)
+
+    def _ripple_held(self) -> bool:
+        """True while theta is held (its update zeroed): with ``ripple_adapt_from`` > 0 until
+        F_dc_hat of the previous sample has stayed that far above its air level for more than
+        ``ripple_adapt_time``, then never again. The air level is F_dc_hat's mean while held,
+        exponential over 1/lambda, from the first sample's estimate on (at rest F_dc_hat holds
+        the stiction the friction model cannot know: 16-30 N measured; with the plants'
+        friction drawn the air level lies anywhere in -22..39 N, so an absolute level would
+        not do). The time: the approach's end and the start-up leave non-orbital swings of
+        15-25 N lasting 0.1-0.5 s in air (measured, project drive), which a first crossing
+        took for the contact. Only while the motor turns (``STILL_RAD_S``): at rest before the
+        feed starts F_dc_hat swung 36 N for 0.5 s (project hole 27), and no contact comes
+        without a feed.
+
+        In air there is no orbital thrust ripple to estimate (the plants' ripple is a share of
+        the thrust), but at the start of the motion the innovation's transient reaches theta
+        through Gamma0 (5000x the converged gain), and F_dc_hat then rang at the orbit,
+        decaying with the forgetting (10-18 N at a 0.5-1.2 Hz orbit, 2-9 N still at the first
+        contact 2.4-6.3 s later; issue 23), which pushed slow-orbit aluminium entries early.
+        Y and Gamma^-1 run on as usual, so at the release theta adapts with the gain
+        converged in air, as without the hold."""
+        if self._adapt:
+            return False
+        F = self._F_prev
+        if self._n_held < 2:          # before the first sample's outputs F_prev is no estimate
+            self._F_air = F
+        else:
+            w = self._w_enc if self._use_theta else self._x[1]
+            moving = w > STILL_RAD_S or w < -STILL_RAD_S
+            self._n_rise = self._n_rise + 1 if moving and F - self._F_air > self.ripple_adapt_from else 0
+            if self._n_rise > self._n_adapt:
+                self._adapt = True
+                return False
+            a = self._fdecay
+            self._F_air = a * self._F_air + (1.0 - a) * F
+        self._n_held += 1
+        return True
 
     def _ripple_scale(self) -> float:
         """The factor on the ripple regressor: 1 (Fang eq. 8), or with ``ripple_scaling =

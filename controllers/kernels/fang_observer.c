@@ -13,6 +13,7 @@
 #define FANG_NH (2 * FANG_MAX_HARMONICS)
 #define TWO_PI 6.283185307179586
 #define PI 3.141592653589793
+#define FANG_STILL_RAD_S 0.05                /* fang_observer.py STILL_RAD_S */
 
 typedef struct {
     /* constants: discretised observer (row-major Phi), forgetting, friction */
@@ -37,6 +38,12 @@ typedef struct {
      * the previous F_dc_hat [N] */
     int scale_thrust, n_switch, switched, n_above;
     double scale_floor, F_prev;
+    /* theta held until F_dc_hat first rises adapt_from [N] above its air level F_air [N]
+     * for more than n_adapt samples in a row (_ripple_held): adapting yet, samples held so
+     * far, samples in a row above so far */
+    int adapt, n_held;
+    double adapt_from, F_air;
+    int n_rise, n_adapt;
 } FangObserver;
 
 static double friction(const FangObserver *o, double v)
@@ -174,6 +181,31 @@ static double ripple_scale(FangObserver *o)
     return rs;
 }
 
+/* 1 while theta is held (_ripple_held): until F_prev stays adapt_from above F_air for more
+ * than n_adapt samples while the motor turns,
+ * F_dc_hat's mean while held (exponential over 1/lambda) */
+static int ripple_held(FangObserver *o)
+{
+    if (o->adapt)
+        return 0;
+    double F = o->F_prev;
+    if (o->n_held < 2) {
+        o->F_air = F;
+    } else {
+        double w = o->use_theta ? o->w_enc : o->x[1];
+        int moving = w > FANG_STILL_RAD_S || w < -FANG_STILL_RAD_S;
+        o->n_rise = moving && F - o->F_air > o->adapt_from ? o->n_rise + 1 : 0;
+        if (o->n_rise > o->n_adapt) {
+            o->adapt = 1;
+            return 0;
+        }
+        double a = o->fdecay;
+        o->F_air = a * o->F_air + (1.0 - a) * F;
+    }
+    o->n_held = o->n_held + 1;
+    return 1;
+}
+
 static void regressor(double phi, int harmonics, double *reg)
 {
     for (int h = 1; h <= harmonics; h++) {
@@ -224,6 +256,9 @@ static void step_harmonics(FangObserver *o, double i_m, double y, double theta, 
     spd_solve(o->Si_h, Y, n, z);
     for (int j = 0; j < n; j++)
         d[j] = Ts * z[j] * e;
+    if (ripple_held(o))
+        for (int j = 0; j < n; j++)
+            d[j] = 0.0;
     for (int r = 0; r < 3; r++)
         for (int j = 0; j < n; j++)
             Yn[r * n + j] = P[3 * r] * Y[j] + P[3 * r + 1] * Y[n + j] + P[3 * r + 2] * Y[2 * n + j] + G[r] * reg[j];
@@ -278,6 +313,10 @@ void fang_observer_step(FangObserver *o, double t, const double *u, double *out)
     double cy0 = Y[0], cy1 = Y[1];
     double d0 = Ts * (g00 * cy0 + g01 * cy1) * e;
     double d1 = Ts * (g01 * cy0 + g11 * cy1) * e;
+    if (ripple_held(o)) {
+        d0 = 0.0;
+        d1 = 0.0;
+    }
 
     const double *P = o->Phi, *G = o->Bg, *U = o->Bu, *B = o->By;
     double n0 = P[0] * Y[0] + P[1] * Y[2] + P[2] * Y[4] + G[0] * sm;
