@@ -433,9 +433,9 @@ class InterfaceDetector(KernelBlock, Block):
         "bending" (the 1.5th power) or "any" (default: linear or quadratic, whichever fits
         better; event_locator.EXIT_SHAPES).
     exit_compliance [m/N]: the drive's compliance between the encoder and the cutting front
-        (frame, spindle, tool/workpiece contact); the exit's fit takes the front's lag, the
-        thrust times it, out of the encoder's positions (:meth:`_exit_positions`); 0
-        (default): rigid.
+        (frame, spindle, tool/workpiece contact); the exit's and the entry's fits take the
+        front's lag, the thrust times it, out of the encoder's positions
+        (:meth:`_front_positions`); 0 (default): rigid.
     exit_loc_after [m]: travel after the exit's trigger its localisation window holds
         (default locate_margin; the hole plan adds half an orbit of the last layer's feed:
         the orbit means of the last half orbit need the samples after it).
@@ -673,21 +673,23 @@ class InterfaceDetector(KernelBlock, Block):
         self.exit_shape = exit_shape
 
     def _set_exit_compliance(self, compliance) -> None:
-        """The compliance [m/N] between the encoder and the cutting front the exit's fit takes
-        out (:meth:`_exit_positions`), checked: 0 (default) is a rigid drive."""
+        """The compliance [m/N] between the encoder and the cutting front the exit's and the
+        entry's fits take out (:meth:`_front_positions`), checked: 0 (default) is a rigid drive."""
         if not (isinstance(compliance, (int, float)) and math.isfinite(compliance) and compliance >= 0.0):
             raise ValueError(f"InterfaceDetector: exit_compliance must be a number >= 0 m/N (0: rigid), got {compliance!r}")
         self.exit_compliance = float(compliance)
 
-    def _exit_positions(self, x, F, air: float):
-        """Where the cutting front was [m] for the exit's fit: the encoder ``x`` [m] less the
+    def _front_positions(self, x, F, air: float):
+        """Where the cutting front was [m] for the exit's and the entry's fits: the encoder ``x`` [m] less the
         drive's deflection under the observed thrust ``F`` [N] above the air level ``air`` [N].
         The push-out law holds in the front's position, and the front lags the encoder by
         F times the compliance; where the fall ends the thrust is gone and the two agree, but
         over the fall the front gains that lag back, and in encoder positions the fall looks
         shorter and steeper at its top: fitted there, the free face came out early by about
         the plateau's deflection (foreign drive, 20 N/um tool/workpiece contact: Ti exits
-        -0.018 mm on average, 200-hole wide draw; docs/stacks.md "Localisation")."""
+        -0.018 mm on average, 200-hole wide draw; docs/stacks.md "Localisation"). At the entry
+        the same lag stretches the rise in encoder positions towards its top, and the fitted
+        onset came early (the foreign drive's Ti entries: -0.012 mm on average, 74 holes)."""
         return x - self.exit_compliance * (F - air) if self.exit_compliance > 0.0 else x
 
     def _set_exit_ghost(self, orbit_period, forgetting) -> None:
@@ -1202,7 +1204,7 @@ class InterfaceDetector(KernelBlock, Block):
         floor = self._air_offset() + min(self.floor[k - 1], self.floor[k]) if self.relative and kind == "interface" and \
             self.loc_after[k - 1] < self._full_loc_after() else None
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
-        x_fit = self._exit_positions(xs[sel], hF[sel], air) if kind == "exit" else xs[sel]
+        x_fit = self._front_positions(xs[sel], hF[sel], air) if kind in ("exit", "entry") else xs[sel]
         x_loc, dx = locate(kind, x_fit, hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period,
                            entry_shape=self.entry_shape,
                            ghost=self._exit_ghost() if kind == "exit" else self._interface_ghost(k) if k else None,

@@ -29,7 +29,7 @@ typedef struct {
     double exit_ghost[2];                         /* the exit's fit: orbit [samples] (0: none), decay per sample */
     double exit_shape;                            /* the exit's push-out law: 0 any, 1 linear, 2 quadratic, 3 bending
                                                      (event_locator.EXIT_SHAPES) */
-    double exit_compliance;                       /* m/N, encoder to cutting front (InterfaceDetector._exit_positions) */
+    double exit_compliance;                       /* m/N, encoder to cutting front (InterfaceDetector._front_positions) */
     double engage_lengths[LOC_N_ENGAGE];          /* m, event_locator.ENGAGE_LENGTHS */
     double engage_fine[LOC_N_FINE];               /* around the best engage length */
     double push_out_lengths[LOC_N_PUSH_OUT];      /* m, event_locator.PUSH_OUT_LENGTHS */
@@ -180,8 +180,8 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     double *Fsel = xsel + DET_HISTORY;
     long n = detector_history(s, h_n, t, x, F, xs), m = 0;
     int nl = (int)d->n, kind = k == 0 ? LOC_ENTRY : k == nl ? LOC_EXIT : LOC_INTERFACE;
-    /* the exit's fit in the cutting front's positions: the encoder less the drive's deflection */
-    double comp = kind == LOC_EXIT ? s->exit_compliance : 0.0;
+    /* the entry's and the exit's fits in the cutting front's positions: the encoder less the drive's deflection */
+    double comp = kind == LOC_EXIT || kind == LOC_ENTRY ? s->exit_compliance : 0.0;
     for (long j = 0; j < n; j++)
         if (xs[j] >= lo && xs[j] <= hi) {
             xsel[m] = comp > 0.0 ? xs[j] - comp * (F[j] - air) : xs[j];
