@@ -100,8 +100,8 @@ Implementation choices (the paper leaves them open)
   (:meth:`_ripple_scale`). Measured on a 500 -> 20 N drop at 0.75 Hz: +-42.9 -> +-11.1 N.
 * **Ripple held in air** (issue 23, off by default): ``ripple_adapt_from`` [N] > 0 holds theta
   (its update zeroed; Y and Gamma^-1 run on) until F_dc_hat has stayed that far above its own
-  air mean for more than ``ripple_adapt_time`` [s] (:meth:`_ripple_held`). In air there is no thrust ripple to estimate, but the motion's
-  start reached theta through Gamma0 and F_dc_hat rang at the orbit for seconds (measured on a
+  air mean for more than ``ripple_adapt_time`` [s] (:meth:`_ripple_held`). In air there is no
+  thrust ripple to estimate, but the motion's start reached theta through Gamma0 and F_dc_hat rang at the orbit for seconds (measured on a
   0.75 Hz orbit before any thrust: +-11.4 -> +-3.5 N, tests/test_observer_blocks.py).
 * **Speed**: ``kernel = "auto"`` (default) runs each sample in C
   (``controllers/kernels/fang_observer.c``, the same arithmetic in the same order, built with
@@ -188,7 +188,8 @@ class AdaptiveThrustObserver(DiscretisedBlock):
                  tau_offset: float | None = None, tau_ripple=None, w_eps: float = 1e-3,
                  g_fric_vel: float = 50.0, harmonics: int = 1, gain_restart: float = 0.05,
                  ripple_scaling: str = "none", ripple_scale_floor: float = 10.0,
-                 ripple_adapt_from: float = 0.0, ripple_adapt_time: float = 0.0, friction_file: str | None = None, kernel: str = "auto", sample_period: float = 1e-4,
+                 ripple_adapt_from: float = 0.0, ripple_adapt_time: float = 0.0,
+                 friction_file: str | None = None, kernel: str = "auto", sample_period: float = 1e-4,
                  commissioning_file: str | None = None, accept_unverified=()):
         super().__init__(sample_period)
         com = None

@@ -1457,7 +1457,7 @@ class InterfaceDetector(KernelBlock, Block):
         "exit_ghost": ("1", "the exit's fit of the observer's ripple error: last layer's orbit in samples (0: none), "
                             "decay of the ripple estimate per sample"),
         "exit_shape": ("1", "the exit fit's push-out law: 0 linear or quadratic, 1 linear, 2 quadratic, 3 bending (r^1.5)"),
-        "exit_compliance": ("m/N", "compliance between encoder and cutting front the exit's fit takes out (0: rigid)"),
+        "exit_compliance": ("m/N", "compliance between encoder and cutting front the exit's and entry's fits take out (0: rigid)"),
         "max_gap": ("m", "widest gap between two layers"),
         "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
     }

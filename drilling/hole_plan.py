@@ -107,9 +107,10 @@ class HolePlan:
         # and foreign exits taken as linear up to 0.17 mm early (re-run wide-draw holes, round 9)
         self.exit_shape = self._choice(hole, "exit_shape", EXIT_SHAPES, "any")
         # the drive's compliance between the encoder and the cutting front [m/N] (frame, spindle,
-        # tool/workpiece contact; InterfaceDetector exit_compliance): the exit's fit takes the
-        # front's lag out; 0 (default) is rigid, where the foreign drive's 20 N/um contact put
-        # its Ti exits 0.018 mm early on average (docs/stacks.md, "Localisation")
+        # tool/workpiece contact; InterfaceDetector exit_compliance): the exit's and the entry's
+        # fits take the front's lag out; 0 (default) is rigid, where the foreign drive's 20 N/um
+        # contact put its Ti exits 0.018 mm and its Ti entries 0.012 mm early on average
+        # (docs/stacks.md, "Localisation"). The name predates the entry's use.
         self.exit_compliance = self._number(hole, "exit_compliance", 0.0, minimum=0.0)
         self.harmonics = self._harmonics(hole)
         # the exit's fit on orbit means (InterfaceDetector exit_orbit_period): off by default,
