@@ -180,28 +180,3 @@ def test_exit_air_level_from_its_own_samples():
     F = 9.0 * np.clip((face - x) / L, 0.0, 1.0) + 0.5 + rng.normal(0.0, 0.7, x.size)
     x_loc, _dx = locate("exit", x, F, air=-1.9)
     assert abs(x_loc - face) <= 0.03e-3
-
-
-@pytest.mark.parametrize("kernel", ["python", "auto"])
-def test_interface_test_arms_n_min_samples_after_the_entry_is_located(kernel):
-    """Issue 23, arming that fits the layer: once the entry is located (locate_margin past
-    its trigger) the tool has been on the layer's level for most of that travel, so the
-    interface test restarts on the window's last N_min samples and arms N_min quiet
-    samples later -- not 2 N_min (an empty window to fill, then N_min quiet samples). A
-    0.9 mm aluminium layer at 24 mm/min with a 0.4 mm push-out below it left 25 samples
-    of level: the test armed one sample short, in the push-out (wide draw, project hole
-    155: missed interface, false fail). Python and C alike."""
-    h = SyntheticHole(feed=0.38e-3, t1=2.3 * MM, t2=3.4 * MM, gap=0.0, F_cfrp=1300.0, F_ti=300.0, ti_slope=0.0,
-                      engage=0.1 * MM, lag=0.005, seed=3)
-    t, x, _, Fo = h.trace()
-    det = InterfaceDetector(surface=h.surface, thicknesses=(2.3 * MM, 3.4 * MM), thickness_tolerances=0.4 * MM,
-                            max_gap=0.5 * MM, exit_criterion="thinning", kc=[6.5e7, 2.0e7],
-                            feed_per_rev=[10e-6, 9e-6], restart=True)
-    det.kernel = kernel
-    det.reset(0.0)
-    _ts, out = run_block_on_trace(det, t, [Fo, x])
-    o = {n: float(out[-1, i]) for i, n in enumerate(det.output_names())}
-    assert o["fail"] == 0 and o["flag"] == 3
-    t_arm = (det.x_arm[0] - h.x0) / h.feed
-    samples = (t_arm - o["tknown_entry_loc"]) / det.sample_period
-    assert 0 < samples <= det.N_min + 2
