@@ -401,9 +401,8 @@ class InterfaceDetector(KernelBlock, Block):
     restart: with localisation, once an event is located (its window after the
         trigger complete: the engagement ramp is behind the tool) the regression
         window restarts and the next test arms after N_min quiet samples instead of
-        rearm_samples: a layer needs locate_margin + 2 N_min dt of feed, not N dt (an
-        interface test restarts on the window's last N_min samples, so it may arm
-        N_min dt after the location). While it waits to arm, a loud sample (|F~| above the re-arm level) trims the
+        rearm_samples: a layer needs locate_margin + 2 N_min dt of feed, not N dt.
+        While it waits to arm, a loud sample (|F~| above the re-arm level) trims the
         window to its last N_min samples: a window restarted on a transient (a window cut
         to a thin layer that ends on the lower layer's ramp) arms N_min quiet samples
         after it, not once a window growing to N has left it.
@@ -1170,21 +1169,11 @@ class InterfaceDetector(KernelBlock, Block):
             # is on the new level, so the regression restarts here and the tests arm as
             # soon as its N_min samples are quiet, instead of once a full window of N has
             # left the ramp (issue 23: thin layers at high feeds were never armed)
+            self.n_buf, self.quiet, self.settled, self.steady, self.need = 0, 0, 0, 0, self.N_min
             # trimmed (step) only for an interface test: the exit's test armed on air
             # after a thin aluminium last layer (its floor, a few N, is the air's noise)
             # and fired there 1.2 mm late with no fail (wide draw, project hole 116)
             self.trim = k + 1 < self.n
-            # an interface test restarts on the window's last N_min samples, not on an
-            # empty one: located locate_margin past its trigger the tool has mostly been
-            # on the new level that long, so the test arms N_min quiet samples after the
-            # location instead of 2 N_min (a sample still on the ramp is not quiet, and
-            # the trim in step() then slides the N_min samples on). A 0.9 mm aluminium
-            # layer at 24 mm/min with a 0.4 mm push-out left the test 25 samples, and it
-            # armed one sample short of them, in the push-out (wide draw, project hole 155)
-            keep = self.N_min if self.trim and self.n_buf >= self.N_min else 0
-            if keep:
-                self.buf[:keep] = self.buf[self.n_buf - keep:self.n_buf].copy()
-            self.n_buf, self.quiet, self.settled, self.steady, self.need = keep, 0, 0, 0, self.N_min
 
     def _fit(self, k: int, x_trig: float, lo: float, hi: float, h_n: int, air: float):
         """Event k's located position [m], the time the encoder passed it [s], its

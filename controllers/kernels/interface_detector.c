@@ -553,17 +553,12 @@ static void restart_after(Detector *s, int k)
 {
     int n = (int)s->n;
     if (s->restart != 0.0 && k == (int)s->flag - 1 && k < n && s->armed == 0.0) {
-        long nb = (long)s->n_buf, Nm = (long)s->N_min;
-        s->trim = k + 1 < n ? 1.0 : 0.0;   /* interface_detector.py: not for the exit's test */
-        /* interface_detector.py: an interface test restarts on the window's last N_min samples */
-        long keep = s->trim != 0.0 && nb >= Nm ? Nm : 0;
-        if (keep > 0)
-            memmove(s->buf, s->buf + (nb - keep), (size_t)keep * sizeof(double));
-        s->n_buf = (double)keep;
+        s->n_buf = 0.0;
         s->quiet = 0.0;
         s->settled = 0.0;
         s->steady = 0.0;
         s->need = s->N_min;
+        s->trim = k + 1 < n ? 1.0 : 0.0;   /* interface_detector.py: not for the exit's test */
     }
 }
 
