@@ -101,8 +101,9 @@ Implementation choices (the paper leaves them open)
 * **Ripple held in air** (issue 23, off by default): ``ripple_adapt_from`` [N] > 0 holds theta
   (its update zeroed; Y and Gamma^-1 run on) until F_dc_hat has stayed that far above its own
   air mean for more than ``ripple_adapt_time`` [s] (:meth:`_ripple_held`). In air there is no
-  thrust ripple to estimate, but the motion's start reached theta through Gamma0 and F_dc_hat rang at the orbit for seconds (measured on a
-  0.75 Hz orbit before any thrust: +-11.4 -> +-3.5 N, tests/test_observer_blocks.py).
+  thrust ripple to estimate, but the motion's start reached theta through Gamma0 and F_dc_hat
+  rang at the orbit for seconds (measured on a 0.75 Hz orbit before any thrust: +-11.4 ->
+  +-3.5 N, tests/test_observer_blocks.py).
 * **Speed**: ``kernel = "auto"`` (default) runs each sample in C
   (``controllers/kernels/fang_observer.c``, the same arithmetic in the same order, built with
   the FMUs), about 0.5 us against ~4 us for the Python reference step (``_step_python``),

@@ -679,9 +679,9 @@ class InterfaceDetector(KernelBlock, Block):
         self.exit_compliance = float(compliance)
 
     def _front_positions(self, x, F, air: float):
-        """Where the cutting front was [m] for the exit's and the entry's fits: the encoder ``x`` [m] less the
-        drive's deflection under the observed thrust ``F`` [N] above the air level ``air`` [N].
-        The push-out law holds in the front's position, and the front lags the encoder by
+        """Where the cutting front was [m] for the exit's and the entry's fits: the encoder
+        ``x`` [m] less the drive's deflection under the observed thrust ``F`` [N] above the air
+        level ``air`` [N]. The push-out law holds in the front's position, and the front lags the encoder by
         F times the compliance; where the fall ends the thrust is gone and the two agree, but
         over the fall the front gains that lag back, and in encoder positions the fall looks
         shorter and steeper at its top: fitted there, the free face came out early by about

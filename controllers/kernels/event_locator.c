@@ -454,11 +454,13 @@ static int loc_air_run(const double *x, const double *F, long n, double air, dou
     }
     if (best == 0 || *i1 - *i0 < 2 * LOC_MIN_SEGMENT || *i1 == n)   /* a run to the window's end: no gap */
         return 0;
+    /* the run's median below half the threshold, or a V: its lowest sample below V_DIP_SHARE of it */
+    if (loc_median(F + *i0, *i1 - *i0, scratch) - air < 0.5 * low)
+        return 1;
     double lowest = F[*i0];
     for (long i = *i0 + 1; i < *i1; i++)
         lowest = LOC_PYMIN(lowest, F[i]);
-    /* the run's median below half the threshold, or a V: its lowest sample below V_DIP_SHARE of it */
-    return loc_median(F + *i0, *i1 - *i0, scratch) - air < 0.5 * low || lowest - air < LOC_V_DIP_SHARE * low;
+    return lowest - air < LOC_V_DIP_SHARE * low;
 }
 
 /* floor_gap: [i0, i1) of the longest run below cut_floor [N] after a cut level (the first
@@ -525,12 +527,12 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
         /* the lower layer's level from the air run's start when it cuts higher than the upper
            one; a drop whose run ends 2 MIN_SEGMENT samples before the window: its onset
            searched from there too (event_locator._onset_from) */
-        double first, last, lo_onset = mid;
+        double first, last;
         loc_end_levels(x, F, n, scratch, &first, &last);
-        if (last > first || (last < first && g1 <= n - 2 * LOC_MIN_SEGMENT))
+        int closed_drop = last < first && g1 <= n - 2 * LOC_MIN_SEGMENT;
+        if (last > first || closed_drop)
             n_down = loc_select(x, F, n, x[g0], INFINITY, xd, Fd);
-        if (last < first && g1 <= n - 2 * LOC_MIN_SEGMENT)
-            lo_onset = x[g0];
+        double lo_onset = closed_drop ? x[g0] : mid;
         LocFit down = {xd, Fd, n_down, 0, NAN, engage};
         double lo, dlo, hi, dhi;
         if (open_end) {                      /* the window ends in the gap: its last sample bounds it */
