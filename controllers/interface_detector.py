@@ -166,6 +166,10 @@ AIR_RING_ORBITS = 2.0
 # square root of the plan's ratio, at most 0.59 of the level): a smaller drop is within the
 # levels' spread with tool wear (the ratio moves by up to ~2.7, docs/plants.md)
 ORBIT_DROP = 0.35
+# the entry's restart keeps the samples within this many spreads of the level the thrust
+# stands at (the orbit's ripple is 1.4 spreads at its peaks): the engagement ramp's lower part
+# and the observer's ringing below it stay out of the window (:meth:`_replay_level`)
+LEVEL_BAND_K = 2.5
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
                   ("t", "s", "time the encoder passed the located position"),
@@ -1051,24 +1055,7 @@ class InterfaceDetector(KernelBlock, Block):
             F_pred = float(self.W[self.n_buf] @ self.buf[:self.n_buf])
             e = F - F_pred
             self.F_pred, self.F_err = F_pred, e
-            if math.isnan(self.F_level):
-                self.F_level = F_pred
-            if abs(e) < self._rearm_level(self.F_level):
-                # the observed level the relative thresholds scale with: frozen as soon as
-                # F~ grows (a step), else the threshold would climb the step with F^
-                self.quiet += 1
-                self.F_level = F_pred
-                self.settled = self.settled + 1 if abs(e) < max(self.rearm_level, LEVEL_SETTLED * abs(F_pred)) else 0
-                self.steady = self.steady + 1 if abs(e) < max(self.rearm_level, LEVEL_STEADY * abs(F_pred)) else 0
-            else:
-                self.quiet = self.settled = self.steady = 0
-                if self.trim and self.n_buf > self.N_min:
-                    # restarted once located, the window still holds a transient (a window
-                    # cut to a thin layer ends on the lower layer's ramp; an observer's
-                    # ringing): keep its last N_min samples, so that the tests arm N_min
-                    # quiet samples after the transient, not once a longer window has left it
-                    self.buf[:self.N_min] = self.buf[self.n_buf - self.N_min:self.n_buf]
-                    self.n_buf = self.N_min
+            self._count(F_pred, e)
             if self.thd_noise_factor > 0.0:
                 self.err_hist.append(abs(e))
             if self.relative and 1 <= self.flag <= self.n and math.isnan(self.levels[self.flag - 1]) \
@@ -1100,17 +1087,73 @@ class InterfaceDetector(KernelBlock, Block):
                 self._exit_confirm(t, x)
         elif 1 <= self.flag < self.n and self.if_ratio[self.flag - 1]:
             self._interface_orbit(t, x)
-        # shift the regression window (oldest first)
+        self._push(F)
+        if self.pending:
+            self._locate_due(t, x)
+        self._check_windows(t, x)
+        return self._outputs()
+
+    def _count(self, F_pred: float, e: float) -> None:
+        """The quiet, settled and steady counts (the arming's statistics) after one F~ = e."""
+        if math.isnan(self.F_level):
+            self.F_level = F_pred
+        if abs(e) < self._rearm_level(self.F_level):
+            # the observed level the relative thresholds scale with: frozen as soon as
+            # F~ grows (a step), else the threshold would climb the step with F^
+            self.quiet += 1
+            self.F_level = F_pred
+            self.settled = self.settled + 1 if abs(e) < max(self.rearm_level, LEVEL_SETTLED * abs(F_pred)) else 0
+            self.steady = self.steady + 1 if abs(e) < max(self.rearm_level, LEVEL_STEADY * abs(F_pred)) else 0
+        else:
+            self.quiet = self.settled = self.steady = 0
+            if self.trim and self.n_buf > self.N_min:
+                # restarted once located, the window still holds a transient (a window
+                # cut to a thin layer ends on the lower layer's ramp; an observer's
+                # ringing): keep its last N_min samples, so that the tests arm N_min
+                # quiet samples after the transient, not once a longer window has left it
+                self.buf[:self.N_min] = self.buf[self.n_buf - self.N_min:self.n_buf]
+                self.n_buf = self.N_min
+
+    def _push(self, F: float) -> None:
+        """Shift the regression window (oldest first)."""
         if self.n_buf < self.N:
             self.buf[self.n_buf] = F
             self.n_buf += 1
         else:
             self.buf[:-1] = self.buf[1:]
             self.buf[-1] = F
-        if self.pending:
-            self._locate_due(t, x)
-        self._check_windows(t, x)
-        return self._outputs()
+
+    def _level_run(self) -> int:
+        """Samples at the end of the history, since the candidate's position x_ev[0] and at
+        most N, within LEVEL_BAND_K spreads (or the re-arm level) of the mean of the last
+        N_min: where the thrust has stood at the level it has now."""
+        j1 = self.h_n
+        j_min = max(j1 - self.N, j1 - HISTORY, 0)
+        if j1 - j_min < self.N_min:
+            return 0
+        M = self._hist_mean(j1 - self.N_min, j1)
+        band = max(self.rearm_level, LEVEL_BAND_K * math.sqrt(self._hist_var(j1 - self.N_min, j1, M)))
+        j = j1 - 1
+        while j >= j_min and self.h_x[j % HISTORY] >= self.x_ev[0] and abs(self.h_F[j % HISTORY] - M) <= band:
+            j -= 1
+        return j1 - 1 - j
+
+    def _replay_level(self) -> None:
+        """The entry's restart keeps the samples since the thrust stands at the layer's
+        level (:meth:`_level_run`): the window and the arming's counts are what a restart
+        there would have given them (issue 23: a thin first layer, 0.93 mm of Al at 24
+        mm/min above a gap, restarted 0.45 mm past the candidate and was one sample short
+        of arming before its push-out: its interface missed, project hole 155 of the wide
+        draw; foreign hole 27 of another draw)."""
+        m = self._level_run()
+        if m <= self.N_min:
+            return
+        for F in self.h_F[(self.h_n - m + np.arange(m)) % HISTORY].tolist():
+            if self.n_buf >= self.N_min:
+                F_pred = float(self.W[self.n_buf] @ self.buf[:self.n_buf])
+                self.F_pred, self.F_err = F_pred, F - F_pred
+                self._count(F_pred, F - F_pred)
+            self._push(F)
 
     # ------------------------------------------------------------------ localisation
     def _history(self, h_n: int):
@@ -1174,6 +1217,8 @@ class InterfaceDetector(KernelBlock, Block):
             # after a thin aluminium last layer (its floor, a few N, is the air's noise)
             # and fired there 1.2 mm late with no fail (wide draw, project hole 116)
             self.trim = k + 1 < self.n
+            if k == 0:
+                self._replay_level()
 
     def _fit(self, k: int, x_trig: float, lo: float, hi: float, h_n: int, air: float):
         """Event k's located position [m], the time the encoder passed it [s], its

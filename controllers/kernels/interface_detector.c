@@ -30,6 +30,7 @@
 #define DET_LEVEL_STEADY 0.5                 /* interface_detector.py LEVEL_STEADY */
 #define DET_ORBIT_STEADY 0.1                 /* interface_detector.py ORBIT_STEADY */
 #define DET_AIR_OFFSET_K 2.0                 /* interface_detector.py AIR_OFFSET_K */
+#define DET_LEVEL_BAND_K 2.5                 /* interface_detector.py LEVEL_BAND_K */
 #define DET_N_OUT 50
 
 typedef double (*dot_fn)(long n, const double *x, long incx, const double *y, long incy);
@@ -487,13 +488,9 @@ static void interface_orbit(Detector *s, double t, double x)
         event(s, k, t, x, -1.0);
 }
 
-/* the prediction error's bookkeeping and the armed test of one sample */
-static void tests(Detector *s, double t, double x, double F, double F_pred)
+/* interface_detector.py _count: the arming's counts after one F~ = e */
+static void count(Detector *s, double F_pred, double e)
 {
-    double e = F - F_pred;
-    int n = (int)s->n, flag;
-    s->F_pred = F_pred;
-    s->F_err = e;
     if (isnan(s->F_level))
         s->F_level = F_pred;
     if (fabs(e) < rearm_level(s, s->F_level)) {
@@ -513,6 +510,64 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
             s->n_buf = s->N_min;
         }
     }
+}
+
+/* interface_detector.py _push: shift the regression window (oldest first) */
+static void push(Detector *s, double F)
+{
+    long nb = (long)s->n_buf, N = (long)s->N;
+    if (nb < N) {
+        s->buf[nb] = F;
+        s->n_buf = nb + 1;
+    } else {
+        memmove(s->buf, s->buf + 1, (size_t)(N - 1) * sizeof(double));
+        s->buf[N - 1] = F;
+    }
+}
+
+/* interface_detector.py _level_run: samples at the history's end on the level it has now */
+static long level_run(const Detector *s)
+{
+    double j1 = s->h_n, j_min = MAX(MAX(j1 - s->N, j1 - DET_HISTORY), 0.0);
+    if (j1 - j_min < s->N_min)
+        return 0;
+    double M = hist_mean(s, j1 - s->N_min, j1);
+    double band = MAX(s->rearm_level, DET_LEVEL_BAND_K * sqrt(hist_var(s, j1 - s->N_min, j1, M)));
+    long j = (long)j1 - 1;
+    while (j >= (long)j_min && s->h_x[j % DET_HISTORY] >= s->x_ev[0]
+            && fabs(s->h_F[j % DET_HISTORY] - M) <= band)
+        j--;
+    return (long)j1 - 1 - j;
+}
+
+/* interface_detector.py _replay_level: the entry's restart keeps the samples on the level */
+static void replay_level(Detector *s)
+{
+    long m = level_run(s), Nm = (long)s->N_min;
+    if (m <= Nm)
+        return;
+    for (long j = (long)s->h_n - m; j < (long)s->h_n; j++) {
+        double F = s->h_F[j % DET_HISTORY];
+        long nb = (long)s->n_buf;
+        if (nb >= Nm) {
+            const double *w = s->W + (nb * (nb - 1) - Nm * (Nm - 1)) / 2;
+            double F_pred = DET_DOT(s, nb, w);
+            s->F_pred = F_pred;
+            s->F_err = F - F_pred;
+            count(s, F_pred, F - F_pred);
+        }
+        push(s, F);
+    }
+}
+
+/* the prediction error's bookkeeping and the armed test of one sample */
+static void tests(Detector *s, double t, double x, double F, double F_pred)
+{
+    double e = F - F_pred;
+    int n = (int)s->n, flag;
+    s->F_pred = F_pred;
+    s->F_err = e;
+    count(s, F_pred, e);
     if (s->thd_noise_factor > 0.0) {
         long n2 = 2 * (long)s->N, p = (long)s->err_pos;
         s->err[p] = fabs(e);
@@ -559,6 +614,8 @@ static void restart_after(Detector *s, int k)
         s->steady = 0.0;
         s->need = s->N_min;
         s->trim = k + 1 < n ? 1.0 : 0.0;   /* interface_detector.py: not for the exit's test */
+        if (k == 0)
+            replay_level(s);
     }
 }
 
@@ -685,12 +742,11 @@ void interface_detector_step(Detector *s, double t, const double *u, double *y)
     s->h_x[i] = x;
     s->h_F[i] = F;
     s->h_n += 1.0;
-    long nb = (long)s->n_buf, N = (long)s->N, Nm = (long)s->N_min;
+    long nb = (long)s->n_buf, Nm = (long)s->N_min;
     if (nb >= Nm) {
         /* weights of length nb start after those of N_min .. nb - 1 */
         const double *w = s->W + (nb * (nb - 1) - Nm * (Nm - 1)) / 2;
         tests(s, t, x, F, DET_DOT(s, nb, w));
-        nb = (long)s->n_buf;    /* the tests may have trimmed the window */
     }
     if (s->exit_P != 0.0 && (int)s->flag == (int)s->n) {
         exit_orbit(s, t, x);
@@ -698,13 +754,7 @@ void interface_detector_step(Detector *s, double t, const double *u, double *y)
             exit_confirm(s, t, x);
     } else if (1 <= (int)s->flag && (int)s->flag < (int)s->n && s->if_ratio[(int)s->flag - 1] != 0.0)
         interface_orbit(s, t, x);
-    if (nb < N) {               /* shift the regression window (oldest first) */
-        s->buf[nb] = F;
-        s->n_buf = nb + 1;
-    } else {
-        memmove(s->buf, s->buf + 1, (size_t)(N - 1) * sizeof(double));
-        s->buf[N - 1] = F;
-    }
+    push(s, F);                 /* after the tests, which may have trimmed the window */
     if (s->n_pending > 0.0)
         locate_due(s, t, x);
     check_windows(s, t, x);
