@@ -391,9 +391,10 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     if gap is None:
         gap = floor_gap(F, cut_floor)
         if gap is not None:
-            return _gap_faces(x, F, gap, None, open_end=x.size - gap[1] < 2 * MIN_SEGMENT)
+            return _gap_faces(x, F, gap, None, open_end=x.size - gap[1] < 2 * MIN_SEGMENT,
+                              laws=(ENTRY_SHAPES[entry_shape], EXIT_SHAPES[exit_shape]))
         return onset_face(x, F, x0, min(xt, x1))
-    return _gap_faces(x, F, gap, air)
+    return _gap_faces(x, F, gap, air, laws=(ENTRY_SHAPES[entry_shape], EXIT_SHAPES[exit_shape]))
 
 
 def _ghost_drop(x, F, ghost) -> bool:
@@ -412,11 +413,12 @@ def _ghost_drop(x, F, ghost) -> bool:
     return IF_GHOST_ORBIT <= ghost[0] <= x.size and 0.0 <= ghost[1] < 1.0 and last < first
 
 
-def _gap_faces(x, F, gap, air, open_end: bool = False):
+def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH_OUT_SHAPES)):
     """The middle of a gap's two faces and its uncertainty: the lower layer's onset after
     the run's middle (``open_end``: the window ends in the gap, its last sample bounds the
     part seen), then the upper layer's free face on the samples before that onset. ``air``
-    None: the air level is fitted."""
+    None: the air level is fitted. ``laws``: the plan's (ENTRY_SHAPES, EXIT_SHAPES) entries,
+    taken when the lower layer cuts higher (:func:`_rise_laws`)."""
     x0, x1 = float(x[0]), float(x[-1])
     # the upper layer runs out at its free face, the lower one's rise leaves the air level
     # at its face: the middle of the two is inside the gap whatever its width
@@ -426,14 +428,32 @@ def _gap_faces(x, F, gap, air, open_end: bool = False):
         return NAN, NAN
     start, lo_onset = _onset_from(x, F, gap, mid)
     down = x >= start
-    hi, dhi = (x1, 0.0) if open_end else onset_face(x[down], F[down], lo_onset, x1)
+    engage, push_out = _rise_laws(x, F, laws)
+    hi, dhi = (x1, 0.0) if open_end else onset_face(x[down], F[down], lo_onset, x1, shapes=engage)
     # the upper layer's fall is fitted up to the lower layer's onset, not only to the run's
     # middle: the run below AIR_SHARE of a soft upper layer (Al, 10-30 N) holds the tail of its
     # push-out, and a free face bounded by the middle ended the fall early (wide draw, foreign
     # holes 8, 73, 133, 172, 184, 199: 0.055-0.10 mm early; replayed: within 0.016 mm)
     up = x <= hi
-    lo, dlo = free_face(x[up], F[up], x0, hi, air)
+    lo, dlo = free_face(x[up], F[up], x0, hi, air, shapes=push_out)
     return 0.5 * (lo + hi), 0.5 * abs(hi - lo) + max(dlo, dhi)
+
+
+def _rise_laws(x, F, laws):
+    """The ramp shapes an interface's lower onset and the push-out laws its upper free face
+    are fitted with: ``laws`` (the plan's, locate's ``entry_shape`` and ``exit_shape``: the
+    tool's point engages every layer as it does the first, and pushes every layer out as the
+    last) when the lower layer cuts higher (the last fifth's median above the first's,
+    :func:`_end_levels`), else either of ENGAGE_SHAPES and of PUSH_OUT_SHAPES. A soft upper
+    layer (Al or CFRP, 10-50 N) before a harder one leaves its push-out's tail in the gap;
+    offered r and r^2 the fit took either for the foreign2 drive's r^1.5 and ended the fall
+    early, and offered the smoothstep it put the Ti's linear rise 0.04 mm early (wide draw,
+    foreign2 holes 47, 8, 184: -0.042..-0.048 mm, on the plant's true thrust too). On a drop
+    the laws stay free: the upper layer is the hard one, its fall large against the lower
+    layer's level, and the plan's push-out law moved narrow drops late (replayed, round 12:
+    foreign2 hole 100 if3 +0.016 -> +0.034 mm, foreign 100 if3 -0.011 -> +0.019)."""
+    first, last = _end_levels(x, F)
+    return laws if last > first else (ENGAGE_SHAPES, PUSH_OUT_SHAPES)
 
 
 def _onset_from(x, F, gap, mid: float) -> tuple[float, float]:

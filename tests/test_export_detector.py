@@ -33,7 +33,7 @@ from fmpy.validation import validate_fmu
 
 from drillcosim.controllers import detector_kernel
 from drillcosim.controllers import interface_detector as idm
-from drillcosim.controllers.event_locator import EXIT_SHAPES, locate
+from drillcosim.controllers.event_locator import ENTRY_SHAPES, EXIT_SHAPES, locate
 from drillcosim.controllers.interface_detector import InterfaceDetector
 from drillcosim.cosim.exchange.export_fmu import export_blocks, has_c_step, with_exported_blocks
 from drillcosim.cosim.loop.algorithm import run
@@ -49,24 +49,26 @@ KINDS = {"entry": 0, "interface": 1, "exit": 2}
 PREDICTION = ("F_pred", "F_err", "F_ref", "thd", "level_mismatch")
 
 
-def _c_locate(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any"):
+def _c_locate(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any", entry_shape="any"):
     fn = detector_kernel.export_library().event_locate_tables
     fn.restype = None
     fn.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_long, ctypes.c_double,
                    ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p,
-                   ctypes.c_void_p, ctypes.c_int]
+                   ctypes.c_void_p, ctypes.c_int, ctypes.c_int]
     x, F = np.ascontiguousarray(x, float), np.ascontiguousarray(F, float)
     tables, out = detector_kernel.locator_tables(), np.zeros(2)
     g = None if ghost is None else np.array(ghost, float)
     fn(KINDS[kind], x.ctypes.data, F.ctypes.data, x.size, air, x_trig,
        math.nan if cut_floor is None else cut_floor, period or 0.0, None if g is None else g.ctypes.data,
-       tables.ctypes.data, out.ctypes.data, list(EXIT_SHAPES).index(exit_shape))
+       tables.ctypes.data, out.ctypes.data, list(EXIT_SHAPES).index(exit_shape), list(ENTRY_SHAPES).index(entry_shape))
     return float(out[0]), float(out[1])
 
 
-def _assert_same_fit(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any"):
-    py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost, exit_shape=exit_shape)
-    c = _c_locate(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape)
+def _assert_same_fit(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any",
+                     entry_shape="any"):
+    py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost,
+                exit_shape=exit_shape, entry_shape=entry_shape)
+    c = _c_locate(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, entry_shape)
     for a, b in zip(py, c):
         assert (math.isnan(a) and math.isnan(b)) or abs(a - b) <= 1e-12, (kind, py, c)   # 1e-9 mm
     return py

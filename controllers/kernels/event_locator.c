@@ -43,6 +43,8 @@
 typedef struct {
     const double *lengths, *fine;
     int n_lengths, first_shape, n_shapes;
+    int rise_shape;     /* an interface's fit before a rise: the plan's code (0: any), entry_shape's for the
+                           onset, exit_shape's for the free face (loc_exit_grid's codes) */
 } LocGrid;
 
 /* One fit problem: samples, the family (onset or push-out), the air level (NaN: fitted);
@@ -189,7 +191,8 @@ static int loc_columns(const LocFit *f, double face, double L, int shape, long i
 }
 
 /* the exit's push-out grid: ``push``'s lengths with the law of event_locator.EXIT_SHAPES's
- * code exit_shape (0 any: linear or quadratic, 1 linear, 2 quadratic, 3 bending: r^1.5) */
+ * code exit_shape (0 any: linear or quadratic, 1 linear, 2 quadratic, 3 bending: r^1.5); on
+ * an engage grid the ramp of ENTRY_SHAPES's code (0 any, 1 linear, 2 smoothstep) */
 static LocGrid loc_exit_grid(const LocGrid *push, int exit_shape)
 {
     LocGrid g = *push;
@@ -533,7 +536,10 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
         if (last > first || closed_drop)
             n_down = loc_select(x, F, n, x[g0], INFINITY, xd, Fd);
         double lo_onset = closed_drop ? x[g0] : mid;
-        LocFit down = {xd, Fd, n_down, 0, NAN, engage};
+        /* before a rise the plan's ramp and push-out law (event_locator._rise_laws) */
+        LocGrid ramp = last > first ? loc_exit_grid(engage, engage->rise_shape) : *engage;
+        LocGrid law = last > first ? loc_exit_grid(push, push->rise_shape) : *push;
+        LocFit down = {xd, Fd, n_down, 0, NAN, &ramp};
         double lo, dlo, hi, dhi;
         if (open_end) {                      /* the window ends in the gap: its last sample bounds it */
             hi = x[n - 1];
@@ -543,7 +549,7 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
         }
         /* the upper layer's fall up to the lower layer's onset (event_locator._gap_faces) */
         n_up = loc_select(x, F, n, -INFINITY, hi, xu, Fu);
-        LocFit up = {xu, Fu, n_up, 1, air, push};
+        LocFit up = {xu, Fu, n_up, 1, air, &law};
         loc_best_face(&up, x[0], hi, &lo, &dlo);
         *x_loc = 0.5 * (lo + hi);
         *dx = 0.5 * fabs(hi - lo) + LOC_PYMAX(dlo, dhi);

@@ -193,6 +193,8 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     LocGrid push = {s->push_out_lengths, s->push_out_fine, LOC_N_PUSH_OUT, 0, 2};
     if (kind == LOC_EXIT)
         push = loc_exit_grid(&push, (int)s->exit_shape);
+    engage.rise_shape = (int)s->entry_shape;     /* an interface's rise: the plan's ramp and law */
+    push.rise_shape = (int)s->exit_shape;
     /* an interface window cut short to a thin layer below may end in the gap: air is below
      * the engagement floor of both layers around it (InterfaceDetector._fit; full: _full_loc_after) */
     double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0 && d->loc_after[k - 1] < d->max_gap + d->push_out + d->locate_margin
@@ -240,16 +242,20 @@ void interface_detector_fmu_step(DetectorFMU *s, double t, const double *u, doub
 
 /* the localisation alone, for tests against event_locator.locate: kind 0 entry, 1
  * interface, 2 exit; out = x_loc, dx [m]; tables as in DetectorFMU; period [samples],
- * ghost (NULL: none) and exit_shape (DetectorFMU's code) as event_locator.locate's */
+ * ghost (NULL: none), exit_shape and entry_shape (DetectorFMU's codes) as event_locator.locate's */
 void event_locate_tables(int kind, const double *x, const double *F, long n, double air, double x_trig,
                          double cut_floor, double period, const double *ghost, const double *tables, double *out,
-                         int exit_shape)
+                         int exit_shape, int entry_shape)
 {
     LocGrid engage = {tables, tables + LOC_N_ENGAGE, LOC_N_ENGAGE, 0, 2};
     LocGrid push = {tables + LOC_N_ENGAGE + LOC_N_FINE, tables + LOC_N_ENGAGE + LOC_N_FINE + LOC_N_PUSH_OUT,
                     LOC_N_PUSH_OUT, 0, 2};
     if (kind == LOC_EXIT)
         push = loc_exit_grid(&push, exit_shape);
+    if (kind == LOC_ENTRY)
+        engage = loc_exit_grid(&engage, entry_shape);
+    engage.rise_shape = entry_shape;
+    push.rise_shape = exit_shape;
     event_locate(kind, x, F, n, air, x_trig, cut_floor, period, ghost, &engage, &push, &out[0], &out[1]);
 }
 
