@@ -361,7 +361,8 @@ class InterfaceDetector(KernelBlock, Block):
         ``_entry_air``, ``_entry_holds`` and ``_entry_swings``.
     entry_shape: the entry's localisation fits a "linear" ramp (a drill point, whose engaged
         edge grows linearly with depth), a "smoothstep" (a rounded edge) or "any" (default:
-        either, whichever fits better; event_locator.ENTRY_SHAPES).
+        either, whichever fits better; event_locator.ENTRY_SHAPES); an interface's gap before
+        a rise fits the lower layer's onset with it too (event_locator._rise_laws).
     Then entry: F~ > entry_fraction * kc_1 * f_1 * ramp_gain; interface k: |F~| >
     max(thd_min, step_fraction * |kc_{k+1}/kc_k - 1| * F^) (the step the
     observed level F^ makes when the material changes under an unchanged process);
@@ -434,7 +435,8 @@ class InterfaceDetector(KernelBlock, Block):
         forgetting, its ghost outlives the thrust); either 0 (default): off.
     exit_shape: the last layer's push-out law the exit's fit takes: "linear", "quadratic",
         "bending" (the 1.5th power) or "any" (default: linear or quadratic, whichever fits
-        better; event_locator.EXIT_SHAPES).
+        better; event_locator.EXIT_SHAPES). An interface's gap before a rise fits the upper
+        layer's free face with it too (event_locator._rise_laws).
     exit_compliance [m/N]: the drive's compliance between the encoder and the cutting front
         (frame, spindle, tool/workpiece contact); the exit's and the entry's fits take the
         front's lag, the thrust times it, out of the encoder's positions
