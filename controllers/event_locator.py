@@ -447,8 +447,12 @@ def _rise_laws(x, F, laws):
     :func:`_end_levels`), else either of ENGAGE_SHAPES and of PUSH_OUT_SHAPES. A soft upper
     layer (Al or CFRP, 10-50 N) before a harder one leaves its push-out's tail in the gap;
     offered r and r^2 the fit took either for the foreign2 drive's r^1.5 and ended the fall
-    early, and offered the smoothstep it put the Ti's linear rise 0.04 mm early (wide draw,
-    foreign2 holes 47, 8, 184: -0.042..-0.048 mm, on the plant's true thrust too). On a drop
+    early, and offered the smoothstep it put the Ti's linear rise 0.05 mm early (wide draws,
+    foreign2 holes 47, 184 of seed 23, 31 of seed 24: -0.042, -0.042, -0.069 mm, on the
+    plant's true thrust too; with the plan's laws, closed loop: 0.000, +0.011, +0.006). A
+    compliant tool contact rounds a large rise's foot, and the linear onset comes late there
+    (plant options, foreign2 hole 36: 0.000 -> +0.029 mm; the interface's positions are the
+    encoder's, without the entry's and exit's compliance correction). On a drop
     the laws stay free: the upper layer is the hard one, its fall large against the lower
     layer's level, and the plan's push-out law moved narrow drops late (replayed, round 12:
     foreign2 hole 100 if3 +0.016 -> +0.034 mm, foreign 100 if3 -0.011 -> +0.019)."""

@@ -2,7 +2,7 @@
 drive's own law onto a harder layer engaging with the tool's own ramp. Offered r and r^2
 the upper free face took either for the foreign2 drive's bending push-out (r^1.5), and
 offered the smoothstep the lower onset took it for the Ti's linear rise: the interface came
-out 0.03-0.04 mm early (wide draw, foreign2 holes 47, 8, 184: -0.042..-0.048 mm). Before a
+out 0.04-0.07 mm early (wide draws, foreign2 holes 47, 184, 31: -0.042..-0.069 mm). Before a
 rise the gap's fit now takes the plan's laws (locate's ``entry_shape``, ``exit_shape``;
 event_locator._rise_laws); a drop keeps both free. Profiles with 0.5 N of seeded noise, a
 sample every 4 um (the fit's grid is 1 um): located within 0.01 mm of the gap, a third of
