@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drillcosim.controllers.event_locator import EXIT_SHAPES, _ghost_visible, locate, orbit_mean
+from drillcosim.controllers.event_locator import EXIT_RING_ORBIT, EXIT_SHAPES, _ghost_visible, locate, orbit_mean
 from drillcosim.controllers.interface_detector import InterfaceDetector
 from drillcosim.cosim.scenario.loader import load_scenario
 from drillcosim.drilling.hole_plan import EXIT_SHAPES as HOLE_EXIT_SHAPES
@@ -124,7 +124,9 @@ def test_hole_plan_gives_the_exit_its_orbit():
     assert det["exit_loc_after"] == pytest.approx(plan.locate_margin + 0.1e-3)
     assert plan.half_orbit_travel() == pytest.approx(0.1e-3)
     z_off, z_on = (p.trajectory({})["z_end"] for p in (off, plan))
-    assert z_on - z_off == pytest.approx(0.1e-3)
+    # without orbit means this 1 Hz orbit (50 samples) has the ringing fit's whole orbit instead
+    assert off.ring_travel() == pytest.approx(0.2e-3) and plan.ring_travel() == 0.0
+    assert z_on - z_off == pytest.approx(0.1e-3 - 0.2e-3)
     with pytest.raises(ValueError, match="hole.exit_orbit_mean"):
         HolePlan({**hole, "exit_orbit_mean": 1}, error)
 
@@ -373,3 +375,25 @@ def test_the_observers_ringing_at_a_slow_orbit_is_fitted_with_the_fall():
         ring.append(_assert_same_fit("exit", x, F, 0.0, FACE, ghost=ghost, exit_shape="linear")[0] - FACE)
     assert max(abs(v) for v in raw) > 0.025 * MM
     assert max(abs(v) for v in ring) <= 0.012 * MM
+
+
+def test_a_slow_orbit_exit_window_holds_an_orbit_more():
+    """At an orbit of EXIT_RING_ORBIT detector samples or more (0.8 s) the exit's window, and
+    the feed past the bottom, reach one orbit of travel further (the ringing fit needs an orbit
+    of air after the face; HolePlan.ring_travel): 40 rpm at 0.15 mm/s, 0.225 mm; at 120 rpm
+    (0.5 s) nothing."""
+    def hole(rpm):
+        return {"surface": 1e-3, "layers": [{"material": "cfrp", "thickness": 5e-3, "tolerance": 0.5e-3},
+                                            {"material": "al", "thickness": 4e-3, "tolerance": 0.5e-3}],
+                "process": {"cfrp": {"feed_rate": 2e-4, "spindle_speed": 2000.0, "orbital_speed": 120.0},
+                            "al": {"feed_rate": 1.5e-4, "spindle_speed": 2000.0, "orbital_speed": rpm}}}
+
+    def error(key, msg):
+        return ValueError(f"{key}: {msg}")
+
+    slow, fast = HolePlan(hole(40.0), error), HolePlan(hole(120.0), error)
+    assert slow.orbit_period(-1) >= EXIT_RING_ORBIT * 0.02 > fast.orbit_period(-1)
+    assert slow.ring_travel() == pytest.approx(0.225e-3) and fast.ring_travel() == 0.0
+    assert slow.detector(1.0)["exit_loc_after"] == pytest.approx(slow.locate_margin + 0.225e-3)
+    assert "exit_loc_after" not in fast.detector(1.0)
+    assert slow.trajectory({})["z_end"] - fast.trajectory({})["z_end"] == pytest.approx(0.225e-3)
