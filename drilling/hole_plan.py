@@ -27,8 +27,6 @@ from __future__ import annotations
 
 import copy
 
-from drillcosim.controllers.event_locator import EXIT_RING_ORBIT
-
 MATERIALS = {"cfrp": 1, "ti": 2, "al": 3}          # contract material codes (docs/signal_contract.md)
 NOMINAL_KC = {"cfrp": 2.0e7, "ti": 6.5e7, "al": 2.5e6}   # N/(m/rev), new tool (docs/plants.md presets)
 MAX_LAYERS = 4
@@ -59,6 +57,7 @@ ORBITS_PER_LAYER = 2.0
 # by up to ~2.7 (Al / Ti, 80 holes), another drive by ~0.8; a wrong order by ~10 (CFRP/Ti) or more
 MISMATCH_FACTOR = 4.0
 DETECTOR_DT, DETECTOR_N_MIN = 0.02, 25  # InterfaceDetector defaults (Table 4's dt, its shortest window)
+EXIT_RING_ORBIT = 40.0   # samples: the exit fit's ringing from this orbit on (event_locator.EXIT_RING_ORBIT)
 LAYER_KEYS = {"material", "thickness", "tolerance"}
 ENTRY_SHAPES = ("any", "linear", "smoothstep")   # the entry fit's ramps (event_locator.ENTRY_SHAPES)
 EXIT_SHAPES = ("any", "linear", "quadratic", "bending")   # the exit fit's push-out laws (event_locator.EXIT_SHAPES)

@@ -29,6 +29,7 @@ from drillcosim.controllers.event_locator import EXIT_RING_ORBIT, EXIT_SHAPES, _
 from drillcosim.controllers.interface_detector import InterfaceDetector
 from drillcosim.cosim.scenario.loader import load_scenario
 from drillcosim.drilling.hole_plan import EXIT_SHAPES as HOLE_EXIT_SHAPES
+from drillcosim.drilling import hole_plan
 from drillcosim.drilling.hole_plan import HolePlan
 from test_export_detector import _assert_same_fit
 
@@ -391,6 +392,7 @@ def test_a_slow_orbit_exit_window_holds_an_orbit_more():
     def error(key, msg):
         return ValueError(f"{key}: {msg}")
 
+    assert hole_plan.EXIT_RING_ORBIT == EXIT_RING_ORBIT      # the plan's copy of the locator's
     slow, fast = HolePlan(hole(40.0), error), HolePlan(hole(120.0), error)
     assert slow.orbit_period(-1) >= EXIT_RING_ORBIT * 0.02 > fast.orbit_period(-1)
     assert slow.ring_travel() == pytest.approx(0.225e-3) and fast.ring_travel() == 0.0
