@@ -55,6 +55,11 @@ V_DIP_SHARE = 0.1
 # an interface's drop at an orbit of at least this many samples (0.8 s at the detector's 0.02 s) is
 # located at the upper layer's free face fitted with the observer's ghost (:func:`_ghost_drop`)
 IF_GHOST_ORBIT = 40.0
+# an exit window without a visible ghost at an orbit of at least this many samples (1.25 Hz at
+# the detector's 0.02 s) is fitted with the observer's ringing (:func:`_ringing`): on a 12-25 N
+# aluminium plateau the DC estimate rings +-3..6 N at the orbit, which moved the end of the fall
+# by up to 0.13 mm (project hole 182, foreign hole 106; docs/stacks.md, "Localisation")
+EXIT_RING_ORBIT = 40.0
 
 
 def _end_levels(x, F) -> tuple[float, float]:
@@ -195,6 +200,19 @@ def _orbit_sin_cos(n: int, period: float) -> tuple[np.ndarray, np.ndarray]:
     return np.sin(phase), np.cos(phase)
 
 
+def _ringing(n: int, period: float) -> list[np.ndarray]:
+    """The observer's ringing at the orbit (``period`` samples) as columns over n samples: the
+    orbit's sine and cosine with an amplitude changing linearly over the window. The ringing is
+    the ripple estimate's error, which relaxes with the forgetting (1/lambda = 2 s, about the
+    window at a slow orbit), so its amplitude drifts across the window. At the entry, with a
+    constant amplitude the aluminium entries at a slow orbit, +-10 N of ringing about a 15-25 N step,
+    were located at the window's ends (project holes 4, 116: +0.47, -0.60 mm; replayed, 30
+    holes per plant: over 0.05 mm project 3 -> 1, foreign 2 -> 0, foreign2 2 -> 1)."""
+    sin, cos = _orbit_sin_cos(n, period)
+    grow = np.arange(n) / n
+    return [sin, cos, grow * sin, grow * cos]
+
+
 def onset_face(x, F, lo: float, hi: float, period: float | None = None,
                shapes=ENGAGE_SHAPES, rise: bool = False) -> tuple[float, float]:
     """Position [m] in [lo, hi] where the thrust leaves a level (with a trend) for a ramp
@@ -207,15 +225,7 @@ def onset_face(x, F, lo: float, hi: float, period: float | None = None,
     observer's DC estimate rings at the orbit frequency in air (+-5..20 N), which otherwise
     bends the level and the trend and pushes the onset onto its search bound (docs/stacks.md,
     "Localisation")."""
-    orbit = []
-    if period:
-        sin, cos = _orbit_sin_cos(x.size, period)
-        # the ringing decays (or the ripple grows with the cut): with a constant amplitude
-        # the aluminium entries at a slow orbit, +-10 N of ringing about a 15-25 N step, were
-        # located at the window's ends (project holes 4, 116: +0.47, -0.60 mm; replayed, 30
-        # holes per plant: over 0.05 mm project 3 -> 1, foreign 2 -> 0, foreign2 2 -> 1)
-        grow = np.arange(x.size) / x.size
-        orbit = [sin, cos, grow * sin, grow * cos]
+    orbit = _ringing(x.size, period) if period else []
 
     def sse(x0, L, shape):
         d = (x[None, :] - x0) / L
@@ -285,7 +295,8 @@ def _ghost_visible(F) -> bool:
 
 
 def free_face(x, F, lo: float, hi: float, air: float | None, period: float | None = None,
-              ghost: tuple[float, float] | None = None, shapes=PUSH_OUT_SHAPES) -> tuple[float, float]:
+              ghost: tuple[float, float] | None = None, shapes=PUSH_OUT_SHAPES,
+              ring: float | None = None) -> tuple[float, float]:
     """Position [m] in [lo, hi] where a layer pushed out ahead of the tool runs out: its
     thrust (a level with a trend) falls to the air level over a fitted length and law
     and stays there; and its uncertainty [m]. ``air`` None: the air level is fitted too
@@ -300,8 +311,11 @@ def free_face(x, F, lo: float, hi: float, air: float | None, period: float | Non
     (:func:`_ghost_columns`): left in the samples, it moved the end of the fall by
     0.1-0.3 mm on the three drives (docs/stacks.md, "Localisation";
     measured: docs/stacks_history.md, "Exit localisation: the observer's ghost").
-    ``shapes``: the push-out laws tried (PUSH_OUT_SHAPES, or one of EXIT_SHAPES at the exit)."""
+    ``shapes``: the push-out laws tried (PUSH_OUT_SHAPES, or one of EXIT_SHAPES at the exit).
+    ``ring`` [samples] (not with ``period`` or ``ghost``): the observer's ringing at this orbit
+    is fitted with the fall (:func:`_ringing`, the entry's model)."""
     Fa = F - (0.0 if air is None else air)
+    ringing = [] if period or ghost is not None or not ring else _ringing(x.size, ring)
     smooth = (lambda A: orbit_mean(A, period)) if period else (lambda A: A)
     Fs = smooth(Fa)
 
@@ -311,6 +325,7 @@ def free_face(x, F, lo: float, hi: float, air: float | None, period: float | Non
         cols = [g, r * g] if air is not None else [g, r * g, np.ones_like(g)]
         if ghost is not None and not period:
             cols += _ghost_columns(g, ghost)
+        cols += [np.broadcast_to(c, g.shape) for c in ringing]
         return _lstsq_batch([smooth(c) for c in cols], Fs)
 
     return _best_face(lo, hi, sse, PUSH_OUT_LENGTHS, shapes, Fs.size)
@@ -357,9 +372,10 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     ``ghost`` (orbit [samples], decay of the observer's ripple estimate [per sample]): the
     exit's fit on the samples takes out the observer's ripple error (:func:`free_face`; None,
     a window shorter than one orbit, or one that shows no ghost, :func:`_ghost_visible`:
-    none); an interface's: the lower layer's orbit and the same decay (:func:`_ghost_drop`; None:
-    none); ``exit_shape``: the exit's push-out law, one of EXIT_SHAPES. An entry's ramp rises;
-    an interface's may have either sign. (NaN, NaN) when there are too few samples."""
+    none, and at an orbit of EXIT_RING_ORBIT samples or more its ringing instead); an
+    interface's: the lower layer's orbit and the same decay (:func:`_ghost_drop`; None: none);
+    ``exit_shape``: the exit's push-out law, one of EXIT_SHAPES. An entry's ramp rises; an
+    interface's may have either sign. (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
     if entry_shape not in ENTRY_SHAPES:
@@ -382,9 +398,13 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     if kind == EXIT:
         if period is not None and not (period > 1.0 and x.size >= period + 10 * MIN_SEGMENT):
             period = None
-        if ghost is not None and not (1.0 < ghost[0] <= x.size and 0.0 <= ghost[1] < 1.0 and _ghost_visible(F)):
+        if ghost is not None and not (1.0 < ghost[0] <= x.size and 0.0 <= ghost[1] < 1.0):
             ghost = None
-        return free_face(x, F, x0, x1, air if FIXED_EXIT_AIR else None, period, ghost, EXIT_SHAPES[exit_shape])
+        ring = ghost[0] if ghost is not None and ghost[0] >= EXIT_RING_ORBIT else None
+        if ghost is not None and not _ghost_visible(F):
+            ghost = None
+        return free_face(x, F, x0, x1, air if FIXED_EXIT_AIR else None, period, ghost, EXIT_SHAPES[exit_shape],
+                         ring)
     if ghost is not None and _ghost_drop(x, F, ghost):
         return free_face(x, F, x0, x1, None, None, ghost)
     gap = air_run(x, F, air)

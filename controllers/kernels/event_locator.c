@@ -30,8 +30,9 @@
 #define LOC_TWO_PI (2.0 * 3.141592653589793)   /* 2.0 * numpy.pi */
 #define LOC_GHOST_SNR 20.0        /* event_locator.GHOST_SNR */
 #define LOC_IF_GHOST_ORBIT 40.0   /* samples, event_locator.IF_GHOST_ORBIT */
+#define LOC_EXIT_RING_ORBIT 40.0  /* samples, event_locator.EXIT_RING_ORBIT */
 #define LOC_MAX_COLS 7             /* onset: level, trend, ramp, the orbit's sine and cosine and both times i / n;
-                                      push-out: fall, its trend, air and four ghost columns */
+                                      push-out: fall, its trend, air and four ghost or ringing columns */
 
 #define LOC_PYMAX(a, b) ((b) > (a) ? (b) : (a))   /* Python's max(a, b) */
 #define LOC_PYMIN(a, b) ((b) < (a) ? (b) : (a))   /* Python's min(a, b) */
@@ -60,7 +61,8 @@ typedef struct {
     const double *Fs;
     long m;
     double *work;
-    double orbit;                  /* samples: the onset's sinusoid of this period (0: none; onset_face's period) */
+    double orbit;                  /* samples: the ringing's sinusoid of this period (0: none; onset_face's period,
+                                      free_face's ring) */
     double ghost_orbit, ghost_decay;   /* the push-out's ghost columns: orbit [samples] (0: none), decay per
                                           sample (free_face's ghost) */
     int rise;                      /* onset: only a rising ramp is a fit (onset_face's rise: the entry) */
@@ -159,10 +161,26 @@ static double loc_clip01(double u)
     return u < 0.0 ? 0.0 : u > 1.0 ? 1.0 : u;      /* NaN stays NaN, as numpy.clip */
 }
 
-/* the design's columns at sample i: onset d = (x - x0)/L -> 1, d, shape(d) (and the orbit's
- * sine and cosine at phase 2 pi i / orbit, and both times i / n: an amplitude changing
- * linearly); push-out r = (xb - x)/L, g = shape(r) (0: r, 1: r^2, 2: r^1.5, clipped to [0, 1];
- * event_locator.EXIT_SHAPES) -> g, r g (and 1 when the air level is fitted) */
+/* event_locator._ringing at sample i into c[k..k+4): the orbit's sine and cosine at phase
+ * 2 pi i / orbit, and both times i / n (an amplitude changing linearly); k + 4, or k without
+ * an orbit */
+static int loc_ring_columns(const LocFit *f, long i, double *c, int k)
+{
+    if (f->orbit == 0.0)
+        return k;
+    double phase = LOC_TWO_PI * (double)i / f->orbit;     /* numpy: 2.0 * np.pi * arange(n) / period */
+    double grow = (double)i / (double)f->n;                /* numpy: arange(n) / n */
+    c[k] = sin(phase);
+    c[k + 1] = cos(phase);
+    c[k + 2] = grow * c[k];
+    c[k + 3] = grow * c[k + 1];
+    return k + 4;
+}
+
+/* the design's columns at sample i: onset d = (x - x0)/L -> 1, d, shape(d); push-out
+ * r = (xb - x)/L, g = shape(r) (0: r, 1: r^2, 2: r^1.5, clipped to [0, 1];
+ * event_locator.EXIT_SHAPES) -> g, r g (and 1 when the air level is fitted); either followed
+ * by the ringing's columns at ``orbit`` (loc_ring_columns) */
 static int loc_columns(const LocFit *f, double face, double L, int shape, long i, double *c)
 {
     double xi = f->x[i];
@@ -171,23 +189,15 @@ static int loc_columns(const LocFit *f, double face, double L, int shape, long i
         c[0] = 1.0;
         c[1] = d;
         c[2] = shape == 0 ? u : u * u * (3.0 - 2.0 * u);
-        if (f->orbit == 0.0)
-            return 3;
-        double phase = LOC_TWO_PI * (double)i / f->orbit;     /* numpy: 2.0 * np.pi * arange(n) / period */
-        double grow = (double)i / (double)f->n;                /* numpy: arange(n) / n */
-        c[3] = sin(phase);
-        c[4] = cos(phase);
-        c[5] = grow * c[3];
-        c[6] = grow * c[4];
-        return 7;
+        return loc_ring_columns(f, i, c, 3);
     }
     double r = (face - xi) / L, u = loc_clip01(r), g = shape == 0 ? u : shape == 1 ? u * u : pow(u, 1.5);
     c[0] = g;
     c[1] = r * g;
     if (!isnan(f->air))
-        return 2;
+        return loc_ring_columns(f, i, c, 2);
     c[2] = 1.0;
-    return 3;
+    return loc_ring_columns(f, i, c, 3);
 }
 
 /* the exit's push-out grid: ``push``'s lengths with the law of event_locator.EXIT_SHAPES's
@@ -570,6 +580,7 @@ static void loc_exit(LocFit *f, double period, double x0, double x1, double *x_l
         f->m = loc_orbit_mean(f->F, f->n, period, f->work, Fs);
         f->Fs = Fs;
         f->period = f->m > 0 ? period : 0.0;
+        f->orbit = 0.0;                 /* free_face: no ringing columns on orbit means */
     }
     loc_best_face(f, x0, x1, x_loc, dx);
     free(Fs);
@@ -607,10 +618,13 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
         onset.orbit = period;       /* event_locator.locate: the entry's window holds one orbit */
     onset.rise = kind == LOC_ENTRY;     /* event_locator.locate: an entry's ramp rises */
     if (kind == LOC_EXIT && ghost != NULL && ghost[0] > 1.0 && ghost[0] <= (double)n && ghost[1] >= 0.0 &&
-        ghost[1] < 1.0 && loc_ghost_visible(F, n, scratch)) {   /* event_locator.locate: the exit's window
-                                                                   holds one orbit and shows a ghost */
-        exit_.ghost_orbit = ghost[0];
-        exit_.ghost_decay = ghost[1];
+        ghost[1] < 1.0) {                 /* event_locator.locate: the exit's window holds one orbit */
+        if (loc_ghost_visible(F, n, scratch)) {   /* ... and shows a ghost */
+            exit_.ghost_orbit = ghost[0];
+            exit_.ghost_decay = ghost[1];
+        } else if (ghost[0] >= LOC_EXIT_RING_ORBIT) {
+            exit_.orbit = ghost[0];     /* ... else at a slow orbit the observer's ringing is fitted */
+        }
     }
     if (kind == LOC_INTERFACE && ghost != NULL && loc_ghost_drop(x, F, n, ghost, scratch)) {
         exit_.ghost_orbit = ghost[0];   /* the upper layer's free face with the observer's ghost */
