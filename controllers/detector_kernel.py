@@ -168,7 +168,7 @@ def export_state_type(detector_type, n_data: int):
     """ctypes mirror of DetectorFMU (kernels/interface_detector_fmu.c) with ``n_data`` doubles
     of arrays: the Detector's fields, then the fit's constants, then the arrays."""
     fields = list(detector_type._fields_) + [("observer_delay", _D), ("exit_period", _D), ("entry_period", _D), ("entry_shape", _D),
-                                              ("exit_ghost", _D * 2), ("exit_shape", _D), ("exit_compliance", _D), ("engage_lengths", _D * _C_TABLES["ENGAGE_LENGTHS"]),
+                                              ("exit_ghost", _D * 2), ("exit_shape", _D), ("exit_compliance", _D), ("rise_laws", _D), ("engage_lengths", _D * _C_TABLES["ENGAGE_LENGTHS"]),
                                               ("engage_fine", _D * FINE_LENGTHS),
                                               ("push_out_lengths", _D * _C_TABLES["PUSH_OUT_LENGTHS"]), ("push_out_fine", _D * FINE_LENGTHS),
                                               ("data", _D * n_data)]
@@ -177,14 +177,15 @@ def export_state_type(detector_type, n_data: int):
 
 def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
                  entry_period: float = 0.0, entry_shape: str = "any", exit_ghost=(0.0, 0.0),
-                 exit_shape: str = "any", exit_compliance: float = 0.0) -> ctypes.Structure:
+                 exit_shape: str = "any", exit_compliance: float = 0.0, rise_laws: bool = True) -> ctypes.Structure:
     """The exported FMU's state: the in-process C state ``state`` (a Detector) with its
     pointers cleared (the FMU sets them from its own memory at every step), the delay [s],
     the exit fit's orbit [samples, 0: none], the entry fit's [samples, 0: none], the
     entry's ramp (event_locator.ENTRY_SHAPES: code 0 any, 1 linear, 2 smoothstep), the exit
     fit's ghost (orbit [samples], decay per sample; (0, 0): none), the exit's push-out law
     (event_locator.EXIT_SHAPES: code 0 any, 1 linear, 2 quadratic, 3 bending), the exit fit's
-    compliance [m/N] (InterfaceDetector exit_compliance), the fit's tables and ``arrays`` (weights,
+    compliance [m/N] (InterfaceDetector exit_compliance), whether an interface's rise takes
+    the plan's ramp and law (InterfaceDetector._rise_laws), the fit's tables and ``arrays`` (weights,
     window, |F~| ring, history t, x, F) copied in."""
     data = np.concatenate([np.asarray(a, dtype=float) for a in arrays])
     T = export_state_type(type(state), data.size)
@@ -199,6 +200,7 @@ def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
     out.exit_ghost[:] = [float(v) for v in exit_ghost]
     out.exit_shape = float(list(EXIT_SHAPES).index(exit_shape))
     out.exit_compliance = float(exit_compliance)
+    out.rise_laws = 1.0 if rise_laws else 0.0
     tables = locator_tables()
     ctypes.memmove(ctypes.addressof(out) + T.engage_lengths.offset, tables.ctypes.data, tables.nbytes)
     ctypes.memmove(ctypes.addressof(out) + T.data.offset, data.ctypes.data, data.nbytes)
@@ -224,9 +226,9 @@ class ExportKernel:
 
 def export_kernel(state, observer_delay: float, arrays, exit_period: float = 0.0,
                   entry_period: float = 0.0, entry_shape: str = "any", exit_ghost=(0.0, 0.0),
-                  exit_shape: str = "any", exit_compliance: float = 0.0) -> ExportKernel:
+                  exit_shape: str = "any", exit_compliance: float = 0.0, rise_laws: bool = True) -> ExportKernel:
     """The exported FMU's C step started from the in-process C ``state`` (see export_state)."""
     s = export_state(state, observer_delay, arrays, exit_period, entry_period, entry_shape, exit_ghost, exit_shape,
-                     exit_compliance)
+                     exit_compliance, rise_laws)
     return ExportKernel(_source(EXPORT_NAME + ".c"), "interface_detector_fmu_step", s,
                         tuple(_source(n) for n in EXPORT_SOURCES[1:]), type(s).data.size)

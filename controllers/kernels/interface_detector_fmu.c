@@ -30,6 +30,7 @@ typedef struct {
     double exit_shape;                            /* the exit's push-out law: 0 any, 1 linear, 2 quadratic, 3 bending
                                                      (event_locator.EXIT_SHAPES) */
     double exit_compliance;                       /* m/N, encoder to cutting front (InterfaceDetector._front_positions) */
+    double rise_laws;                             /* 1: an interface's rise takes the plan's ramp and law (InterfaceDetector._rise_laws) */
     double engage_lengths[LOC_N_ENGAGE];          /* m, event_locator.ENGAGE_LENGTHS */
     double engage_fine[LOC_N_FINE];               /* around the best engage length */
     double push_out_lengths[LOC_N_PUSH_OUT];      /* m, event_locator.PUSH_OUT_LENGTHS */
@@ -193,8 +194,8 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     LocGrid push = {s->push_out_lengths, s->push_out_fine, LOC_N_PUSH_OUT, 0, 2};
     if (kind == LOC_EXIT)
         push = loc_exit_grid(&push, (int)s->exit_shape);
-    engage.rise_shape = (int)s->entry_shape;     /* an interface's rise: the plan's ramp and law */
-    push.rise_shape = (int)s->exit_shape;
+    engage.rise_shape = s->rise_laws != 0.0 ? (int)s->entry_shape : 0;   /* an interface's rise: the plan's ramp and law */
+    push.rise_shape = s->rise_laws != 0.0 ? (int)s->exit_shape : 0;
     /* an interface window cut short to a thin layer below may end in the gap: air is below
      * the engagement floor of both layers around it (InterfaceDetector._fit; full: _full_loc_after) */
     double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0 && d->loc_after[k - 1] < d->max_gap + d->push_out + d->locate_margin
