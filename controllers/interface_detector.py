@@ -822,6 +822,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.need = self.rearm_samples   # quiet samples the next test needs to arm
         self.trim = False           # restarted once located: a loud sample trims the window to N_min
         self.entry_rs = False       # restarted after the entry (before it was located)
+        self.x_level = NAN          # encoder position [m] where the level the entry's restart kept began
         self.err_hist = deque(maxlen=2 * self.N)   # |F~| of the last 2 N samples (noise threshold)
         self.cand = None            # entry candidate (t, x, F^, history index, strong) awaiting confirmation
         self.cand_F = []            # thrust samples since the candidate
@@ -1160,6 +1161,7 @@ class InterfaceDetector(KernelBlock, Block):
         m = self._level_run()
         if m <= self.N_min:
             return
+        self.x_level = float(self.h_x[(self.h_n - m) % HISTORY])
         for F in self.h_F[(self.h_n - m + np.arange(m)) % HISTORY].tolist():
             if self.n_buf >= self.N_min:
                 F_pred = float(self.W[self.n_buf] @ self.buf[:self.n_buf])
@@ -1215,7 +1217,11 @@ class InterfaceDetector(KernelBlock, Block):
         """The tests just armed at encoder position x [m]: the first arming in a layer marks
         where the tool was on its plateau (the interface below it is further on)."""
         if 1 <= self.flag <= self.n and math.isnan(self.x_arm[self.flag - 1]):
-            self.x_arm[self.flag - 1] = x
+            # armed on a level the entry's restart kept: the tool was on the plateau from its start
+            # (an interface window starting at the arming held only the thin layer's push-out in its
+            # first fifth, no cut level, and the gap below it was not found: seed-24 project hole
+            # 61, a 1.0 mm Ti layer, +0.438 mm)
+            self.x_arm[self.flag - 1] = min(x, self.x_level) if self.flag == 1 and math.isfinite(self.x_level) else x
 
     def _restart_after(self, k: int) -> None:
         """Event k is behind the tool: restart the regression for the next test."""
@@ -1599,7 +1605,7 @@ class InterfaceDetector(KernelBlock, Block):
 # the C step's state readable as the Python step's attributes (InterfaceDetector.__getattr__)
 _C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n fail fail_code h_event".split()},
               **{name: bool for name in "armed drop exit_armed trim entry_rs".split()},
-              **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last "
+              **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last x_level "
                                          "F_pred F_err F_level thd F_air F_air_sd mismatch orb_ref exit_cand_t "
                                          "exit_cand_x exit_cand_i exit_cand_M if_ref".split()}}
 _C_LISTS = ("t_ev", "x_ev", "levels", "x_arm", "loc", "pending", "cand", "err_hist", "cand_F", "cand_e")

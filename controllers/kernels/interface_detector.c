@@ -48,6 +48,7 @@ typedef struct {
     double entry_P;             /* entry confirmation span [samples] (0: N_min, mean since the candidate) */
     double entry_gain;          /* the entry threshold's ramp_gain (its level test divides it out) */
     double entry_rs;            /* state: restarted after the entry before it was located */
+    double x_level;             /* state: where the level the entry's restart kept began (NaN: none) */
     double exit_P;              /* the exit's orbit test: the last layer's orbit [samples] (0: off) */
     double h_event, orb_ref;    /* state: samples written at the last event; its highest orbit mean */
     double exit_cand_t, exit_cand_x, exit_cand_i, exit_cand_M;   /* state: the exit candidate (t NaN: none) */
@@ -466,8 +467,8 @@ static void exit_orbit(Detector *s, double t, double x)
 static void armed_at(Detector *s, double x)
 {
     int flag = (int)s->flag;
-    if (1 <= flag && flag <= (int)s->n && isnan(s->x_arm[flag - 1]))
-        s->x_arm[flag - 1] = x;
+    if (1 <= flag && flag <= (int)s->n && isnan(s->x_arm[flag - 1]))   /* interface_detector.py: from the kept level */
+        s->x_arm[flag - 1] = flag == 1 && isfinite(s->x_level) ? MIN(x, s->x_level) : x;
 }
 
 /* interface_detector.py _interface_orbit: interface k's drop test on the mean over the last orbit */
@@ -546,6 +547,7 @@ static void replay_level(Detector *s)
     long m = level_run(s), Nm = (long)s->N_min;
     if (m <= Nm)
         return;
+    s->x_level = s->h_x[((long)s->h_n - m) % DET_HISTORY];
     for (long j = (long)s->h_n - m; j < (long)s->h_n; j++) {
         double F = s->h_F[j % DET_HISTORY];
         long nb = (long)s->n_buf;
