@@ -1,17 +1,24 @@
-"""Issue 23, arming that fits the layer: a thin first layer above a gap. The recorded
-observer output (tests/data/thin_al_gap_ti.csv: time [s], encoder [m], F_dc_hat [N] at every
-detector sample) of the project drive's wide-draw hole 155 (seed 23): 0.93 mm of Al at 24
-mm/min (3.6 Hz orbit, ~20 N with +-3 N of ripple left by the observer), its thrust pushed out
-over the last 0.1 mm into a 0.30 mm gap, then Ti at ~1200 N. True: entry 1.000 mm, the Al's
-free face 1.929 mm, the Ti's top 2.232 mm (tool positions; the encoder reads 0-4 um less).
+"""Issue 23, arming that fits the layer: a thin first layer above a gap, two recorded holes of
+the project drive (tests/data/*.csv: time [s], encoder [m], F_dc_hat [N] at every detector
+sample, from the start to past the interface's localisation window).
 
-The entry's restart (once the candidate's engagement is behind the tool, 0.45 mm past it)
-emptied the regression window; refilled and quiet for N_min samples each, the interface test
-was one sample short of arming when the push-out began: the interface was missed (fail code
-2). The restart now keeps the samples since the thrust has stood at its level
-(InterfaceDetector._replay_level): the test arms 0.34 mm earlier and the interface is found
-at the Ti's ramp and located in the gap (any position in a gap is exact for the scorer;
-asked within the issue's 0.03 mm of it)."""
+* thin_al_gap_ti.csv, the wide draw's hole 155 (seed 23): 0.93 mm of Al at 24 mm/min (3.6 Hz
+  orbit, ~20 N with +-3 N of ripple left by the observer), pushed out over its last 0.1 mm into
+  a 0.30 mm gap, then Ti at ~1200 N. Tool positions: entry 1.000 mm, the Al's free face 1.929,
+  the Ti's top 2.232 (the encoder reads 0-4 um less). The entry's restart (0.45 mm past the
+  candidate) emptied the regression window; refilled and quiet for N_min samples each, the
+  interface test was one sample short of arming when the push-out began: the interface was
+  missed (fail code 2). The restart now keeps the samples since the thrust has stood at its
+  level (InterfaceDetector._replay_level): the test arms 0.34 mm earlier.
+* thin_ti_gap_cfrp.csv, hole 61 of another draw (seed 24): 1.01 mm of Ti at 15 mm/min over a
+  0.70 mm gap, then CFRP (entry 1.000, the Ti's free face 2.006, the CFRP's top 2.701). Armed
+  earlier by the replay, its interface window started where it armed (InterfaceDetector._locate:
+  no higher than the layer's plateau), inside the Ti's push-out: no cut level in its first
+  fifth, the gap not found, the interface placed 0.44 mm into the CFRP. The layer's plateau now
+  starts where the kept level began (``x_level``).
+
+Any position inside a gap is exact for the scorer; the located interface is asked within the
+issue's 0.03 mm of the gap, the entry within its 0.05 mm."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -24,41 +31,63 @@ from drillcosim.cosim.scenario.loader import load_scenario
 
 MM = 1e-3
 STACKS = Path(__file__).resolve().parents[1] / "scenarios" / "stacks"
-PLAN = {   # hole 155's plan (the draw's nominal thicknesses, +-15 % tolerances, its processes)
-    "hole.layers": [{"material": "al", "thickness": 1.0402e-3, "tolerance": 0.15603e-3},
-                    {"material": "ti", "thickness": 6.5665e-3, "tolerance": 0.98498e-3}],
-    "hole.gap_tolerance": 1e-3,
-    "hole.process.al.feed_rate": 3.9985e-4, "hole.process.al.spindle_speed": 3833.58,
-    "hole.process.al.orbital_speed": 213.461,
-    "hole.process.ti.feed_rate": 3.2694e-4, "hole.process.ti.spindle_speed": 1342.78,
-    "hole.process.ti.orbital_speed": 76.9992,
+HOLES = {   # the drawn plans (nominal thicknesses, +-15 % tolerances, processes) and the true gap [mm]
+    "thin_al_gap_ti": ({
+        "hole.layers": [{"material": "al", "thickness": 1.0402e-3, "tolerance": 0.15603e-3},
+                        {"material": "ti", "thickness": 6.5665e-3, "tolerance": 0.98498e-3}],
+        "hole.process.al.feed_rate": 3.9985e-4, "hole.process.al.spindle_speed": 3833.58,
+        "hole.process.al.orbital_speed": 213.461,
+        "hole.process.ti.feed_rate": 3.2694e-4, "hole.process.ti.spindle_speed": 1342.78,
+        "hole.process.ti.orbital_speed": 76.9992}, (1.929, 2.232)),
+    "thin_ti_gap_cfrp": ({
+        "hole.layers": [{"material": "ti", "thickness": 1.12192e-3, "tolerance": 0.168288e-3},
+                        {"material": "cfrp", "thickness": 3.81032e-3, "tolerance": 0.571548e-3},
+                        {"material": "al", "thickness": 6.24287e-3, "tolerance": 0.936430e-3}],
+        "hole.process.ti.feed_rate": 2.56283e-4, "hole.process.ti.spindle_speed": 3395.00,
+        "hole.process.ti.orbital_speed": 217.261,
+        "hole.process.cfrp.feed_rate": 3.62520e-4, "hole.process.cfrp.spindle_speed": 3110.62,
+        "hole.process.cfrp.orbital_speed": 72.7772,
+        "hole.process.al.feed_rate": 9.41873e-5, "hole.process.al.spindle_speed": 898.250,
+        "hole.process.al.orbital_speed": 56.0014}, (2.006, 2.701)),
 }
-FACE, TI_TOP = 1.929 * MM, 2.232 * MM
 
 
-def _run(kernel: str | None, replay: bool = True) -> dict:
-    settings = load_scenario(STACKS / "cfrp_ti.toml", overrides=PLAN).raw["blocks"]["detector"]["settings"]
+def _run(name: str, kernel: str | None, patch=None) -> dict:
+    plan, _ = HOLES[name]
+    settings = load_scenario(STACKS / "cfrp_ti.toml", overrides={**plan, "hole.gap_tolerance": 1e-3}
+                             ).raw["blocks"]["detector"]["settings"]
     det = InterfaceDetector(sample_period=0.02, **settings)
     if kernel:
         det.kernel = kernel
-    if not replay:
-        det._replay_level = lambda: None
-    t, x, F = np.loadtxt(Path(__file__).parent / "data" / "thin_al_gap_ti.csv", delimiter=",", unpack=True)
+    if patch:
+        patch(det)
+    t, x, F = np.loadtxt(Path(__file__).parent / "data" / f"{name}.csv", delimiter=",", unpack=True)
     det.reset(float(t[0]))
     for ti, xi, Fi in zip(t, x, F):
         y = det.step(float(ti), [float(Fi), float(xi)])
     return dict(zip(det.output_names(), y))
 
 
+@pytest.mark.parametrize("name", list(HOLES))
 @pytest.mark.parametrize("kernel", [None, "python"])     # the C step (default) and the Python reference
-def test_thin_first_layer_above_a_gap_arms_before_its_push_out(kernel):
-    out = _run(kernel)
-    assert out["fail"] == 0 and out["flag"] == 2
+def test_thin_first_layer_above_a_gap_is_found_and_located(name, kernel):
+    out = _run(name, kernel)
+    face, top = HOLES[name][1]
+    assert out["fail"] == 0 and out["flag"] >= 2
     assert abs(out["x_entry_loc"] - 1.0 * MM) <= 0.05 * MM
-    assert FACE - 0.03 * MM <= out["x_interface1_loc"] <= TI_TOP + 0.03 * MM
+    assert (face - 0.03) * MM <= out["x_interface1_loc"] <= (top + 0.03) * MM
 
 
-def test_an_emptied_restart_window_misses_that_interface():
-    """The mechanism: with the window emptied at the restart, the same samples miss it."""
-    out = _run("python", replay=False)
+def test_an_emptied_restart_window_misses_the_thin_al_interface():
+    """The first mechanism: with the window emptied at the restart, hole 155's samples miss it."""
+    out = _run("thin_al_gap_ti", "python", patch=lambda d: setattr(d, "_replay_level", lambda: None))
     assert out["fail"] == 1 and out["fail_code"] == 2 and out["flag"] == 1
+
+
+def test_a_window_from_the_arming_misses_the_thin_ti_gap():
+    """The second: hole 61's interface window from where the replayed test armed (not from the
+    kept level's start) holds no cut level in its first fifth and puts the interface in the CFRP."""
+    def at_arming(det):
+        det._armed_at = lambda x: det.x_arm.__setitem__(0, x) if det.flag == 1 and np.isnan(det.x_arm[0]) else None
+    out = _run("thin_ti_gap_cfrp", "python", patch=at_arming)
+    assert out["x_interface1_loc"] > (2.701 + 0.3) * MM
