@@ -185,7 +185,7 @@ def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
     fit's ghost (orbit [samples], decay per sample; (0, 0): none), the exit's push-out law
     (event_locator.EXIT_SHAPES: code 0 any, 1 linear, 2 quadratic, 3 bending), the exit fit's
     compliance [m/N] (InterfaceDetector exit_compliance), whether an interface's rise takes
-    the plan's ramp and law (InterfaceDetector._rise_laws), the fit's tables and ``arrays`` (weights,
+    the plan's ramp and law (InterfaceDetector._plan_laws_at_rises), the fit's tables and ``arrays`` (weights,
     window, |F~| ring, history t, x, F) copied in."""
     data = np.concatenate([np.asarray(a, dtype=float) for a in arrays])
     T = export_state_type(type(state), data.size)

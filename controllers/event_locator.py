@@ -407,14 +407,14 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
                          ring)
     if ghost is not None and _ghost_drop(x, F, ghost):
         return free_face(x, F, x0, x1, None, None, ghost)
+    laws = (ENTRY_SHAPES[entry_shape], EXIT_SHAPES[exit_shape])
     gap = air_run(x, F, air)
     if gap is None:
         gap = floor_gap(F, cut_floor)
         if gap is not None:
-            return _gap_faces(x, F, gap, None, open_end=x.size - gap[1] < 2 * MIN_SEGMENT,
-                              laws=(ENTRY_SHAPES[entry_shape], EXIT_SHAPES[exit_shape]))
+            return _gap_faces(x, F, gap, None, open_end=x.size - gap[1] < 2 * MIN_SEGMENT, laws=laws)
         return onset_face(x, F, x0, min(xt, x1))
-    return _gap_faces(x, F, gap, air, laws=(ENTRY_SHAPES[entry_shape], EXIT_SHAPES[exit_shape]))
+    return _gap_faces(x, F, gap, air, laws=laws)
 
 
 def _ghost_drop(x, F, ghost) -> bool:

@@ -677,7 +677,7 @@ class InterfaceDetector(KernelBlock, Block):
                              f"got {exit_shape!r}")
         self.exit_shape = exit_shape
 
-    def _rise_laws(self) -> bool:
+    def _plan_laws_at_rises(self) -> bool:
         """Whether an interface's rise is fitted with the plan's ramp and push-out law
         (event_locator._rise_laws): only where the plan gives the point's engagement
         (``entry_ramp`` > 0, hole.engagement), the length its ramp is known over. The
@@ -1065,9 +1065,8 @@ class InterfaceDetector(KernelBlock, Block):
         self.h_t[i], self.h_x[i], self.h_F[i] = t, x, F
         self.h_n += 1
         if self.n_buf >= self.N_min:
-            F_pred = float(self.W[self.n_buf] @ self.buf[:self.n_buf])
+            F_pred = self._predict()
             e = F - F_pred
-            self.F_pred, self.F_err = F_pred, e
             self._count(F_pred, e)
             if self.thd_noise_factor > 0.0:
                 self.err_hist.append(abs(e))
@@ -1106,8 +1105,14 @@ class InterfaceDetector(KernelBlock, Block):
         self._check_windows(t, x)
         return self._outputs()
 
+    def _predict(self) -> float:
+        """The regression's prediction [N] of the next sample from the window's n_buf samples."""
+        return float(self.W[self.n_buf] @ self.buf[:self.n_buf])
+
     def _count(self, F_pred: float, e: float) -> None:
-        """The quiet, settled and steady counts (the arming's statistics) after one F~ = e."""
+        """The prediction F_pred and its error F~ = e of one sample, and the quiet, settled and
+        steady counts (the arming's statistics) after it."""
+        self.F_pred, self.F_err = F_pred, e
         if math.isnan(self.F_level):
             self.F_level = F_pred
         if abs(e) < self._rearm_level(self.F_level):
@@ -1164,8 +1169,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.x_level = float(self.h_x[(self.h_n - m) % HISTORY])
         for F in self.h_F[(self.h_n - m + np.arange(m)) % HISTORY].tolist():
             if self.n_buf >= self.N_min:
-                F_pred = float(self.W[self.n_buf] @ self.buf[:self.n_buf])
-                self.F_pred, self.F_err = F_pred, F - F_pred
+                F_pred = self._predict()
                 self._count(F_pred, F - F_pred)
             self._push(F)
 
@@ -1257,7 +1261,7 @@ class InterfaceDetector(KernelBlock, Block):
             self.loc_after[k - 1] < self._full_loc_after() else None
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_fit = self._front_positions(xs[sel], hF[sel], air) if kind in ("exit", "entry") else xs[sel]
-        laws = kind != "interface" or self._rise_laws()
+        laws = kind != "interface" or self._plan_laws_at_rises()
         x_loc, dx = locate(kind, x_fit, hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period,
                            entry_shape=self.entry_shape if laws else "any",
                            ghost=self._exit_ghost() if kind == "exit" else self._interface_ghost(k) if k else None,
@@ -1527,7 +1531,7 @@ class InterfaceDetector(KernelBlock, Block):
         return detector_kernel.export_kernel(self.c_kernel.state, self.observer_delay, arrays,
                                              self._exit_period_samples() or 0.0, self._entry_period_samples() or 0.0,
                                              self.entry_shape, self._exit_ghost() or (0.0, 0.0), self.exit_shape,
-                                             self.exit_compliance, self._rise_laws())
+                                             self.exit_compliance, self._plan_laws_at_rises())
 
     def _c_supports(self) -> bool:
         return (detector_kernel.blas_ddot() is not None and detector_kernel.sums_like_python()

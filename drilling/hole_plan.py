@@ -328,7 +328,8 @@ class HolePlan:
         exit) and its window half an orbit longer; else, at a slow orbit, its window one orbit
         longer for the ringing fit (:meth:`ring_travel`); else nothing."""
         if not self.exit_orbit_mean:
-            return {"exit_loc_after": self.locate_margin + self.ring_travel()} if self.ring_travel() else {}
+            ring = self.ring_travel()
+            return {"exit_loc_after": self.locate_margin + ring} if ring else {}
         return {"exit_orbit_period": self.orbit_period(-1),
                 "exit_loc_after": self.locate_margin + self.half_orbit_travel()}
 

@@ -489,9 +489,19 @@ static void interface_orbit(Detector *s, double t, double x)
         event(s, k, t, x, -1.0);
 }
 
-/* interface_detector.py _count: the arming's counts after one F~ = e */
+/* interface_detector.py _predict: the regression's prediction from the window's n_buf samples */
+static double predict(const Detector *s)
+{
+    long nb = (long)s->n_buf, Nm = (long)s->N_min;
+    /* weights of length nb start after those of N_min .. nb - 1 */
+    return DET_DOT(s, nb, s->W + (nb * (nb - 1) - Nm * (Nm - 1)) / 2);
+}
+
+/* interface_detector.py _count: the prediction, its error F~ = e and the arming's counts after it */
 static void count(Detector *s, double F_pred, double e)
 {
+    s->F_pred = F_pred;
+    s->F_err = e;
     if (isnan(s->F_level))
         s->F_level = F_pred;
     if (fabs(e) < rearm_level(s, s->F_level)) {
@@ -550,12 +560,8 @@ static void replay_level(Detector *s)
     s->x_level = s->h_x[((long)s->h_n - m) % DET_HISTORY];
     for (long j = (long)s->h_n - m; j < (long)s->h_n; j++) {
         double F = s->h_F[j % DET_HISTORY];
-        long nb = (long)s->n_buf;
-        if (nb >= Nm) {
-            const double *w = s->W + (nb * (nb - 1) - Nm * (Nm - 1)) / 2;
-            double F_pred = DET_DOT(s, nb, w);
-            s->F_pred = F_pred;
-            s->F_err = F - F_pred;
+        if ((long)s->n_buf >= Nm) {
+            double F_pred = predict(s);
             count(s, F_pred, F - F_pred);
         }
         push(s, F);
@@ -567,8 +573,6 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
 {
     double e = F - F_pred;
     int n = (int)s->n, flag;
-    s->F_pred = F_pred;
-    s->F_err = e;
     count(s, F_pred, e);
     if (s->thd_noise_factor > 0.0) {
         long n2 = 2 * (long)s->N, p = (long)s->err_pos;
@@ -744,12 +748,8 @@ void interface_detector_step(Detector *s, double t, const double *u, double *y)
     s->h_x[i] = x;
     s->h_F[i] = F;
     s->h_n += 1.0;
-    long nb = (long)s->n_buf, Nm = (long)s->N_min;
-    if (nb >= Nm) {
-        /* weights of length nb start after those of N_min .. nb - 1 */
-        const double *w = s->W + (nb * (nb - 1) - Nm * (Nm - 1)) / 2;
-        tests(s, t, x, F, DET_DOT(s, nb, w));
-    }
+    if (s->n_buf >= s->N_min)
+        tests(s, t, x, F, predict(s));
     if (s->exit_P != 0.0 && (int)s->flag == (int)s->n) {
         exit_orbit(s, t, x);
         if (!isnan(s->exit_cand_t))

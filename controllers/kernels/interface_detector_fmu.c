@@ -30,7 +30,7 @@ typedef struct {
     double exit_shape;                            /* the exit's push-out law: 0 any, 1 linear, 2 quadratic, 3 bending
                                                      (event_locator.EXIT_SHAPES) */
     double exit_compliance;                       /* m/N, encoder to cutting front (InterfaceDetector._front_positions) */
-    double rise_laws;                             /* 1: an interface's rise takes the plan's ramp and law (InterfaceDetector._rise_laws) */
+    double rise_laws;                             /* 1: an interface's rise takes the plan's ramp and law (InterfaceDetector._plan_laws_at_rises) */
     double engage_lengths[LOC_N_ENGAGE];          /* m, event_locator.ENGAGE_LENGTHS */
     double engage_fine[LOC_N_FINE];               /* around the best engage length */
     double push_out_lengths[LOC_N_PUSH_OUT];      /* m, event_locator.PUSH_OUT_LENGTHS */
