@@ -133,7 +133,10 @@ def poles(L: ForceLoop) -> np.ndarray:
     """Closed-loop poles without the translation mode: shifting the stage, the cut front and
     every stored position together changes nothing (z = 1, neither observable nor a motion
     of the loop), so that one eigenvalue at 1 is dropped."""
-    A, *_ = linear_loop(L, broken=False)
+    return _poles(linear_loop(L, broken=False)[0])
+
+
+def _poles(A: np.ndarray) -> np.ndarray:
     lam = np.linalg.eigvals(A)
     j = int(np.argmin(np.abs(lam - 1.0)))
     if abs(lam[j] - 1.0) < 1e-6:
@@ -143,8 +146,27 @@ def poles(L: ForceLoop) -> np.ndarray:
 
 def margins(L: ForceLoop, n_freq: int = 4000) -> dict:
     """Closed-loop poles, gain and phase margins of the loop broken at the current reference."""
-    A, B, C, D = linear_loop(L, broken=True)
-    lam = poles(L)
+    return _margins(L, linear_loop(L, broken=False)[0], linear_loop(L, broken=True), n_freq)
+
+
+def _kf_family(L: ForceLoop):
+    """``margins`` of ``L`` at any Kf from two linearisations: Kf scales the force-error path
+    only (``a_cmd = Kf (F_cmd - F_hat) / M_n``), so the closed and the broken loop's matrices
+    are affine in it. A bisection on Kf then costs an eigenvalue and a frequency sweep per
+    point, not a casadi derivation (commissioning tunes Kf at nine g_thrust)."""
+    at = [(linear_loop(dataclasses.replace(L, Kf=k), False)[0], linear_loop(dataclasses.replace(L, Kf=k), True))
+          for k in (0.0, 1.0)]
+    (c0, b0), (c1, b1) = at
+
+    def margins_at(K: float, n_freq: int) -> dict:
+        broken = [m0 + K * (m1 - m0) for m0, m1 in zip(b0, b1)]
+        return _margins(dataclasses.replace(L, Kf=K), c0 + K * (c1 - c0), broken, n_freq)
+    return margins_at
+
+
+def _margins(L: ForceLoop, A_closed: np.ndarray, broken, n_freq: int) -> dict:
+    A, B, C, D = broken
+    lam = _poles(A_closed)
     rho = float(np.max(np.abs(lam)))
     w = np.logspace(math.log10(2 * math.pi * 1.0), math.log10(math.pi / L.Ts * 0.999), n_freq)
     zs = np.exp(1j * w * L.Ts)
@@ -153,26 +175,8 @@ def margins(L: ForceLoop, n_freq: int = 4000) -> dict:
     Lw = -(np.einsum("ij,fjk->fik", C, X)[:, 0, 0] + D[0, 0])
     ph = np.unwrap(np.angle(Lw))
     mag = np.abs(Lw)
-    gm, f_gm, g_low = math.inf, None, 0.0
-    for j in range(1, len(w)):   # phase crossings of -180 deg (mod 360)
-        k0, k1 = np.floor((ph[j - 1] + np.pi) / (2 * np.pi)), np.floor((ph[j] + np.pi) / (2 * np.pi))
-        if k0 != k1:
-            g = 1.0 / mag[j]
-            # a stable loop whose open loop is unstable (the contact mode with a Stribeck slope
-            # steeper than its damping) has crossings with |L| > 1: losing that much gain
-            # destabilises it, raising the gain does not. Kf only raises the gain, so the
-            # margin is the upper one; the lower one is kept apart (Foreign2ZStage, issue 20)
-            if rho < 1.0 and g < 1.0:
-                g_low = max(g_low, g)
-            elif g < gm:
-                gm, f_gm = g, w[j] / (2 * math.pi)
-    pm, f_pm = math.inf, None
-    for j in range(1, len(w)):
-        if (mag[j - 1] - 1) * (mag[j] - 1) <= 0:
-            p = math.degrees((ph[j] + np.pi) % (2 * np.pi))
-            p = min(p, 360 - p)
-            if p < pm:
-                pm, f_pm = p, w[j] / (2 * math.pi)
+    gm, f_gm, g_low = _gain_margins(w, ph, mag, stable=rho < 1.0)
+    pm, f_pm = _phase_margin(w, ph, mag)
     slowest = lam[np.argmax(np.abs(lam))]
     return {"stable": bool(rho < 1.0), "spectral_radius": rho,
             "gain_margin_db": 20 * math.log10(gm) if math.isfinite(gm) else math.inf,
@@ -182,6 +186,35 @@ def margins(L: ForceLoop, n_freq: int = 4000) -> dict:
             "dominant_pole_frequency_Hz": abs(float(np.angle(slowest))) / (2 * math.pi * L.Ts),
             "poles": [[float(p.real), float(p.imag)] for p in lam],
             "loop": {k: v for k, v in dataclasses.asdict(L).items()}}
+
+
+def _gain_margins(w, ph, mag, stable: bool):
+    """(gain margin, its frequency [Hz], lower gain margin) from the phase crossings of -180 deg
+    (mod 360). A stable loop whose open loop is unstable (the contact mode with a Stribeck slope
+    steeper than its damping) has crossings with |L| > 1: losing that much gain destabilises it,
+    raising the gain does not. Kf only raises the gain, so the margin is the upper one; the
+    lower one is kept apart (Foreign2ZStage, issue 20)."""
+    turns = np.floor((ph + np.pi) / (2 * np.pi))
+    j = np.flatnonzero(turns[1:] != turns[:-1]) + 1
+    g = 1.0 / mag[j]
+    low = (g < 1.0) if stable else np.zeros(g.size, bool)
+    g_low = float(np.max(g[low])) if low.any() else 0.0
+    up = j[~low]
+    if up.size == 0 or not np.isfinite(g[~low]).any():
+        return math.inf, None, g_low
+    k = int(np.argmin(g[~low]))         # the first of equal ones, as a scan would keep
+    return float(g[~low][k]), float(w[up[k]] / (2 * math.pi)), g_low
+
+
+def _phase_margin(w, ph, mag):
+    """(phase margin [deg], its frequency [Hz]) from the crossings of |L| = 1."""
+    j = np.flatnonzero((mag[:-1] - 1) * (mag[1:] - 1) <= 0) + 1
+    if j.size == 0:
+        return math.inf, None
+    p = np.degrees((ph[j] + np.pi) % (2 * np.pi))
+    p = np.minimum(p, 360 - p)
+    k = int(np.argmin(p))
+    return float(p[k]), float(w[j[k]] / (2 * math.pi))
 
 
 def critical(L: ForceLoop, field: str, lo: float, hi: float, rtol: float = 1e-3) -> float | None:
@@ -327,8 +360,10 @@ def kf_limit(loop: ForceLoop, gain_margin_db: float = REQUIRED_GAIN_MARGIN_DB, K
     ``gain_margin_db``; None when not even ``KF_MIN / 4`` is. Bisection in log Kf, which
     takes the margin to fall as Kf rises (Kf scales the force-error path only; checked
     against simulation on both stages, docs/force_loop.md)."""
+    margins_at = _kf_family(loop)
+
     def ok(K):
-        m = margins(dataclasses.replace(loop, Kf=K), n_freq=1500)
+        m = margins_at(K, 1500)
         return m["stable"] and m["gain_margin_db"] >= gain_margin_db
     lo, hi = KF_MIN / 4, Kf_hi
     if not ok(lo):
