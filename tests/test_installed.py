@@ -41,12 +41,12 @@ def installed(tmp_path_factory):
     _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(wheels),
           str(src)], cwd=tmp)
     env_dir = tmp / "venv"
-    venv.EnvBuilder(with_pip=True).create(env_dir)
+    venv.EnvBuilder(with_pip=False).create(env_dir)      # this pip installs into it (--python): no ensurepip
     py = env_dir / "bin" / "python"
     site = Path(_run([str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], cwd=tmp).strip())
     (site / "zz_test_dependencies.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
     wheel = next(wheels.glob("drillcosim-*.whl"))
-    _run([str(py), "-m", "pip", "install", "--no-deps", "-q", str(wheel)], cwd=tmp)
+    _run([sys.executable, "-m", "pip", "--python", str(py), "install", "--no-deps", "-q", str(wheel)], cwd=tmp)
     work = tmp / "elsewhere"
     work.mkdir()
     return env_dir, work
