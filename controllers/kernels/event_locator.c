@@ -546,8 +546,8 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
         if (last > first || closed_drop)
             n_down = loc_select(x, F, n, x[g0], INFINITY, xd, Fd);
         double lo_onset = closed_drop ? x[g0] : mid;
-        /* before a rise the plan's ramp and push-out law (event_locator._rise_laws) */
-        LocGrid ramp = last > first ? loc_exit_grid(engage, engage->rise_shape) : *engage;
+        /* the plan's ramp, before a rise its push-out law too (event_locator._rise_laws) */
+        LocGrid ramp = loc_exit_grid(engage, engage->rise_shape);
         LocGrid law = last > first ? loc_exit_grid(push, push->rise_shape) : *push;
         LocFit down = {xd, Fd, n_down, 0, NAN, &ramp};
         double lo, dlo, hi, dhi;
