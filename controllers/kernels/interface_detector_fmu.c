@@ -194,7 +194,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     LocGrid push = {s->push_out_lengths, s->push_out_fine, LOC_N_PUSH_OUT, 0, 2};
     if (kind == LOC_EXIT)
         push = loc_exit_grid(&push, (int)s->exit_shape);
-    engage.rise_shape = s->rise_laws != 0.0 ? (int)s->entry_shape : 0;   /* an interface's gap: the plan's ramp (a rise: its law too) */
+    engage.rise_shape = s->rise_laws != 0.0 ? (int)s->entry_shape : 0;   /* an interface's rise: the plan's ramp and law */
     push.rise_shape = s->rise_laws != 0.0 ? (int)s->exit_shape : 0;
     /* an interface window cut short to a thin layer below may end in the gap: air is below
      * the engagement floor of both layers around it (InterfaceDetector._fit; full: _full_loc_after) */
