@@ -548,6 +548,7 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
         double lo_onset = closed_drop ? x[g0] : mid;
         /* before a rise the plan's ramp and push-out law (event_locator._rise_laws) */
         LocGrid ramp = last > first ? loc_exit_grid(engage, engage->rise_shape) : *engage;
+        LocGrid plan_ramp = loc_exit_grid(engage, engage->rise_shape);
         LocGrid law = last > first ? loc_exit_grid(push, push->rise_shape) : *push;
         LocFit down = {xd, Fd, n_down, 0, NAN, &ramp};
         double lo, dlo, hi, dhi;
@@ -556,6 +557,10 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
             dhi = 0.0;
         } else {
             loc_best_face(&down, lo_onset, x[n - 1], &hi, &dhi);
+            if (hi <= lo_onset && !(last > first) && engage->rise_shape != 0) {
+                down.grid = &plan_ramp;      /* a drop's onset on its bound: the plan's ramp (_drop_onset) */
+                loc_best_face(&down, lo_onset, x[n - 1], &hi, &dhi);
+            }
         }
         /* the upper layer's fall up to the lower layer's onset (event_locator._gap_faces) */
         n_up = loc_select(x, F, n, -INFINITY, hi, xu, Fu);
