@@ -1266,6 +1266,8 @@ class InterfaceDetector(KernelBlock, Block):
                            entry_shape=self.entry_shape if laws else "any",
                            ghost=self._exit_ghost() if kind == "exit" else self._interface_ghost(k) if k else None,
                            exit_shape=self.exit_shape if laws else "any")
+        if k == 0:
+            x_loc, dx = self._entry_refit(xs, hF, lo, hi, x_trig, air, period, x_loc, dx)
         F_air = F_air_sd = NAN
         if k == 0 and math.isfinite(x_loc):
             # with a span the window is around the confirmation, which may leave only a few
@@ -1277,6 +1279,25 @@ class InterfaceDetector(KernelBlock, Block):
             if in_air.any():
                 F_air, F_air_sd = air_level(hF[in_air], self._entry_period_samples())
         return x_loc, time_at(ht, hx, x_loc), dx, F_air, F_air_sd
+
+    def _entry_refit(self, xs, hF, lo: float, hi: float, x_trig: float, air: float, period, x_loc: float, dx: float):
+        """The entry's onset [m] and uncertainty [m] fitted again on the window's samples
+        (positions ``xs`` [m], thrust ``hF`` [N]) from ``lo`` to locate_margin past the first
+        fit's onset ``x_loc``; the first fit's (x_loc, dx) where that is not shorter than the
+        window (to ``hi``) or the refit locates nothing. Why: with a span the window ends a
+        locate_margin past the confirmation, an orbit after the candidate, and at a slow
+        orbit it held up to 0.5 mm of cut level past the rise: the drive's settling after the
+        entry (the foreign drive's 430 N overshoot falling to 140 N, seed-24 hole 136), which a
+        level with a trend cannot follow, and the fit took the tail's fall out of the ramp and
+        put the onset early (-0.056 mm; cut to a locate_margin past the onset, the margin that
+        holds the engagement and a stretch of level at every entry without a span, -0.005)."""
+        end = x_loc + self.locate_margin
+        if not (math.isfinite(x_loc) and end < hi):
+            return x_loc, dx
+        sel = (xs >= lo) & (xs <= end)
+        x2, dx2 = locate("entry", self._front_positions(xs[sel], hF[sel], air), hF[sel], air=air, x_trig=x_trig,
+                         period=period, entry_shape=self.entry_shape)
+        return (x2, dx2) if math.isfinite(x2) else (x_loc, dx)
 
     def _entry_period_samples(self) -> float | None:
         """The entry's fit with the first layer's orbit sinusoid (event_locator.onset_face):

@@ -166,6 +166,20 @@ static const double *interface_ghost(const DetectorFMU *s, int k, double *ghost)
     return ghost[0] > 0.0 ? ghost : NULL;
 }
 
+/* the history's samples with xs in [lo, hi] into (xsel, Fsel), xsel the cutting front's
+ * positions with the drive's compliance comp [m/N] (InterfaceDetector._front_positions); their count */
+static long detector_select(const double *xs, const double *F, long n, double lo, double hi, double comp, double air,
+                            double *xsel, double *Fsel)
+{
+    long m = 0;
+    for (long j = 0; j < n; j++)
+        if (xs[j] >= lo && xs[j] <= hi) {
+            xsel[m] = comp > 0.0 ? xs[j] - comp * (F[j] - air) : xs[j];
+            Fsel[m++] = F[j];
+        }
+    return m;
+}
+
 /* InterfaceDetector._fit: out = x_loc [m], t_loc [s], dx [m], F_air [N], F_air_sd [N] */
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
@@ -179,15 +193,11 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     if (k == 0 && s->entry_period > 0.0 && isfinite(d->x_ev[0]))    /* the window reaches back to the candidate */
         lo = LOC_PYMIN(lo, d->x_ev[0] - DET_ENTRY_BACK * d->locate_margin);
     double *Fsel = xsel + DET_HISTORY;
-    long n = detector_history(s, h_n, t, x, F, xs), m = 0;
+    long n = detector_history(s, h_n, t, x, F, xs), m;
     int nl = (int)d->n, kind = k == 0 ? LOC_ENTRY : k == nl ? LOC_EXIT : LOC_INTERFACE;
     /* the entry's and the exit's fits in the cutting front's positions: the encoder less the drive's deflection */
     double comp = kind == LOC_EXIT || kind == LOC_ENTRY ? s->exit_compliance : 0.0;
-    for (long j = 0; j < n; j++)
-        if (xs[j] >= lo && xs[j] <= hi) {
-            xsel[m] = comp > 0.0 ? xs[j] - comp * (F[j] - air) : xs[j];
-            Fsel[m++] = F[j];
-        }
+    m = detector_select(xs, F, n, lo, hi, comp, air, xsel, Fsel);
     /* the engage grid fits the entry's onset, or an interface's: only the entry's may be linear alone */
     int shape = kind == LOC_ENTRY ? (int)s->entry_shape : 0;
     LocGrid engage = {s->engage_lengths, s->engage_fine, LOC_N_ENGAGE, shape == 2 ? 1 : 0, shape == 0 ? 2 : 1};
@@ -204,6 +214,16 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     double if_ghost[2];
     const double *ghost = kind == LOC_EXIT ? s->exit_ghost : kind == LOC_INTERFACE ? interface_ghost(s, k, if_ghost) : NULL;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, &out[0], &out[2]);
+    if (kind == LOC_ENTRY && isfinite(out[0]) && out[0] + d->locate_margin < hi) {
+        /* InterfaceDetector._entry_refit: again on the window up to a locate_margin past the onset */
+        double x2, dx2;
+        m = detector_select(xs, F, n, lo, out[0] + d->locate_margin, comp, air, xsel, Fsel);
+        event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, &x2, &dx2);
+        if (isfinite(x2)) {
+            out[0] = x2;
+            out[2] = dx2;
+        }
+    }
     if (k == 0 && isfinite(out[0])) {
         long a = 0;         /* the samples in air before the entry, in the window (with a span: from a margin of air) */
         double lo_air = d->entry_P != 0.0 ? LOC_PYMIN(lo, out[0] - 1.5 * d->locate_margin) : lo;
