@@ -1284,16 +1284,24 @@ class InterfaceDetector(KernelBlock, Block):
         """The entry's onset [m] and uncertainty [m] fitted again on the window's samples
         (positions ``xs`` [m], thrust ``hF`` [N]) from ``lo`` to locate_margin past the first
         fit's onset ``x_loc``; the first fit's (x_loc, dx) where that is not shorter than the
-        window (to ``hi``) or the refit locates nothing. Why: with a span the window ends a
+        window (to ``hi``), where the first layer's orbit (``period`` [samples]) takes more
+        travel than locate_margin, or where the refit locates nothing. Why: with a span the window ends a
         locate_margin past the confirmation, an orbit after the candidate, and at a slow
         orbit it held up to 0.5 mm of cut level past the rise: the drive's settling after the
         entry (the foreign drive's 430 N overshoot falling to 140 N, seed-24 hole 136), which a
         level with a trend cannot follow, and the fit took the tail's fall out of the ramp and
         put the onset early (-0.056 mm; cut to a locate_margin past the onset, the margin that
-        holds the engagement and a stretch of level at every entry without a span, -0.005)."""
+        holds the engagement and a stretch of level at every entry without a span, -0.005).
+        At an orbit slower than that the fit's sinusoid (the observer's ringing) has less than
+        an orbit past the onset to be told from the ramp by, and traded off against it
+        (foreign2 seed-24 hole 129, a 23 N aluminium step at a 0.5 mm orbit: +0.031 -> +0.195)."""
         end = x_loc + self.locate_margin
         if not (math.isfinite(x_loc) and end < hi):
             return x_loc, dx
+        if period is not None:
+            w = xs[(xs >= lo) & (xs <= hi)]             # the orbit's travel at the window's mean feed
+            if period * (w[-1] - w[0]) / (w.size - 1) > self.locate_margin:
+                return x_loc, dx
         sel = (xs >= lo) & (xs <= end)
         x2, dx2 = locate("entry", self._front_positions(xs[sel], hF[sel], air), hF[sel], air=air, x_trig=x_trig,
                          period=period, entry_shape=self.entry_shape)

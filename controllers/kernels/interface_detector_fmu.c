@@ -180,6 +180,21 @@ static long detector_select(const double *xs, const double *F, long n, double lo
     return m;
 }
 
+/* the travel [m] of an orbit of ``period`` samples at the mean feed of the history's samples
+ * with xs in [lo, hi] (InterfaceDetector._entry_refit, in its order of operations) */
+static double orbit_travel(const double *xs, long n, double lo, double hi, double period)
+{
+    double first = NAN, last = NAN;
+    long m = 0;
+    for (long j = 0; j < n; j++)
+        if (xs[j] >= lo && xs[j] <= hi) {
+            if (m++ == 0)
+                first = xs[j];
+            last = xs[j];
+        }
+    return period * (last - first) / (double)(m - 1);
+}
+
 /* InterfaceDetector._fit: out = x_loc [m], t_loc [s], dx [m], F_air [N], F_air_sd [N] */
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
@@ -214,8 +229,10 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     double if_ghost[2];
     const double *ghost = kind == LOC_EXIT ? s->exit_ghost : kind == LOC_INTERFACE ? interface_ghost(s, k, if_ghost) : NULL;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, &out[0], &out[2]);
-    if (kind == LOC_ENTRY && isfinite(out[0]) && out[0] + d->locate_margin < hi) {
-        /* InterfaceDetector._entry_refit: again on the window up to a locate_margin past the onset */
+    if (kind == LOC_ENTRY && isfinite(out[0]) && out[0] + d->locate_margin < hi &&
+        !(period > 0.0 && orbit_travel(xs, n, lo, hi, period) > d->locate_margin)) {
+        /* InterfaceDetector._entry_refit: again on the window up to a locate_margin past the
+         * onset, unless the first layer's orbit takes more travel than that */
         double x2, dx2;
         m = detector_select(xs, F, n, lo, out[0] + d->locate_margin, comp, air, xsel, Fsel);
         event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, &x2, &dx2);
