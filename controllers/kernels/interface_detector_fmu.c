@@ -166,35 +166,6 @@ static const double *interface_ghost(const DetectorFMU *s, int k, double *ghost)
     return ghost[0] > 0.0 ? ghost : NULL;
 }
 
-/* the history's samples with xs in [lo, hi] into (xsel, Fsel), xsel the cutting front's
- * positions with the drive's compliance comp [m/N] (InterfaceDetector._front_positions); their count */
-static long detector_select(const double *xs, const double *F, long n, double lo, double hi, double comp, double air,
-                            double *xsel, double *Fsel)
-{
-    long m = 0;
-    for (long j = 0; j < n; j++)
-        if (xs[j] >= lo && xs[j] <= hi) {
-            xsel[m] = comp > 0.0 ? xs[j] - comp * (F[j] - air) : xs[j];
-            Fsel[m++] = F[j];
-        }
-    return m;
-}
-
-/* the travel [m] of an orbit of ``period`` samples at the mean feed of the history's samples
- * with xs in [lo, hi] (InterfaceDetector._entry_refit, in its order of operations) */
-static double orbit_travel(const double *xs, long n, double lo, double hi, double period)
-{
-    double first = NAN, last = NAN;
-    long m = 0;
-    for (long j = 0; j < n; j++)
-        if (xs[j] >= lo && xs[j] <= hi) {
-            if (m++ == 0)
-                first = xs[j];
-            last = xs[j];
-        }
-    return period * (last - first) / (double)(m - 1);
-}
-
 /* InterfaceDetector._fit: out = x_loc [m], t_loc [s], dx [m], F_air [N], F_air_sd [N] */
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
@@ -208,11 +179,15 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     if (k == 0 && s->entry_period > 0.0 && isfinite(d->x_ev[0]))    /* the window reaches back to the candidate */
         lo = LOC_PYMIN(lo, d->x_ev[0] - DET_ENTRY_BACK * d->locate_margin);
     double *Fsel = xsel + DET_HISTORY;
-    long n = detector_history(s, h_n, t, x, F, xs), m;
+    long n = detector_history(s, h_n, t, x, F, xs), m = 0;
     int nl = (int)d->n, kind = k == 0 ? LOC_ENTRY : k == nl ? LOC_EXIT : LOC_INTERFACE;
     /* the entry's and the exit's fits in the cutting front's positions: the encoder less the drive's deflection */
     double comp = kind == LOC_EXIT || kind == LOC_ENTRY ? s->exit_compliance : 0.0;
-    m = detector_select(xs, F, n, lo, hi, comp, air, xsel, Fsel);
+    for (long j = 0; j < n; j++)
+        if (xs[j] >= lo && xs[j] <= hi) {
+            xsel[m] = comp > 0.0 ? xs[j] - comp * (F[j] - air) : xs[j];
+            Fsel[m++] = F[j];
+        }
     /* the engage grid fits the entry's onset, or an interface's: only the entry's may be linear alone */
     int shape = kind == LOC_ENTRY ? (int)s->entry_shape : 0;
     LocGrid engage = {s->engage_lengths, s->engage_fine, LOC_N_ENGAGE, shape == 2 ? 1 : 0, shape == 0 ? 2 : 1};
@@ -230,12 +205,17 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     const double *ghost = kind == LOC_EXIT ? s->exit_ghost : kind == LOC_INTERFACE ? interface_ghost(s, k, if_ghost) : NULL;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, &out[0], &out[2]);
     if (kind == LOC_ENTRY && isfinite(out[0]) && out[0] + d->locate_margin < hi &&
-        !(period > 0.0 && orbit_travel(xs, n, lo, hi, period) > d->locate_margin)) {
-        /* InterfaceDetector._entry_refit: again on the window up to a locate_margin past the
-         * onset, unless the first layer's orbit takes more travel than that */
-        double x2, dx2;
-        m = detector_select(xs, F, n, lo, out[0] + d->locate_margin, comp, air, xsel, Fsel);
-        event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, &x2, &dx2);
+        !(period > 0.0 && period * (xsel[m - 1] - xsel[0]) / (double)(m - 1) > d->locate_margin)) {
+        /* InterfaceDetector._entry_refit: again on the window's samples whose front is up to a
+         * locate_margin past the onset, unless the first layer's orbit takes more travel than that */
+        double end = out[0] + d->locate_margin, x2, dx2;
+        long m2 = 0;
+        for (long i = 0; i < m; i++)
+            if (xsel[i] <= end) {
+                xsel[m2] = xsel[i];
+                Fsel[m2++] = Fsel[i];
+            }
+        event_locate(kind, xsel, Fsel, m2, air, x_trig, cut_floor, period, ghost, &engage, &push, &x2, &dx2);
         if (isfinite(x2)) {
             out[0] = x2;
             out[2] = dx2;
