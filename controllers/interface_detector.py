@@ -1283,10 +1283,11 @@ class InterfaceDetector(KernelBlock, Block):
     def _entry_refit(self, xs, hF, lo: float, hi: float, x_trig: float, air: float, period, x_loc: float, dx: float):
         """The entry's onset [m] and uncertainty [m] fitted again on the window's samples
         (positions ``xs`` [m] in [lo, hi], thrust ``hF`` [N]) whose cutting front
-        (:meth:`_front_positions`) is at most locate_margin past the first fit's onset ``x_loc``; the first fit's (x_loc, dx) where that is not shorter than the
-        window (to ``hi``), where the first layer's orbit (``period`` [samples]) takes more
-        travel than locate_margin, or where the refit locates nothing. Why: with a span the window ends a
-        locate_margin past the confirmation, an orbit after the candidate, and at a slow
+        (:meth:`_front_positions`) is at most locate_margin past the first fit's onset
+        ``x_loc``; the first fit's (x_loc, dx) where that is not shorter than the window (to
+        ``hi``), where the first layer's orbit (``period`` [samples]) takes more travel than
+        locate_margin, or where the refit locates nothing. Why: with a span the window ends
+        a locate_margin past the confirmation, an orbit after the candidate, and at a slow
         orbit it held up to 0.5 mm of cut level past the rise: the drive's settling after the
         entry (the foreign drive's 430 N overshoot falling to 140 N, seed-24 hole 136), which a
         level with a trend cannot follow, and the fit took the tail's fall out of the ramp and
