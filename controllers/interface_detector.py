@@ -516,10 +516,9 @@ class InterfaceDetector(KernelBlock, Block):
         restart: bool = False,
         interface_loc_after: Sequence[float] | None = None,
         exit_orbit_period: float = 0.0, exit_loc_after: float | None = None, exit_compliance: float = 0.0,
-        exit_orbit_arm: float = 0.0,
+        exit_orbit_arm: float = 0.0, exit_release_compliance: float = 0.0, exit_feed_exponent: float = 0.75,
         interface_orbit_arm: Sequence[float] | None = None,
         exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0, exit_shape: str = "any",
-        exit_release_compliance: float = 0.0, exit_feed_exponent: float = 0.75,
     ):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
@@ -550,8 +549,7 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
         self._set_loc_after(interface_loc_after)
         self._set_exit_loc(exit_orbit_period, exit_loc_after, exit_ripple_period, observer_forgetting,
-                           exit_shape, exit_compliance)
-        self._set_exit_release(exit_release_compliance, exit_feed_exponent)
+                           exit_shape, exit_compliance, (exit_release_compliance, exit_feed_exponent))
         self._set_exit_arm(exit_orbit_arm)
         self._set_interface_arm(interface_orbit_arm)
         self.windows = self._windows()
@@ -662,14 +660,15 @@ class InterfaceDetector(KernelBlock, Block):
         return self.max_gap + self.push_out + self.locate_margin
 
     def _set_exit_loc(self, orbit_period, loc_after, ripple_period=0.0, forgetting=0.0, exit_shape="any",
-                      compliance=0.0) -> None:
+                      compliance=0.0, release=(0.0, 0.75)) -> None:
         """The exit's fit on orbit means (period [s], 0: none), its window after the
         trigger [m] (default locate_margin), its ghost (:meth:`_set_exit_ghost`), its
-        push-out law (:meth:`_set_exit_shape`) and the drive's compliance
-        (:meth:`_set_exit_compliance`), checked."""
+        push-out law (:meth:`_set_exit_shape`), the drive's compliance
+        (:meth:`_set_exit_compliance`) and its released push-out (:meth:`_set_exit_release`), checked."""
         self._set_exit_ghost(ripple_period, forgetting)
         self._set_exit_shape(exit_shape)
         self._set_exit_compliance(compliance)
+        self._set_exit_release(*release)
         _check_seconds("exit_orbit_period", orbit_period, "the last layer's orbit period; 0: none")
         self.exit_orbit_period = float(orbit_period)
         self.exit_after = self.locate_margin if loc_after is None else float(loc_after)
