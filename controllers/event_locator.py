@@ -294,9 +294,73 @@ def _ghost_visible(F) -> bool:
         float(np.median(plateau)) - float(np.median(air)) > GHOST_SNR * float(np.std(plateau))
 
 
+# Newton iterations of the released push-out's implicit step (:func:`_release_step`): started
+# above the root of a convex function they converge monotonically, each at least 1 - x_feed of
+# the way (0.25 at x_feed 0.75) and quadratically near the root: 8 leave phi within 2e-8 of 12
+# (synthetic push-outs, rho 0.05-0.9), 4 within 1e-4
+RELEASE_NEWTON = 8
+
+
+def _release_step(prev, s, a, p):
+    """One implicit Euler step of the released push-out d phi/dx = (1 - (phi/s)^p) / delta:
+    the phi >= 0 with phi + a (phi/s)^p = prev + a, a = travel / delta, p = 1 / x_feed >= 1;
+    0 where the layer is gone (s <= 0). The left side grows and is convex in phi, and it is
+    at least the right one at min(prev + a, max(prev, s)), so Newton from there stays above
+    the root and converges: stable for any travel over delta (explicit Euler was not once
+    delta fell below a sample's travel: foreign2's aluminium exits, docs/stacks_history.md)."""
+    live = s > 0.0
+    s = np.where(live, s, 1.0)
+    b = prev + a
+    phi = np.minimum(b, np.maximum(prev, s))
+    for _ in range(RELEASE_NEWTON):
+        u = phi / s
+        up = u ** (p - 1.0)
+        phi = phi - (phi + a * (up * u) - b) / (1.0 + a * p * up / s)
+    return np.where(live, np.maximum(phi, 0.0), 0.0)
+
+
+def _released(xb, x, L: float, shape, delta: float, p: float):
+    """The push-out's share phi of the plateau thrust at the samples ``x`` [m] (increasing)
+    for faces ``xb`` (G, 1) [m] on a drive that stores the deflection ``delta`` [m] between
+    its scale and the cutting front at the plateau (the compliance times the plateau thrust):
+    the front is at x - delta phi and the layer left ahead of it gives the share
+    s = shape((xb - front) / L); the cutting law F = K f^x_feed (f the feed per revolution,
+    p = 1 / x_feed) lets the front cut faster than the table while the stored deflection is
+    released, d phi/dx = (1 - (phi/s)^p) / delta. Rigid (delta -> 0) it is phi = s, the law
+    itself. On foreign2's compliant drive the rigid law put the exits late by up to 0.1 mm,
+    in proportion to delta over the push-out length (docs/stacks.md, "Localisation"). Returns
+    (G, n)."""
+    travel = np.maximum(np.diff(x), 0.0) / delta      # the scale's position is not monotone after a snap
+    phi = np.empty((xb.shape[0], x.size))
+    ph = shape((xb[:, 0] - x[0]) / L)
+    phi[:, 0] = ph
+    for i in range(1, x.size):
+        # the front where the step ends: predicted with the share before the step, then with
+        # the predicted one (with the first alone the fall snapped 2 samples late)
+        pred = _release_step(ph, shape((xb[:, 0] - x[i] + delta * ph) / L), travel[i - 1], p)
+        ph = _release_step(ph, shape((xb[:, 0] - x[i] + delta * pred) / L), travel[i - 1], p)
+        phi[:, i] = ph
+    return phi
+
+
+def _release_of(x, F, release) -> tuple[float, float] | None:
+    """The released push-out's (delta [m], 1 / x_feed) for an exit window, or None for the
+    rigid law: ``release`` = (compliance [m/N], x_feed) or None; delta is the compliance times
+    the plateau's fall to air the window shows (:func:`_end_levels`). Where delta is not above
+    the window's median travel per sample the law is the rigid one exactly (the implicit step
+    over a sample's travel is at most one sample's lag from it; the aluminium exits' 3-6 um)."""
+    if release is None or not release[0] > 0.0:
+        return None
+    first, last = _end_levels(x, F)
+    delta = release[0] * max(first - last, 0.0)
+    if not delta > float(np.median(np.diff(x))):
+        return None
+    return delta, 1.0 / release[1]
+
+
 def free_face(x, F, lo: float, hi: float, air: float | None, period: float | None = None,
               ghost: tuple[float, float] | None = None, shapes=PUSH_OUT_SHAPES,
-              ring: float | None = None) -> tuple[float, float]:
+              ring: float | None = None, release: tuple[float, float] | None = None) -> tuple[float, float]:
     """Position [m] in [lo, hi] where a layer pushed out ahead of the tool runs out: its
     thrust (a level with a trend) falls to the air level over a fitted length and law
     and stays there; and its uncertainty [m]. ``air`` None: the air level is fitted too
@@ -313,7 +377,9 @@ def free_face(x, F, lo: float, hi: float, air: float | None, period: float | Non
     measured: docs/stacks_history.md, "Exit localisation: the observer's ghost").
     ``shapes``: the push-out laws tried (PUSH_OUT_SHAPES, or one of EXIT_SHAPES at the exit).
     ``ring`` [samples] (not with ``period`` or ``ghost``): the observer's ringing at this orbit
-    is fitted with the fall (:func:`_ringing`, the entry's model)."""
+    is fitted with the fall (:func:`_ringing`, the entry's model). ``release`` (delta [m],
+    1 / x_feed; :func:`_release_of`): the fall is the push-out that releases the drive's stored
+    deflection (:func:`_released`) instead of the law itself; None: the law."""
     Fa = F - (0.0 if air is None else air)
     ringing = [] if period or ghost is not None or not ring else _ringing(x.size, ring)
     smooth = (lambda A: orbit_mean(A, period)) if period else (lambda A: A)
@@ -321,7 +387,7 @@ def free_face(x, F, lo: float, hi: float, air: float | None, period: float | Non
 
     def sse(xb, L, shape):
         r = (xb - x[None, :]) / L
-        g = shape(r)
+        g = shape(r) if release is None else _released(xb, x, L, shape, *release)
         cols = [g, r * g] if air is not None else [g, r * g, np.ones_like(g)]
         if ghost is not None and not period:
             cols += _ghost_columns(g, ghost)
@@ -356,7 +422,7 @@ def floor_gap(F, cut_floor: float | None) -> tuple[int, int] | None:
 
 def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cut_floor: float | None = None,
            period: float | None = None, entry_shape: str = "any", ghost: tuple[float, float] | None = None,
-           exit_shape: str = "any"):
+           exit_shape: str = "any", exit_release: tuple[float, float] | None = None):
     """Located position [m] of an event and its uncertainty [m] from the samples around
     its trigger: table positions ``x`` [m] (increasing along the feed), observed thrust
     ``F`` [N]. ``kind``: "entry", "interface" or "exit"; ``air`` [N]: the observed thrust
@@ -374,7 +440,10 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     a window shorter than one orbit, or one that shows no ghost, :func:`_ghost_visible`:
     none, and at an orbit of EXIT_RING_ORBIT samples or more its ringing instead); an
     interface's: the lower layer's orbit and the same decay (:func:`_ghost_drop`; None: none);
-    ``exit_shape``: the exit's push-out law, one of EXIT_SHAPES. An entry's ramp rises; an
+    ``exit_shape``: the exit's push-out law, one of EXIT_SHAPES; ``exit_release`` (the drive's
+    compliance between the scale and the cutting front [m/N], the cutting law's feed exponent
+    x_feed in (0, 1]) or None: the exit's fall releases the deflection stored at its plateau
+    (:func:`_release_of`). An entry's ramp rises; an
     interface's may have either sign. (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
@@ -382,6 +451,9 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
         raise ValueError(f"event_locator.locate: entry_shape must be one of {', '.join(ENTRY_SHAPES)}, got {entry_shape!r}")
     if exit_shape not in EXIT_SHAPES:
         raise ValueError(f"event_locator.locate: exit_shape must be one of {', '.join(EXIT_SHAPES)}, got {exit_shape!r}")
+    if exit_release is not None and not (exit_release[0] >= 0.0 and 0.0 < exit_release[1] <= 1.0):
+        raise ValueError(f"event_locator.locate: exit_release must be (compliance >= 0 m/N, 0 < x_feed <= 1), "
+                         f"got {exit_release!r}")
     x, F = np.asarray(x, float), np.asarray(F, float)
     ok = np.isfinite(x) & np.isfinite(F)
     x, F = x[ok], F[ok]
@@ -404,7 +476,7 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
         if ghost is not None and not _ghost_visible(F):
             ghost = None
         return free_face(x, F, x0, x1, air if FIXED_EXIT_AIR else None, period, ghost, EXIT_SHAPES[exit_shape],
-                         ring)
+                         ring, _release_of(x, F, exit_release))
     if ghost is not None and _ghost_drop(x, F, ghost):
         return free_face(x, F, x0, x1, None, None, ghost)
     laws = (ENTRY_SHAPES[entry_shape], EXIT_SHAPES[exit_shape])

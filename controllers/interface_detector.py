@@ -441,6 +441,11 @@ class InterfaceDetector(KernelBlock, Block):
         (frame, spindle, tool/workpiece contact); the exit's and the entry's fits take the
         front's lag, the thrust times it, out of the encoder's positions
         (:meth:`_front_positions`); 0 (default): rigid.
+    exit_release_compliance [m/N], exit_feed_exponent: the drive's compliance between the
+        encoder and the cutting front, and the cutting law's feed exponent x_feed (thrust ~
+        feed per revolution^x_feed, in (0, 1]; default 0.75): the exit's fit takes the push-out
+        as releasing the deflection stored at the plateau (event_locator._released) instead of
+        shifting the positions; not with exit_compliance. 0 (default): the law itself.
     exit_loc_after [m]: travel after the exit's trigger its localisation window holds
         (default locate_margin; the hole plan adds half an orbit of the last layer's feed:
         the orbit means of the last half orbit need the samples after it).
@@ -511,7 +516,7 @@ class InterfaceDetector(KernelBlock, Block):
         restart: bool = False,
         interface_loc_after: Sequence[float] | None = None,
         exit_orbit_period: float = 0.0, exit_loc_after: float | None = None, exit_compliance: float = 0.0,
-        exit_orbit_arm: float = 0.0,
+        exit_orbit_arm: float = 0.0, exit_release_compliance: float = 0.0, exit_feed_exponent: float = 0.75,
         interface_orbit_arm: Sequence[float] | None = None,
         exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0, exit_shape: str = "any",
     ):
@@ -544,7 +549,7 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
         self._set_loc_after(interface_loc_after)
         self._set_exit_loc(exit_orbit_period, exit_loc_after, exit_ripple_period, observer_forgetting,
-                           exit_shape, exit_compliance)
+                           exit_shape, exit_compliance, (exit_release_compliance, exit_feed_exponent))
         self._set_exit_arm(exit_orbit_arm)
         self._set_interface_arm(interface_orbit_arm)
         self.windows = self._windows()
@@ -655,14 +660,15 @@ class InterfaceDetector(KernelBlock, Block):
         return self.max_gap + self.push_out + self.locate_margin
 
     def _set_exit_loc(self, orbit_period, loc_after, ripple_period=0.0, forgetting=0.0, exit_shape="any",
-                      compliance=0.0) -> None:
+                      compliance=0.0, release=(0.0, 0.75)) -> None:
         """The exit's fit on orbit means (period [s], 0: none), its window after the
         trigger [m] (default locate_margin), its ghost (:meth:`_set_exit_ghost`), its
-        push-out law (:meth:`_set_exit_shape`) and the drive's compliance
-        (:meth:`_set_exit_compliance`), checked."""
+        push-out law (:meth:`_set_exit_shape`), the drive's compliance
+        (:meth:`_set_exit_compliance`) and its released push-out (:meth:`_set_exit_release`), checked."""
         self._set_exit_ghost(ripple_period, forgetting)
         self._set_exit_shape(exit_shape)
         self._set_exit_compliance(compliance)
+        self._set_exit_release(*release)
         _check_seconds("exit_orbit_period", orbit_period, "the last layer's orbit period; 0: none")
         self.exit_orbit_period = float(orbit_period)
         self.exit_after = self.locate_margin if loc_after is None else float(loc_after)
@@ -693,6 +699,27 @@ class InterfaceDetector(KernelBlock, Block):
         if not (isinstance(compliance, (int, float)) and math.isfinite(compliance) and compliance >= 0.0):
             raise ValueError(f"InterfaceDetector: exit_compliance must be a number >= 0 m/N (0: rigid), got {compliance!r}")
         self.exit_compliance = float(compliance)
+
+    def _set_exit_release(self, compliance, feed_exponent) -> None:
+        """The exit's released push-out (event_locator._release_of): the compliance [m/N] >= 0
+        (0: off) and the feed exponent in (0, 1], checked; with exit_compliance the deflection
+        would be taken out twice."""
+        if not (isinstance(compliance, (int, float)) and math.isfinite(compliance) and compliance >= 0.0):
+            raise ValueError(f"InterfaceDetector: exit_release_compliance must be a number >= 0 m/N (0: off), "
+                             f"got {compliance!r}")
+        if not (isinstance(feed_exponent, (int, float)) and 0.0 < feed_exponent <= 1.0):
+            raise ValueError(f"InterfaceDetector: exit_feed_exponent must be a number in (0, 1] (thrust ~ feed "
+                             f"per revolution^x_feed), got {feed_exponent!r}")
+        if compliance > 0.0 and self.exit_compliance > 0.0:
+            raise ValueError("InterfaceDetector: exit_release_compliance and exit_compliance are both > 0: the "
+                             "drive's deflection would be taken out of the exit twice; set one")
+        self.exit_release_compliance, self.exit_feed_exponent = float(compliance), float(feed_exponent)
+
+    def _exit_release(self) -> tuple[float, float] | None:
+        """The exit's released push-out for event_locator.locate: (compliance [m/N], x_feed), None when off."""
+        if not self.exit_release_compliance > 0.0:
+            return None
+        return (self.exit_release_compliance, self.exit_feed_exponent)
 
     def _front_positions(self, x, F, air: float):
         """Where the cutting front was [m] for the exit's and the entry's fits: the encoder
@@ -1265,7 +1292,8 @@ class InterfaceDetector(KernelBlock, Block):
         x_loc, dx = locate(kind, x_fit, hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period,
                            entry_shape=self.entry_shape if laws else "any",
                            ghost=self._exit_ghost() if kind == "exit" else self._interface_ghost(k) if k else None,
-                           exit_shape=self.exit_shape if laws else "any")
+                           exit_shape=self.exit_shape if laws else "any",
+                           exit_release=self._exit_release() if kind == "exit" else None)
         if k == 0:
             x_loc, dx = self._entry_refit(xs, hF, lo, hi, x_trig, air, period, x_loc, dx)
         F_air = F_air_sd = NAN
@@ -1547,6 +1575,8 @@ class InterfaceDetector(KernelBlock, Block):
                             "decay of the ripple estimate per sample"),
         "exit_shape": ("1", "the exit fit's push-out law: 0 linear or quadratic, 1 linear, 2 quadratic, 3 bending (r^1.5)"),
         "exit_compliance": ("m/N", "compliance between encoder and cutting front the exit's and entry's fits take out (0: rigid)"),
+        "exit_release": ("1", "the exit's released push-out: compliance between encoder and cutting front [m/N] "
+                              "(0: off), the cutting law's feed exponent"),
         "max_gap": ("m", "widest gap between two layers"),
         "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
     }
@@ -1563,7 +1593,8 @@ class InterfaceDetector(KernelBlock, Block):
         return detector_kernel.export_kernel(self.c_kernel.state, self.observer_delay, arrays,
                                              self._exit_period_samples() or 0.0, self._entry_period_samples() or 0.0,
                                              self.entry_shape, self._exit_ghost() or (0.0, 0.0), self.exit_shape,
-                                             self.exit_compliance, self._plan_laws_at_rises())
+                                             self.exit_compliance, self._plan_laws_at_rises(),
+                                             (self.exit_release_compliance, self.exit_feed_exponent))
 
     def _c_supports(self) -> bool:
         return (detector_kernel.blas_ddot() is not None and detector_kernel.sums_like_python()

@@ -43,7 +43,7 @@ OBSERVER_SETTLE_ORBITS = 6.0
 HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "approach", "breakthrough",
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
              "match_tolerance", "locate_margin", "push_out", "orbital_harmonics", "exit_orbit_mean", "engagement",
-             "entry_shape", "exit_shape", "exit_compliance"}
+             "entry_shape", "exit_shape", "exit_compliance", "exit_release_compliance", "feed_exponent"}
 # Localisation (controllers/event_locator.py): travel on either side of an event that holds its
 # change and a stretch of level (engagement up to ~0.35 mm on the drives measured, and the
 # trigger up to ~0.1 mm into it: with 0.3 mm, Ti entries with a 0.22 mm engagement were
@@ -113,6 +113,16 @@ class HolePlan:
         # contact put its Ti exits 0.018 mm and its Ti entries 0.012 mm early on average
         # (docs/stacks.md, "Localisation"). The name predates the entry's use.
         self.exit_compliance = self._number(hole, "exit_compliance", 0.0, minimum=0.0)
+        # the drive's compliance between the scale and the cutting front [m/N] and the cutting
+        # law's feed exponent (thrust ~ feed per revolution^x, InterfaceDetector
+        # exit_release_compliance, exit_feed_exponent): the exit's fit takes the push-out as
+        # releasing the deflection stored at the plateau; 0 (default) is the law itself, where
+        # foreign2's compliant frame put its high-thrust exits up to 0.1 mm late (docs/stacks.md)
+        self.exit_release_compliance = self._number(hole, "exit_release_compliance", 0.0, minimum=0.0)
+        self.feed_exponent = self._number(hole, "feed_exponent", 0.75, positive=True)
+        if self.feed_exponent > 1.0:
+            raise self.error("hole.feed_exponent", f"expected a number in (0, 1] (thrust ~ feed per "
+                                                   f"revolution^x), got {self.feed_exponent!r}")
         self.harmonics = self._harmonics(hole)
         # the exit's fit on orbit means (InterfaceDetector exit_orbit_period): off by default,
         # its wide-draw measurement is mixed (docs/stacks_history.md, "Exit (first pass)")
@@ -399,6 +409,8 @@ class HolePlan:
             "entry_shape": self.entry_shape,
             "exit_shape": self.exit_shape,
             "exit_compliance": self.exit_compliance,
+            "exit_release_compliance": self.exit_release_compliance,
+            "exit_feed_exponent": self.feed_exponent,
             # the exit's thinning test also runs on means over one orbit of the last layer: a
             # thin last layer under the observer's ringing after a Ti -> Al drop has no quiet
             # F~ to arm on (issue 23, round 2: missed exits of the wide draw)

@@ -49,26 +49,29 @@ KINDS = {"entry": 0, "interface": 1, "exit": 2}
 PREDICTION = ("F_pred", "F_err", "F_ref", "thd", "level_mismatch")
 
 
-def _c_locate(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any", entry_shape="any"):
+def _c_locate(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any", entry_shape="any",
+              exit_release=None):
     fn = detector_kernel.export_library().event_locate_tables
     fn.restype = None
     fn.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_long, ctypes.c_double,
                    ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p,
-                   ctypes.c_void_p, ctypes.c_int, ctypes.c_int]
+                   ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_void_p]
     x, F = np.ascontiguousarray(x, float), np.ascontiguousarray(F, float)
     tables, out = detector_kernel.locator_tables(), np.zeros(2)
     g = None if ghost is None else np.array(ghost, float)
+    rel = None if exit_release is None else np.array(exit_release, float)
     fn(KINDS[kind], x.ctypes.data, F.ctypes.data, x.size, air, x_trig,
        math.nan if cut_floor is None else cut_floor, period or 0.0, None if g is None else g.ctypes.data,
-       tables.ctypes.data, out.ctypes.data, list(EXIT_SHAPES).index(exit_shape), list(ENTRY_SHAPES).index(entry_shape))
+       tables.ctypes.data, out.ctypes.data, list(EXIT_SHAPES).index(exit_shape), list(ENTRY_SHAPES).index(entry_shape),
+       None if rel is None else rel.ctypes.data)
     return float(out[0]), float(out[1])
 
 
 def _assert_same_fit(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any",
-                     entry_shape="any"):
+                     entry_shape="any", exit_release=None):
     py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost,
-                exit_shape=exit_shape, entry_shape=entry_shape)
-    c = _c_locate(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, entry_shape)
+                exit_shape=exit_shape, entry_shape=entry_shape, exit_release=exit_release)
+    c = _c_locate(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, entry_shape, exit_release)
     for a, b in zip(py, c):
         assert (math.isnan(a) and math.isnan(b)) or abs(a - b) <= 1e-12, (kind, py, c)   # 1e-9 mm
     return py
@@ -93,11 +96,11 @@ def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
     calls = []
 
     def spy(kind, x, F, *, air=0.0, x_trig=None, cut_floor=None, period=None, entry_shape="any", ghost=None,
-            exit_shape="any"):
+            exit_shape="any", exit_release=None):
         assert entry_shape == "any"     # the cases fit both ramps, as event_locate_tables does
         calls.append((kind, np.array(x), np.array(F), air, x_trig, cut_floor, period, ghost, exit_shape))
         return locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost,
-                      exit_shape=exit_shape)
+                      exit_shape=exit_shape, exit_release=exit_release)
 
     monkeypatch.setattr(idm, "locate", spy)
     for settings, trace in CASES.values():

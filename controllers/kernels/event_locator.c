@@ -31,6 +31,7 @@
 #define LOC_GHOST_SNR 20.0        /* event_locator.GHOST_SNR */
 #define LOC_IF_GHOST_ORBIT 40.0   /* samples, event_locator.IF_GHOST_ORBIT */
 #define LOC_EXIT_RING_ORBIT 40.0  /* samples, event_locator.EXIT_RING_ORBIT */
+#define LOC_RELEASE_NEWTON 8      /* event_locator.RELEASE_NEWTON */
 #define LOC_MAX_COLS 7             /* onset: level, trend, ramp, the orbit's sine and cosine and both times i / n;
                                       push-out: fall, its trend, air and four ghost or ringing columns */
 
@@ -46,6 +47,8 @@ typedef struct {
     int n_lengths, first_shape, n_shapes;
     int rise_shape;     /* an interface's fit before a rise: the plan's code (0: any), entry_shape's for the
                            onset, exit_shape's for the free face (loc_exit_grid's codes) */
+    double release[2];  /* the exit's released push-out: compliance [m/N] (0: the law itself), x_feed
+                           (event_locator.locate's exit_release) */
 } LocGrid;
 
 /* One fit problem: samples, the family (onset or push-out), the air level (NaN: fitted);
@@ -66,6 +69,8 @@ typedef struct {
     double ghost_orbit, ghost_decay;   /* the push-out's ghost columns: orbit [samples] (0: none), decay per
                                           sample (free_face's ghost) */
     int rise;                      /* onset: only a rising ramp is a fit (onset_face's rise: the entry) */
+    double release_delta, release_p;   /* the push-out releases delta [m] stored at the plateau, 1 / x_feed
+                                          (event_locator._release_of; delta 0: the law itself) */
 } LocFit;
 
 /* numpy's sum of a contiguous float64 array: pairwise, 8 accumulators per block of 128 */
@@ -200,6 +205,48 @@ static int loc_columns(const LocFit *f, double face, double L, int shape, long i
     return loc_ring_columns(f, i, c, 3);
 }
 
+/* the push-out law of code shape (0: r, 1: r^2, 2: r^1.5) at r, clipped to [0, 1] */
+static double loc_push_law(int shape, double r)
+{
+    double u = loc_clip01(r);
+    return shape == 0 ? u : shape == 1 ? u * u : pow(u, 1.5);
+}
+
+/* event_locator._release_step: the implicit Euler step of the released push-out, phi >= 0
+ * with phi + a (phi/s)^p = prev + a, by RELEASE_NEWTON Newton steps from above the root */
+static double loc_release_step(double prev, double s, double a, double p)
+{
+    if (!(s > 0.0))
+        return 0.0;
+    double b = prev + a, phi = LOC_PYMIN(b, LOC_PYMAX(prev, s));
+    for (int it = 0; it < LOC_RELEASE_NEWTON; it++) {
+        double u = phi / s, up = pow(u, p - 1.0);
+        phi = phi - (phi + a * (up * u) - b) / (1.0 + a * p * up / s);
+    }
+    return phi > 0.0 ? phi : 0.0;
+}
+
+/* loc_columns with, on a push-out that releases the stored deflection (release_delta > 0),
+ * the share phi (event_locator._released) for g: g = phi, r g = r phi; *phi the share at the
+ * sample before (the samples visited in order from i = 0) */
+static int loc_push_columns(const LocFit *f, double face, double L, int shape, long i, double *c, double *phi)
+{
+    int k = loc_columns(f, face, L, shape, i, c);
+    if (!f->push_out || !(f->release_delta > 0.0))
+        return k;
+    double xi = f->x[i], delta = f->release_delta;
+    if (i == 0) {
+        *phi = loc_push_law(shape, (face - xi) / L);
+    } else {
+        double xp = f->x[i - 1], a = (xi - xp > 0.0 ? xi - xp : 0.0) / delta;
+        double pred = loc_release_step(*phi, loc_push_law(shape, (face - xi + delta * *phi) / L), a, f->release_p);
+        *phi = loc_release_step(*phi, loc_push_law(shape, (face - xi + delta * pred) / L), a, f->release_p);
+    }
+    c[0] = *phi;
+    c[1] = ((face - xi) / L) * *phi;
+    return k;
+}
+
 /* the exit's push-out grid: ``push``'s lengths with the law of event_locator.EXIT_SHAPES's
  * code exit_shape (0 any: linear or quadratic, 1 linear, 2 quadratic, 3 bending: r^1.5); on
  * an engage grid the ramp of ENTRY_SHAPES's code (0 any, 1 linear, 2 smoothstep) */
@@ -283,9 +330,9 @@ static void loc_solve(double M[LOC_MAX_COLS][LOC_MAX_COLS], double *r, int k)
 static void loc_orbit_columns(const LocFit *f, double face, double L, int shape, double M[LOC_MAX_COLS][LOC_MAX_COLS],
                               double *r, int *k)
 {
-    double c[LOC_MAX_COLS], *col = f->work, *S = col + 3 * f->n, *mean = S + f->n + 1;
+    double c[LOC_MAX_COLS], *col = f->work, *S = col + 3 * f->n, *mean = S + f->n + 1, phi = 0.0;
     for (long i = 0; i < f->n; i++) {
-        *k = loc_columns(f, face, L, shape, i, c);
+        *k = loc_push_columns(f, face, L, shape, i, c, &phi);
         for (int a = 0; a < *k; a++)
             col[a * f->n + i] = c[a];
     }
@@ -312,10 +359,10 @@ static double loc_sse(const LocFit *f, double face, double L, int shape, double 
     if (f->period > 1.0) {
         loc_orbit_columns(f, face, L, shape, M, r, &k);
     } else {
-        double lagged = 0.0;
+        double lagged = 0.0, phi = 0.0;
         for (long i = 0; i < f->n; i++) {
             double Fi = f->F[i] - (isnan(f->air) ? 0.0 : f->air);
-            k = loc_columns(f, face, L, shape, i, c);
+            k = loc_push_columns(f, face, L, shape, i, c, &phi);
             if (f->push_out && f->ghost_orbit > 0.0)
                 k = loc_ghost_columns(f, i, c, k, &lagged);
             for (int a = 0; a < k; a++) {
@@ -572,11 +619,34 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
     free(xu);
 }
 
+/* event_locator._release_of: the exit's push-out releases delta = compliance times the
+ * window's fall between its end levels when delta is above the median travel per sample */
+static void loc_release_of(LocFit *f)
+{
+    f->release_delta = 0.0;
+    if (!(f->grid->release[0] > 0.0) || f->n < 2)
+        return;
+    double *scratch = malloc((size_t)(2 * f->n) * sizeof(double));
+    if (scratch == NULL)
+        return;
+    double first, last, *dx = scratch + f->n;
+    loc_end_levels(f->x, f->F, f->n, scratch, &first, &last);
+    double delta = f->grid->release[0] * LOC_PYMAX(first - last, 0.0);
+    for (long i = 0; i + 1 < f->n; i++)
+        dx[i] = f->x[i + 1] - f->x[i];
+    if (delta > loc_median(dx, f->n - 1, scratch)) {
+        f->release_delta = delta;
+        f->release_p = 1.0 / f->grid->release[1];
+    }
+    free(scratch);
+}
+
 /* the exit's free face (locate, kind exit), on means over one orbit of ``period`` samples
  * when the window holds one orbit and 10 MIN_SEGMENT samples more */
 static void loc_exit(LocFit *f, double period, double x0, double x1, double *x_loc, double *dx)
 {
     double *Fs = NULL;
+    loc_release_of(f);
     if (period > 1.0 && (double)f->n >= period + 10 * LOC_MIN_SEGMENT) {
         Fs = malloc((size_t)(7 * f->n + 2) * sizeof(double));
         if (Fs == NULL)

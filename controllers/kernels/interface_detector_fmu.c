@@ -31,6 +31,8 @@ typedef struct {
                                                      (event_locator.EXIT_SHAPES) */
     double exit_compliance;                       /* m/N, encoder to cutting front (InterfaceDetector._front_positions) */
     double rise_laws;                             /* 1: an interface's rise takes the plan's ramp and law (InterfaceDetector._plan_laws_at_rises) */
+    double exit_release[2];                       /* the exit's released push-out: compliance [m/N] (0: off), x_feed
+                                                     (InterfaceDetector._exit_release) */
     double engage_lengths[LOC_N_ENGAGE];          /* m, event_locator.ENGAGE_LENGTHS */
     double engage_fine[LOC_N_FINE];               /* around the best engage length */
     double push_out_lengths[LOC_N_PUSH_OUT];      /* m, event_locator.PUSH_OUT_LENGTHS */
@@ -192,8 +194,11 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     int shape = kind == LOC_ENTRY ? (int)s->entry_shape : 0;
     LocGrid engage = {s->engage_lengths, s->engage_fine, LOC_N_ENGAGE, shape == 2 ? 1 : 0, shape == 0 ? 2 : 1};
     LocGrid push = {s->push_out_lengths, s->push_out_fine, LOC_N_PUSH_OUT, 0, 2};
-    if (kind == LOC_EXIT)
+    if (kind == LOC_EXIT) {
         push = loc_exit_grid(&push, (int)s->exit_shape);
+        push.release[0] = s->exit_release[0];
+        push.release[1] = s->exit_release[1];
+    }
     engage.rise_shape = s->rise_laws != 0.0 ? (int)s->entry_shape : 0;   /* an interface's rise: the plan's ramp and law */
     push.rise_shape = s->rise_laws != 0.0 ? (int)s->exit_shape : 0;
     /* an interface window cut short to a thin layer below may end in the gap: air is below
@@ -260,16 +265,22 @@ void interface_detector_fmu_step(DetectorFMU *s, double t, const double *u, doub
 
 /* the localisation alone, for tests against event_locator.locate: kind 0 entry, 1
  * interface, 2 exit; out = x_loc, dx [m]; tables as in DetectorFMU; period [samples],
- * ghost (NULL: none), exit_shape and entry_shape (DetectorFMU's codes) as event_locator.locate's */
+ * ghost (NULL: none), exit_shape and entry_shape (DetectorFMU's codes), release (NULL: none; the exit's
+ * {compliance [m/N], x_feed}) as event_locator.locate's */
 void event_locate_tables(int kind, const double *x, const double *F, long n, double air, double x_trig,
                          double cut_floor, double period, const double *ghost, const double *tables, double *out,
-                         int exit_shape, int entry_shape)
+                         int exit_shape, int entry_shape, const double *release)
 {
     LocGrid engage = {tables, tables + LOC_N_ENGAGE, LOC_N_ENGAGE, 0, 2};
     LocGrid push = {tables + LOC_N_ENGAGE + LOC_N_FINE, tables + LOC_N_ENGAGE + LOC_N_FINE + LOC_N_PUSH_OUT,
                     LOC_N_PUSH_OUT, 0, 2};
-    if (kind == LOC_EXIT)
+    if (kind == LOC_EXIT) {
         push = loc_exit_grid(&push, exit_shape);
+        if (release != NULL) {
+            push.release[0] = release[0];
+            push.release[1] = release[1];
+        }
+    }
     if (kind == LOC_ENTRY)
         engage = loc_exit_grid(&engage, entry_shape);
     engage.rise_shape = entry_shape;
