@@ -312,10 +312,17 @@ def _release_step(prev, s, a, p):
     s = np.where(live, s, 1.0)
     b = prev + a
     phi = np.minimum(b, np.maximum(prev, s))
+    todo = np.flatnonzero(live)
     for _ in range(RELEASE_NEWTON):
-        u = phi / s
+        # only the shares still moving: one at a fixed point stays there (C iterates all 8)
+        ph, st, bt = phi[todo], s[todo], b[todo]
+        u = ph / st
         up = u ** (p - 1.0)
-        phi = phi - (phi + a * (up * u) - b) / (1.0 + a * p * up / s)
+        nxt = ph - (ph + a * (up * u) - bt) / (1.0 + a * p * up / st)
+        phi[todo] = nxt
+        todo = todo[nxt != ph]
+        if todo.size == 0:
+            break
     return np.where(live, np.maximum(phi, 0.0), 0.0)
 
 
