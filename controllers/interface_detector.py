@@ -1323,13 +1323,9 @@ class InterfaceDetector(KernelBlock, Block):
         holds the engagement and a stretch of level at every entry without a span, -0.005).
         At an orbit slower than that the fit's sinusoid (the observer's ringing) has less than
         an orbit past the onset to be told from the ramp by, and traded off against it
-        (foreign2 seed-24 hole 129, a 23 N aluminium step at a 0.5 mm orbit: +0.031 -> +0.195).
-        Not where the plan gives the engagement (:meth:`_plan_laws_at_rises`): a locate_margin
-        past the onset then holds the plan's long engagement (foreign2's 0.35 mm) and too little
-        level after it to tell the ringing from the ramp by (foreign2 seed-23 aluminium entries at
-        0.24-0.35 mm orbits: 77 -0.009 -> +0.072, 160 -0.000 -> +0.059 mm)."""
+        (foreign2 seed-24 hole 129, a 23 N aluminium step at a 0.5 mm orbit: +0.031 -> +0.195)."""
         end = x_loc + self.locate_margin
-        if not (math.isfinite(x_loc) and end < hi) or self._plan_laws_at_rises():
+        if not (math.isfinite(x_loc) and end < hi):
             return x_loc, dx
         sel = (xs >= lo) & (xs <= hi)
         # in the front's positions, as the fit: cut in the encoder's, a compliant drive's Ti
