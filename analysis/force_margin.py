@@ -154,9 +154,8 @@ def _kf_family(L: ForceLoop):
     only (``a_cmd = Kf (F_cmd - F_hat) / M_n``), so the closed and the broken loop's matrices
     are affine in it. A bisection on Kf then costs an eigenvalue and a frequency sweep per
     point, not a casadi derivation (commissioning tunes Kf at nine g_thrust)."""
-    at = [(linear_loop(dataclasses.replace(L, Kf=k), False)[0], linear_loop(dataclasses.replace(L, Kf=k), True))
-          for k in (0.0, 1.0)]
-    (c0, b0), (c1, b1) = at
+    (c0, b0), (c1, b1) = [(linear_loop(Lk, False)[0], linear_loop(Lk, True))
+                          for Lk in (dataclasses.replace(L, Kf=k) for k in (0.0, 1.0))]
 
     def margins_at(K: float, n_freq: int) -> dict:
         broken = [m0 + K * (m1 - m0) for m0, m1 in zip(b0, b1)]

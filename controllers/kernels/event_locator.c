@@ -166,6 +166,13 @@ static double loc_clip01(double u)
     return u < 0.0 ? 0.0 : u > 1.0 ? 1.0 : u;      /* NaN stays NaN, as numpy.clip */
 }
 
+/* the push-out law of code shape (0: r, 1: r^2, 2: r^1.5) at r, clipped to [0, 1] */
+static double loc_push_law(int shape, double r)
+{
+    double u = loc_clip01(r);
+    return shape == 0 ? u : shape == 1 ? u * u : pow(u, 1.5);
+}
+
 /* event_locator._ringing at sample i into c[k..k+4): the orbit's sine and cosine at phase
  * 2 pi i / orbit, and both times i / n (an amplitude changing linearly); k + 4, or k without
  * an orbit */
@@ -196,20 +203,13 @@ static int loc_columns(const LocFit *f, double face, double L, int shape, long i
         c[2] = shape == 0 ? u : u * u * (3.0 - 2.0 * u);
         return loc_ring_columns(f, i, c, 3);
     }
-    double r = (face - xi) / L, u = loc_clip01(r), g = shape == 0 ? u : shape == 1 ? u * u : pow(u, 1.5);
+    double r = (face - xi) / L, g = loc_push_law(shape, r);
     c[0] = g;
     c[1] = r * g;
     if (!isnan(f->air))
         return loc_ring_columns(f, i, c, 2);
     c[2] = 1.0;
     return loc_ring_columns(f, i, c, 3);
-}
-
-/* the push-out law of code shape (0: r, 1: r^2, 2: r^1.5) at r, clipped to [0, 1] */
-static double loc_push_law(int shape, double r)
-{
-    double u = loc_clip01(r);
-    return shape == 0 ? u : shape == 1 ? u * u : pow(u, 1.5);
 }
 
 /* event_locator._release_step: the implicit Euler step of the released push-out, phi >= 0
@@ -594,8 +594,8 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
             n_down = loc_select(x, F, n, x[g0], INFINITY, xd, Fd);
         double lo_onset = closed_drop ? x[g0] : mid;
         /* before a rise the plan's ramp and push-out law (event_locator._rise_laws) */
-        LocGrid ramp = last > first ? loc_exit_grid(engage, engage->rise_shape) : *engage;
         LocGrid plan_ramp = loc_exit_grid(engage, engage->rise_shape);
+        LocGrid ramp = last > first ? plan_ramp : *engage;
         LocGrid law = last > first ? loc_exit_grid(push, push->rise_shape) : *push;
         LocFit down = {xd, Fd, n_down, 0, NAN, &ramp};
         double lo, dlo, hi, dhi;
