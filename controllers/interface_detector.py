@@ -1294,6 +1294,8 @@ class InterfaceDetector(KernelBlock, Block):
                            ghost=self._exit_ghost() if kind == "exit" else self._interface_ghost(k) if k else None,
                            exit_shape=self.exit_shape if laws else "any",
                            exit_release=self._exit_release() if kind == "exit" else None)
+        if k == 0:
+            x_loc, dx = self._entry_refit(xs, hF, lo, hi, x_trig, air, period, x_loc, dx)
         F_air = F_air_sd = NAN
         if k == 0 and math.isfinite(x_loc):
             # with a span the window is around the confirmation, which may leave only a few
@@ -1305,6 +1307,36 @@ class InterfaceDetector(KernelBlock, Block):
             if in_air.any():
                 F_air, F_air_sd = air_level(hF[in_air], self._entry_period_samples())
         return x_loc, time_at(ht, hx, x_loc), dx, F_air, F_air_sd
+
+    def _entry_refit(self, xs, hF, lo: float, hi: float, x_trig: float, air: float, period, x_loc: float, dx: float):
+        """The entry's onset [m] and uncertainty [m] fitted again on the window's samples
+        (positions ``xs`` [m] in [lo, hi], thrust ``hF`` [N]) whose cutting front
+        (:meth:`_front_positions`) is at most locate_margin past the first fit's onset
+        ``x_loc``; the first fit's (x_loc, dx) where that is not shorter than the window (to
+        ``hi``), where the first layer's orbit (``period`` [samples]) takes more travel than
+        locate_margin, or where the refit locates nothing. Why: with a span the window ends
+        a locate_margin past the confirmation, an orbit after the candidate, and at a slow
+        orbit it held up to 0.5 mm of cut level past the rise: the drive's settling after the
+        entry (the foreign drive's 430 N overshoot falling to 140 N, seed-24 hole 136), which a
+        level with a trend cannot follow, and the fit took the tail's fall out of the ramp and
+        put the onset early (-0.056 mm; cut to a locate_margin past the onset, the margin that
+        holds the engagement and a stretch of level at every entry without a span, -0.005).
+        At an orbit slower than that the fit's sinusoid (the observer's ringing) has less than
+        an orbit past the onset to be told from the ramp by, and traded off against it
+        (foreign2 seed-24 hole 129, a 23 N aluminium step at a 0.5 mm orbit: +0.031 -> +0.195)."""
+        end = x_loc + self.locate_margin
+        if not (math.isfinite(x_loc) and end < hi):
+            return x_loc, dx
+        sel = (xs >= lo) & (xs <= hi)
+        # in the front's positions, as the fit: cut in the encoder's, a compliant drive's Ti
+        # entry lost the top of its rise (foreign seed-24 hole 38: -0.045 -> +0.167 mm)
+        xf, Fw = self._front_positions(xs[sel], hF[sel], air), hF[sel]
+        if period is not None and period * (xf[-1] - xf[0]) / (xf.size - 1) > self.locate_margin:
+            return x_loc, dx                            # the orbit's travel at the window's mean feed
+        keep = xf <= end
+        x2, dx2 = locate("entry", xf[keep], Fw[keep], air=air, x_trig=x_trig, period=period,
+                         entry_shape=self.entry_shape)
+        return (x2, dx2) if math.isfinite(x2) else (x_loc, dx)
 
     def _entry_period_samples(self) -> float | None:
         """The entry's fit with the first layer's orbit sinusoid (event_locator.onset_face):

@@ -144,6 +144,16 @@ CASES = {
     "plan_slow_drops_ghost": (dict(PLAN, kc=[4.0e7, 1.5e7, 1.2e7], feed_per_rev=[4e-6, 5e-6, 5e-6], exit_shape="linear",
                                    interface_orbit_arm=[1.3, 1.3], exit_ripple_period=1.3, observer_forgetting=0.5),
                               dict(levels=(160.0, 75.0, 60.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.1, 0.0))),
+    # issue 23 round 13: the entry refitted up to locate_margin past its onset (a 0.5 s orbit:
+    # 0.125 mm of travel at 15 mm/min), not at an orbit taking more travel than locate_margin
+    # (1.3 s: 0.33 mm against 0.3 mm), with the orbit's sinusoid in the fit; the window cut in
+    # the cutting front's positions (a compliant drive)
+    "plan_entry_span_fast_orbit": (dict(PLAN, entry_span=0.5, entry_orbit_period=0.5, exit_compliance=2e-7),
+                                   dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.0, 0.0),
+                                        ringing=10.0, feed_mm_min=15.0)),
+    "plan_entry_span_slow_orbit": (dict(PLAN, entry_span=1.3, entry_orbit_period=1.3),
+                                   dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.0, 0.0),
+                                        ringing=10.0, feed_mm_min=15.0)),
     "four_layers": (dict(thicknesses=(2 * MM, 2 * MM, 2 * MM, 2 * MM), thd2=30.0, N=60, N_min=10, rearm_samples=40),
                     dict(levels=(120.0, 300.0, 150.0, 350.0), thick_mm=(2.0, 2.0, 2.0, 2.0), gaps_mm=(0, 0, 0, 0),
                          engage_mm=0.02, thinning_mm=0.05)),

@@ -180,3 +180,25 @@ def test_exit_air_level_from_its_own_samples():
     F = 9.0 * np.clip((face - x) / L, 0.0, 1.0) + 0.5 + rng.normal(0.0, 0.7, x.size)
     x_loc, _dx = locate("exit", x, F, air=-1.9)
     assert abs(x_loc - face) <= 0.03e-3
+
+
+@pytest.mark.parametrize("engage_mm", [0.1, 0.15, 0.2])
+def test_entry_refit_keeps_the_settling_after_the_rise_out(engage_mm):
+    """An entry window that ends a locate_margin past the confirmation (a span, an orbit after
+    the candidate) holds the drive's settling after the rise: a smoothstep to 430 N, then the
+    level falling by 290 N from 0.45 mm (the foreign drive's overshoot, seed-24 hole 136). The
+    fit's level with a trend cannot follow the fall and the onset came 0.04-0.10 mm early;
+    refitted on the samples up to locate_margin past that onset it is within 0.01 mm (1.5
+    samples of travel at 19 mm/min, the noise 1.5 N as in air)."""
+    rng = np.random.default_rng(3)
+    x = np.arange(-0.40, 0.72, 19.0 / 60 * 0.02) * MM
+    u = np.clip(x / (engage_mm * MM), 0.0, 1.0)
+    F = 430.0 * u * u * (3.0 - 2.0 * u) - 290.0 * np.clip((x - 0.45 * MM) / (0.27 * MM), 0.0, 1.0)
+    F += rng.normal(0.0, 1.5, x.size)
+    x1, dx = locate("entry", x, F, air=0.0, x_trig=0.28 * MM, entry_shape="smoothstep")
+    assert x1 < -0.03 * MM                       # the case is real: the whole window's fit is early
+    det = InterfaceDetector(locate_margin=0.45 * MM, entry_shape="smoothstep")
+    x2, _ = det._entry_refit(x, F, x[0], x[-1], 0.28 * MM, 0.0, None, x1, dx)
+    assert abs(x2) < 0.01 * MM
+    # a window already ending within locate_margin of the onset is not fitted again
+    assert det._entry_refit(x, F, x[0], x1 + 0.4 * MM, 0.28 * MM, 0.0, None, x1, dx) == (x1, dx)

@@ -209,6 +209,23 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     double if_ghost[2];
     const double *ghost = kind == LOC_EXIT ? s->exit_ghost : kind == LOC_INTERFACE ? interface_ghost(s, k, if_ghost) : NULL;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, &out[0], &out[2]);
+    if (kind == LOC_ENTRY && isfinite(out[0]) && out[0] + d->locate_margin < hi &&
+        !(period > 0.0 && period * (xsel[m - 1] - xsel[0]) / (double)(m - 1) > d->locate_margin)) {
+        /* InterfaceDetector._entry_refit: again on the window's samples whose front is up to a
+         * locate_margin past the onset, unless the first layer's orbit takes more travel than that */
+        double end = out[0] + d->locate_margin, x2, dx2;
+        long m2 = 0;
+        for (long i = 0; i < m; i++)
+            if (xsel[i] <= end) {
+                xsel[m2] = xsel[i];
+                Fsel[m2++] = Fsel[i];
+            }
+        event_locate(kind, xsel, Fsel, m2, air, x_trig, cut_floor, period, ghost, &engage, &push, &x2, &dx2);
+        if (isfinite(x2)) {
+            out[0] = x2;
+            out[2] = dx2;
+        }
+    }
     if (k == 0 && isfinite(out[0])) {
         long a = 0;         /* the samples in air before the entry, in the window (with a span: from a margin of air) */
         double lo_air = d->entry_P != 0.0 ? LOC_PYMIN(lo, out[0] - 1.5 * d->locate_margin) : lo;
