@@ -225,6 +225,11 @@ def onset_face(x, F, lo: float, hi: float, period: float | None = None,
     observer's DC estimate rings at the orbit frequency in air (+-5..20 N), which otherwise
     bends the level and the trend and pushes the onset onto its search bound (docs/stacks.md,
     "Localisation")."""
+    return _best_face(lo, hi, _onset_sse(x, F, period, rise), ENGAGE_LENGTHS, shapes, x.size)
+
+
+def _onset_sse(x, F, period: float | None, rise: bool):
+    """onset_face's residual of a batch of onsets (G, 1) [m] for one ramp length [m] and shape."""
     orbit = _ringing(x.size, period) if period else []
 
     def sse(x0, L, shape):
@@ -234,8 +239,49 @@ def onset_face(x, F, lo: float, hi: float, period: float | None = None,
         # one on the cut level, 6 (docs/stacks_history.md, "Entry (second pass)")
         return _lstsq_batch([np.ones_like(d), d, shape(d), *(np.broadcast_to(c, d.shape) for c in orbit)], F,
                             2 if rise else None)
+    return sse
 
-    return _best_face(lo, hi, sse, ENGAGE_LENGTHS, shapes, x.size)
+
+# the entry's cut level falling by more than this share of its step over the window is the drive
+# settling after the rise (InterfaceDetector._entry_refit): 40 replayed entries of the three drives
+# without settling -0.08..+0.03 (the ringing left in one orbit's mean), the foreign drive's worn-tool
+# entries that settle (seed 24: 136, 27) 0.28 and 0.47
+ENTRY_SETTLING = 0.1
+
+
+def settling_fall(x, F, x0: float, ramp: float, span: float) -> float:
+    """How far the thrust falls after an entry's ramp, as a share of the ramp's step: the mean
+    over ``span`` [m] from the ramp's top (onset ``x0`` [m] + ``ramp`` [m]) less the mean over
+    the window's last ``span``, over the step from the mean before the onset. NaN where the
+    window (``x`` [m] increasing, ``F`` [N]) holds no two spans after the top or nothing before
+    the onset. ``span``: one orbit's travel, so that the means hold the ringing out."""
+    x, F = np.asarray(x, float), np.asarray(F, float)
+    top = x0 + ramp
+    if not (x.size and x[-1] - span > top + span):
+        return NAN
+    a, b, z = (x >= top) & (x <= top + span), x >= x[-1] - span, x <= x0
+    if not (a.any() and z.any()):
+        return NAN
+    A, Z = float(F[a].mean()), float(F[z].mean())
+    return (A - float(F[b].mean())) / (A - Z) if A > Z else NAN
+
+
+def onset_length(x, F, x0: float, period: float | None = None, entry_shape: str = "any") -> float:
+    """The ramp length [m] (of ENGAGE_LENGTHS) that fits an entry's samples best with its onset
+    at ``x0`` [m]: :func:`locate`'s entry model there, ``period`` and ``entry_shape`` as
+    locate's; NaN where no rising ramp fits. Tells how much of a window past the onset the
+    ramp takes (InterfaceDetector._entry_refit)."""
+    x, F = np.asarray(x, float), np.asarray(F, float)
+    ok = np.isfinite(x) & np.isfinite(F)
+    x, F = x[ok], F[ok]
+    sse = _onset_sse(x, F, period if period is not None and 1.0 < period <= x.size else None, rise=True)
+    best, arg = np.inf, NAN
+    for L in ENGAGE_LENGTHS:
+        for shape in ENTRY_SHAPES[entry_shape]:
+            c = float(sse(np.array([[x0]]), L, shape)[0])
+            if c < best:
+                best, arg = c, float(L)
+    return arg
 
 
 def orbit_mean(A, period: float):

@@ -107,7 +107,8 @@ from typing import Sequence
 import numpy as np
 
 from drillcosim.controllers import detector_kernel
-from drillcosim.controllers.event_locator import ENTRY_SHAPES, EXIT_SHAPES, locate, time_at
+from drillcosim.controllers.event_locator import (ENTRY_SETTLING, ENTRY_SHAPES, EXIT_SHAPES, locate, onset_length,
+                                                   settling_fall, time_at)
 from drillcosim.controllers.kernels import KernelBlock
 from drillcosim.controllers.kernels.structs import Detector as _DetectorState
 from drillcosim.controllers.kernels.structs import fill
@@ -1309,30 +1310,36 @@ class InterfaceDetector(KernelBlock, Block):
         return x_loc, time_at(ht, hx, x_loc), dx, F_air, F_air_sd
 
     def _entry_refit(self, xs, hF, lo: float, hi: float, x_trig: float, air: float, period, x_loc: float, dx: float):
-        """The entry's onset [m] and uncertainty [m] fitted again on the window's samples
-        (positions ``xs`` [m] in [lo, hi], thrust ``hF`` [N]) whose cutting front
-        (:meth:`_front_positions`) is at most locate_margin past the first fit's onset
-        ``x_loc``; the first fit's (x_loc, dx) where that is not shorter than the window (to
-        ``hi``), where the first layer's orbit (``period`` [samples]) takes more travel than
-        locate_margin, or where the refit locates nothing. Why: with a span the window ends
-        a locate_margin past the confirmation, an orbit after the candidate, and at a slow
-        orbit it held up to 0.5 mm of cut level past the rise: the drive's settling after the
-        entry (the foreign drive's 430 N overshoot falling to 140 N, seed-24 hole 136), which a
-        level with a trend cannot follow, and the fit took the tail's fall out of the ramp and
-        put the onset early (-0.056 mm; cut to a locate_margin past the onset, the margin that
-        holds the engagement and a stretch of level at every entry without a span, -0.005).
-        At an orbit slower than that the fit's sinusoid (the observer's ringing) has less than
-        an orbit past the onset to be told from the ramp by, and traded off against it
-        (foreign2 seed-24 hole 129, a 23 N aluminium step at a 0.5 mm orbit: +0.031 -> +0.195)."""
-        end = x_loc + self.locate_margin
-        if not (math.isfinite(x_loc) and end < hi):
+        """The entry's onset [m] and uncertainty [m] fitted again where the window (positions
+        ``xs`` [m] in [lo, hi], thrust ``hF`` [N]) shows the drive settling after the rise:
+        the cut level falls by more than ENTRY_SETTLING of the step (:func:`settling_fall`,
+        over one orbit of the first layer, ``period`` [samples], or half a locate_margin).
+        Refitted on the samples whose cutting front (:meth:`_front_positions`) is at most a
+        reach past the first fit's onset ``x_loc``: locate_margin, or the first fit's ramp
+        (:func:`onset_length`) and one orbit where those take more travel. The first fit's
+        (x_loc, dx) elsewhere, where the window ends within that reach or the refit locates
+        nothing. Why: with a span the window ends a locate_margin past the confirmation, an
+        orbit after the candidate, and at a slow orbit it held up to 0.5 mm of cut level past
+        the rise; a worn tool's entry on the foreign drive overshoots to 430 N and settles
+        towards 140 N (seed-24 hole 136), which the fit's level with a trend cannot follow:
+        it took the fall into the ramp and put the onset early (-0.056 mm; refitted -0.008).
+        The reach keeps the ramp and an orbit of level after it to tell the observer's
+        ringing (the fit's sinusoid) from the ramp by; refitted where the level does not fall,
+        the fit moved by up to 0.02 mm either way for cutting a few samples (foreign2's
+        aluminium entries), and a locate_margin alone traded the sinusoid off against a long
+        ramp (foreign2 seed-23 hole 77: +0.072 mm; docs/stacks_history.md, fourteenth round)."""
+        if not math.isfinite(x_loc):
             return x_loc, dx
         sel = (xs >= lo) & (xs <= hi)
         # in the front's positions, as the fit: cut in the encoder's, a compliant drive's Ti
         # entry lost the top of its rise (foreign seed-24 hole 38: -0.045 -> +0.167 mm)
         xf, Fw = self._front_positions(xs[sel], hF[sel], air), hF[sel]
-        if period is not None and period * (xf[-1] - xf[0]) / (xf.size - 1) > self.locate_margin:
-            return x_loc, dx                            # the orbit's travel at the window's mean feed
+        orbit = period * (xf[-1] - xf[0]) / (xf.size - 1) if period is not None else 0.0   # at the mean feed
+        ramp = onset_length(xf, Fw, x_loc, period, self.entry_shape)
+        end = x_loc + max(self.locate_margin, orbit + ramp)
+        span = orbit if orbit > 0.0 else 0.5 * self.locate_margin
+        if not (end < hi and settling_fall(xf, Fw, x_loc, ramp, span) > ENTRY_SETTLING):
+            return x_loc, dx
         keep = xf <= end
         x2, dx2 = locate("entry", xf[keep], Fw[keep], air=air, x_trig=x_trig, period=period,
                          entry_shape=self.entry_shape)

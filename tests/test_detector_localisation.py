@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from drillcosim.analysis.detector_scoring import SyntheticHole, run_block_on_trace
-from drillcosim.controllers.event_locator import air_run, locate, time_at
+from drillcosim.controllers.event_locator import air_run, locate, onset_length, settling_fall, time_at
 from drillcosim.controllers.interface_detector import InterfaceDetector
 
 MM = 1e-3
@@ -202,3 +202,53 @@ def test_entry_refit_keeps_the_settling_after_the_rise_out(engage_mm):
     assert abs(x2) < 0.01 * MM
     # a window already ending within locate_margin of the onset is not fitted again
     assert det._entry_refit(x, F, x[0], x1 + 0.4 * MM, 0.28 * MM, 0.0, None, x1, dx) == (x1, dx)
+
+
+@pytest.mark.parametrize("engage_mm", [0.05, 0.2, 0.4])
+def test_onset_length_is_the_ramp_the_samples_show(engage_mm):
+    """The ramp length fitted at the true onset is the ramp's within the length grid's
+    ratio (1.19) and the noise: a linear ramp to 120 N, 1.5 N of noise, a cut level after."""
+    rng = np.random.default_rng(5)
+    x = np.arange(-0.40, 0.90, 12.0 / 60 * 0.02) * MM
+    F = 120.0 * np.clip(x / (engage_mm * MM), 0.0, 1.0) + rng.normal(0.0, 1.5, x.size)
+    L = onset_length(x, F, 0.0, None, "linear")
+    assert engage_mm / 1.19 <= L / MM <= engage_mm * 1.19
+
+
+def _ringing_entry(ramp_mm: float, settle_N: float = 0.0):
+    """An entry at 12 mm/min onto a 60 N level (a linear ramp of ``ramp_mm``), 10 N of the
+    observer's ringing at a 0.19 mm orbit, 1.5 N of noise; the level falls by ``settle_N``
+    linearly from 0.2 mm past the top of the ramp over 0.3 mm."""
+    rng = np.random.default_rng(7)
+    feed = 12.0 / 60 * 1e-3                              # m/s
+    t = np.arange(0.0, 8.0, 1e-3)
+    x = -0.40 * MM + feed * t
+    period_s = 0.19 * MM / feed
+    F = 60.0 * np.clip(x / (ramp_mm * MM), 0.0, 1.0) + 10.0 * np.sin(2 * np.pi * t / period_s)
+    F -= settle_N * np.clip((x - (ramp_mm + 0.2) * MM) / (0.3 * MM), 0.0, 1.0)
+    return x, F + rng.normal(0.0, 1.5, x.size), period_s / 1e-3
+
+
+@pytest.mark.parametrize("settle_N", [0.0, 20.0, 40.0])
+def test_settling_fall_is_the_share_of_the_step_the_level_loses(settle_N):
+    """Means over one orbit hold the ringing out: the fall after a 0.2 mm ramp is the settling's
+    share of the 60 N step within 0.03 (the noise and the ringing's residue over a sampled orbit)."""
+    x, F, period = _ringing_entry(0.2, settle_N)
+    fall = settling_fall(x, F, 0.0, 0.2 * MM, 0.19 * MM)
+    assert abs(fall - settle_N / 60.0) <= 0.03
+
+
+def test_entry_refit_only_where_the_level_falls():
+    """A 0.35 mm ramp (foreign2's engagement) with 10 N of ringing at a 0.19 mm orbit and a level
+    that holds: the first fit is kept (refitted, such entries moved by up to 0.02 mm either way
+    for a few samples cut, and a locate_margin alone put foreign2 seed-23 hole 77 at +0.072 mm).
+    With the level settling by 20 N (a third of the step), it is refitted."""
+    det = InterfaceDetector(locate_margin=0.45 * MM, entry_shape="linear")
+    x, F, period = _ringing_entry(0.35)
+    x1, dx = locate("entry", x, F, air=0.0, x_trig=0.3 * MM, period=period, entry_shape="linear")
+    assert 0.35 * MM / 1.19 <= onset_length(x, F, x1, period, "linear") <= 0.35 * MM * 1.19
+    assert det._entry_refit(x, F, x[0], x[-1], 0.3 * MM, 0.0, period, x1, dx) == (x1, dx)
+    x, F, period = _ringing_entry(0.35, settle_N=20.0)
+    x1, dx = locate("entry", x, F, air=0.0, x_trig=0.3 * MM, period=period, entry_shape="linear")
+    x2, _ = det._entry_refit(x, F, x[0], x[-1], 0.3 * MM, 0.0, period, x1, dx)
+    assert x2 != x1 and abs(x2) <= 0.02 * MM

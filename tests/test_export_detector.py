@@ -312,3 +312,18 @@ def test_c_fit_of_a_drop_at_a_slow_orbit():
     assert lo - 0.03 * MM <= x_loc <= hi + 0.03 * MM
     x_old, _ = _assert_same_fit("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6)
     assert x_old > hi + 0.1 * MM        # the gap's two faces in the ringing, as before
+
+
+def test_the_c_locator_s_constants_are_event_locator_s():
+    """Every ``#define LOC_<name> <value> /* event_locator.<NAME> */`` of kernels/event_locator.c
+    holds the Python module's value, or its length for a table (a constant changed on one side would make the
+    exported FMU locate differently from the in-process block)."""
+    import re
+    from drillcosim.controllers import event_locator
+    src = (Path(event_locator.__file__).parent / "kernels" / "event_locator.c").read_text()
+    found = re.findall(r"#define LOC_\w+\s+([-+.\deE]+)\s+/\*[^*]*?event_locator\.([A-Z_]+)\b", src)
+    assert len(found) >= 8
+    for value, name in found:
+        py = getattr(event_locator, name)
+        py = len(py) if hasattr(py, "__len__") else py          # LOC_N_*: the tables' lengths
+        assert float(value) == pytest.approx(py, rel=1e-12), name

@@ -32,6 +32,7 @@
 #define LOC_IF_GHOST_ORBIT 40.0   /* samples, event_locator.IF_GHOST_ORBIT */
 #define LOC_EXIT_RING_ORBIT 40.0  /* samples, event_locator.EXIT_RING_ORBIT */
 #define LOC_RELEASE_NEWTON 8      /* event_locator.RELEASE_NEWTON */
+#define LOC_ENTRY_SETTLING 0.1   /* event_locator.ENTRY_SETTLING */
 #define LOC_MAX_COLS 7             /* onset: level, trend, ramp, the orbit's sine and cosine and both times i / n;
                                       push-out: fall, its trend, air and four ghost or ringing columns */
 
@@ -714,4 +715,43 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
     else
         loc_best_face(&onset, x0, LOC_PYMIN(x_trig, x1), x_loc, dx);
     free(x);
+}
+
+/* event_locator.onset_length: the ramp length [m] of the engage grid's coarse lengths that fits
+ * an entry's samples (finite) best with its onset at x0 [m], period [samples] as event_locate's
+ * entry; NaN where no rising ramp fits */
+double event_onset_length(const double *x, const double *F, long n, double x0, double period, const LocGrid *engage)
+{
+    LocFit onset = {x, F, n, 0, NAN, engage, 0.0, NULL, 0, NULL, 0.0};
+    if (period > 1.0 && period <= (double)n)
+        onset.orbit = period;
+    onset.rise = 1;
+    double FF = 0.0, best, L;
+    for (long i = 0; i < n; i++)
+        FF += F[i] * F[i];
+    loc_best_on(&onset, &x0, 1, engage->lengths, engage->n_lengths, FF, &best, &L);
+    return isfinite(best) ? L : NAN;
+}
+
+/* event_locator.settling_fall: the thrust's fall after an entry's ramp (onset x0 [m], ramp [m])
+ * as a share of its step, means over span [m]; NaN where the window holds no two spans after the
+ * ramp's top or nothing before the onset */
+double event_settling_fall(const double *x, const double *F, long n, double x0, double ramp, double span)
+{
+    double top = x0 + ramp, sum[3] = {0.0, 0.0, 0.0};
+    long cnt[3] = {0, 0, 0};
+    if (!(n > 0 && x[n - 1] - span > top + span))
+        return NAN;
+    for (long i = 0; i < n; i++) {
+        int in[3] = {x[i] >= top && x[i] <= top + span, x[i] >= x[n - 1] - span, x[i] <= x0};
+        for (int j = 0; j < 3; j++)
+            if (in[j]) {
+                sum[j] += F[i];
+                cnt[j]++;
+            }
+    }
+    if (cnt[0] == 0 || cnt[2] == 0)
+        return NAN;
+    double A = sum[0] / (double)cnt[0], Z = sum[2] / (double)cnt[2];
+    return A > Z ? (A - sum[1] / (double)cnt[1]) / (A - Z) : NAN;
 }

@@ -209,11 +209,15 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     double if_ghost[2];
     const double *ghost = kind == LOC_EXIT ? s->exit_ghost : kind == LOC_INTERFACE ? interface_ghost(s, k, if_ghost) : NULL;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, &out[0], &out[2]);
-    if (kind == LOC_ENTRY && isfinite(out[0]) && out[0] + d->locate_margin < hi &&
-        !(period > 0.0 && period * (xsel[m - 1] - xsel[0]) / (double)(m - 1) > d->locate_margin)) {
-        /* InterfaceDetector._entry_refit: again on the window's samples whose front is up to a
-         * locate_margin past the onset, unless the first layer's orbit takes more travel than that */
-        double end = out[0] + d->locate_margin, x2, dx2;
+    double orbit = period > 0.0 && m > 1 ? period * (xsel[m - 1] - xsel[0]) / (double)(m - 1) : 0.0;
+    double ramp = kind == LOC_ENTRY && isfinite(out[0]) ? event_onset_length(xsel, Fsel, m, out[0], period, &engage) : NAN;
+    double reach = LOC_PYMAX(d->locate_margin, orbit + ramp), span = orbit > 0.0 ? orbit : 0.5 * d->locate_margin;
+    if (kind == LOC_ENTRY && isfinite(out[0]) && out[0] + reach < hi &&
+        event_settling_fall(xsel, Fsel, m, out[0], ramp, span) > LOC_ENTRY_SETTLING) {
+        /* InterfaceDetector._entry_refit: where the level falls after the rise (the drive settling),
+         * again on the samples whose front is up to a reach past the onset: locate_margin, or the
+         * first fit's ramp and an orbit of level */
+        double end = out[0] + reach, x2, dx2;
         long m2 = 0;
         for (long i = 0; i < m; i++)
             if (xsel[i] <= end) {
