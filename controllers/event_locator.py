@@ -169,9 +169,14 @@ def _best_face(lo, hi, sse_of, lengths, shapes, n: int):
     variance (at least one grid step)."""
     def best_on(positions, lengths_):
         best, arg = np.full(positions.size, np.inf), np.zeros(positions.size)
-        for L in lengths_:
-            for shape in shapes:
-                c = sse_of(positions[:, None], L, shape)
+        if getattr(sse_of, "batched", False):
+            # every length in one call (the released push-out's loop over the samples runs once)
+            L_col = np.repeat(np.asarray(lengths_, float), positions.size)[:, None]
+            P = np.tile(positions, len(lengths_))[:, None]
+            costs = [sse_of(P, L_col, shape).reshape(len(lengths_), positions.size) for shape in shapes]
+        for j, L in enumerate(lengths_):
+            for k, shape in enumerate(shapes):
+                c = costs[k][j] if getattr(sse_of, "batched", False) else sse_of(positions[:, None], L, shape)
                 arg = np.where(c < best, L, arg)
                 best = np.minimum(best, c)
         return best, arg
@@ -381,10 +386,11 @@ def _released(xb, x, L: float, shape, delta: float, p: float):
     p = 1 / x_feed) lets the front cut faster than the table while the stored deflection is
     released, d phi/dx = (1 - (phi/s)^p) / delta. Rigid (delta -> 0) it is phi = s, the law
     itself. On foreign2's compliant drive the rigid law put the exits late by up to 0.1 mm,
-    in proportion to delta over the push-out length (docs/stacks.md, "Localisation"). Returns
-    (G, n)."""
+    in proportion to delta over the push-out length (docs/stacks.md, "Localisation"). ``L``
+    [m]: one length, or one per face (G, 1). Returns (G, n)."""
     travel = np.maximum(np.diff(x), 0.0) / delta      # the scale's position is not monotone after a snap
     phi = np.empty((xb.shape[0], x.size))
+    L = np.broadcast_to(L, xb.shape)[:, 0]
     ph = shape((xb[:, 0] - x[0]) / L)
     phi[:, 0] = ph
     for i in range(1, x.size):
@@ -447,6 +453,7 @@ def free_face(x, F, lo: float, hi: float, air: float | None, period: float | Non
         cols += [np.broadcast_to(c, g.shape) for c in ringing]
         return _lstsq_batch([smooth(c) for c in cols], Fs)
 
+    sse.batched = release is not None      # L (G, 1) of each row: _best_face calls it once per shape
     return _best_face(lo, hi, sse, PUSH_OUT_LENGTHS, shapes, Fs.size)
 
 
