@@ -33,6 +33,7 @@ from fmpy.validation import validate_fmu
 
 from drillcosim.controllers import detector_kernel
 from drillcosim.controllers import interface_detector as idm
+from drillcosim.controllers import event_locator
 from drillcosim.controllers.event_locator import ENTRY_SHAPES, EXIT_SHAPES, locate
 from drillcosim.controllers.interface_detector import InterfaceDetector
 from drillcosim.cosim.exchange.export_fmu import export_blocks, has_c_step, with_exported_blocks
@@ -327,3 +328,28 @@ def test_the_c_locator_s_constants_are_event_locator_s():
         py = getattr(event_locator, name)
         py = len(py) if hasattr(py, "__len__") else py          # LOC_N_*: the tables' lengths
         assert float(value) == pytest.approx(py, rel=1e-12), name
+
+
+@pytest.mark.parametrize("name", ["interface_window_ti_cfrp_drop", "interface_window_ti_cfrp_drop_project"])
+def test_c_fit_of_a_narrow_drop_refits_its_onset_from_the_free_face(name):
+    """Recorded windows (tests/data/<name>.json: wide draw, foreign2 seed-23 hole 176, Ti at
+    ~900 N onto CFRP across 32 um; project seed-24 hole 9, Ti at ~1900 N onto CFRP across 18 um;
+    the faces are the encoder where the plant's tool tip reached them). The air run starts in
+    the tail of the Ti's fall; the CFRP's onset, its level and trend fitted from there, came 0.039
+    and 0.040 mm past the lower face (the trend carries the fall on). Refitted on the samples
+    from the Ti's free face on (event_locator._gap_faces), the event lies inside the gap, in
+    Python and in C (bit for bit)."""
+    d = json.loads((ROOT / "tests" / "data" / f"{name}.json").read_text())
+    x, F = np.array(d["x_um"]) * 1e-6, np.array(d["F_N"])
+    lo, hi = (v * 1e-6 for v in d["faces_um"])
+    ghost = None if d["ghost"] is None else tuple(d["ghost"])
+    x_loc, _ = _assert_same_fit("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6, ghost=ghost,
+                                exit_shape=d["exit_shape"], entry_shape=d["entry_shape"])
+    assert lo <= x_loc <= hi
+    # the mechanism: the onset fitted from the run's start is late by more than the issue's bar
+    gap = event_locator.air_run(x, F, d["air_N"])
+    run = x >= x[gap[0]]
+    laws = (event_locator.ENTRY_SHAPES[d["entry_shape"]], event_locator.EXIT_SHAPES[d["exit_shape"]])
+    engage, _ = event_locator._rise_laws(x, F, laws)
+    onset, _ = event_locator._drop_onset(x[run], F[run], float(x[gap[0]]), engage, laws[0])
+    assert onset - hi > 0.03 * MM

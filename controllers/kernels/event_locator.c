@@ -614,6 +614,17 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
         n_up = loc_select(x, F, n, -INFINITY, hi, xu, Fu);
         LocFit up = {xu, Fu, n_up, 1, air, &law};
         loc_best_face(&up, x[0], hi, &lo, &dlo);
+        if (!open_end && closed_drop && lo > x[g0]) {
+            /* the onset's level from the run's start held the upper fall's tail: the onset
+               again from the free face on (event_locator._gap_faces) */
+            down.n = loc_select(x, F, n, lo, INFINITY, xd, Fd);
+            down.grid = &ramp;
+            loc_best_face(&down, lo, x[n - 1], &hi, &dhi);
+            if (hi <= lo && engage->rise_shape != 0) {
+                down.grid = &plan_ramp;
+                loc_best_face(&down, lo, x[n - 1], &hi, &dhi);
+            }
+        }
         *x_loc = 0.5 * (lo + hi);
         *dx = 0.5 * fabs(hi - lo) + LOC_PYMAX(dlo, dhi);
     }
