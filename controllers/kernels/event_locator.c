@@ -617,12 +617,17 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
         if (!open_end && closed_drop && lo > x[g0]) {
             /* the onset's level from the run's start held the upper fall's tail: the onset
                again from the free face on (event_locator._gap_faces) */
+            double hi2, dhi2;
             down.n = loc_select(x, F, n, lo, INFINITY, xd, Fd);
             down.grid = &ramp;
-            loc_best_face(&down, lo, x[n - 1], &hi, &dhi);
-            if (hi <= lo && engage->rise_shape != 0) {
+            loc_best_face(&down, lo, x[n - 1], &hi2, &dhi2);
+            if (hi2 <= lo && engage->rise_shape != 0) {
                 down.grid = &plan_ramp;
-                loc_best_face(&down, lo, x[n - 1], &hi, &dhi);
+                loc_best_face(&down, lo, x[n - 1], &hi2, &dhi2);
+            }
+            if (hi2 < hi) {                 /* only earlier: the tail taken out, never a later ramp */
+                hi = hi2;
+                dhi = dhi2;
             }
         }
         *x_loc = 0.5 * (lo + hi);
