@@ -166,17 +166,20 @@ def _best_face(lo, hi, sse_of, lengths, shapes, n: int):
     """The face position in [lo, hi] minimising the residual over every length and shape
     (a coarse grid of positions and lengths, then a fine one around its best), and the
     half-width of the positions whose best fit is worse by less than one residual
-    variance (at least one grid step)."""
+    variance (at least one grid step). ``sse_of(faces (G, 1), L, shape)``; where it has
+    ``batched`` True, L may be one length per face (G, 1) and every length goes in one call."""
+    batched = getattr(sse_of, "batched", False)
+
     def best_on(positions, lengths_):
         best, arg = np.full(positions.size, np.inf), np.zeros(positions.size)
-        if getattr(sse_of, "batched", False):
+        if batched:
             # every length in one call (the released push-out's loop over the samples runs once)
             L_col = np.repeat(np.asarray(lengths_, float), positions.size)[:, None]
             P = np.tile(positions, len(lengths_))[:, None]
             costs = [sse_of(P, L_col, shape).reshape(len(lengths_), positions.size) for shape in shapes]
         for j, L in enumerate(lengths_):
             for k, shape in enumerate(shapes):
-                c = costs[k][j] if getattr(sse_of, "batched", False) else sse_of(positions[:, None], L, shape)
+                c = costs[k][j] if batched else sse_of(positions[:, None], L, shape)
                 arg = np.where(c < best, L, arg)
                 best = np.minimum(best, c)
         return best, arg
