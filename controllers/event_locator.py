@@ -162,27 +162,33 @@ def _lstsq_batch(cols, F, rising: int | None = None):
     return sse if rising is None else np.where(coef[:, rising] > 0.0, sse, np.inf)
 
 
+def _best_on(sse_of, positions, lengths, shapes):
+    """The best residual at each of ``positions`` [m] over every length and shape, and the
+    length that gave it (the first of equals; numpy.minimum's NaN): ``sse_of`` as
+    :func:`_best_face`'s. C: loc_best_on."""
+    best, arg = np.full(positions.size, np.inf), np.zeros(positions.size)
+    batched = getattr(sse_of, "batched", False)
+    if batched:
+        # every length in one call (the released push-out's loop over the samples runs once)
+        L_col = np.repeat(np.asarray(lengths, float), positions.size)[:, None]
+        P = np.tile(positions, len(lengths))[:, None]
+        costs = [sse_of(P, L_col, shape).reshape(len(lengths), positions.size) for shape in shapes]
+    for j, L in enumerate(lengths):
+        for k, shape in enumerate(shapes):
+            c = costs[k][j] if batched else sse_of(positions[:, None], L, shape)
+            arg = np.where(c < best, L, arg)
+            best = np.minimum(best, c)
+    return best, arg
+
+
 def _best_face(lo, hi, sse_of, lengths, shapes, n: int):
     """The face position in [lo, hi] minimising the residual over every length and shape
     (a coarse grid of positions and lengths, then a fine one around its best), and the
     half-width of the positions whose best fit is worse by less than one residual
     variance (at least one grid step). ``sse_of(faces (G, 1), L, shape)``; where it has
     ``batched`` True, L may be one length per face (G, 1) and every length goes in one call."""
-    batched = getattr(sse_of, "batched", False)
-
     def best_on(positions, lengths_):
-        best, arg = np.full(positions.size, np.inf), np.zeros(positions.size)
-        if batched:
-            # every length in one call (the released push-out's loop over the samples runs once)
-            L_col = np.repeat(np.asarray(lengths_, float), positions.size)[:, None]
-            P = np.tile(positions, len(lengths_))[:, None]
-            costs = [sse_of(P, L_col, shape).reshape(len(lengths_), positions.size) for shape in shapes]
-        for j, L in enumerate(lengths_):
-            for k, shape in enumerate(shapes):
-                c = costs[k][j] if batched else sse_of(positions[:, None], L, shape)
-                arg = np.where(c < best, L, arg)
-                best = np.minimum(best, c)
-        return best, arg
+        return _best_on(sse_of, positions, lengths_, shapes)
 
     coarse = np.arange(lo, hi + 0.5 * COARSE_STEP, COARSE_STEP)
     if coarse.size == 0:
@@ -283,13 +289,8 @@ def onset_length(x, F, x0: float, period: float | None = None, entry_shape: str 
     ok = np.isfinite(x) & np.isfinite(F)
     x, F = x[ok], F[ok]
     sse = _onset_sse(x, F, period if period is not None and 1.0 < period <= x.size else None, rise=True)
-    best, arg = np.inf, NAN
-    for L in ENGAGE_LENGTHS:
-        for shape in ENTRY_SHAPES[entry_shape]:
-            c = float(sse(np.array([[x0]]), L, shape)[0])
-            if c < best:
-                best, arg = c, float(L)
-    return arg
+    best, arg = _best_on(sse, np.array([float(x0)]), ENGAGE_LENGTHS, ENTRY_SHAPES[entry_shape])
+    return float(arg[0]) if np.isfinite(best[0]) else NAN
 
 
 def orbit_mean(A, period: float):

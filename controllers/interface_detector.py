@@ -1296,7 +1296,7 @@ class InterfaceDetector(KernelBlock, Block):
                            exit_shape=self.exit_shape if laws else "any",
                            exit_release=self._exit_release() if kind == "exit" else None)
         if k == 0:
-            x_loc, dx = self._entry_refit(xs, hF, lo, hi, x_trig, air, period, x_loc, dx)
+            x_loc, dx = self._entry_refit(x_fit, hF[sel], hi, x_trig, air, period, x_loc, dx)
         F_air = F_air_sd = NAN
         if k == 0 and math.isfinite(x_loc):
             # with a span the window is around the confirmation, which may leave only a few
@@ -1309,12 +1309,13 @@ class InterfaceDetector(KernelBlock, Block):
                 F_air, F_air_sd = air_level(hF[in_air], self._entry_period_samples())
         return x_loc, time_at(ht, hx, x_loc), dx, F_air, F_air_sd
 
-    def _entry_refit(self, xs, hF, lo: float, hi: float, x_trig: float, air: float, period, x_loc: float, dx: float):
-        """The entry's onset [m] and uncertainty [m] fitted again where the window (positions
-        ``xs`` [m] in [lo, hi], thrust ``hF`` [N]) shows the drive settling after the rise:
+    def _entry_refit(self, xf, Fw, hi: float, x_trig: float, air: float, period, x_loc: float, dx: float):
+        """The entry's onset [m] and uncertainty [m] fitted again where the window (the cutting
+        front's positions ``xf`` [m], :meth:`_front_positions`, of the samples up to the
+        encoder's ``hi``; thrust ``Fw`` [N]: the first fit's) shows the drive settling after the rise:
         the cut level falls by more than ENTRY_SETTLING of the step (:func:`settling_fall`,
         over one orbit of the first layer, ``period`` [samples], or half a locate_margin).
-        Refitted on the samples whose cutting front (:meth:`_front_positions`) is at most a
+        Refitted on the samples whose cutting front is at most a
         reach past the first fit's onset ``x_loc``: locate_margin, or the first fit's ramp
         (:func:`onset_length`) and one orbit where those take more travel. The first fit's
         (x_loc, dx) elsewhere, where the window ends within that reach or the refit locates
@@ -1330,10 +1331,8 @@ class InterfaceDetector(KernelBlock, Block):
         ramp (foreign2 seed-23 hole 77: +0.072 mm; docs/stacks_history.md, fourteenth round)."""
         if not math.isfinite(x_loc):
             return x_loc, dx
-        sel = (xs >= lo) & (xs <= hi)
-        # in the front's positions, as the fit: cut in the encoder's, a compliant drive's Ti
-        # entry lost the top of its rise (foreign seed-24 hole 38: -0.045 -> +0.167 mm)
-        xf, Fw = self._front_positions(xs[sel], hF[sel], air), hF[sel]
+        # cut in the front's positions, as the fit: cut in the encoder's, a compliant drive's
+        # Ti entry lost the top of its rise (foreign seed-24 hole 38: -0.045 -> +0.167 mm)
         orbit = period * (xf[-1] - xf[0]) / (xf.size - 1) if period is not None else 0.0   # at the mean feed
         ramp = onset_length(xf, Fw, x_loc, period, self.entry_shape)
         end = x_loc + max(self.locate_margin, orbit + ramp)

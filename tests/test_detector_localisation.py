@@ -198,10 +198,11 @@ def test_entry_refit_keeps_the_settling_after_the_rise_out(engage_mm):
     x1, dx = locate("entry", x, F, air=0.0, x_trig=0.28 * MM, entry_shape="smoothstep")
     assert x1 < -0.03 * MM                       # the case is real: the whole window's fit is early
     det = InterfaceDetector(locate_margin=0.45 * MM, entry_shape="smoothstep")
-    x2, _ = det._entry_refit(x, F, x[0], x[-1], 0.28 * MM, 0.0, None, x1, dx)
+    x2, _ = det._entry_refit(x, F, x[-1], 0.28 * MM, 0.0, None, x1, dx)
     assert abs(x2) < 0.01 * MM
     # a window already ending within locate_margin of the onset is not fitted again
-    assert det._entry_refit(x, F, x[0], x1 + 0.4 * MM, 0.28 * MM, 0.0, None, x1, dx) == (x1, dx)
+    short = x <= x1 + 0.4 * MM
+    assert det._entry_refit(x[short], F[short], x1 + 0.4 * MM, 0.28 * MM, 0.0, None, x1, dx) == (x1, dx)
 
 
 @pytest.mark.parametrize("engage_mm", [0.05, 0.2, 0.4])
@@ -247,8 +248,8 @@ def test_entry_refit_only_where_the_level_falls():
     x, F, period = _ringing_entry(0.35)
     x1, dx = locate("entry", x, F, air=0.0, x_trig=0.3 * MM, period=period, entry_shape="linear")
     assert 0.35 * MM / 1.19 <= onset_length(x, F, x1, period, "linear") <= 0.35 * MM * 1.19
-    assert det._entry_refit(x, F, x[0], x[-1], 0.3 * MM, 0.0, period, x1, dx) == (x1, dx)
+    assert det._entry_refit(x, F, x[-1], 0.3 * MM, 0.0, period, x1, dx) == (x1, dx)
     x, F, period = _ringing_entry(0.35, settle_N=20.0)
     x1, dx = locate("entry", x, F, air=0.0, x_trig=0.3 * MM, period=period, entry_shape="linear")
-    x2, _ = det._entry_refit(x, F, x[0], x[-1], 0.3 * MM, 0.0, period, x1, dx)
+    x2, _ = det._entry_refit(x, F, x[-1], 0.3 * MM, 0.0, period, x1, dx)
     assert x2 != x1 and abs(x2) <= 0.02 * MM
