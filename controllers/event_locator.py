@@ -36,6 +36,7 @@ bit-identical.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -146,6 +147,25 @@ PUSH_OUT_SHAPES = (lambda r: np.clip(r, 0.0, 1.0), lambda r: np.clip(r, 0.0, 1.0
 # (docs/stacks.md, "Localisation").
 EXIT_SHAPES = {"any": PUSH_OUT_SHAPES, "linear": PUSH_OUT_SHAPES[:1], "quadratic": PUSH_OUT_SHAPES[1:],
                "bending": (lambda r: np.clip(r, 0.0, 1.0) ** 1.5,)}
+
+
+class UpperFall(NamedTuple):
+    """What the plan knows of an interface's upper layer pushed out on a drop: the adaptation
+    switches the process at the drop's trigger, which fires inside that push-out (a rise's
+    fires past the lower face), so the fall is the push-out law times the new process's thrust
+    (the plant's cut: F = K f^x_feed at the feed per revolution f the table and spindle are
+    commanded) while the drive releases the deflection it stored (:func:`_released`). Left
+    out, the fall bent by the change was fitted with a free law and put the free face up to
+    0.08 mm early where the feed per revolution fell (foreign drive, Ti -> CFRP) and was
+    cancelled by the free law where it rose (foreign2); docs/stacks.md, "Localisation".
+
+    ``shape``: the push-out law (an EXIT_SHAPES key, the plan's ``exit_shape``); ``share``:
+    (f(t) / f_upper)^x_feed at each sample of the window (1 before the switch); ``release``:
+    (the drive's compliance between the scale and the cutting front [m/N], x_feed), as
+    locate's ``exit_release``."""
+    shape: str
+    share: np.ndarray
+    release: tuple[float, float]
 
 
 def _lstsq_batch(cols, F, rising: int | None = None):
@@ -381,7 +401,7 @@ def _release_step(prev, s, a, p):
     return np.where(live, np.maximum(phi, 0.0), 0.0)
 
 
-def _released(xb, x, L: float, shape, delta: float, p: float):
+def _released(xb, x, L: float, shape, delta: float, p: float, share=None):
     """The push-out's share phi of the plateau thrust at the samples ``x`` [m] (increasing)
     for faces ``xb`` (G, 1) [m] on a drive that stores the deflection ``delta`` [m] between
     its scale and the cutting front at the plateau (the compliance times the plateau thrust):
@@ -391,17 +411,20 @@ def _released(xb, x, L: float, shape, delta: float, p: float):
     released, d phi/dx = (1 - (phi/s)^p) / delta. Rigid (delta -> 0) it is phi = s, the law
     itself. On foreign2's compliant drive the rigid law put the exits late by up to 0.1 mm,
     in proportion to delta over the push-out length (docs/stacks.md, "Localisation"). ``L``
-    [m]: one length, or one per face (G, 1). Returns (G, n)."""
+    [m]: one length, or one per face (G, 1). ``share`` (n,): the cutting law's factor of the
+    commanded process at each sample (:class:`UpperFall`), times the law's share; None: 1.
+    Returns (G, n)."""
     travel = np.maximum(np.diff(x), 0.0) / delta      # the scale's position is not monotone after a snap
+    m = np.ones(x.size) if share is None else share      # 1.0 * s is s: the law's bits without a share
     phi = np.empty((xb.shape[0], x.size))
     L = np.broadcast_to(L, xb.shape)[:, 0]
-    ph = shape((xb[:, 0] - x[0]) / L)
+    ph = m[0] * shape((xb[:, 0] - x[0]) / L)
     phi[:, 0] = ph
     for i in range(1, x.size):
         # the front where the step ends: predicted with the share before the step, then with
         # the predicted one (with the first alone the fall snapped 2 samples late)
-        pred = _release_step(ph, shape((xb[:, 0] - x[i] + delta * ph) / L), travel[i - 1], p)
-        ph = _release_step(ph, shape((xb[:, 0] - x[i] + delta * pred) / L), travel[i - 1], p)
+        pred = _release_step(ph, m[i] * shape((xb[:, 0] - x[i] + delta * ph) / L), travel[i - 1], p)
+        ph = _release_step(ph, m[i] * shape((xb[:, 0] - x[i] + delta * pred) / L), travel[i - 1], p)
         phi[:, i] = ph
     return phi
 
@@ -423,7 +446,8 @@ def _release_of(x, F, release) -> tuple[float, float] | None:
 
 def free_face(x, F, lo: float, hi: float, air: float | None, period: float | None = None,
               ghost: tuple[float, float] | None = None, shapes=PUSH_OUT_SHAPES,
-              ring: float | None = None, release: tuple[float, float] | None = None) -> tuple[float, float]:
+              ring: float | None = None, release: tuple[float, float] | None = None,
+              share=None) -> tuple[float, float]:
     """Position [m] in [lo, hi] where a layer pushed out ahead of the tool runs out: its
     thrust (a level with a trend) falls to the air level over a fitted length and law
     and stays there; and its uncertainty [m]. ``air`` None: the air level is fitted too
@@ -442,7 +466,8 @@ def free_face(x, F, lo: float, hi: float, air: float | None, period: float | Non
     ``ring`` [samples] (not with ``period`` or ``ghost``): the observer's ringing at this orbit
     is fitted with the fall (:func:`_ringing`, the entry's model). ``release`` (delta [m],
     1 / x_feed; :func:`_release_of`): the fall is the push-out that releases the drive's stored
-    deflection (:func:`_released`) instead of the law itself; None: the law."""
+    deflection (:func:`_released`) instead of the law itself; None: the law. ``share`` (n,) or
+    None: the law times the process's factor at each sample (:class:`UpperFall`)."""
     Fa = F - (0.0 if air is None else air)
     ringing = [] if period or ghost is not None or not ring else _ringing(x.size, ring)
     smooth = (lambda A: orbit_mean(A, period)) if period else (lambda A: A)
@@ -450,7 +475,10 @@ def free_face(x, F, lo: float, hi: float, air: float | None, period: float | Non
 
     def sse(xb, L, shape):
         r = (xb - x[None, :]) / L
-        g = shape(r) if release is None else _released(xb, x, L, shape, *release)
+        if release is not None:
+            g = _released(xb, x, L, shape, *release, share=share)
+        else:
+            g = shape(r) if share is None else shape(r) * share[None, :]
         cols = [g, r * g] if air is not None else [g, r * g, np.ones_like(g)]
         if ghost is not None and not period:
             cols += _ghost_columns(g, ghost)
@@ -486,7 +514,8 @@ def floor_gap(F, cut_floor: float | None) -> tuple[int, int] | None:
 
 def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cut_floor: float | None = None,
            period: float | None = None, entry_shape: str = "any", ghost: tuple[float, float] | None = None,
-           exit_shape: str = "any", exit_release: tuple[float, float] | None = None):
+           exit_shape: str = "any", exit_release: tuple[float, float] | None = None,
+           upper_fall: UpperFall | None = None):
     """Located position [m] of an event and its uncertainty [m] from the samples around
     its trigger: table positions ``x`` [m] (increasing along the feed), observed thrust
     ``F`` [N]. ``kind``: "entry", "interface" or "exit"; ``air`` [N]: the observed thrust
@@ -507,7 +536,9 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     ``exit_shape``: the exit's push-out law, one of EXIT_SHAPES; ``exit_release`` (the drive's
     compliance between the scale and the cutting front [m/N], the cutting law's feed exponent
     x_feed in (0, 1]) or None: the exit's fall releases the deflection stored at its plateau
-    (:func:`_release_of`). An entry's ramp rises; an
+    (:func:`_release_of`); ``upper_fall`` (:class:`UpperFall`) or None: an interface's drop
+    fits its upper layer's push-out under the process change (None: a free law, the process
+    as it was). An entry's ramp rises; an
     interface's may have either sign. (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
@@ -521,6 +552,7 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     x, F = np.asarray(x, float), np.asarray(F, float)
     ok = np.isfinite(x) & np.isfinite(F)
     x, F = x[ok], F[ok]
+    upper_fall = _checked_fall(upper_fall, ok)
     if x.size < 5 * MIN_SEGMENT * 2:
         return NAN, NAN
     x0, x1 = float(x[0]), float(x[-1])
@@ -548,9 +580,23 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     if gap is None:
         gap = floor_gap(F, cut_floor)
         if gap is not None:
-            return _gap_faces(x, F, gap, None, open_end=x.size - gap[1] < 2 * MIN_SEGMENT, laws=laws)
+            return _gap_faces(x, F, gap, None, open_end=x.size - gap[1] < 2 * MIN_SEGMENT, laws=laws,
+                              fall=upper_fall)
         return onset_face(x, F, x0, min(xt, x1))
-    return _gap_faces(x, F, gap, air, laws=laws)
+    return _gap_faces(x, F, gap, air, laws=laws, fall=upper_fall)
+
+
+def _checked_fall(fall: UpperFall | None, ok) -> UpperFall | None:
+    """``fall`` on the window's finite samples (``ok``), checked against the window."""
+    if fall is None:
+        return None
+    share = np.asarray(fall.share, float)
+    if fall.shape not in EXIT_SHAPES or share.shape != ok.shape or not np.all(share[ok] > 0.0) or \
+            not (fall.release[0] >= 0.0 and 0.0 < fall.release[1] <= 1.0):
+        raise ValueError(f"event_locator.locate: upper_fall must have a shape of {', '.join(EXIT_SHAPES)}, a share "
+                         f"> 0 per sample of the window ({ok.size}) and a release (compliance >= 0 m/N, "
+                         f"0 < x_feed <= 1), got shape {fall.shape!r}, {share.size} shares, release {fall.release!r}")
+    return UpperFall(fall.shape, share[ok], fall.release)
 
 
 def _ghost_drop(x, F, ghost) -> bool:
@@ -569,12 +615,14 @@ def _ghost_drop(x, F, ghost) -> bool:
     return IF_GHOST_ORBIT <= ghost[0] <= x.size and 0.0 <= ghost[1] < 1.0 and last < first
 
 
-def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH_OUT_SHAPES)):
+def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH_OUT_SHAPES),
+               fall: UpperFall | None = None):
     """The middle of a gap's two faces and its uncertainty: the lower layer's onset after
     the run's middle (``open_end``: the window ends in the gap, its last sample bounds the
     part seen), then the upper layer's free face on the samples before that onset. ``air``
     None: the air level is fitted. ``laws``: the plan's (ENTRY_SHAPES, EXIT_SHAPES) entries,
-    taken when the lower layer cuts higher (:func:`_rise_laws`; a drop's ramp: :func:`_drop_onset`)."""
+    taken when the lower layer cuts higher (:func:`_rise_laws`; a drop's ramp: :func:`_drop_onset`).
+    ``fall``: on a drop, the upper layer's push-out under the process change (:class:`UpperFall`)."""
     x0, x1 = float(x[0]), float(x[-1])
     # the upper layer runs out at its free face, the lower one's rise leaves the air level
     # at its face: the middle of the two is inside the gap whatever its width
@@ -591,7 +639,7 @@ def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH
     # push-out, and a free face bounded by the middle ended the fall early (wide draw, foreign
     # holes 8, 73, 133, 172, 184, 199: 0.055-0.10 mm early; replayed: within 0.016 mm)
     up = x <= hi
-    lo, dlo = free_face(x[up], F[up], x0, hi, air, shapes=push_out)
+    lo, dlo = _upper_face(x[up], F[up], x0, hi, air, push_out, _drop_fall(x, F, fall, up))
     if not open_end and lo > start and _closed_drop(x, F, gap):
         # the onset's level was fitted from the run's start, which holds the tail of the upper
         # layer's fall: its trend carried the fall on and the ramp started late, on the
@@ -605,6 +653,25 @@ def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH
         if hi2 < hi:
             hi, dhi = hi2, dhi2
     return 0.5 * (lo + hi), 0.5 * abs(hi - lo) + max(dlo, dhi)
+
+
+def _drop_fall(x, F, fall: UpperFall | None, up) -> UpperFall | None:
+    """``fall`` on the samples ``up`` where the window drops onto a lower cut level (the last
+    fifth's median below the first's, :func:`_end_levels`), else None."""
+    if fall is None:
+        return None
+    first, last = _end_levels(x, F)
+    return UpperFall(fall.shape, fall.share[up], fall.release) if last < first else None
+
+
+def _upper_face(x, F, x0: float, hi: float, air, push_out, fall: UpperFall | None):
+    """The upper layer's free face in [x0, hi] on the samples before the lower onset: with the
+    free laws ``push_out``, or on a drop where the plan knows the process (``fall``,
+    :func:`_drop_fall`) with its push-out law times the process's share, released."""
+    if fall is None:
+        return free_face(x, F, x0, hi, air, shapes=push_out)
+    return free_face(x, F, x0, hi, air, shapes=EXIT_SHAPES[fall.shape], release=_release_of(x, F, fall.release),
+                     share=fall.share)
 
 
 def _closed_drop(x, F, gap) -> bool:

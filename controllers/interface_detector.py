@@ -107,8 +107,8 @@ from typing import Sequence
 import numpy as np
 
 from drillcosim.controllers import detector_kernel
-from drillcosim.controllers.event_locator import (ENTRY_SETTLING, ENTRY_SHAPES, EXIT_SHAPES, locate, onset_length,
-                                                   settling_fall, time_at)
+from drillcosim.controllers.event_locator import (ENTRY_SETTLING, ENTRY_SHAPES, EXIT_SHAPES, UpperFall, locate,
+                                                   onset_length, settling_fall, time_at)
 from drillcosim.controllers.kernels import KernelBlock
 from drillcosim.controllers.kernels.structs import Detector as _DetectorState
 from drillcosim.controllers.kernels.structs import fill
@@ -447,6 +447,11 @@ class InterfaceDetector(KernelBlock, Block):
         feed per revolution^x_feed, in (0, 1]; default 0.75): the exit's fit takes the push-out
         as releasing the deflection stored at the plateau (event_locator._released) instead of
         shifting the positions; not with exit_compliance. 0 (default): the law itself.
+    layer_feed_rate [m/s], process_ramp [s]: the feed rate the plan commands in each layer (with
+        ``feed_per_rev``: the spindle speed is their ratio) and the adaptation's raised-cosine
+        ramp between two layers' processes, which starts at each trigger: an interface's drop
+        then fits its upper layer's push-out under the new process (event_locator.UpperFall,
+        with ``exit_shape`` and the drive's compliance); None (default): free laws.
     exit_loc_after [m]: travel after the exit's trigger its localisation window holds
         (default locate_margin; the hole plan adds half an orbit of the last layer's feed:
         the orbit means of the last half orbit need the samples after it).
@@ -509,10 +514,8 @@ class InterfaceDetector(KernelBlock, Block):
         entry_span: float = 0.0,
         entry_orbit_period: float = 0.0, entry_shape: str = "any",
         step_signs: Sequence[float] | None = None,
-        localise: bool = True,
-        locate_margin: float = 0.3e-3,
-        push_out: float = 0.5e-3,
-        observer_delay: float = 0.0,
+        localise: bool = True, locate_margin: float = 0.3e-3,
+        push_out: float = 0.5e-3, observer_delay: float = 0.0,
         mismatch_factor: float = 0.0,
         restart: bool = False,
         interface_loc_after: Sequence[float] | None = None,
@@ -520,6 +523,7 @@ class InterfaceDetector(KernelBlock, Block):
         exit_orbit_arm: float = 0.0, exit_release_compliance: float = 0.0, exit_feed_exponent: float = 0.75,
         interface_orbit_arm: Sequence[float] | None = None,
         exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0, exit_shape: str = "any",
+        layer_feed_rate: Sequence[float] | None = None, process_ramp: float = 0.0,
     ):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
@@ -553,6 +557,7 @@ class InterfaceDetector(KernelBlock, Block):
                            exit_shape, exit_compliance, (exit_release_compliance, exit_feed_exponent))
         self._set_exit_arm(exit_orbit_arm)
         self._set_interface_arm(interface_orbit_arm)
+        self._set_process(layer_feed_rate, process_ramp, feed_per_rev)
         self.windows = self._windows()
         self.reset(0.0)
 
@@ -715,6 +720,42 @@ class InterfaceDetector(KernelBlock, Block):
             raise ValueError("InterfaceDetector: exit_release_compliance and exit_compliance are both > 0: the "
                              "drive's deflection would be taken out of the exit twice; set one")
         self.exit_release_compliance, self.exit_feed_exponent = float(compliance), float(feed_exponent)
+
+    def _set_process(self, layer_feed_rate, process_ramp, feed_per_rev) -> None:
+        """The plan's process per layer and the adaptation's ramp (:meth:`_upper_fall`), checked."""
+        self.process = None
+        if layer_feed_rate is None:
+            return
+        if feed_per_rev is None:
+            raise ValueError("InterfaceDetector: layer_feed_rate needs feed_per_rev (the spindle speed is their ratio)")
+        feed = _per_layer("layer_feed_rate", layer_feed_rate, self.n)
+        fpr = _per_layer("feed_per_rev", feed_per_rev, self.n)
+        if not (min(feed) > 0.0 and min(fpr) > 0.0 and all(map(math.isfinite, feed + fpr))):
+            raise ValueError(f"InterfaceDetector: layer_feed_rate and feed_per_rev must be finite numbers > 0 "
+                             f"(m/s, m/rev), got {feed!r} and {fpr!r}")
+        if not (isinstance(process_ramp, (int, float)) and math.isfinite(process_ramp) and process_ramp >= 0.0):
+            raise ValueError(f"InterfaceDetector: process_ramp must be a number >= 0 s (the adaptation's "
+                             f"ramp_time), got {process_ramp!r}")
+        self.process = (feed, fpr, float(process_ramp))
+
+    def _upper_fall(self, k: int, t) -> UpperFall | None:
+        """Interface k's drop under the adaptation's switch at its trigger (event_locator.UpperFall):
+        the share (f(t) / f_k)^x_feed of the feed per revolution commanded at the force samples'
+        times ``t`` [s] -- feed rate and spindle speed each blended by the raised cosine from the
+        trigger, as CuttingParameterAdaptation does -- or None where the plan gives no process or
+        the hole has failed (the fail-safe's set is in force then)."""
+        if self.process is None or self.fail or not math.isfinite(self.t_ev[k]):
+            return None
+        feed, fpr, ramp = self.process
+        fa, fb = feed[k - 1], feed[k]
+        na, nb = fa / fpr[k - 1], fb / fpr[k]
+        s = np.clip((t - self.t_ev[k]) / ramp, 0.0, 1.0) if ramp > 0.0 else (t >= self.t_ev[k]).astype(float)
+        # libm's cosine, as the C twin's (numpy's vectorised one may differ in the last bit)
+        r = np.array([0.5 * (1.0 - math.cos(math.pi * v)) for v in s.tolist()])
+        f = (fa + r * (fb - fa)) / (na + r * (nb - na))
+        x_feed = self.exit_feed_exponent
+        return UpperFall(self.exit_shape, (f / fpr[k - 1]) ** x_feed,
+                         (self.exit_compliance + self.exit_release_compliance, x_feed))
 
     def _exit_release(self) -> tuple[float, float] | None:
         """The exit's released push-out for event_locator.locate: (compliance [m/N], x_feed), None when off."""
@@ -1294,7 +1335,8 @@ class InterfaceDetector(KernelBlock, Block):
                            entry_shape=self.entry_shape if laws else "any",
                            ghost=self._exit_ghost() if kind == "exit" else self._interface_ghost(k) if k else None,
                            exit_shape=self.exit_shape if laws else "any",
-                           exit_release=self._exit_release() if kind == "exit" else None)
+                           exit_release=self._exit_release() if kind == "exit" else None,
+                           upper_fall=self._upper_fall(k, ht[sel] - self.observer_delay) if kind == "interface" else None)
         if k == 0:
             x_loc, dx = self._entry_refit(x_fit, hF[sel], hi, x_trig, air, period, x_loc, dx)
         F_air = F_air_sd = NAN

@@ -57,6 +57,7 @@ ORBITS_PER_LAYER = 2.0
 # by up to ~2.7 (Al / Ti, 80 holes), another drive by ~0.8; a wrong order by ~10 (CFRP/Ti) or more
 MISMATCH_FACTOR = 4.0
 DETECTOR_DT, DETECTOR_N_MIN = 0.02, 25  # InterfaceDetector defaults (Table 4's dt, its shortest window)
+ADAPT_RAMP_S = 0.2   # s, the adaptation's ramp between two processes where the scenario sets none (CuttingParameterAdaptation)
 EXIT_RING_ORBIT = 40.0   # samples: the exit fit's ringing from this orbit on (event_locator.EXIT_RING_ORBIT)
 LAYER_KEYS = {"material", "thickness", "tolerance"}
 ENTRY_SHAPES = ("any", "linear", "smoothstep")   # the entry fit's ramps (event_locator.ENTRY_SHAPES)
@@ -373,9 +374,9 @@ class HolePlan:
         t_feed = (traj["z_end"] - traj["z_approach_end"]) / slowest
         return float(traj.get("t_start", 0.0)) + t_approach + t_feed + self.stop_margin
 
-    def detector(self, window_s: float) -> dict:
+    def detector(self, window_s: float, ramp_s: float = 0.0) -> dict:
         """The detector's settings; ``window_s`` [s]: its shortest restart-and-arm window
-        (2 N_min dt)."""
+        (2 N_min dt); ``ramp_s`` [s]: the adaptation's ramp between two layers' processes."""
         fprs = [feed_per_rev(self.layer_process(k)) for k in range(len(self.layers))]
         cons = self.conservative()
         return {
@@ -386,6 +387,11 @@ class HolePlan:
             "kc": [self.layer_process(k)["kc"] for k in range(len(self.layers))],
             "feed_per_rev": fprs,
             "feed_per_rev_min": min(fprs + [feed_per_rev(cons)]),
+            # the process each layer is cut with and the adaptation's ramp to it from the trigger:
+            # a drop's trigger fires inside the upper layer's push-out, whose thrust follows the new
+            # feed per revolution (InterfaceDetector._upper_fall)
+            "layer_feed_rate": [self.layer_process(k)["feed_rate"] for k in range(len(self.layers))],
+            "process_ramp": ramp_s,
             "feed_rate": min(cons["feed_rate"], *(p["feed_rate"] for p in self.process.values())),
             "exit_criterion": "thinning",
             "tolerance": DETECTOR_TOLERANCE,
@@ -455,6 +461,19 @@ class HolePlan:
             "match_tolerance": self.match_tolerance, "fail_action": self.fail_action}}
 
 
+def _adapt_ramp(raw: dict, blocks: dict, aname: str, error, origin) -> float:
+    """The adaptation's ramp between two processes [s]: the scenario's ``ramp_time``, else
+    ADAPT_RAMP_S, derived into the block so that the detector's model of it is the block's."""
+    aset = (blocks[aname].get("settings") or {}) if isinstance(blocks[aname], dict) else {}
+    ramp = aset.get("ramp_time")
+    if ramp is None:
+        _derive(raw, f"blocks.{aname}.settings.ramp_time", ADAPT_RAMP_S, error, origin)
+        return ADAPT_RAMP_S
+    if not (_num(ramp) and ramp >= 0.0):
+        raise error(f"blocks.{aname}.settings.ramp_time", f"expected a number >= 0 s, got {ramp!r}")
+    return float(ramp)
+
+
 def _derive(raw: dict, path: str, value, error, origin) -> None:
     """Set the derived ``path`` (dotted) in raw; a value written by the scenario is an error."""
     *parents, leaf = path.split(".")
@@ -499,7 +518,7 @@ def expand(raw: dict, error, origin: str = "[hole]") -> dict:
     traj = plan.trajectory(tset)
     for k, v in traj.items():
         _derive(raw, f"blocks.{tname}.settings.{k}", v, error, origin)
-    for k, v in plan.detector(window_s).items():
+    for k, v in plan.detector(window_s, _adapt_ramp(raw, blocks, aname, error, origin)).items():
         _derive(raw, f"blocks.{dname}.settings.{k}", v, error, origin)
     forgetting = _observer_forgetting(blocks.get(plan.names["observer"]))
     if forgetting is not None:
