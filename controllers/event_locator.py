@@ -168,6 +168,11 @@ class UpperFall(NamedTuple):
     release: tuple[float, float]
 
 
+# a rise's onset is fitted on the samples before the process change where the last of them is this
+# many spreads of the gap's samples above its level (:func:`_rise_before_change`): the ramp's foot seen
+RISE_SEEN = 5.0
+
+
 def _lstsq_batch(cols, F, rising: int | None = None):
     """Residual sum of squares of F against the columns, for a batch of designs: each
     column has shape (G, n); returns (G,). A column that vanishes (a face outside the
@@ -634,6 +639,9 @@ def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH
     down = x >= start
     engage, push_out = _rise_laws(x, F, laws)
     hi, dhi = (x1, 0.0) if open_end else _drop_onset(x[down], F[down], lo_onset, engage, laws[0])
+    if not open_end and fall is not None:
+        hi, dhi = _rise_before_change(x[down], F[down], lo_onset, engage, laws[0], fall.share[down],
+                                      F[gap[0]:gap[1]], (hi, dhi))
     # the upper layer's fall is fitted up to the lower layer's onset, not only to the run's
     # middle: the run below AIR_SHARE of a soft upper layer (Al, 10-30 N) holds the tail of its
     # push-out, and a free face bounded by the middle ended the fall early (wide draw, foreign
@@ -653,6 +661,29 @@ def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH
         if hi2 < hi:
             hi, dhi = hi2, dhi2
     return 0.5 * (lo + hi), 0.5 * abs(hi - lo) + max(dlo, dhi)
+
+
+def _rise_before_change(x, F, lo: float, engage, plan_ramp, share, air_run, fit):
+    """A rise's lower onset [m] and its uncertainty [m] on the samples before the process
+    changes (``share``, :class:`UpperFall`, leaves its first value), where they hold the ramp's
+    foot: the last of them above the gap's level by RISE_SEEN spreads of its samples
+    (``air_run``), 2 MIN_SEGMENT of them past the onset; else ``fit`` (the onset on every
+    sample). A rise's trigger fires on the lower layer's ramp, and from there the adaptation
+    switches the process: the ramp's rest is the new feed per revolution's, bent by the
+    drive's release and the observer's lag, and a ramp fitted through both put the onset late
+    (foreign2 seed-24 hole 52: Al 4.1 -> Ti 14.5 um/rev, +0.034 mm; before the change +0.003).
+    Only where the window rises: a drop's lower onset follows its trigger (:func:`_upper_face`)."""
+    first, last = _end_levels(x, F)
+    changed = np.flatnonzero(share != share[0])
+    if not last > first or changed.size == 0:
+        return fit
+    n = int(changed[0])
+    if n == 0 or not F[n - 1] > float(np.median(air_run)) + RISE_SEEN * float(np.std(air_run)):
+        return fit
+    h, dh = _drop_onset(x[:n], F[:n], lo, engage, plan_ramp)
+    if not (h > lo and np.count_nonzero(x[:n] > h) >= 2 * MIN_SEGMENT):
+        return fit
+    return h, dh
 
 
 def _drop_fall(x, F, fall: UpperFall | None, up) -> UpperFall | None:
