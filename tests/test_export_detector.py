@@ -240,15 +240,17 @@ def test_fang_detector_fmu_through_fmi_gives_the_in_process_outputs(fang_detecto
     assert last[det.output_names().index("flag")] == 0.0
 
 
-def _fang_with_fmus(tmp: Path, stop_time: float | None, only: list | None = None):
-    """The Fang hole with its C blocks (or ``only`` those) as FMUs against the in-process run."""
-    ov = {} if stop_time is None else {"scenario.stop_time": stop_time}
-    sc = load_scenario(FANG, ov)
+def _fang_with_fmus(tmp: Path, stop_time: float | None, only: list | None = None, path: Path = FANG,
+                    overrides: dict | None = None):
+    """The Fang hole (or the scenario ``path`` with ``overrides``) with its C blocks (or ``only``
+    those) as FMUs against the in-process run."""
+    ov = dict(overrides or {}, **({} if stop_time is None else {"scenario.stop_time": stop_time}))
+    sc = load_scenario(path, ov)
     names = only or [n for n, b in sc.system.blocks.items() if has_c_step(b, sc.start_time)]
     assert "detector" in names and all(has_c_step(sc.system.blocks[n], sc.start_time) for n in names)
     fmus = {ex.name: p for ex, p in export_blocks(sc, names, tmp, 3)}
     a = run(sc.system, sc.stop_time, Recorder(["*"], 1))
-    sc2 = with_exported_blocks(FANG, fmus, ov)
+    sc2 = with_exported_blocks(path, fmus, ov)
     b = run(sc2.system, sc2.stop_time, Recorder(["*"], 1))
     assert a.signals == b.signals
     det = [s for s in a.signals if s.startswith("detector.")]
@@ -272,6 +274,23 @@ def test_fang_hole_with_fmus(tmp_path):
     a = _fang_with_fmus(tmp_path, None)
     assert a["detector.flag"][-1] == 3 and a["detector.fail"][-1] == 0
     assert np.isfinite([a[f"detector.x_{ev}_loc"][-1] for ev in ("entry", "interface1", "exit")]).all()
+
+
+@pytest.mark.long
+def test_a_drop_under_the_process_change_with_the_detector_fmu(tmp_path):
+    """Wide draw, foreign seed-24 hole 96 (ti/cfrp/ti; the recorded window of
+    test_c_fit_of_a_drop_under_the_process_change): the hole plan gives the detector its process, the
+    exported detector (its parameters) fits the Ti -> CFRP drop's upper fall in C, and the hole records
+    the same doubles in every signal as in process (measured: 23 s each)."""
+    from drillcosim.analysis import stack_montecarlo as mc
+    jobs, _refused = mc.draw_wide_campaign(97, 24, "foreign_ballscrew")
+    (_i, stack, ov), = [j for j in jobs if j[0] == 96]
+    path = mc.STACKS / mc.PLANTS["foreign_ballscrew"]
+    assert stack == "ti/cfrp/ti" and load_scenario(path, ov).system.blocks["detector"].process is not None
+    a = _fang_with_fmus(tmp_path, None, ["detector"], path, ov)
+    assert a["detector.flag"][-1] == 4 and a["detector.fail"][-1] == 0
+    # the drop fitted with the fall: its interval 6.5 um (the window's free laws: 0.11 mm)
+    assert a["detector.dx_interface1_loc"][-1] < 0.02 * MM
 
 
 def test_the_detector_fmu_builds_from_its_own_sources(fang_detector_fmu, tmp_path):
