@@ -171,6 +171,32 @@ def _exported_step(det):
     return step
 
 
+def test_the_c_upper_fall_s_share_is_python_s():
+    """The exported step's share of an interface's drop (detector_upper_fall) is
+    InterfaceDetector._upper_fall's to the bit: over the adaptation's ramp and as a step, at the
+    plan's feed exponent and at 0.5 (numpy's ** 0.5 is a square root); none where the hole failed."""
+    fn = detector_kernel.export_library().interface_detector_fmu_upper_fall
+    fn.restype, fn.argtypes = ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_long,
+                                             ctypes.c_void_p]
+    settings, trace = CASES["plan_process_drops"]
+    det = InterfaceDetector(**settings)
+    for ti, xi, Fi in zip(*_trace(**trace)):
+        det.step(ti, [Fi, xi])
+    state = det.c_export_kernel().state
+    feed, fpr, ramp = det.process
+    t = det.t_ev[1] + np.linspace(-0.1, 0.4, 1001)
+    for ramp_s, x_feed in ((ramp, 0.75), (0.0, 0.75), (ramp, 0.5), (0.13, 0.6)):
+        det.process, det.exit_feed_exponent = (feed, fpr, ramp_s), x_feed
+        state.process_ramp, state.exit_release[1] = ramp_s, x_feed
+        share = np.zeros(t.size)
+        assert fn(ctypes.addressof(state), 1, t.ctypes.data, t.size, share.ctypes.data) == 1
+        py = det._upper_fall(1, t).share
+        assert share.tobytes() == py.tobytes(), (ramp_s, x_feed, np.abs(share - py).max())
+        assert py[0] == 1.0 and py[-1] == pytest.approx((fpr[1] / fpr[0]) ** x_feed)
+    state.fail = 1.0
+    assert fn(ctypes.addressof(state), 1, t.ctypes.data, t.size, share.ctypes.data) == 0
+
+
 def _assert_agree(names, a, b):
     """Every output the same doubles. Where the exported dot is not numpy's (numpy on another
     BLAS kernel than the AVX2 one), those computed from the prediction: within 1e-12 of

@@ -176,7 +176,7 @@ static const double *interface_ghost(const DetectorFMU *s, int k, double *ghost)
 /* InterfaceDetector._upper_fall: interface k's drop under the adaptation's switch at its trigger
  * -- the share (f(t) / f_{k-1})^x_feed of the feed per revolution commanded at the force samples'
  * times t[0..m) [s], feed rate and spindle speed each blended by the raised cosine (cos, pow:
- * libm's, as the Python's math.cos; the exit's law, the drive's compliance) -- into share and
+ * libm's, as the Python's math.cos and numpy's power; the exit's law, the drive's compliance) -- into share and
  * *fall; NULL where the plan gives no process or the hole has failed (the fail-safe's set is in
  * force) or the trigger has no time */
 static const LocGrid *detector_upper_fall(const DetectorFMU *s, int k, const double *t, long m, const LocGrid *push,
@@ -190,7 +190,8 @@ static const LocGrid *detector_upper_fall(const DetectorFMU *s, int k, const dou
     for (long j = 0; j < m; j++) {
         double v = ramp > 0.0 ? loc_clip01((t[j] - t_ev) / ramp) : t[j] >= t_ev ? 1.0 : 0.0;
         double r = 0.5 * (1.0 - cos(DET_PI * v));
-        share[j] = pow((fa + r * (fb - fa)) / (na + r * (nb - na)) / f_up, x_feed);
+        double q = (fa + r * (fb - fa)) / (na + r * (nb - na)) / f_up;
+        share[j] = x_feed == 0.5 ? sqrt(q) : pow(q, x_feed);    /* numpy's ** 0.5 is its sqrt (pow: a last bit apart) */
     }
     *fall = loc_exit_grid(push, (int)s->exit_shape);
     fall->release[0] = s->exit_compliance + s->exit_release[0];
@@ -334,6 +335,14 @@ void event_locate_tables(int kind, const double *x, const double *F, long n, dou
     push.rise_shape = exit_shape;
     event_locate(kind, x, F, n, air, x_trig, cut_floor, period, ghost, &engage, &push, share != NULL ? &fall : NULL,
                  &out[0], &out[1]);
+}
+
+/* InterfaceDetector._upper_fall's share alone, for the test that it is the Python's to the bit:
+ * 1 with share[0..m) at the times t [s], or 0 where _upper_fall gives None */
+int interface_detector_fmu_upper_fall(const DetectorFMU *s, int k, const double *t, long m, double *share)
+{
+    LocGrid push = {s->push_out_lengths, s->push_out_fine, LOC_N_PUSH_OUT, 0, 2}, fall;
+    return detector_upper_fall(s, k, t, m, &push, share, &fall) != NULL;
 }
 
 /* numpy.mean as the fit spells it, for the test that it is numpy's to the bit */
