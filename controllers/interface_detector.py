@@ -1626,6 +1626,10 @@ class InterfaceDetector(KernelBlock, Block):
         "exit_release": ("1", "the exit's released push-out: compliance between encoder and cutting front [m/N] "
                               "(0: off), the cutting law's feed exponent"),
         "max_gap": ("m", "widest gap between two layers"),
+        "process": ("1", "1: an interface's drop fits its upper layer's push-out under the plan's process (0: free laws)"),
+        "layer_feed_rate": ("m/s", "feed rate the plan commands in each layer (an interface's drop)"),
+        "layer_feed_per_rev": ("m", "feed per revolution of each layer's process, m/rev (an interface's drop)"),
+        "process_ramp": ("s", "the adaptation's raised-cosine ramp between two layers' processes from the trigger"),
         "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
     }
 
@@ -1642,7 +1646,7 @@ class InterfaceDetector(KernelBlock, Block):
                                              self._exit_period_samples() or 0.0, self._entry_period_samples() or 0.0,
                                              self.entry_shape, self._exit_ghost() or (0.0, 0.0), self.exit_shape,
                                              self.exit_compliance, self._plan_laws_at_rises(),
-                                             (self.exit_release_compliance, self.exit_feed_exponent))
+                                             (self.exit_release_compliance, self.exit_feed_exponent), self.process)
 
     def _c_supports(self) -> bool:
         return (detector_kernel.blas_ddot() is not None and detector_kernel.sums_like_python()

@@ -154,6 +154,14 @@ CASES = {
     "plan_entry_span_slow_orbit": (dict(PLAN, entry_span=1.3, entry_orbit_period=1.3),
                                    dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.0, 0.0),
                                         ringing=10.0, feed_mm_min=15.0)),
+    # issue 23: a drop across a gap under the plan's process (each layer's feed rate, the adaptation's
+    # 0.2 s ramp from the trigger): the upper layer's push-out fitted with the plan's law times the
+    # share of the feed per revolution commanded (event_locator.UpperFall), released with the drive's
+    # compliance, in Python, the C step and the exported FMU's C fit
+    "plan_process_drops": (dict(PLAN, kc=[3.2e7, 1.875e7, 1.2e7], feed_per_rev=[5e-6, 4e-6, 5e-6],
+                                layer_feed_rate=[2.5e-4, 1.6e-4, 2.5e-4], process_ramp=0.2, exit_shape="quadratic",
+                                exit_release_compliance=1e-7),
+                           dict(levels=(160.0, 75.0, 60.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.1, 0.0))),
     "four_layers": (dict(thicknesses=(2 * MM, 2 * MM, 2 * MM, 2 * MM), thd2=30.0, N=60, N_min=10, rearm_samples=40),
                     dict(levels=(120.0, 300.0, 150.0, 350.0), thick_mm=(2.0, 2.0, 2.0, 2.0), gaps_mm=(0, 0, 0, 0),
                          engage_mm=0.02, thinning_mm=0.05)),

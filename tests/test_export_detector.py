@@ -8,7 +8,8 @@ to C (kernels/event_locator.c). What is checked here:
 * the C fit locates what the Python fit locates, on every window the detector fitted in
   synthetic holes (air, engagement ramps, gaps, thinning exits, ripple, noise; the cases of
   tests/test_detector_kernel.py) and on hand-made entry / gap / exit windows: the same
-  position and interval, within 1e-9 mm (measured: the same doubles);
+  position and interval, within 1e-9 mm (measured: the same doubles); an interface drop's
+  upper fall under the plan's process (event_locator.UpperFall) on a recorded window too;
 * the exported step against the in-process step, sample by sample on those holes: every
   output the same doubles. The exported dot sums in the order of OpenBLAS's AVX2 ddot kernel
   (portable C); where numpy uses another kernel, the prediction F^ and what is computed
@@ -51,30 +52,36 @@ PREDICTION = ("F_pred", "F_err", "F_ref", "thd", "level_mismatch")
 
 
 def _c_locate(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any", entry_shape="any",
-              exit_release=None):
+              exit_release=None, upper_fall=None):
     fn = detector_kernel.export_library().event_locate_tables
     fn.restype = None
     fn.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_long, ctypes.c_double,
                    ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p,
-                   ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_void_p]
+                   ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int,
+                   ctypes.c_void_p]
     x, F = np.ascontiguousarray(x, float), np.ascontiguousarray(F, float)
     tables, out = detector_kernel.locator_tables(), np.zeros(2)
     g = None if ghost is None else np.array(ghost, float)
     rel = None if exit_release is None else np.array(exit_release, float)
+    # the upper fall: its share per sample, its law's code, its release (NULL share: none)
+    share = None if upper_fall is None else np.ascontiguousarray(upper_fall.share, float)
+    fall_rel = None if upper_fall is None else np.array(upper_fall.release, float)
     fn(KINDS[kind], x.ctypes.data, F.ctypes.data, x.size, air, x_trig,
        math.nan if cut_floor is None else cut_floor, period or 0.0, None if g is None else g.ctypes.data,
        tables.ctypes.data, out.ctypes.data, list(EXIT_SHAPES).index(exit_shape), list(ENTRY_SHAPES).index(entry_shape),
-       None if rel is None else rel.ctypes.data)
+       None if rel is None else rel.ctypes.data, None if share is None else share.ctypes.data,
+       0 if upper_fall is None else list(EXIT_SHAPES).index(upper_fall.shape),
+       None if fall_rel is None else fall_rel.ctypes.data)
     return float(out[0]), float(out[1])
 
 
 def _assert_same_fit(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any",
-                     entry_shape="any", exit_release=None, py=None):
+                     entry_shape="any", exit_release=None, py=None, upper_fall=None):
     """The C fit equals the Python one (``py``: already made, else fitted here)."""
     if py is None:
         py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost,
-                    exit_shape=exit_shape, entry_shape=entry_shape, exit_release=exit_release)
-    c = _c_locate(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, entry_shape, exit_release)
+                    exit_shape=exit_shape, entry_shape=entry_shape, exit_release=exit_release, upper_fall=upper_fall)
+    c = _c_locate(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, entry_shape, exit_release, upper_fall)
     for a, b in zip(py, c):
         assert (math.isnan(a) and math.isnan(b)) or abs(a - b) <= 1e-12, (kind, py, c)   # 1e-9 mm
     return py
@@ -99,11 +106,12 @@ def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
     calls = []
 
     def spy(kind, x, F, *, air=0.0, x_trig=None, cut_floor=None, period=None, entry_shape="any", ghost=None,
-            exit_shape="any", exit_release=None):
+            exit_shape="any", exit_release=None, upper_fall=None):
         assert entry_shape == "any"     # the cases fit both ramps, as event_locate_tables does
         py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost,
-                    exit_shape=exit_shape, exit_release=exit_release)
-        calls.append((kind, np.array(x), np.array(F), air, x_trig, cut_floor, period, ghost, exit_shape, py))
+                    exit_shape=exit_shape, exit_release=exit_release, upper_fall=upper_fall)
+        calls.append((kind, np.array(x), np.array(F), air, x_trig, cut_floor, period, ghost, exit_shape, exit_release,
+                      upper_fall, py))
         return py
 
     monkeypatch.setattr(idm, "locate", spy)
@@ -115,11 +123,13 @@ def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
             det.step(ti, [Fi, xi])
     kinds = {c[0] for c in calls}
     assert len(calls) >= 15 and kinds == {"entry", "interface", "exit"}
-    assert {c[8] for c in calls} == {"any", "bending", "linear"}
+    assert {c[8] for c in calls} == {"any", "bending", "linear", "quadratic"}
     assert any(c[0] == "interface" and c[7] is not None for c in calls)    # a drop's ghost (plan_slow_drops_ghost)
-    for kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, py in calls:
+    assert any(c[10] is not None for c in calls)       # a drop under the process change (plan_process_drops)
+    for kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, exit_release, upper_fall, py in calls:
         # the Python fit as the step made it (fitting it again took a third of the test's time)
-        _assert_same_fit(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, py=py)
+        _assert_same_fit(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, exit_release=exit_release,
+                         py=py, upper_fall=upper_fall)
 
 
 def test_c_fit_of_a_window_cut_short_to_a_thin_layer():
@@ -159,6 +169,32 @@ def _exported_step(det):
         fn(ctypes.addressof(state), t, u, y)
         return y[:]
     return step
+
+
+def test_the_c_upper_fall_s_share_is_python_s():
+    """The exported step's share of an interface's drop (detector_upper_fall) is
+    InterfaceDetector._upper_fall's to the bit: over the adaptation's ramp and as a step, at the
+    plan's feed exponent and at 0.5 (numpy's ** 0.5 is a square root); none where the hole failed."""
+    fn = detector_kernel.export_library().interface_detector_fmu_upper_fall
+    fn.restype, fn.argtypes = ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_long,
+                                             ctypes.c_void_p]
+    settings, trace = CASES["plan_process_drops"]
+    det = InterfaceDetector(**settings)
+    for ti, xi, Fi in zip(*_trace(**trace)):
+        det.step(ti, [Fi, xi])
+    state = det.c_export_kernel().state
+    feed, fpr, ramp = det.process
+    t = det.t_ev[1] + np.linspace(-0.1, 0.4, 1001)
+    for ramp_s, x_feed in ((ramp, 0.75), (0.0, 0.75), (ramp, 0.5), (0.13, 0.6)):
+        det.process, det.exit_feed_exponent = (feed, fpr, ramp_s), x_feed
+        state.process_ramp, state.exit_release[1] = ramp_s, x_feed
+        share = np.zeros(t.size)
+        assert fn(ctypes.addressof(state), 1, t.ctypes.data, t.size, share.ctypes.data) == 1
+        py = det._upper_fall(1, t).share
+        assert share.tobytes() == py.tobytes(), (ramp_s, x_feed, np.abs(share - py).max())
+        assert py[0] == 1.0 and py[-1] == pytest.approx((fpr[1] / fpr[0]) ** x_feed)
+    state.fail = 1.0
+    assert fn(ctypes.addressof(state), 1, t.ctypes.data, t.size, share.ctypes.data) == 0
 
 
 def _assert_agree(names, a, b):
@@ -230,15 +266,17 @@ def test_fang_detector_fmu_through_fmi_gives_the_in_process_outputs(fang_detecto
     assert last[det.output_names().index("flag")] == 0.0
 
 
-def _fang_with_fmus(tmp: Path, stop_time: float | None, only: list | None = None):
-    """The Fang hole with its C blocks (or ``only`` those) as FMUs against the in-process run."""
-    ov = {} if stop_time is None else {"scenario.stop_time": stop_time}
-    sc = load_scenario(FANG, ov)
+def _fang_with_fmus(tmp: Path, stop_time: float | None, only: list | None = None, path: Path = FANG,
+                    overrides: dict | None = None):
+    """The Fang hole (or the scenario ``path`` with ``overrides``) with its C blocks (or ``only``
+    those) as FMUs against the in-process run."""
+    ov = dict(overrides or {}, **({} if stop_time is None else {"scenario.stop_time": stop_time}))
+    sc = load_scenario(path, ov)
     names = only or [n for n, b in sc.system.blocks.items() if has_c_step(b, sc.start_time)]
     assert "detector" in names and all(has_c_step(sc.system.blocks[n], sc.start_time) for n in names)
     fmus = {ex.name: p for ex, p in export_blocks(sc, names, tmp, 3)}
     a = run(sc.system, sc.stop_time, Recorder(["*"], 1))
-    sc2 = with_exported_blocks(FANG, fmus, ov)
+    sc2 = with_exported_blocks(path, fmus, ov)
     b = run(sc2.system, sc2.stop_time, Recorder(["*"], 1))
     assert a.signals == b.signals
     det = [s for s in a.signals if s.startswith("detector.")]
@@ -262,6 +300,23 @@ def test_fang_hole_with_fmus(tmp_path):
     a = _fang_with_fmus(tmp_path, None)
     assert a["detector.flag"][-1] == 3 and a["detector.fail"][-1] == 0
     assert np.isfinite([a[f"detector.x_{ev}_loc"][-1] for ev in ("entry", "interface1", "exit")]).all()
+
+
+@pytest.mark.long
+def test_a_drop_under_the_process_change_with_the_detector_fmu(tmp_path):
+    """Wide draw, foreign seed-24 hole 96 (ti/cfrp/ti; the recorded window of
+    test_c_fit_of_a_drop_under_the_process_change): the hole plan gives the detector its process, the
+    exported detector (its parameters) fits the Ti -> CFRP drop's upper fall in C, and the hole records
+    the same doubles in every signal as in process (measured: 23 s each)."""
+    from drillcosim.analysis import stack_montecarlo as mc
+    jobs, _refused = mc.draw_wide_campaign(97, 24, "foreign_ballscrew")
+    (_i, stack, ov), = [j for j in jobs if j[0] == 96]
+    path = mc.STACKS / mc.PLANTS["foreign_ballscrew"]
+    assert stack == "ti/cfrp/ti" and load_scenario(path, ov).system.blocks["detector"].process is not None
+    a = _fang_with_fmus(tmp_path, None, ["detector"], path, ov)
+    assert a["detector.flag"][-1] == 4 and a["detector.fail"][-1] == 0
+    # the drop fitted with the fall: its interval 6.5 um (the window's free laws: 0.11 mm)
+    assert a["detector.dx_interface1_loc"][-1] < 0.02 * MM
 
 
 def test_the_detector_fmu_builds_from_its_own_sources(fang_detector_fmu, tmp_path):
@@ -380,3 +435,35 @@ def test_a_narrow_drop_s_refit_never_makes_the_onset_later():
     past = x >= free_face
     late, _ = event_locator._drop_onset(x[past], F[past], free_face, engage, laws[0])
     assert gap is not None and late - hi > 0.2 * MM       # the case is real: from the free face on, late
+
+
+def test_c_fit_of_a_drop_under_the_process_change():
+    """A recorded window (tests/data/interface_window_foreign_process_drop.json: wide draw, foreign
+    seed-24 hole 96, Ti at ~1230 N onto CFRP across a 3 um gap; the adaptation switches to the CFRP's
+    4.0 um/rev from the trigger, inside the Ti's push-out: the share falls to 0.41). The upper layer's
+    fall fitted with the plan's law times that share, released with the drive's compliance
+    (event_locator.UpperFall), locates the event within 0.01 mm of the gap's faces' middle; the free
+    laws put it 0.08 mm early. Python = C: released, rigid (the law times the share) and with
+    non-finite samples dropped from the window and its share alike (event_locate's compaction)."""
+    d = json.loads((ROOT / "tests" / "data" / "interface_window_foreign_process_drop.json").read_text())
+    x, F, share = np.array(d["x_um"]) * 1e-6, np.array(d["F_N"]), np.array(d["share"])
+    mid = 0.5e-6 * sum(d["faces_um"])
+    args = ("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6, d["cut_floor"])
+    laws = dict(exit_shape=d["exit_shape"], entry_shape=d["entry_shape"])
+    fall = event_locator.UpperFall(d["fall_shape"], share, tuple(d["release"]))
+    x_loc, _ = _assert_same_fit(*args, **laws, upper_fall=fall)
+    assert abs(x_loc - mid) <= 0.01 * MM
+    x_free, _ = _assert_same_fit(*args, **laws)
+    assert x_free < mid - 0.05 * MM                       # the case is real: the free laws, early
+    _assert_same_fit(*args, **laws, upper_fall=fall._replace(release=(0.0, d["release"][1])))
+    # non-finite samples before the share falls (from sample 188): the share compacted with them;
+    # read on from where the window's samples were (5 samples late) the event moved (0.028 mm early)
+    assert np.all(share[:188] == 1.0) and share[188] < 1.0
+    x_nan, F_nan = x.copy(), F.copy()
+    x_nan[[20, 90]], F_nan[[5, 60, 150]] = np.nan, np.inf
+    x_kept, _ = _assert_same_fit("interface", x_nan, F_nan, *args[3:], **laws, upper_fall=fall)
+    ok = np.isfinite(x_nan) & np.isfinite(F_nan)
+    late = fall._replace(share=share[:ok.sum()])
+    x_late, _ = locate("interface", x[ok], F[ok], air=d["air_N"], x_trig=d["trigger_um"] * 1e-6,
+                       cut_floor=d["cut_floor"], **laws, upper_fall=late)
+    assert abs(x_late - x_kept) > 0.005 * MM, (x_late, x_kept)

@@ -50,6 +50,8 @@ typedef struct {
                            onset, exit_shape's for the free face (loc_exit_grid's codes) */
     double release[2];  /* the exit's released push-out: compliance [m/N] (0: the law itself), x_feed
                            (event_locator.locate's exit_release) */
+    const double *share;   /* the push-out law's factor at each of the fit's samples, or NULL (1): an
+                              interface drop's upper fall under the process change (event_locator.UpperFall) */
 } LocGrid;
 
 /* One fit problem: samples, the family (onset or push-out), the air level (NaN: fitted);
@@ -205,6 +207,8 @@ static int loc_columns(const LocFit *f, double face, double L, int shape, long i
         return loc_ring_columns(f, i, c, 3);
     }
     double r = (face - xi) / L, g = loc_push_law(shape, r);
+    if (f->grid->share != NULL)
+        g *= f->grid->share[i];          /* free_face's shape(r) * share */
     c[0] = g;
     c[1] = r * g;
     if (!isnan(f->air))
@@ -228,20 +232,21 @@ static double loc_release_step(double prev, double s, double a, double p)
 }
 
 /* loc_columns with, on a push-out that releases the stored deflection (release_delta > 0),
- * the share phi (event_locator._released) for g: g = phi, r g = r phi; *phi the share at the
- * sample before (the samples visited in order from i = 0) */
+ * the share phi (event_locator._released, with the grid's share) for g: g = phi, r g = r phi;
+ * *phi the share at the sample before (the samples visited in order from i = 0) */
 static int loc_push_columns(const LocFit *f, double face, double L, int shape, long i, double *c, double *phi)
 {
     int k = loc_columns(f, face, L, shape, i, c);
     if (!f->push_out || !(f->release_delta > 0.0))
         return k;
-    double xi = f->x[i], delta = f->release_delta;
+    double xi = f->x[i], delta = f->release_delta, m = f->grid->share != NULL ? f->grid->share[i] : 1.0;
+    /* _released's share m times the law, in the initial value and in both steps (1.0 * s is s) */
     if (i == 0) {
-        *phi = loc_push_law(shape, (face - xi) / L);
+        *phi = m * loc_push_law(shape, (face - xi) / L);
     } else {
         double xp = f->x[i - 1], a = (xi - xp > 0.0 ? xi - xp : 0.0) / delta;
-        double pred = loc_release_step(*phi, loc_push_law(shape, (face - xi + delta * *phi) / L), a, f->release_p);
-        *phi = loc_release_step(*phi, loc_push_law(shape, (face - xi + delta * pred) / L), a, f->release_p);
+        double pred = loc_release_step(*phi, m * loc_push_law(shape, (face - xi + delta * *phi) / L), a, f->release_p);
+        *phi = loc_release_step(*phi, m * loc_push_law(shape, (face - xi + delta * pred) / L), a, f->release_p);
     }
     c[0] = *phi;
     c[1] = ((face - xi) / L) * *phi;
@@ -574,15 +579,57 @@ static int loc_ghost_drop(const double *x, const double *F, long n, const double
            last < first;
 }
 
-/* a gap: the upper layer's free face and the lower one's onset around the air run */
+/* event_locator._release_of: a push-out (the exit's, a drop's upper fall) releases delta =
+ * compliance times the window's fall between its end levels when delta is above the median
+ * travel per sample */
+static void loc_release_of(LocFit *f)
+{
+    f->release_delta = 0.0;
+    if (!(f->grid->release[0] > 0.0) || f->n < 2)
+        return;
+    double *scratch = malloc((size_t)(2 * f->n) * sizeof(double));
+    if (scratch == NULL)
+        return;
+    double first, last, *dx = scratch + f->n;
+    loc_end_levels(f->x, f->F, f->n, scratch, &first, &last);
+    double delta = f->grid->release[0] * LOC_PYMAX(first - last, 0.0);
+    for (long i = 0; i + 1 < f->n; i++)
+        dx[i] = f->x[i + 1] - f->x[i];
+    if (delta > loc_median(dx, f->n - 1, scratch)) {
+        f->release_delta = delta;
+        f->release_p = 1.0 / f->grid->release[1];
+    }
+    free(scratch);
+}
+
+/* event_locator._drop_fall: the grid of the upper layer's free face on the window's samples
+ * x <= hi: on a drop (``drop``: the whole window's last level below its first) where the plan
+ * knows the process (``fall``: its law, release and share per sample of the window), the fall's
+ * with the share of those samples (written to share_up); else ``law``, the free laws */
+static LocGrid loc_upper_grid(const LocGrid *law, const LocGrid *fall, int drop, const double *x, long n, double hi,
+                              double *share_up)
+{
+    if (fall == NULL || !drop)
+        return *law;
+    LocGrid g = *fall;
+    long m = 0;
+    for (long i = 0; i < n; i++)
+        if (x[i] <= hi)              /* loc_select's samples, Python's up = x <= hi */
+            share_up[m++] = fall->share[i];
+    g.share = share_up;
+    return g;
+}
+
+/* a gap: the upper layer's free face and the lower one's onset around the air run; ``fall``
+ * (NULL: none) the upper layer's push-out on a drop under the process change (loc_upper_grid) */
 static void loc_gap(const double *x, const double *F, long n, double air, long g0, long g1, int open_end,
-                    const LocGrid *engage, const LocGrid *push, double *x_loc, double *dx)
+                    const LocGrid *engage, const LocGrid *push, const LocGrid *fall, double *x_loc, double *dx)
 {
     double mid = 0.5 * (x[g0] + x[g1 - 1]);
-    double *xu = malloc((size_t)(5 * n) * sizeof(double));
+    double *xu = malloc((size_t)(6 * n) * sizeof(double));
     if (xu == NULL)
         return;
-    double *Fu = xu + n, *xd = Fu + n, *Fd = xd + n, *scratch = Fd + n;
+    double *Fu = xu + n, *xd = Fu + n, *Fd = xd + n, *scratch = Fd + n, *share_up = scratch + n;
     long n_up = loc_select(x, F, n, -INFINITY, mid, xu, Fu), n_down = loc_select(x, F, n, mid, INFINITY, xd, Fd);
     if (n_up >= 2 * LOC_MIN_SEGMENT && n_down >= 2 * LOC_MIN_SEGMENT) {
         /* the lower layer's level from the air run's start when it cuts higher than the upper
@@ -612,7 +659,9 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
         }
         /* the upper layer's fall up to the lower layer's onset (event_locator._gap_faces) */
         n_up = loc_select(x, F, n, -INFINITY, hi, xu, Fu);
-        LocFit up = {xu, Fu, n_up, 1, air, &law};
+        LocGrid upper = loc_upper_grid(&law, fall, last < first, x, n, hi, share_up);
+        LocFit up = {xu, Fu, n_up, 1, air, &upper};
+        loc_release_of(&up);                 /* the fall's release on the up samples (_upper_face); else none */
         loc_best_face(&up, x[0], hi, &lo, &dlo);
         if (!open_end && closed_drop && lo > x[g0]) {
             /* the onset's level from the run's start held the upper fall's tail: the onset
@@ -634,28 +683,6 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
         *dx = 0.5 * fabs(hi - lo) + LOC_PYMAX(dlo, dhi);
     }
     free(xu);
-}
-
-/* event_locator._release_of: the exit's push-out releases delta = compliance times the
- * window's fall between its end levels when delta is above the median travel per sample */
-static void loc_release_of(LocFit *f)
-{
-    f->release_delta = 0.0;
-    if (!(f->grid->release[0] > 0.0) || f->n < 2)
-        return;
-    double *scratch = malloc((size_t)(2 * f->n) * sizeof(double));
-    if (scratch == NULL)
-        return;
-    double first, last, *dx = scratch + f->n;
-    loc_end_levels(f->x, f->F, f->n, scratch, &first, &last);
-    double delta = f->grid->release[0] * LOC_PYMAX(first - last, 0.0);
-    for (long i = 0; i + 1 < f->n; i++)
-        dx[i] = f->x[i + 1] - f->x[i];
-    if (delta > loc_median(dx, f->n - 1, scratch)) {
-        f->release_delta = delta;
-        f->release_p = 1.0 / f->grid->release[1];
-    }
-    free(scratch);
 }
 
 /* the exit's free face (locate, kind exit), on means over one orbit of ``period`` samples
@@ -683,22 +710,28 @@ static void loc_exit(LocFit *f, double period, double x0, double x1, double *x_l
  * interface window cut short to a thin layer below (event_locator.floor_gap); period
  * [samples]: the exit's fit on means over one orbit, the entry's fits the orbit's sinusoid
  * too (<= 1: none; locate's period); ghost: NULL, or the exit's {orbit [samples], decay per
- * sample} of locate's ghost, or an interface's (the lower layer's orbit) */
+ * sample} of locate's ghost, or an interface's (the lower layer's orbit); fall: NULL, or an
+ * interface's upper fall (locate's upper_fall: a push-out grid of its law, release and share
+ * per sample of x_in) */
 void event_locate(int kind, const double *x_in, const double *F_in, long n_in, double air, double x_trig,
                   double cut_floor, double period, const double *ghost, const LocGrid *engage, const LocGrid *push,
-                  double *x_loc, double *dx)
+                  const LocGrid *fall, double *x_loc, double *dx)
 {
     *x_loc = *dx = NAN;
-    double *x = malloc((size_t)(3 * (n_in > 0 ? n_in : 1)) * sizeof(double));
+    double *x = malloc((size_t)(4 * (n_in > 0 ? n_in : 1)) * sizeof(double));
     if (x == NULL)
         return;
-    double *F = x + n_in, *scratch = F + n_in;
+    double *F = x + n_in, *scratch = F + n_in, *share = scratch + n_in;
     long n = 0;
     for (long i = 0; i < n_in; i++)
         if (isfinite(x_in[i]) && isfinite(F_in[i])) {
+            if (fall != NULL)
+                share[n] = fall->share[i];      /* _checked_fall: the share of the samples kept */
             x[n] = x_in[i];
             F[n++] = F_in[i];
         }
+    LocGrid fall_kept = fall != NULL ? *fall : *push, *kept = fall != NULL ? &fall_kept : NULL;
+    fall_kept.share = share;
     long g0, g1;
     if (n < 5 * LOC_MIN_SEGMENT * 2) {
         free(x);
@@ -725,9 +758,10 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
     } else if (kind == LOC_EXIT)
         loc_exit(&exit_, period, x0, x1, x_loc, dx);
     else if (kind == LOC_INTERFACE && loc_air_run(x, F, n, air, scratch, &g0, &g1))
-        loc_gap(x, F, n, air, g0, g1, 0, engage, push, x_loc, dx);
+        loc_gap(x, F, n, air, g0, g1, 0, engage, push, kept, x_loc, dx);
     else if (kind == LOC_INTERFACE && loc_floor_gap(F, n, cut_floor, scratch, &g0, &g1))
-        loc_gap(x, F, n, NAN, g0, g1, n - g1 < 2 * LOC_MIN_SEGMENT, engage, push, x_loc, dx);   /* air fitted */
+        loc_gap(x, F, n, NAN, g0, g1, n - g1 < 2 * LOC_MIN_SEGMENT, engage, push, kept,
+                x_loc, dx);   /* air fitted */
     else
         loc_best_face(&onset, x0, LOC_PYMIN(x_trig, x1), x_loc, dx);
     free(x);

@@ -33,6 +33,11 @@ typedef struct {
     double rise_laws;                             /* 1: an interface's rise takes the plan's ramp and law (InterfaceDetector._plan_laws_at_rises) */
     double exit_release[2];                       /* the exit's released push-out: compliance [m/N] (0: off), x_feed
                                                      (InterfaceDetector._exit_release) */
+    double process;                               /* 1: the plan gives each layer's process (InterfaceDetector.process),
+                                                     0: none (an interface's drop fits free laws) */
+    double layer_feed_rate[DET_MAX_LAYERS];       /* m/s, the feed rate commanded in each layer */
+    double layer_feed_per_rev[DET_MAX_LAYERS];    /* m/rev, each layer's feed per revolution */
+    double process_ramp;                          /* s, the adaptation's raised cosine from each trigger (0: a step) */
     double engage_lengths[LOC_N_ENGAGE];          /* m, event_locator.ENGAGE_LENGTHS */
     double engage_fine[LOC_N_FINE];               /* around the best engage length */
     double push_out_lengths[LOC_N_PUSH_OUT];      /* m, event_locator.PUSH_OUT_LENGTHS */
@@ -168,16 +173,44 @@ static const double *interface_ghost(const DetectorFMU *s, int k, double *ghost)
     return ghost[0] > 0.0 ? ghost : NULL;
 }
 
+/* InterfaceDetector._upper_fall: interface k's drop under the adaptation's switch at its trigger
+ * -- the share (f(t) / f_{k-1})^x_feed of the feed per revolution commanded at the force samples'
+ * times t[0..m) [s], feed rate and spindle speed each blended by the raised cosine (cos, pow:
+ * libm's, as the Python's math.cos and numpy's power; the exit's law, the drive's compliance) -- into share and
+ * *fall; NULL where the plan gives no process or the hole has failed (the fail-safe's set is in
+ * force) or the trigger has no time */
+static const LocGrid *detector_upper_fall(const DetectorFMU *s, int k, const double *t, long m, const LocGrid *push,
+                                          double *share, LocGrid *fall)
+{
+    double t_ev = s->d.t_ev[k];
+    if (s->process == 0.0 || s->d.fail != 0.0 || !isfinite(t_ev))
+        return NULL;
+    double fa = s->layer_feed_rate[k - 1], fb = s->layer_feed_rate[k], f_up = s->layer_feed_per_rev[k - 1];
+    double na = fa / f_up, nb = fb / s->layer_feed_per_rev[k], ramp = s->process_ramp, x_feed = s->exit_release[1];
+    for (long j = 0; j < m; j++) {
+        double v = ramp > 0.0 ? loc_clip01((t[j] - t_ev) / ramp) : t[j] >= t_ev ? 1.0 : 0.0;
+        double r = 0.5 * (1.0 - cos(DET_PI * v));
+        double q = (fa + r * (fb - fa)) / (na + r * (nb - na)) / f_up;
+        share[j] = x_feed == 0.5 ? sqrt(q) : pow(q, x_feed);    /* numpy's ** 0.5 is its sqrt (pow: a last bit apart) */
+    }
+    *fall = loc_exit_grid(push, (int)s->exit_shape);
+    fall->release[0] = s->exit_compliance + s->exit_release[0];
+    fall->release[1] = x_feed;
+    fall->share = share;
+    return fall;
+}
+
 /* InterfaceDetector._fit: out = x_loc [m], t_loc [s], dx [m], F_air [N], F_air_sd [N] */
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
 {
     const DetectorFMU *s = (const DetectorFMU *)d;
     out[0] = out[1] = out[2] = out[3] = out[4] = NAN;
-    double *t = malloc(6 * DET_HISTORY * sizeof(double));
+    double *t = malloc(8 * DET_HISTORY * sizeof(double));
     if (t == NULL)
         return;
     double *x = t + DET_HISTORY, *F = x + DET_HISTORY, *xs = F + DET_HISTORY, *xsel = xs + DET_HISTORY;
+    double *tsel = xsel + 2 * DET_HISTORY, *share = tsel + DET_HISTORY;
     if (k == 0 && s->entry_period > 0.0 && isfinite(d->x_ev[0]))    /* the window reaches back to the candidate */
         lo = LOC_PYMIN(lo, d->x_ev[0] - DET_ENTRY_BACK * d->locate_margin);
     double *Fsel = xsel + DET_HISTORY;
@@ -188,6 +221,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     for (long j = 0; j < n; j++)
         if (xs[j] >= lo && xs[j] <= hi) {
             xsel[m] = comp > 0.0 ? xs[j] - comp * (F[j] - air) : xs[j];
+            tsel[m] = t[j] - s->observer_delay;       /* when the observer saw the force (_upper_fall's t) */
             Fsel[m++] = F[j];
         }
     /* the engage grid fits the entry's onset, or an interface's: only the entry's may be linear alone */
@@ -208,7 +242,9 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     double period = kind == LOC_EXIT ? s->exit_period : kind == LOC_ENTRY ? s->entry_period : 0.0;
     double if_ghost[2];
     const double *ghost = kind == LOC_EXIT ? s->exit_ghost : kind == LOC_INTERFACE ? interface_ghost(s, k, if_ghost) : NULL;
-    event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, &out[0], &out[2]);
+    LocGrid fall_grid;
+    const LocGrid *fall = kind == LOC_INTERFACE ? detector_upper_fall(s, k, tsel, m, &push, share, &fall_grid) : NULL;
+    event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, fall, &out[0], &out[2]);
     double orbit = period > 0.0 && m > 1 ? period * (xsel[m - 1] - xsel[0]) / (double)(m - 1) : 0.0;
     double ramp = kind == LOC_ENTRY && isfinite(out[0]) ? event_onset_length(xsel, Fsel, m, out[0], period, &engage) : NAN;
     double reach = LOC_PYMAX(d->locate_margin, orbit + ramp), span = orbit > 0.0 ? orbit : 0.5 * d->locate_margin;
@@ -224,7 +260,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
                 xsel[m2] = xsel[i];
                 Fsel[m2++] = Fsel[i];
             }
-        event_locate(kind, xsel, Fsel, m2, air, x_trig, cut_floor, period, ghost, &engage, &push, &x2, &dx2);
+        event_locate(kind, xsel, Fsel, m2, air, x_trig, cut_floor, period, ghost, &engage, &push, NULL, &x2, &dx2);
         if (isfinite(x2)) {
             out[0] = x2;
             out[2] = dx2;
@@ -270,14 +306,22 @@ void interface_detector_fmu_step(DetectorFMU *s, double t, const double *u, doub
 /* the localisation alone, for tests against event_locator.locate: kind 0 entry, 1
  * interface, 2 exit; out = x_loc, dx [m]; tables as in DetectorFMU; period [samples],
  * ghost (NULL: none), exit_shape and entry_shape (DetectorFMU's codes), release (NULL: none; the exit's
- * {compliance [m/N], x_feed}) as event_locator.locate's */
+ * {compliance [m/N], x_feed}) as event_locator.locate's; share (NULL: none) an interface's upper
+ * fall (locate's upper_fall: a share per sample, the law fall_shape, fall_release {compliance, x_feed}) */
 void event_locate_tables(int kind, const double *x, const double *F, long n, double air, double x_trig,
                          double cut_floor, double period, const double *ghost, const double *tables, double *out,
-                         int exit_shape, int entry_shape, const double *release)
+                         int exit_shape, int entry_shape, const double *release, const double *share, int fall_shape,
+                         const double *fall_release)
 {
     LocGrid engage = {tables, tables + LOC_N_ENGAGE, LOC_N_ENGAGE, 0, 2};
     LocGrid push = {tables + LOC_N_ENGAGE + LOC_N_FINE, tables + LOC_N_ENGAGE + LOC_N_FINE + LOC_N_PUSH_OUT,
                     LOC_N_PUSH_OUT, 0, 2};
+    LocGrid fall = loc_exit_grid(&push, fall_shape);     /* the push-out lengths with the fall's law */
+    if (share != NULL) {
+        fall.release[0] = fall_release[0];
+        fall.release[1] = fall_release[1];
+        fall.share = share;
+    }
     if (kind == LOC_EXIT) {
         push = loc_exit_grid(&push, exit_shape);
         if (release != NULL) {
@@ -289,7 +333,16 @@ void event_locate_tables(int kind, const double *x, const double *F, long n, dou
         engage = loc_exit_grid(&engage, entry_shape);
     engage.rise_shape = entry_shape;
     push.rise_shape = exit_shape;
-    event_locate(kind, x, F, n, air, x_trig, cut_floor, period, ghost, &engage, &push, &out[0], &out[1]);
+    event_locate(kind, x, F, n, air, x_trig, cut_floor, period, ghost, &engage, &push, share != NULL ? &fall : NULL,
+                 &out[0], &out[1]);
+}
+
+/* InterfaceDetector._upper_fall's share alone, for the test that it is the Python's to the bit:
+ * 1 with share[0..m) at the times t [s], or 0 where _upper_fall gives None */
+int interface_detector_fmu_upper_fall(const DetectorFMU *s, int k, const double *t, long m, double *share)
+{
+    LocGrid push = {s->push_out_lengths, s->push_out_fine, LOC_N_PUSH_OUT, 0, 2}, fall;
+    return detector_upper_fall(s, k, t, m, &push, share, &fall) != NULL;
 }
 
 /* numpy.mean as the fit spells it, for the test that it is numpy's to the bit */
