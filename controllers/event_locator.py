@@ -149,20 +149,23 @@ EXIT_SHAPES = {"any": PUSH_OUT_SHAPES, "linear": PUSH_OUT_SHAPES[:1], "quadratic
                "bending": (lambda r: np.clip(r, 0.0, 1.0) ** 1.5,)}
 
 
-class UpperFall(NamedTuple):
-    """What the plan knows of an interface's upper layer pushed out on a drop: the adaptation
-    switches the process at the drop's trigger, which fires inside that push-out (a rise's
-    fires past the lower face), so the fall is the push-out law times the new process's thrust
-    (the plant's cut: F = K f^x_feed at the feed per revolution f the table and spindle are
-    commanded) while the drive releases the deflection it stored (:func:`_released`). Left
-    out, the fall bent by the change was fitted with a free law and put the free face up to
-    0.08 mm early where the feed per revolution fell (foreign drive, Ti -> CFRP) and was
-    cancelled by the free law where it rose (foreign2); docs/stacks.md, "Localisation".
+class ProcessChange(NamedTuple):
+    """The process change the adaptation makes at an interface's trigger, as the plan knows it.
+    The trigger fires inside the change of thrust, and the thrust from there is the new feed
+    per revolution's (the plant's cut: F = K f^x_feed, f what the table and spindle are
+    commanded), reached as the drive releases or stores its deflection (:func:`_released`):
+
+    * on a drop the trigger is inside the upper layer's push-out: its fall is the push-out law
+      times the share, released (:func:`_upper_face`). Fitted with a free law it put the free
+      face up to 0.08 mm early where the feed per revolution fell (foreign drive, Ti -> CFRP),
+      and the free law had cancelled the change where it rose (foreign2);
+    * on a rise the trigger is on the lower layer's ramp: its onset is fitted on the samples
+      before the change (:func:`_rise_before_change`).
 
     ``shape``: the push-out law (an EXIT_SHAPES key, the plan's ``exit_shape``); ``share``:
     (f(t) / f_upper)^x_feed at each sample of the window (1 before the switch); ``release``:
     (the drive's compliance between the scale and the cutting front [m/N], x_feed), as
-    locate's ``exit_release``."""
+    locate's ``exit_release``. docs/stacks.md, "Localisation"."""
     shape: str
     share: np.ndarray
     release: tuple[float, float]
@@ -417,7 +420,7 @@ def _released(xb, x, L: float, shape, delta: float, p: float, share=None):
     itself. On foreign2's compliant drive the rigid law put the exits late by up to 0.1 mm,
     in proportion to delta over the push-out length (docs/stacks.md, "Localisation"). ``L``
     [m]: one length, or one per face (G, 1). ``share`` (n,): the cutting law's factor of the
-    commanded process at each sample (:class:`UpperFall`), times the law's share; None: 1.
+    commanded process at each sample (:class:`ProcessChange`), times the law's share; None: 1.
     Returns (G, n)."""
     travel = np.maximum(np.diff(x), 0.0) / delta      # the scale's position is not monotone after a snap
     m = np.ones(x.size) if share is None else share      # 1.0 * s is s: the law's bits without a share
@@ -472,7 +475,7 @@ def free_face(x, F, lo: float, hi: float, air: float | None, period: float | Non
     is fitted with the fall (:func:`_ringing`, the entry's model). ``release`` (delta [m],
     1 / x_feed; :func:`_release_of`): the fall is the push-out that releases the drive's stored
     deflection (:func:`_released`) instead of the law itself; None: the law. ``share`` (n,) or
-    None: the law times the process's factor at each sample (:class:`UpperFall`)."""
+    None: the law times the process's factor at each sample (:class:`ProcessChange`)."""
     Fa = F - (0.0 if air is None else air)
     ringing = [] if period or ghost is not None or not ring else _ringing(x.size, ring)
     smooth = (lambda A: orbit_mean(A, period)) if period else (lambda A: A)
@@ -520,7 +523,7 @@ def floor_gap(F, cut_floor: float | None) -> tuple[int, int] | None:
 def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cut_floor: float | None = None,
            period: float | None = None, entry_shape: str = "any", ghost: tuple[float, float] | None = None,
            exit_shape: str = "any", exit_release: tuple[float, float] | None = None,
-           upper_fall: UpperFall | None = None):
+           process_change: ProcessChange | None = None):
     """Located position [m] of an event and its uncertainty [m] from the samples around
     its trigger: table positions ``x`` [m] (increasing along the feed), observed thrust
     ``F`` [N]. ``kind``: "entry", "interface" or "exit"; ``air`` [N]: the observed thrust
@@ -541,9 +544,9 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     ``exit_shape``: the exit's push-out law, one of EXIT_SHAPES; ``exit_release`` (the drive's
     compliance between the scale and the cutting front [m/N], the cutting law's feed exponent
     x_feed in (0, 1]) or None: the exit's fall releases the deflection stored at its plateau
-    (:func:`_release_of`); ``upper_fall`` (:class:`UpperFall`) or None: an interface's drop
-    fits its upper layer's push-out under the process change (None: a free law, the process
-    as it was). An entry's ramp rises; an
+    (:func:`_release_of`); ``process_change`` (:class:`ProcessChange`) or None: an interface's drop
+    fits its upper layer's push-out under the adaptation's process change, a rise its lower onset
+    before it (None: free laws, the process as it was). An entry's ramp rises; an
     interface's may have either sign. (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
@@ -557,7 +560,7 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     x, F = np.asarray(x, float), np.asarray(F, float)
     ok = np.isfinite(x) & np.isfinite(F)
     x, F = x[ok], F[ok]
-    upper_fall = _checked_fall(upper_fall, ok)
+    process_change = _checked_change(process_change, ok)
     if x.size < 5 * MIN_SEGMENT * 2:
         return NAN, NAN
     x0, x1 = float(x[0]), float(x[-1])
@@ -586,22 +589,22 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
         gap = floor_gap(F, cut_floor)
         if gap is not None:
             return _gap_faces(x, F, gap, None, open_end=x.size - gap[1] < 2 * MIN_SEGMENT, laws=laws,
-                              fall=upper_fall)
+                              change=process_change)
         return onset_face(x, F, x0, min(xt, x1))
-    return _gap_faces(x, F, gap, air, laws=laws, fall=upper_fall)
+    return _gap_faces(x, F, gap, air, laws=laws, change=process_change)
 
 
-def _checked_fall(fall: UpperFall | None, ok) -> UpperFall | None:
-    """``fall`` on the window's finite samples (``ok``), checked against the window."""
-    if fall is None:
+def _checked_change(change: ProcessChange | None, ok) -> ProcessChange | None:
+    """``change`` on the window's finite samples (``ok``), checked against the window."""
+    if change is None:
         return None
-    share = np.asarray(fall.share, float)
-    if fall.shape not in EXIT_SHAPES or share.shape != ok.shape or not np.all(share[ok] > 0.0) or \
-            not (fall.release[0] >= 0.0 and 0.0 < fall.release[1] <= 1.0):
-        raise ValueError(f"event_locator.locate: upper_fall must have a shape of {', '.join(EXIT_SHAPES)}, a share "
+    share = np.asarray(change.share, float)
+    if change.shape not in EXIT_SHAPES or share.shape != ok.shape or not np.all(share[ok] > 0.0) or \
+            not (change.release[0] >= 0.0 and 0.0 < change.release[1] <= 1.0):
+        raise ValueError(f"event_locator.locate: process_change must have a shape of {', '.join(EXIT_SHAPES)}, a share "
                          f"> 0 per sample of the window ({ok.size}) and a release (compliance >= 0 m/N, "
-                         f"0 < x_feed <= 1), got shape {fall.shape!r}, {share.size} shares, release {fall.release!r}")
-    return UpperFall(fall.shape, share[ok], fall.release)
+                         f"0 < x_feed <= 1), got shape {change.shape!r}, {share.size} shares, release {change.release!r}")
+    return ProcessChange(change.shape, share[ok], change.release)
 
 
 def _ghost_drop(x, F, ghost) -> bool:
@@ -621,13 +624,14 @@ def _ghost_drop(x, F, ghost) -> bool:
 
 
 def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH_OUT_SHAPES),
-               fall: UpperFall | None = None):
+               change: ProcessChange | None = None):
     """The middle of a gap's two faces and its uncertainty: the lower layer's onset after
     the run's middle (``open_end``: the window ends in the gap, its last sample bounds the
     part seen), then the upper layer's free face on the samples before that onset. ``air``
     None: the air level is fitted. ``laws``: the plan's (ENTRY_SHAPES, EXIT_SHAPES) entries,
     taken when the lower layer cuts higher (:func:`_rise_laws`; a drop's ramp: :func:`_drop_onset`).
-    ``fall``: on a drop, the upper layer's push-out under the process change (:class:`UpperFall`)."""
+    ``change``: the adaptation's process change at the trigger (:class:`ProcessChange`): a drop's upper
+    fall under it, a rise's lower onset before it."""
     x0, x1 = float(x[0]), float(x[-1])
     # the upper layer runs out at its free face, the lower one's rise leaves the air level
     # at its face: the middle of the two is inside the gap whatever its width
@@ -639,15 +643,15 @@ def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH
     down = x >= start
     engage, push_out = _rise_laws(x, F, laws)
     hi, dhi = (x1, 0.0) if open_end else _drop_onset(x[down], F[down], lo_onset, engage, laws[0])
-    if not open_end and fall is not None:
-        hi, dhi = _rise_before_change(x[down], F[down], lo_onset, engage, laws[0], fall.share[down],
+    if not open_end and change is not None:
+        hi, dhi = _rise_before_change(x[down], F[down], lo_onset, engage, laws[0], change.share[down],
                                       F[gap[0]:gap[1]], (hi, dhi))
     # the upper layer's fall is fitted up to the lower layer's onset, not only to the run's
     # middle: the run below AIR_SHARE of a soft upper layer (Al, 10-30 N) holds the tail of its
     # push-out, and a free face bounded by the middle ended the fall early (wide draw, foreign
     # holes 8, 73, 133, 172, 184, 199: 0.055-0.10 mm early; replayed: within 0.016 mm)
     up = x <= hi
-    lo, dlo = _upper_face(x[up], F[up], x0, hi, air, push_out, _drop_fall(x, F, fall, up))
+    lo, dlo = _upper_face(x[up], F[up], x0, hi, air, push_out, _drop_fall(x, F, change, up))
     if not open_end and lo > start and _closed_drop(x, F, gap):
         # the onset's level was fitted from the run's start, which holds the tail of the upper
         # layer's fall: its trend carried the fall on and the ramp started late, on the
@@ -665,7 +669,7 @@ def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH
 
 def _rise_before_change(x, F, lo: float, engage, plan_ramp, share, air_run, fit):
     """A rise's lower onset [m] and its uncertainty [m] on the samples before the process
-    changes (``share``, :class:`UpperFall`, leaves its first value), where they hold the ramp's
+    changes (``share``, :class:`ProcessChange`, leaves its first value), where they hold the ramp's
     foot: the last of them above the gap's level by RISE_SEEN spreads of its samples
     (``air_run``), 2 MIN_SEGMENT of them past the onset; else ``fit`` (the onset on every
     sample). A rise's trigger fires on the lower layer's ramp, and from there the adaptation
@@ -686,16 +690,16 @@ def _rise_before_change(x, F, lo: float, engage, plan_ramp, share, air_run, fit)
     return h, dh
 
 
-def _drop_fall(x, F, fall: UpperFall | None, up) -> UpperFall | None:
+def _drop_fall(x, F, fall: ProcessChange | None, up) -> ProcessChange | None:
     """``fall`` on the samples ``up`` where the window drops onto a lower cut level (the last
     fifth's median below the first's, :func:`_end_levels`), else None."""
     if fall is None:
         return None
     first, last = _end_levels(x, F)
-    return UpperFall(fall.shape, fall.share[up], fall.release) if last < first else None
+    return ProcessChange(fall.shape, fall.share[up], fall.release) if last < first else None
 
 
-def _upper_face(x, F, x0: float, hi: float, air, push_out, fall: UpperFall | None):
+def _upper_face(x, F, x0: float, hi: float, air, push_out, fall: ProcessChange | None):
     """The upper layer's free face in [x0, hi] on the samples before the lower onset: with the
     free laws ``push_out``, or on a drop where the plan knows the process (``fall``,
     :func:`_drop_fall`) with its push-out law times the process's share, released."""

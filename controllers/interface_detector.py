@@ -107,7 +107,7 @@ from typing import Sequence
 import numpy as np
 
 from drillcosim.controllers import detector_kernel
-from drillcosim.controllers.event_locator import (ENTRY_SETTLING, ENTRY_SHAPES, EXIT_SHAPES, UpperFall, locate,
+from drillcosim.controllers.event_locator import (ENTRY_SETTLING, ENTRY_SHAPES, EXIT_SHAPES, ProcessChange, locate,
                                                    onset_length, settling_fall, time_at)
 from drillcosim.controllers.kernels import KernelBlock
 from drillcosim.controllers.kernels.structs import Detector as _DetectorState
@@ -450,8 +450,9 @@ class InterfaceDetector(KernelBlock, Block):
     layer_feed_rate [m/s], process_ramp [s]: the feed rate the plan commands in each layer (with
         ``feed_per_rev``: the spindle speed is their ratio) and the adaptation's raised-cosine
         ramp between two layers' processes, which starts at each trigger: an interface's drop
-        then fits its upper layer's push-out under the new process (event_locator.UpperFall,
-        with ``exit_shape`` and the drive's compliance); None (default): free laws.
+        then fits its upper layer's push-out under the new process (with ``exit_shape`` and the
+        drive's compliance), a rise its lower onset before it (event_locator.ProcessChange);
+        None (default): free laws, the process as it was.
     exit_loc_after [m]: travel after the exit's trigger its localisation window holds
         (default locate_margin; the hole plan adds half an orbit of the last layer's feed:
         the orbit means of the last half orbit need the samples after it).
@@ -722,7 +723,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.exit_release_compliance, self.exit_feed_exponent = float(compliance), float(feed_exponent)
 
     def _set_process(self, layer_feed_rate, process_ramp, feed_per_rev) -> None:
-        """The plan's process per layer and the adaptation's ramp (:meth:`_upper_fall`), checked."""
+        """The plan's process per layer and the adaptation's ramp (:meth:`_process_change`), checked."""
         self.process = None
         if layer_feed_rate is None:
             return
@@ -738,8 +739,8 @@ class InterfaceDetector(KernelBlock, Block):
                              f"ramp_time), got {process_ramp!r}")
         self.process = (feed, fpr, float(process_ramp))
 
-    def _upper_fall(self, k: int, t) -> UpperFall | None:
-        """Interface k's drop under the adaptation's switch at its trigger (event_locator.UpperFall):
+    def _process_change(self, k: int, t) -> ProcessChange | None:
+        """The adaptation's process change at interface k's trigger (event_locator.ProcessChange):
         the share (f(t) / f_k)^x_feed of the feed per revolution commanded at the force samples'
         times ``t`` [s] -- feed rate and spindle speed each blended by the raised cosine from the
         trigger, as CuttingParameterAdaptation does -- or None where the plan gives no process or
@@ -754,8 +755,8 @@ class InterfaceDetector(KernelBlock, Block):
         r = np.array([0.5 * (1.0 - math.cos(math.pi * v)) for v in s.tolist()])
         f = (fa + r * (fb - fa)) / (na + r * (nb - na))
         x_feed = self.exit_feed_exponent
-        return UpperFall(self.exit_shape, (f / fpr[k - 1]) ** x_feed,
-                         (self.exit_compliance + self.exit_release_compliance, x_feed))
+        return ProcessChange(self.exit_shape, (f / fpr[k - 1]) ** x_feed,
+                             (self.exit_compliance + self.exit_release_compliance, x_feed))
 
     def _exit_release(self) -> tuple[float, float] | None:
         """The exit's released push-out for event_locator.locate: (compliance [m/N], x_feed), None when off."""
@@ -1336,7 +1337,8 @@ class InterfaceDetector(KernelBlock, Block):
                            ghost=self._exit_ghost() if kind == "exit" else self._interface_ghost(k) if k else None,
                            exit_shape=self.exit_shape if laws else "any",
                            exit_release=self._exit_release() if kind == "exit" else None,
-                           upper_fall=self._upper_fall(k, ht[sel] - self.observer_delay) if kind == "interface" else None)
+                           process_change=self._process_change(k, ht[sel] - self.observer_delay)
+                           if kind == "interface" else None)
         if k == 0:
             x_loc, dx = self._entry_refit(x_fit, hF[sel], hi, x_trig, air, period, x_loc, dx)
         F_air = F_air_sd = NAN
@@ -1626,7 +1628,7 @@ class InterfaceDetector(KernelBlock, Block):
         "exit_release": ("1", "the exit's released push-out: compliance between encoder and cutting front [m/N] "
                               "(0: off), the cutting law's feed exponent"),
         "max_gap": ("m", "widest gap between two layers"),
-        "process": ("1", "1: an interface's drop fits its upper layer's push-out under the plan's process (0: free laws)"),
+        "process": ("1", "1: an interface's fit takes the plan's process change (0: free laws)"),
         "layer_feed_rate": ("m/s", "feed rate the plan commands in each layer (an interface's drop)"),
         "layer_feed_per_rev": ("m", "feed per revolution of each layer's process, m/rev (an interface's drop)"),
         "process_ramp": ("s", "the adaptation's raised-cosine ramp between two layers' processes from the trigger"),

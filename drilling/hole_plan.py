@@ -388,8 +388,8 @@ class HolePlan:
             "feed_per_rev": fprs,
             "feed_per_rev_min": min(fprs + [feed_per_rev(cons)]),
             # the process each layer is cut with and the adaptation's ramp to it from the trigger:
-            # a drop's trigger fires inside the upper layer's push-out, whose thrust follows the new
-            # feed per revolution (InterfaceDetector._upper_fall)
+            # an interface's trigger fires inside its change of thrust, which from there follows the
+            # new feed per revolution (InterfaceDetector._process_change)
             "layer_feed_rate": [self.layer_process(k)["feed_rate"] for k in range(len(self.layers))],
             "process_ramp": ramp_s,
             "feed_rate": min(cons["feed_rate"], *(p["feed_rate"] for p in self.process.values())),

@@ -156,7 +156,7 @@ CASES = {
                                         ringing=10.0, feed_mm_min=15.0)),
     # issue 23: a drop across a gap under the plan's process (each layer's feed rate, the adaptation's
     # 0.2 s ramp from the trigger): the upper layer's push-out fitted with the plan's law times the
-    # share of the feed per revolution commanded (event_locator.UpperFall), released with the drive's
+    # share of the feed per revolution commanded (event_locator.ProcessChange), released with the drive's
     # compliance, in Python, the C step and the exported FMU's C fit
     "plan_process_drops": (dict(PLAN, kc=[3.2e7, 1.875e7, 1.2e7], feed_per_rev=[5e-6, 4e-6, 5e-6],
                                 layer_feed_rate=[2.5e-4, 1.6e-4, 2.5e-4], process_ramp=0.2, exit_shape="quadratic",

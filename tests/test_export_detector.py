@@ -9,7 +9,7 @@ to C (kernels/event_locator.c). What is checked here:
   synthetic holes (air, engagement ramps, gaps, thinning exits, ripple, noise; the cases of
   tests/test_detector_kernel.py) and on hand-made entry / gap / exit windows: the same
   position and interval, within 1e-9 mm (measured: the same doubles); an interface drop's
-  upper fall under the plan's process (event_locator.UpperFall) on a recorded window too;
+  upper fall under the plan's process (event_locator.ProcessChange) on a recorded window too;
 * the exported step against the in-process step, sample by sample on those holes: every
   output the same doubles. The exported dot sums in the order of OpenBLAS's AVX2 ddot kernel
   (portable C); where numpy uses another kernel, the prediction F^ and what is computed
@@ -52,7 +52,7 @@ PREDICTION = ("F_pred", "F_err", "F_ref", "thd", "level_mismatch")
 
 
 def _c_locate(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any", entry_shape="any",
-              exit_release=None, upper_fall=None):
+              exit_release=None, process_change=None):
     fn = detector_kernel.export_library().event_locate_tables
     fn.restype = None
     fn.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_long, ctypes.c_double,
@@ -64,24 +64,24 @@ def _c_locate(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, 
     g = None if ghost is None else np.array(ghost, float)
     rel = None if exit_release is None else np.array(exit_release, float)
     # the upper fall: its share per sample, its law's code, its release (NULL share: none)
-    share = None if upper_fall is None else np.ascontiguousarray(upper_fall.share, float)
-    fall_rel = None if upper_fall is None else np.array(upper_fall.release, float)
+    share = None if process_change is None else np.ascontiguousarray(process_change.share, float)
+    fall_rel = None if process_change is None else np.array(process_change.release, float)
     fn(KINDS[kind], x.ctypes.data, F.ctypes.data, x.size, air, x_trig,
        math.nan if cut_floor is None else cut_floor, period or 0.0, None if g is None else g.ctypes.data,
        tables.ctypes.data, out.ctypes.data, list(EXIT_SHAPES).index(exit_shape), list(ENTRY_SHAPES).index(entry_shape),
        None if rel is None else rel.ctypes.data, None if share is None else share.ctypes.data,
-       0 if upper_fall is None else list(EXIT_SHAPES).index(upper_fall.shape),
+       0 if process_change is None else list(EXIT_SHAPES).index(process_change.shape),
        None if fall_rel is None else fall_rel.ctypes.data)
     return float(out[0]), float(out[1])
 
 
 def _assert_same_fit(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any",
-                     entry_shape="any", exit_release=None, py=None, upper_fall=None):
+                     entry_shape="any", exit_release=None, py=None, process_change=None):
     """The C fit equals the Python one (``py``: already made, else fitted here)."""
     if py is None:
         py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost,
-                    exit_shape=exit_shape, entry_shape=entry_shape, exit_release=exit_release, upper_fall=upper_fall)
-    c = _c_locate(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, entry_shape, exit_release, upper_fall)
+                    exit_shape=exit_shape, entry_shape=entry_shape, exit_release=exit_release, process_change=process_change)
+    c = _c_locate(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, entry_shape, exit_release, process_change)
     for a, b in zip(py, c):
         assert (math.isnan(a) and math.isnan(b)) or abs(a - b) <= 1e-12, (kind, py, c)   # 1e-9 mm
     return py
@@ -106,12 +106,12 @@ def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
     calls = []
 
     def spy(kind, x, F, *, air=0.0, x_trig=None, cut_floor=None, period=None, entry_shape="any", ghost=None,
-            exit_shape="any", exit_release=None, upper_fall=None):
+            exit_shape="any", exit_release=None, process_change=None):
         assert entry_shape == "any"     # the cases fit both ramps, as event_locate_tables does
         py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost,
-                    exit_shape=exit_shape, exit_release=exit_release, upper_fall=upper_fall)
+                    exit_shape=exit_shape, exit_release=exit_release, process_change=process_change)
         calls.append((kind, np.array(x), np.array(F), air, x_trig, cut_floor, period, ghost, exit_shape, exit_release,
-                      upper_fall, py))
+                      process_change, py))
         return py
 
     monkeypatch.setattr(idm, "locate", spy)
@@ -126,10 +126,10 @@ def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
     assert {c[8] for c in calls} == {"any", "bending", "linear", "quadratic"}
     assert any(c[0] == "interface" and c[7] is not None for c in calls)    # a drop's ghost (plan_slow_drops_ghost)
     assert any(c[10] is not None for c in calls)       # a drop under the process change (plan_process_drops)
-    for kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, exit_release, upper_fall, py in calls:
+    for kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, exit_release, process_change, py in calls:
         # the Python fit as the step made it (fitting it again took a third of the test's time)
         _assert_same_fit(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, exit_release=exit_release,
-                         py=py, upper_fall=upper_fall)
+                         py=py, process_change=process_change)
 
 
 def test_c_fit_of_a_window_cut_short_to_a_thin_layer():
@@ -171,11 +171,11 @@ def _exported_step(det):
     return step
 
 
-def test_the_c_upper_fall_s_share_is_python_s():
-    """The exported step's share of an interface's drop (detector_upper_fall) is
-    InterfaceDetector._upper_fall's to the bit: over the adaptation's ramp and as a step, at the
+def test_the_c_process_change_s_share_is_python_s():
+    """The exported step's share of an interface's drop (detector_process_change) is
+    InterfaceDetector._process_change's to the bit: over the adaptation's ramp and as a step, at the
     plan's feed exponent and at 0.5 (numpy's ** 0.5 is a square root); none where the hole failed."""
-    fn = detector_kernel.export_library().interface_detector_fmu_upper_fall
+    fn = detector_kernel.export_library().interface_detector_fmu_process_change
     fn.restype, fn.argtypes = ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_long,
                                              ctypes.c_void_p]
     settings, trace = CASES["plan_process_drops"]
@@ -190,7 +190,7 @@ def test_the_c_upper_fall_s_share_is_python_s():
         state.process_ramp, state.exit_release[1] = ramp_s, x_feed
         share = np.zeros(t.size)
         assert fn(ctypes.addressof(state), 1, t.ctypes.data, t.size, share.ctypes.data) == 1
-        py = det._upper_fall(1, t).share
+        py = det._process_change(1, t).share
         assert share.tobytes() == py.tobytes(), (ramp_s, x_feed, np.abs(share - py).max())
         assert py[0] == 1.0 and py[-1] == pytest.approx((fpr[1] / fpr[0]) ** x_feed)
     state.fail = 1.0
@@ -442,7 +442,7 @@ def test_c_fit_of_a_drop_under_the_process_change():
     seed-24 hole 96, Ti at ~1230 N onto CFRP across a 3 um gap; the adaptation switches to the CFRP's
     4.0 um/rev from the trigger, inside the Ti's push-out: the share falls to 0.41). The upper layer's
     fall fitted with the plan's law times that share, released with the drive's compliance
-    (event_locator.UpperFall), locates the event within 0.01 mm of the gap's faces' middle; the free
+    (event_locator.ProcessChange), locates the event within 0.01 mm of the gap's faces' middle; the free
     laws put it 0.08 mm early. Python = C: released, rigid (the law times the share) and with
     non-finite samples dropped from the window and its share alike (event_locate's compaction)."""
     d = json.loads((ROOT / "tests" / "data" / "interface_window_foreign_process_drop.json").read_text())
@@ -450,20 +450,20 @@ def test_c_fit_of_a_drop_under_the_process_change():
     mid = 0.5e-6 * sum(d["faces_um"])
     args = ("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6, d["cut_floor"])
     laws = dict(exit_shape=d["exit_shape"], entry_shape=d["entry_shape"])
-    fall = event_locator.UpperFall(d["fall_shape"], share, tuple(d["release"]))
-    x_loc, _ = _assert_same_fit(*args, **laws, upper_fall=fall)
+    fall = event_locator.ProcessChange(d["fall_shape"], share, tuple(d["release"]))
+    x_loc, _ = _assert_same_fit(*args, **laws, process_change=fall)
     assert abs(x_loc - mid) <= 0.01 * MM
     x_free, _ = _assert_same_fit(*args, **laws)
     assert x_free < mid - 0.05 * MM                       # the case is real: the free laws, early
-    _assert_same_fit(*args, **laws, upper_fall=fall._replace(release=(0.0, d["release"][1])))
+    _assert_same_fit(*args, **laws, process_change=fall._replace(release=(0.0, d["release"][1])))
     # non-finite samples before the share falls (from sample 188): the share compacted with them;
     # read on from where the window's samples were (5 samples late) the event moved (0.028 mm early)
     assert np.all(share[:188] == 1.0) and share[188] < 1.0
     x_nan, F_nan = x.copy(), F.copy()
     x_nan[[20, 90]], F_nan[[5, 60, 150]] = np.nan, np.inf
-    x_kept, _ = _assert_same_fit("interface", x_nan, F_nan, *args[3:], **laws, upper_fall=fall)
+    x_kept, _ = _assert_same_fit("interface", x_nan, F_nan, *args[3:], **laws, process_change=fall)
     ok = np.isfinite(x_nan) & np.isfinite(F_nan)
     late = fall._replace(share=share[:ok.sum()])
     x_late, _ = locate("interface", x[ok], F[ok], air=d["air_N"], x_trig=d["trigger_um"] * 1e-6,
-                       cut_floor=d["cut_floor"], **laws, upper_fall=late)
+                       cut_floor=d["cut_floor"], **laws, process_change=late)
     assert abs(x_late - x_kept) > 0.005 * MM, (x_late, x_kept)

@@ -51,7 +51,7 @@ typedef struct {
     double release[2];  /* the exit's released push-out: compliance [m/N] (0: the law itself), x_feed
                            (event_locator.locate's exit_release) */
     const double *share;   /* the push-out law's factor at each of the fit's samples, or NULL (1): an
-                              interface drop's upper fall under the process change (event_locator.UpperFall) */
+                              interface drop's upper fall under the process change (event_locator.ProcessChange) */
 } LocGrid;
 
 /* One fit problem: samples, the family (onset or push-out), the air level (NaN: fitted);
@@ -711,7 +711,7 @@ static void loc_exit(LocFit *f, double period, double x0, double x1, double *x_l
  * [samples]: the exit's fit on means over one orbit, the entry's fits the orbit's sinusoid
  * too (<= 1: none; locate's period); ghost: NULL, or the exit's {orbit [samples], decay per
  * sample} of locate's ghost, or an interface's (the lower layer's orbit); fall: NULL, or an
- * interface's upper fall (locate's upper_fall: a push-out grid of its law, release and share
+ * interface's upper fall (locate's process_change: a push-out grid of its law, release and share
  * per sample of x_in) */
 void event_locate(int kind, const double *x_in, const double *F_in, long n_in, double air, double x_trig,
                   double cut_floor, double period, const double *ghost, const LocGrid *engage, const LocGrid *push,
@@ -726,7 +726,7 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
     for (long i = 0; i < n_in; i++)
         if (isfinite(x_in[i]) && isfinite(F_in[i])) {
             if (fall != NULL)
-                share[n] = fall->share[i];      /* _checked_fall: the share of the samples kept */
+                share[n] = fall->share[i];      /* _checked_change: the share of the samples kept */
             x[n] = x_in[i];
             F[n++] = F_in[i];
         }

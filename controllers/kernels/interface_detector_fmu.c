@@ -173,13 +173,13 @@ static const double *interface_ghost(const DetectorFMU *s, int k, double *ghost)
     return ghost[0] > 0.0 ? ghost : NULL;
 }
 
-/* InterfaceDetector._upper_fall: interface k's drop under the adaptation's switch at its trigger
+/* InterfaceDetector._process_change: interface k's drop under the adaptation's switch at its trigger
  * -- the share (f(t) / f_{k-1})^x_feed of the feed per revolution commanded at the force samples'
  * times t[0..m) [s], feed rate and spindle speed each blended by the raised cosine (cos, pow:
  * libm's, as the Python's math.cos and numpy's power; the exit's law, the drive's compliance) -- into share and
  * *fall; NULL where the plan gives no process or the hole has failed (the fail-safe's set is in
  * force) or the trigger has no time */
-static const LocGrid *detector_upper_fall(const DetectorFMU *s, int k, const double *t, long m, const LocGrid *push,
+static const LocGrid *detector_process_change(const DetectorFMU *s, int k, const double *t, long m, const LocGrid *push,
                                           double *share, LocGrid *fall)
 {
     double t_ev = s->d.t_ev[k];
@@ -221,7 +221,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     for (long j = 0; j < n; j++)
         if (xs[j] >= lo && xs[j] <= hi) {
             xsel[m] = comp > 0.0 ? xs[j] - comp * (F[j] - air) : xs[j];
-            tsel[m] = t[j] - s->observer_delay;       /* when the observer saw the force (_upper_fall's t) */
+            tsel[m] = t[j] - s->observer_delay;       /* when the observer saw the force (_process_change's t) */
             Fsel[m++] = F[j];
         }
     /* the engage grid fits the entry's onset, or an interface's: only the entry's may be linear alone */
@@ -243,7 +243,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     double if_ghost[2];
     const double *ghost = kind == LOC_EXIT ? s->exit_ghost : kind == LOC_INTERFACE ? interface_ghost(s, k, if_ghost) : NULL;
     LocGrid fall_grid;
-    const LocGrid *fall = kind == LOC_INTERFACE ? detector_upper_fall(s, k, tsel, m, &push, share, &fall_grid) : NULL;
+    const LocGrid *fall = kind == LOC_INTERFACE ? detector_process_change(s, k, tsel, m, &push, share, &fall_grid) : NULL;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, fall, &out[0], &out[2]);
     double orbit = period > 0.0 && m > 1 ? period * (xsel[m - 1] - xsel[0]) / (double)(m - 1) : 0.0;
     double ramp = kind == LOC_ENTRY && isfinite(out[0]) ? event_onset_length(xsel, Fsel, m, out[0], period, &engage) : NAN;
@@ -307,7 +307,7 @@ void interface_detector_fmu_step(DetectorFMU *s, double t, const double *u, doub
  * interface, 2 exit; out = x_loc, dx [m]; tables as in DetectorFMU; period [samples],
  * ghost (NULL: none), exit_shape and entry_shape (DetectorFMU's codes), release (NULL: none; the exit's
  * {compliance [m/N], x_feed}) as event_locator.locate's; share (NULL: none) an interface's upper
- * fall (locate's upper_fall: a share per sample, the law fall_shape, fall_release {compliance, x_feed}) */
+ * fall (locate's process_change: a share per sample, the law fall_shape, fall_release {compliance, x_feed}) */
 void event_locate_tables(int kind, const double *x, const double *F, long n, double air, double x_trig,
                          double cut_floor, double period, const double *ghost, const double *tables, double *out,
                          int exit_shape, int entry_shape, const double *release, const double *share, int fall_shape,
@@ -337,12 +337,12 @@ void event_locate_tables(int kind, const double *x, const double *F, long n, dou
                  &out[0], &out[1]);
 }
 
-/* InterfaceDetector._upper_fall's share alone, for the test that it is the Python's to the bit:
- * 1 with share[0..m) at the times t [s], or 0 where _upper_fall gives None */
-int interface_detector_fmu_upper_fall(const DetectorFMU *s, int k, const double *t, long m, double *share)
+/* InterfaceDetector._process_change's share alone, for the test that it is the Python's to the bit:
+ * 1 with share[0..m) at the times t [s], or 0 where _process_change gives None */
+int interface_detector_fmu_process_change(const DetectorFMU *s, int k, const double *t, long m, double *share)
 {
     LocGrid push = {s->push_out_lengths, s->push_out_fine, LOC_N_PUSH_OUT, 0, 2}, fall;
-    return detector_upper_fall(s, k, t, m, &push, share, &fall) != NULL;
+    return detector_process_change(s, k, t, m, &push, share, &fall) != NULL;
 }
 
 /* numpy.mean as the fit spells it, for the test that it is numpy's to the bit */

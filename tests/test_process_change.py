@@ -1,5 +1,5 @@
 """An interface's drop under the adaptation's process change (issue 23, round 15;
-event_locator.UpperFall, InterfaceDetector layer_feed_rate / process_ramp).
+event_locator.ProcessChange, InterfaceDetector layer_feed_rate / process_ramp).
 
 A drop's trigger (a hard layer onto a softer one) fires inside the upper layer's push-out,
 and the adaptation switches the feed per revolution from there: the fall is the push-out
@@ -60,7 +60,7 @@ def _plant_drop(m1: float, rho: float = 0.3, n: int = 330, travel: float = 4e-6,
 
 
 def _fall(share, C):
-    return el.UpperFall("quadratic", share, (C, X_FEED))
+    return el.ProcessChange("quadratic", share, (C, X_FEED))
 
 
 @pytest.mark.parametrize("m1", [0.45, 1.8])
@@ -72,7 +72,7 @@ def test_a_drop_under_a_process_change_is_located_in_its_gap(m1):
     x, F, share, C = _plant_drop(m1)
     middle = FACE + 0.5 * GAP
     free = el.locate("interface", x, F, air=0.0, x_trig=FACE - 0.12 * MM)[0]
-    fall = el.locate("interface", x, F, air=0.0, x_trig=FACE - 0.12 * MM, upper_fall=_fall(share, C))[0]
+    fall = el.locate("interface", x, F, air=0.0, x_trig=FACE - 0.12 * MM, process_change=_fall(share, C))[0]
     assert abs(fall - middle) <= 0.01 * MM
     if m1 < 1.0:
         assert free - middle < -0.02 * MM      # the error the fall takes out
@@ -83,11 +83,11 @@ def test_without_a_change_or_on_a_rise_the_fall_changes_little_or_nothing():
     as well; a rise (the lower layer cuts higher: its trigger is past the lower face) is fitted
     as before, bit for bit, whatever the share."""
     x, F, share, C = _plant_drop(1.0)
-    assert abs(el.locate("interface", x, F, air=0.0, upper_fall=_fall(share, C))[0] - FACE - 0.5 * GAP) <= 0.01 * MM
+    assert abs(el.locate("interface", x, F, air=0.0, process_change=_fall(share, C))[0] - FACE - 0.5 * GAP) <= 0.01 * MM
     rise = F.copy()
     rise[x > FACE + GAP] += 3.0 * F_PL * np.clip((x[x > FACE + GAP] - FACE - GAP) / (0.1 * MM), 0.0, 1.0)
     odd = np.linspace(1.0, 0.3, x.size)
-    assert el.locate("interface", x, rise, air=0.0, upper_fall=_fall(odd, C)) == el.locate("interface", x, rise, air=0.0)
+    assert el.locate("interface", x, rise, air=0.0, process_change=_fall(odd, C)) == el.locate("interface", x, rise, air=0.0)
 
 
 def test_the_recorded_drop_of_the_foreign_drive():
@@ -101,7 +101,7 @@ def test_the_recorded_drop_of_the_foreign_drive():
               entry_shape=d["entry_shape"], exit_shape=d["exit_shape"])
     lo, hi = (v * 1e-6 for v in d["faces_um"])
     free = el.locate("interface", x, F, **kw)[0]
-    fall = el.locate("interface", x, F, **kw, upper_fall=el.UpperFall(d["fall_shape"], np.array(d["share"]),
+    fall = el.locate("interface", x, F, **kw, process_change=el.ProcessChange(d["fall_shape"], np.array(d["share"]),
                                                                      tuple(d["release"])))[0]
     assert free < lo - 0.05 * MM
     assert lo - 0.01 * MM <= fall <= hi + 0.01 * MM
@@ -133,7 +133,7 @@ def test_a_rise_s_onset_is_fitted_before_the_process_changes():
     x, F, share = _plant_rise(FACE + 0.1 * MM)
     face = FACE + 0.03 * MM
     free = el.locate("interface", x, F, air=0.0)
-    fall = el.locate("interface", x, F, air=0.0, upper_fall=_fall(share, 5e-8))
+    fall = el.locate("interface", x, F, air=0.0, process_change=_fall(share, 5e-8))
     assert free[0] < FACE - 0.01 * MM or free[0] > face + 0.01 * MM     # outside the gap: its ramp's level and
     assert FACE - 0.005 * MM <= fall[0] <= face + 0.005 * MM             # trend took the bend (here early)
 
@@ -142,7 +142,7 @@ def test_a_rise_without_its_foot_before_the_change_is_fitted_as_before():
     """Where the process changes before the ramp's foot shows (a trigger on the upper layer's
     fall, a wide gap), the samples before it hold no onset: the fit on every sample, bit for bit."""
     x, F, share = _plant_rise(FACE + 0.01 * MM)
-    assert el.locate("interface", x, F, air=0.0, upper_fall=_fall(share, 5e-8)) == el.locate("interface", x, F, air=0.0)
+    assert el.locate("interface", x, F, air=0.0, process_change=_fall(share, 5e-8)) == el.locate("interface", x, F, air=0.0)
 
 
 def test_the_recorded_rise_of_the_foreign2_drive():
@@ -155,7 +155,7 @@ def test_the_recorded_rise_of_the_foreign2_drive():
               entry_shape=d["entry_shape"], exit_shape=d["exit_shape"])
     lo, hi = (v * 1e-6 for v in d["faces_um"])
     free = el.locate("interface", x, F, **kw)[0]
-    fall = el.locate("interface", x, F, **kw, upper_fall=el.UpperFall(d["fall_shape"], np.array(d["share"]),
+    fall = el.locate("interface", x, F, **kw, process_change=el.ProcessChange(d["fall_shape"], np.array(d["share"]),
                                                                      tuple(d["release"])))[0]
     assert free > hi + 0.03 * MM
     assert lo - 0.005 * MM <= fall <= hi + 0.005 * MM
@@ -163,10 +163,10 @@ def test_the_recorded_rise_of_the_foreign2_drive():
 
 def test_a_bad_fall_is_named():
     x, F, share, C = _plant_drop(0.45, n=120)
-    with pytest.raises(ValueError, match="upper_fall must have a shape of"):
-        el.locate("interface", x, F, upper_fall=_fall(share[:-1], C))
-    with pytest.raises(ValueError, match="upper_fall must have a shape of"):
-        el.locate("interface", x, F, upper_fall=el.UpperFall("cubic", share, (C, X_FEED)))
+    with pytest.raises(ValueError, match="process_change must have a shape of"):
+        el.locate("interface", x, F, process_change=_fall(share[:-1], C))
+    with pytest.raises(ValueError, match="process_change must have a shape of"):
+        el.locate("interface", x, F, process_change=el.ProcessChange("cubic", share, (C, X_FEED)))
 
 
 def _detector(**kw):
@@ -184,15 +184,15 @@ def test_the_detector_blends_the_process_as_the_adaptation_does():
                     exit_compliance=5e-8, exit_feed_exponent=X_FEED)
     det.t_ev[1] = 10.0
     t = np.array([9.0, 10.0, 10.1, 10.2, 11.0])
-    fall = det._upper_fall(1, t)
+    fall = det._process_change(1, t)
     n_a, n_b = 2e-4 / 10e-6, 1e-4 / 4e-6
     mid = (2e-4 + 0.5 * (1e-4 - 2e-4)) / (n_a + 0.5 * (n_b - n_a))
     want = np.array([1.0, 1.0, (mid / 10e-6) ** X_FEED, 0.4 ** X_FEED, 0.4 ** X_FEED])
     assert np.allclose(fall.share, want, rtol=1e-12)
     assert fall.shape == "quadratic" and fall.release == (5e-8, X_FEED)
-    assert _detector()._upper_fall(1, t) is None
+    assert _detector()._process_change(1, t) is None
     det.fail = 1
-    assert det._upper_fall(1, t) is None
+    assert det._process_change(1, t) is None
     with pytest.raises(ValueError, match="layer_feed_rate needs feed_per_rev"):
         InterfaceDetector(thicknesses=[3e-3, 3e-3], layer_feed_rate=[2e-4, 1e-4])
     with pytest.raises(ValueError, match="process_ramp must be a number >= 0 s"):
