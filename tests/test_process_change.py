@@ -19,6 +19,8 @@ import pytest
 
 from drillcosim.controllers import event_locator as el
 from drillcosim.controllers.interface_detector import InterfaceDetector
+from drillcosim.cosim.errors import ScenarioError
+from drillcosim.cosim.scenario.loader import load_scenario
 from drillcosim.drilling.hole_plan import ADAPT_RAMP_S, HolePlan
 from drillcosim.controllers.adaptation import CuttingParameterAdaptation
 
@@ -214,3 +216,17 @@ def test_the_plan_gives_the_detector_the_adaptations_process():
     assert settings["layer_feed_rate"] == [1e-4, 3e-4] and settings["process_ramp"] == 0.15
     default = inspect.signature(CuttingParameterAdaptation).parameters["ramp_time"].default
     assert math.isclose(default, ADAPT_RAMP_S)
+
+
+def test_the_shipped_plans_give_the_detector_their_process_and_name_a_bad_ramp():
+    """A stacks scenario's detector gets the plan's feed rates and the adaptation block's own
+    ramp_time (the scenario's, or the one the plan derives into the block); a bad ramp_time is
+    an error naming the file and the key."""
+    stacks = Path(__file__).resolve().parents[1] / "scenarios" / "stacks"
+    for name in ("cfrp_ti", "foreign_cfrp_ti"):
+        sc = load_scenario(stacks / f"{name}.toml")
+        feed, fpr, ramp = sc.system.blocks["detector"].process
+        assert ramp == sc.system.blocks["adapt"].ramp_time == 0.2
+        assert list(feed) == [2e-4, 1.5e-4] and all(f > 0.0 for f in fpr)
+    with pytest.raises(ScenarioError, match=r"cfrp_ti.toml: blocks.adapt.settings.ramp_time: expected a number >= 0 s"):
+        load_scenario(stacks / "cfrp_ti.toml", {"blocks.adapt.settings.ramp_time": -0.1})
