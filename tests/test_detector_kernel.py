@@ -30,13 +30,15 @@ DT = 0.02
 
 
 def _trace(levels, thick_mm, gaps_mm, feed_mm_min=12.0, surface_mm=1.0, start_mm=0.2, engage_mm=0.1,
-           thinning_mm=0.4, ringing=0.0, seed=5, nan_every=0):
+           thinning_mm=0.4, ringing=0.0, seed=5, nan_every=0, process=None):
     """(t, x, F) at the detector's 0.02 s: the tool fed at ``feed_mm_min`` from ``start_mm``,
     layer k's thrust ``levels[k]`` [N] rising over ``engage_mm`` after its top face (after
     ``gaps_mm[k]`` of air below the layer above), the last layer's thrust falling linearly
     over its last ``thinning_mm``; an air offset with a burst of ``ringing`` [N] 0.3 mm above
     the surface (an observer ringing in air), the orbital ripple, noise; every ``nan_every``-th
-    sample NaN."""
+    sample NaN. ``process`` = (k, at_mm, share, ramp_mm): layer k cut at the layer above's process
+    (its thrust times ``share``) up to ``at_mm`` past its top face, then at its own, blended by a
+    raised cosine over ``ramp_mm`` (the adaptation's switch at the trigger, on the layer's ramp)."""
     rng = np.random.default_rng(seed)
     tops, z = [], surface_mm
     for th, gap in zip(thick_mm, gaps_mm):
@@ -47,8 +49,11 @@ def _trace(levels, thick_mm, gaps_mm, feed_mm_min=12.0, surface_mm=1.0, start_mm
     t = np.arange(0.0, (end + 1.0 - start_mm) / (feed_mm_min / 60.0), DT)
     x_mm = start_mm + feed_mm_min / 60.0 * t
     cut = np.zeros(t.size)
-    for top, th, level in zip(tops, thick_mm, levels):
+    for k, (top, th, level) in enumerate(zip(tops, thick_mm, levels)):
         inside = (x_mm > top) & (x_mm < top + th)
+        if process is not None and process[0] == k:
+            r = np.clip((x_mm - top - process[1]) / process[3], 0.0, 1.0)
+            level = level * (process[2] + (1.0 - process[2]) * 0.5 * (1.0 - np.cos(np.pi * r)))
         cut += np.where(inside, level * np.clip((x_mm - top) / engage_mm, 0.0, 1.0), 0.0)
     F = 3.0 + cut * np.clip((end - x_mm) / thinning_mm, 0.0, 1.0)
     F += ringing * np.exp(-((x_mm - surface_mm + 0.3) / 0.15) ** 2) * np.sin(2 * np.pi * 1.3 * t)
@@ -162,6 +167,14 @@ CASES = {
                                 layer_feed_rate=[2.5e-4, 1.6e-4, 2.5e-4], process_ramp=0.2, exit_shape="quadratic",
                                 exit_release_compliance=1e-7),
                            dict(levels=(160.0, 75.0, 60.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.1, 0.0))),
+    # issue 23: a rise under the plan's process: a slow 30 N aluminium-like layer, a 50 um gap, a 600 N
+    # titanium-like one whose feed per revolution the adaptation raises 3x at the trigger, on its
+    # 0.3 mm ramp: the onset fitted on the samples before the change (event_locator._rise_before_change),
+    # in Python, the C step and the exported FMU's C fit
+    "plan_process_rise": (dict(PLAN, thicknesses=(3 * MM, 2.5 * MM), kc=[7.5e6, 5e7], feed_per_rev=[4e-6, 12e-6],
+                               layer_feed_rate=[1e-4, 3e-4], process_ramp=0.2, exit_shape="quadratic"),
+                          dict(levels=(30.0, 600.0), thick_mm=(3.0, 2.5), gaps_mm=(0.0, 0.05), engage_mm=0.3,
+                               process=(1, 0.05, 3.0 ** -0.75, 0.04))),
     "four_layers": (dict(thicknesses=(2 * MM, 2 * MM, 2 * MM, 2 * MM), thd2=30.0, N=60, N_min=10, rearm_samples=40),
                     dict(levels=(120.0, 300.0, 150.0, 350.0), thick_mm=(2.0, 2.0, 2.0, 2.0), gaps_mm=(0, 0, 0, 0),
                          engage_mm=0.02, thinning_mm=0.05)),

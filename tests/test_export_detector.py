@@ -126,6 +126,8 @@ def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
     assert {c[8] for c in calls} == {"any", "bending", "linear", "quadratic"}
     assert any(c[0] == "interface" and c[7] is not None for c in calls)    # a drop's ghost (plan_slow_drops_ghost)
     assert any(c[10] is not None for c in calls)       # a drop under the process change (plan_process_drops)
+    # ... and a rise (plan_process_rise): its onset fitted before the change
+    assert any(c[10] is not None and np.subtract(*event_locator._end_levels(c[1], c[2])) < 0 for c in calls)
     for kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, exit_release, process_change, py in calls:
         # the Python fit as the step made it (fitting it again took a third of the test's time)
         _assert_same_fit(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, exit_release=exit_release,
@@ -467,3 +469,28 @@ def test_c_fit_of_a_drop_under_the_process_change():
     x_late, _ = locate("interface", x[ok], F[ok], air=d["air_N"], x_trig=d["trigger_um"] * 1e-6,
                        cut_floor=d["cut_floor"], **laws, process_change=late)
     assert abs(x_late - x_kept) > 0.005 * MM, (x_late, x_kept)
+
+
+def test_c_fit_of_a_rise_before_the_process_change():
+    """A recorded window (tests/data/interface_window_foreign2_process_rise.json: wide draw, foreign2
+    seed-24 hole 52, Al -> Ti across 31.8 um; the adaptation raises the feed per revolution from the
+    Al's 4.1 to the Ti's 14.5 um/rev from the trigger, on the Ti's ramp). The lower onset fitted on
+    the samples before the change (event_locator._rise_before_change) locates the event within
+    0.005 mm of the gap, on every sample > 0.03 mm late (tests/test_process_change.py asserts both on
+    the Python side). Python = C with the change, without it, and with non-finite samples dropped
+    from the window and its share alike."""
+    d = json.loads((ROOT / "tests" / "data" / "interface_window_foreign2_process_rise.json").read_text())
+    x, F, share = np.array(d["x_um"]) * 1e-6, np.array(d["F_N"]), np.array(d["share"])
+    lo, hi = (v * 1e-6 for v in d["faces_um"])
+    args = ("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6, d["cut_floor"])
+    laws = dict(exit_shape=d["exit_shape"], entry_shape=d["entry_shape"])
+    change = event_locator.ProcessChange(d["fall_shape"], share, tuple(d["release"]))
+    x_loc, _ = _assert_same_fit(*args, **laws, process_change=change)
+    assert lo - 0.005 * MM <= x_loc <= hi + 0.005 * MM
+    x_all, _ = _assert_same_fit(*args, **laws)
+    assert x_all > hi + 0.03 * MM                           # the case is real: on every sample, late
+    # non-finite samples in the gap and on the ramp before the change: the share compacted with them
+    first = int(np.flatnonzero(share != share[0])[0])
+    x_nan, F_nan = x.copy(), F.copy()
+    x_nan[[30, first - 40]], F_nan[[100, first - 3]] = np.nan, np.inf
+    _assert_same_fit("interface", x_nan, F_nan, *args[3:], **laws, process_change=change)

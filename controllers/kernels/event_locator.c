@@ -33,6 +33,7 @@
 #define LOC_EXIT_RING_ORBIT 40.0  /* samples, event_locator.EXIT_RING_ORBIT */
 #define LOC_RELEASE_NEWTON 8      /* event_locator.RELEASE_NEWTON */
 #define LOC_ENTRY_SETTLING 0.1   /* event_locator.ENTRY_SETTLING */
+#define LOC_RISE_SEEN 5.0         /* event_locator.RISE_SEEN */
 #define LOC_MAX_COLS 7             /* onset: level, trend, ramp, the orbit's sine and cosine and both times i / n;
                                       push-out: fall, its trend, air and four ghost or ringing columns */
 
@@ -127,20 +128,23 @@ static double loc_median(const double *a, long n, double *scratch)
     return (scratch[n / 2 - 1] + scratch[n / 2]) / 2.0;
 }
 
+/* numpy.std of a contiguous array (ddof 0): the root of the mean square about its mean, both
+ * pairwise as numpy's (scratch: n doubles) */
+static double loc_std(const double *a, long n, double *scratch)
+{
+    double m = loc_mean(a, n);
+    for (long i = 0; i < n; i++)
+        scratch[i] = (a[i] - m) * (a[i] - m);
+    return sqrt(loc_mean(scratch, n));
+}
+
 /* event_locator._ghost_visible: the last fifth of F (air) scatters more than its first
  * (plateau), numpy.std, and the fall between their medians is above LOC_GHOST_SNR times the
  * plateau's scatter; scratch: n doubles */
 static int loc_ghost_visible(const double *F, long n, double *scratch)
 {
     long k = LOC_PYMAX(LOC_MIN_SEGMENT, n / 5);
-    double sd[2];
-    for (int part = 0; part < 2; part++) {
-        const double *a = part == 0 ? F + n - k : F;
-        double m = loc_mean(a, k);
-        for (long i = 0; i < k; i++)
-            scratch[i] = (a[i] - m) * (a[i] - m);
-        sd[part] = sqrt(loc_mean(scratch, k));
-    }
+    double sd[2] = {loc_std(F + n - k, k, scratch), loc_std(F, k, scratch)};
     double fall = loc_median(F, k, scratch) - loc_median(F + n - k, k, scratch);
     return sd[0] > sd[1] && fall > LOC_GHOST_SNR * sd[1];
 }
@@ -620,16 +624,64 @@ static LocGrid loc_upper_grid(const LocGrid *law, const LocGrid *fall, int drop,
     return g;
 }
 
-/* a gap: the upper layer's free face and the lower one's onset around the air run; ``fall``
- * (NULL: none) the upper layer's push-out on a drop under the process change (loc_upper_grid) */
+/* event_locator._drop_onset: the lower layer's onset in [lo, the last sample] on f's samples with
+ * ``ramp``; on its bound lo with a drop's free ramps (``free_ramps``: not the plan's), again with ``plan_ramp`` */
+static void loc_drop_onset(LocFit *f, const LocGrid *ramp, const LocGrid *plan_ramp, int free_ramps, double lo,
+                           double *hi, double *dhi)
+{
+    f->grid = ramp;
+    loc_best_face(f, lo, f->x[f->n - 1], hi, dhi);
+    if (*hi <= lo && free_ramps) {
+        f->grid = plan_ramp;
+        loc_best_face(f, lo, f->x[f->n - 1], hi, dhi);
+    }
+}
+
+/* event_locator._rise_before_change: where the down samples rise (their own end levels) and the
+ * process changes inside them (``share``, down's, leaves its first value) after the ramp's foot
+ * shows (the last sample before the change above the gap's F[g0..g1) median by LOC_RISE_SEEN
+ * standard deviations), the onset on the samples before the change replaces *hi, *dhi if it is past
+ * lo with 2 MIN_SEGMENT of them past it: the ramp's rest is the new feed per revolution's, bent by
+ * the drive's release and the observer's lag, and fitted through it the onset came late */
+static void loc_rise_before_change(const LocFit *down, const double *share, const double *gap, long n_gap,
+                                   const LocGrid *ramp, const LocGrid *plan_ramp, int free_ramps, double lo,
+                                   double *scratch, double *hi, double *dhi)
+{
+    double first, last;
+    loc_end_levels(down->x, down->F, down->n, scratch, &first, &last);
+    long c = 0;
+    while (c < down->n && share[c] == share[0])    /* numpy's share != share[0]: the first that leaves it */
+        c++;
+    if (!(last > first) || c == down->n || c == 0)
+        return;
+    double seen = loc_median(gap, n_gap, scratch) + LOC_RISE_SEEN * loc_std(gap, n_gap, scratch);
+    if (!(down->F[c - 1] > seen))
+        return;
+    LocFit before = *down;
+    double h, dh;
+    long past = 0;
+    before.n = c;
+    loc_drop_onset(&before, ramp, plan_ramp, free_ramps, lo, &h, &dh);
+    for (long i = 0; i < c; i++)
+        past += down->x[i] > h;
+    if (h > lo && past >= 2 * LOC_MIN_SEGMENT) {
+        *hi = h;
+        *dhi = dh;
+    }
+}
+
+/* a gap: the upper layer's free face and the lower one's onset around the air run; ``change``
+ * (NULL: none) the adaptation's process change at the trigger (its share per sample of x): a drop's
+ * upper fall under it (loc_upper_grid), a rise's onset before it (loc_rise_before_change) */
 static void loc_gap(const double *x, const double *F, long n, double air, long g0, long g1, int open_end,
-                    const LocGrid *engage, const LocGrid *push, const LocGrid *fall, double *x_loc, double *dx)
+                    const LocGrid *engage, const LocGrid *push, const LocGrid *change, double *x_loc, double *dx)
 {
     double mid = 0.5 * (x[g0] + x[g1 - 1]);
-    double *xu = malloc((size_t)(6 * n) * sizeof(double));
+    double *xu = malloc((size_t)(7 * n) * sizeof(double));
     if (xu == NULL)
         return;
-    double *Fu = xu + n, *xd = Fu + n, *Fd = xd + n, *scratch = Fd + n, *share_up = scratch + n;
+    double *Fu = xu + n, *xd = Fu + n, *Fd = xd + n, *scratch = Fd + n, *share_up = scratch + n,
+           *share_down = share_up + n;
     long n_up = loc_select(x, F, n, -INFINITY, mid, xu, Fu), n_down = loc_select(x, F, n, mid, INFINITY, xd, Fd);
     if (n_up >= 2 * LOC_MIN_SEGMENT && n_down >= 2 * LOC_MIN_SEGMENT) {
         /* the lower layer's level from the air run's start when it cuts higher than the upper
@@ -638,43 +690,42 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
         double first, last;
         loc_end_levels(x, F, n, scratch, &first, &last);
         int closed_drop = last < first && g1 <= n - 2 * LOC_MIN_SEGMENT;
-        if (last > first || closed_drop)
-            n_down = loc_select(x, F, n, x[g0], INFINITY, xd, Fd);
+        double start = last > first || closed_drop ? x[g0] : mid;
+        n_down = loc_select(x, F, n, start, INFINITY, xd, Fd);
         double lo_onset = closed_drop ? x[g0] : mid;
-        /* before a rise the plan's ramp and push-out law (event_locator._rise_laws) */
+        /* before a rise the plan's ramp and push-out law (event_locator._rise_laws); a drop's
+           free ramps, the plan's on the onset's bound (_drop_onset) */
         LocGrid plan_ramp = loc_exit_grid(engage, engage->rise_shape);
         LocGrid ramp = last > first ? plan_ramp : *engage;
         LocGrid law = last > first ? loc_exit_grid(push, push->rise_shape) : *push;
+        int free_ramps = !(last > first) && engage->rise_shape != 0;
         LocFit down = {xd, Fd, n_down, 0, NAN, &ramp};
         double lo, dlo, hi, dhi;
         if (open_end) {                      /* the window ends in the gap: its last sample bounds it */
             hi = x[n - 1];
             dhi = 0.0;
         } else {
-            loc_best_face(&down, lo_onset, x[n - 1], &hi, &dhi);
-            if (hi <= lo_onset && !(last > first) && engage->rise_shape != 0) {
-                down.grid = &plan_ramp;      /* a drop's onset on its bound: the plan's ramp (_drop_onset) */
-                loc_best_face(&down, lo_onset, x[n - 1], &hi, &dhi);
+            loc_drop_onset(&down, &ramp, &plan_ramp, free_ramps, lo_onset, &hi, &dhi);
+            if (change != NULL) {            /* the share of the down samples, Python's change.share[down] */
+                loc_select(x, change->share, n, start, INFINITY, xu, share_down);
+                loc_rise_before_change(&down, share_down, F + g0, g1 - g0, &ramp, &plan_ramp, free_ramps, lo_onset,
+                                       scratch, &hi, &dhi);
             }
         }
         /* the upper layer's fall up to the lower layer's onset (event_locator._gap_faces) */
         n_up = loc_select(x, F, n, -INFINITY, hi, xu, Fu);
-        LocGrid upper = loc_upper_grid(&law, fall, last < first, x, n, hi, share_up);
+        LocGrid upper = loc_upper_grid(&law, change, last < first, x, n, hi, share_up);
         LocFit up = {xu, Fu, n_up, 1, air, &upper};
         loc_release_of(&up);                 /* the fall's release on the up samples (_upper_face); else none */
         loc_best_face(&up, x[0], hi, &lo, &dlo);
         if (!open_end && closed_drop && lo > x[g0]) {
             /* the onset's level from the run's start held the upper fall's tail: the onset
-               again from the free face on (event_locator._gap_faces) */
+               again from the free face on, kept only where earlier: the tail taken out, never
+               a later ramp (event_locator._gap_faces) */
             double hi2, dhi2;
             down.n = loc_select(x, F, n, lo, INFINITY, xd, Fd);
-            down.grid = &ramp;
-            loc_best_face(&down, lo, x[n - 1], &hi2, &dhi2);
-            if (hi2 <= lo && engage->rise_shape != 0) {
-                down.grid = &plan_ramp;
-                loc_best_face(&down, lo, x[n - 1], &hi2, &dhi2);
-            }
-            if (hi2 < hi) {                 /* only earlier: the tail taken out, never a later ramp */
+            loc_drop_onset(&down, &ramp, &plan_ramp, free_ramps, lo, &hi2, &dhi2);
+            if (hi2 < hi) {
                 hi = hi2;
                 dhi = dhi2;
             }
