@@ -149,8 +149,11 @@ def test_friction_identified_through_roles_does_not_depend_on_the_fmus_units(tmp
                                                                          f'path = "{si_fmu}"'))
     fits = []
     for name, binding in (("machine_units", FOREIGN_BS), ("si", si_binding)):
+        # 1 s holds (not 2 s; 0.6 s leaves a segment unfitted): both runs see the same noise, so the
+        # fits still agree to 2e-3 on offset and 1e-4 elsewhere, well inside the 1 % asserted below
         r = run_scenario(SCEN / "foreign" / "air_cut_friction_identification.toml", out_dir=tmp_path / name,
-                         overrides={"fmus.drive.plant": str(binding)},
+                         overrides={"fmus.drive.plant": str(binding), "blocks.reference.settings.hold": 1.0,
+                                    "scenario.stop_time": 10.0},
                          progress=False)
         fits.append(r.summary["scores"]["air_cut_friction"])
     assert r.system.bindings["drive"].bound["motor_angle"].scale == 1.0          # the twin is SI

@@ -80,17 +80,31 @@ def _compare(c, r, thrust_name, t_end=None):
     return float(np.max(np.abs(d)))
 
 
-def test_fig7_casadi_model_exchange_cvode_through_its_binding(c_run, casadi_fmu, tmp_path):
+def _cvode_through_its_binding(c_run, casadi_fmu, tmp_path, stop_time=None):
     """The role way (docs/bring_your_own_fmu.md): a binding file for the casadi stage and a
     scenario that extends Fig. 7 and re-binds the plant; only the FMU's path is given here,
     where the test built it."""
     scenario = Path(__file__).resolve().parent / "third_party" / "keio_fig7_casadi.toml"
-    r = run_scenario(scenario, out_dir=tmp_path, overrides={"fmus.stage.path": str(casadi_fmu)}, progress=False)
+    ov = {"fmus.stage.path": str(casadi_fmu)}
+    if stop_time is not None:
+        ov["scenario.stop_time"] = stop_time
+    r = run_scenario(scenario, out_dir=tmp_path, overrides=ov, progress=False)
     assert r.summary["status"] == "completed"
     assert r.summary["plants"]["stage"]["contract_parameters_not_bound"] == {
         "n_layers": 1, "layer1_material": 3, "seed": 7}          # this FMU has no such parameters
     assert (tmp_path / "thrust.png").exists()
-    _compare(c_run, r, "stage.thrust_true")
+    _compare(c_run, r, "stage.thrust_true", t_end=stop_time)
+
+
+def test_fig7_casadi_model_exchange_cvode_through_its_binding_short(c_run, casadi_fmu, tmp_path):
+    """The binding's run to 0.8 s: through contact and 0.3 s of force control, at the same
+    tolerances as the whole hole (the rk4 variant's window; the whole run is the long test)."""
+    _cvode_through_its_binding(c_run, casadi_fmu, tmp_path, stop_time=0.8)
+
+
+@pytest.mark.long
+def test_fig7_casadi_model_exchange_cvode_through_its_binding(c_run, casadi_fmu, tmp_path):
+    _cvode_through_its_binding(c_run, casadi_fmu, tmp_path)
 
 
 def test_fig7_casadi_model_exchange_rk4_short(c_run, casadi_fmu, tmp_path):
