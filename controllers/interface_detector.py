@@ -1629,8 +1629,8 @@ class InterfaceDetector(KernelBlock, Block):
                               "(0: off), the cutting law's feed exponent"),
         "max_gap": ("m", "widest gap between two layers"),
         "process": ("1", "1: an interface's fit takes the plan's process change (0: free laws)"),
-        "layer_feed_rate": ("m/s", "feed rate the plan commands in each layer (an interface's drop)"),
-        "layer_feed_per_rev": ("m", "feed per revolution of each layer's process, m/rev (an interface's drop)"),
+        "layer_feed_rate": ("m/s", "feed rate the plan commands in each layer (an interface's process change)"),
+        "layer_feed_per_rev": ("m", "feed per revolution of each layer's process, m/rev (an interface's process change)"),
         "process_ramp": ("s", "the adaptation's raised-cosine ramp between two layers' processes from the trigger"),
         "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
     }
