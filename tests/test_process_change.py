@@ -92,19 +92,24 @@ def test_without_a_change_or_on_a_rise_the_fall_changes_little_or_nothing():
     assert el.locate("interface", x, rise, air=0.0, process_change=_fall(odd, C)) == el.locate("interface", x, rise, air=0.0)
 
 
+def _recorded(name: str):
+    """A recorded window of tests/data (x_um, F_N, share, air_N, trigger_um, faces_um, ...): the located
+    position [m] with the free laws, with the recorded process change, and the gap's faces [m]."""
+    d = json.loads((DATA / f"{name}.json").read_text())
+    x, F = np.array(d["x_um"]) * 1e-6, np.array(d["F_N"])
+    kw = dict(air=d["air_N"], x_trig=d["trigger_um"] * 1e-6, cut_floor=d["cut_floor"],
+              entry_shape=d["entry_shape"], exit_shape=d["exit_shape"])
+    change = el.ProcessChange(d["fall_shape"], np.array(d["share"]), tuple(d["release"]))
+    return (el.locate("interface", x, F, **kw)[0], el.locate("interface", x, F, **kw, process_change=change)[0],
+            tuple(v * 1e-6 for v in d["faces_um"]))
+
+
 def test_the_recorded_drop_of_the_foreign_drive():
     """Foreign seed-24 hole 96 (Ti -> CFRP across 2.8 um, the feed per revolution cut from 13.2
     to 4.0 um at the trigger, 0.18 mm above the face): located 0.082 mm early with the free laws,
     within 0.01 mm of the gap with the plan's law under the process (replayed closed loop:
     -0.004 mm)."""
-    d = json.loads((DATA / "interface_window_foreign_process_drop.json").read_text())
-    x, F = np.array(d["x_um"]) * 1e-6, np.array(d["F_N"])
-    kw = dict(air=d["air_N"], x_trig=d["trigger_um"] * 1e-6, cut_floor=d["cut_floor"],
-              entry_shape=d["entry_shape"], exit_shape=d["exit_shape"])
-    lo, hi = (v * 1e-6 for v in d["faces_um"])
-    free = el.locate("interface", x, F, **kw)[0]
-    fall = el.locate("interface", x, F, **kw, process_change=el.ProcessChange(d["fall_shape"], np.array(d["share"]),
-                                                                     tuple(d["release"])))[0]
+    free, fall, (lo, hi) = _recorded("interface_window_foreign_process_drop")
     assert free < lo - 0.05 * MM
     assert lo - 0.01 * MM <= fall <= hi + 0.01 * MM
 
@@ -151,14 +156,7 @@ def test_the_recorded_rise_of_the_foreign2_drive():
     """Foreign2 seed-24 hole 52 (Al -> Ti across 31.8 um, the feed per revolution raised from 4.1
     to 14.5 um at the trigger, 64 um into the Ti's ramp): its lower onset 0.038 mm late on every
     sample, within the gap's reach before the change (replayed closed loop: +0.034 -> +0.003 mm)."""
-    d = json.loads((DATA / "interface_window_foreign2_process_rise.json").read_text())
-    x, F = np.array(d["x_um"]) * 1e-6, np.array(d["F_N"])
-    kw = dict(air=d["air_N"], x_trig=d["trigger_um"] * 1e-6, cut_floor=d["cut_floor"],
-              entry_shape=d["entry_shape"], exit_shape=d["exit_shape"])
-    lo, hi = (v * 1e-6 for v in d["faces_um"])
-    free = el.locate("interface", x, F, **kw)[0]
-    fall = el.locate("interface", x, F, **kw, process_change=el.ProcessChange(d["fall_shape"], np.array(d["share"]),
-                                                                     tuple(d["release"])))[0]
+    free, fall, (lo, hi) = _recorded("interface_window_foreign2_process_rise")
     assert free > hi + 0.03 * MM
     assert lo - 0.005 * MM <= fall <= hi + 0.005 * MM
 
@@ -204,15 +202,10 @@ def test_the_detector_blends_the_process_as_the_adaptation_does():
 def test_the_plan_gives_the_detector_the_adaptations_process():
     """The hole plan derives each layer's feed rate and the adaptation's ramp into the detector;
     the ramp it sets where the scenario has none is the adaptation block's own default."""
-    hole = {"surface": 1e-3, "layers": [{"material": "ti", "thickness": 4e-3, "tolerance": 0.5e-3},
-                                        {"material": "cfrp", "thickness": 4e-3, "tolerance": 0.5e-3}],
-            "process": {"ti": {"feed_rate": 1e-4, "spindle_speed": 1000.0, "orbital_speed": 60.0},
-                        "cfrp": {"feed_rate": 3e-4, "spindle_speed": 2000.0, "orbital_speed": 60.0}}}
-
-    def error(key, msg):
-        return ValueError(f"{key}: {msg}")
-
-    settings = HolePlan(hole, error).detector(1.0, 0.15)
+    process = {"ti": (1e-4, 1000.0), "cfrp": (3e-4, 2000.0)}     # feed rate [m/s], spindle speed [rpm]
+    hole = {"surface": 1e-3, "layers": [{"material": m, "thickness": 4e-3, "tolerance": 0.5e-3} for m in process],
+            "process": {m: {"feed_rate": f, "spindle_speed": n, "orbital_speed": 60.0} for m, (f, n) in process.items()}}
+    settings = HolePlan(hole, lambda key, msg: ValueError(f"{key}: {msg}")).detector(1.0, 0.15)
     assert settings["layer_feed_rate"] == [1e-4, 3e-4] and settings["process_ramp"] == 0.15
     default = inspect.signature(CuttingParameterAdaptation).parameters["ramp_time"].default
     assert math.isclose(default, ADAPT_RAMP_S)
