@@ -26,7 +26,8 @@ project's ball-screw drive, the foreign one of fmus/foreign, or the foreign2 one
 fmus/foreign2 on its compliant frame, whose observer models 2 orbital harmonics): 1-4
 layers of any of CFRP / Ti / Al with no equal neighbours, nominal 1-8 mm (tolerance
 15 %, true thickness within it), gaps to 1 mm, per material a feed of 5-24 mm/min, a
-spindle speed giving 3-15 um/rev and an orbit of 0.5-5 Hz, wear 0-80 holes; on the
+spindle speed giving 3-15 um/rev and an orbit of 0.5-5 Hz, wear 0-80 holes, the surface at
+1-5 mm (any motor angle at the entry); on the
 project's drive also its engagement length (0.05-0.35 mm) and exit push-out (0.1-0.5
 mm). A plan the hole plan refuses at load (a layer too thin for the detector at its
 feed, too few orbits) is redrawn and counted (``refused``). Located errors
@@ -57,7 +58,12 @@ WIDE_BARS_MM = {"entry": 0.05, "interface": 0.03, "exit": 0.1}
 WIDE_BIAS_MM = 0.01
 WIDE = {"layers": (1, 4), "nominal_mm": (1.0, 8.0), "tolerance": 0.15, "gap_mm": (0.0, 1.0),
         "feed_mm_min": (5.0, 24.0), "fpr_um": (3.0, 15.0), "orbit_hz": (0.5, 5.0), "wear_holes": (0, 80),
-        "engage_mm": (0.05, 0.35), "exit_thinning_mm": (0.1, 0.5)}
+        "engage_mm": (0.05, 0.35), "exit_thinning_mm": (0.1, 0.5), "surface_mm": (1.0, 5.0)}
+# the surface heights' own generator (seeded with the draw's seed and this stream): the plans and
+# true stacks stay the plain draw's. A surface at one height put every entry at one motor angle,
+# where the drive's screw ripple left by commissioning (+-0.5 N on foreign2) is the same at every
+# hole's foot: a bias of the draw, not of the detector (docs/stacks_history.md, sixteenth round)
+SURFACE_STREAM = 1
 PLANTS = {"project": "cfrp_ti.toml", "foreign_ballscrew": "foreign_cfrp_ti.toml",
           "foreign2_ballscrew": "foreign2_cfrp_ti.toml"}
 # plant options the default wide draw varies on a plant (contract names, SI; --plant-options: all of
@@ -161,14 +167,17 @@ def draw_wide(rng: np.random.Generator, plant: str = "project") -> tuple[str, di
 
 def draw_wide_campaign(n: int, seed: int = 23, plant: str = "project",
                        plant_options: bool = False) -> tuple[list, int]:
-    """n holes of the wide draw on one plant: (jobs, plans refused and redrawn).
+    """n holes of the wide draw on one plant: (jobs, plans refused and redrawn), each at a drawn
+    surface height (``WIDE["surface_mm"]``, over a 4 mm screw lead: any motor angle at the entry).
     ``plant_options``: each hole's plant options drawn too (analysis.plant_options, from
     their own generator: the plans and true stacks stay those of the plain draw)."""
     from drillcosim.analysis import plant_options as options
-    rng = np.random.default_rng(seed)
+    rng, surfaces = np.random.default_rng(seed), np.random.default_rng([seed, SURFACE_STREAM])
     jobs, refused = [], 0
     for i in range(n):
         stack, ov, r = draw_wide(rng, plant)
+        z = 1e-3 * surfaces.uniform(*WIDE["surface_mm"])     # the plan's nominal surface is the true one
+        ov.update({"hole.surface": z, PLANT_PARAMETERS + "surface": z})
         if plant_options:
             ov.update(options.draw(STACKS / PLANTS[plant], seed, i))
         jobs.append((i, stack, ov))
