@@ -275,6 +275,14 @@ def test_montecarlo_wide_draw_and_refusals():
             feed = 6e4 * ov[f"hole.process.{m}.feed_rate"]
             assert 5.0 <= feed <= 24.0 and 3.0 <= 1e3 * feed / ov[f"hole.process.{m}.spindle_speed"] <= 15.0
     assert refused >= 0
+    # each hole at its own surface height, the plan's the true one, spread over more than the
+    # drives' 4 mm screw lead: the entries meet the drive's residual screw ripple at any motor angle
+    z = [ov["hole.surface"] for _i, _s, ov in jobs]
+    assert all(ov["hole.surface"] == ov["fmus.drive.plant_parameters.surface"] for _i, _s, ov in jobs)
+    assert 1e-3 <= min(z) and max(z) <= 5e-3 and max(z) - min(z) > 3e-3
+    # the surfaces have their own generator: the plans and true stacks are the plain draw's
+    plain = mc.draw_wide(np.random.default_rng(3), "project")[1]
+    assert {k: v for k, v in jobs[0][2].items() if not k.endswith("surface")} == plain
     # the loader agrees with the draw's check on the first plan
     load_scenario(CFRP_TI, overrides=jobs[0][2])
 
