@@ -1309,7 +1309,7 @@ class InterfaceDetector(KernelBlock, Block):
             # is on the new level, so the regression restarts here and the tests arm as
             # soon as its N_min samples are quiet, instead of once a full window of N has
             # left the ramp (issue 23: thin layers at high feeds were never armed)
-            self.n_buf, self.quiet, self.settled, self.steady, self.need = 0, 0, 0, 0, self.N_min
+            self._restart_window()
             # trimmed (step) only for an interface test: the exit's test armed on air
             # after a thin aluminium last layer (its floor, a few N, is the air's noise)
             # and fired there 1.2 mm late with no fail (wide draw, project hole 116)
@@ -1334,7 +1334,11 @@ class InterfaceDetector(KernelBlock, Block):
             self.x_rise = x
         elif x >= self.x_rise + self.locate_margin:
             self.gap_wait = False
-            self.n_buf, self.quiet, self.settled, self.steady, self.need = 0, 0, 0, 0, self.N_min
+            self._restart_window()
+
+    def _restart_window(self) -> None:
+        """An empty regression window: the next test arms after N_min quiet samples."""
+        self.n_buf, self.quiet, self.settled, self.steady, self.need = 0, 0, 0, 0, self.N_min
 
     def _fit(self, k: int, x_trig: float, lo: float, hi: float, h_n: int, air: float):
         """Event k's located position [m], the time the encoder passed it [s], its

@@ -611,16 +611,22 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
     }
 }
 
+/* interface_detector.py _restart_window: an empty regression window, the next test arms after N_min */
+static void restart_window(Detector *s)
+{
+    s->n_buf = 0.0;
+    s->quiet = 0.0;
+    s->settled = 0.0;
+    s->steady = 0.0;
+    s->need = s->N_min;
+}
+
 /* interface_detector.py _restart_after: event k is behind the tool, restart the regression */
 static void restart_after(Detector *s, int k)
 {
     int n = (int)s->n;
     if (s->restart != 0.0 && k == (int)s->flag - 1 && k < n && s->armed == 0.0) {
-        s->n_buf = 0.0;
-        s->quiet = 0.0;
-        s->settled = 0.0;
-        s->steady = 0.0;
-        s->need = s->N_min;
+        restart_window(s);
         s->trim = k + 1 < n ? 1.0 : 0.0;   /* interface_detector.py: not for the exit's test */
         if (k == 0)
             replay_level(s);
@@ -641,11 +647,7 @@ static void wait_for_engagement(Detector *s, double x)
         s->x_rise = x;
     } else if (x >= s->x_rise + s->locate_margin) {
         s->gap_wait = 0.0;
-        s->n_buf = 0.0;
-        s->quiet = 0.0;
-        s->settled = 0.0;
-        s->steady = 0.0;
-        s->need = s->N_min;
+        restart_window(s);
     }
 }
 
