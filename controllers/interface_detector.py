@@ -893,8 +893,6 @@ class InterfaceDetector(KernelBlock, Block):
         self.trim = False           # restarted once located: a loud sample trims the window to N_min
         self.entry_rs = False       # restarted after the entry (before it was located)
         self.x_level = NAN          # encoder position [m] where the level the entry's restart kept began
-        self.gap_wait = False       # restarted in a gap: the tests wait for the lower layer's engagement
-        self.x_rise = NAN           # ... where the thrust rose above its floor in that wait (NaN: not yet)
         self.err_hist = deque(maxlen=2 * self.N)   # |F~| of the last 2 N samples (noise threshold)
         self.cand = None            # entry candidate (t, x, F^, history index, strong) awaiting confirmation
         self.cand_F = []            # thrust samples since the candidate
@@ -1136,8 +1134,6 @@ class InterfaceDetector(KernelBlock, Block):
         i = self.h_n % HISTORY
         self.h_t[i], self.h_x[i], self.h_F[i] = t, x, F
         self.h_n += 1
-        if self.gap_wait:
-            self._wait_for_engagement(x)
         if self.n_buf >= self.N_min:
             F_pred = self._predict()
             e = F - F_pred
@@ -1145,8 +1141,7 @@ class InterfaceDetector(KernelBlock, Block):
             if self.thd_noise_factor > 0.0:
                 self.err_hist.append(abs(e))
             if self.relative and 1 <= self.flag <= self.n and math.isnan(self.levels[self.flag - 1]) \
-                    and not self.gap_wait and self.quiet >= self.need and self.settled >= self.N_min \
-                    and self._cut_level():
+                    and self.quiet >= self.need and self.settled >= self.N_min and self._cut_level():
                 self._check_level(t, x)
             if not self.armed and self._may_arm(x):
                 self.armed, self.trim = True, False
@@ -1309,36 +1304,13 @@ class InterfaceDetector(KernelBlock, Block):
             # is on the new level, so the regression restarts here and the tests arm as
             # soon as its N_min samples are quiet, instead of once a full window of N has
             # left the ramp (issue 23: thin layers at high feeds were never armed)
-            self._restart_window()
+            self.n_buf, self.quiet, self.settled, self.steady, self.need = 0, 0, 0, 0, self.N_min
             # trimmed (step) only for an interface test: the exit's test armed on air
             # after a thin aluminium last layer (its floor, a few N, is the air's noise)
             # and fired there 1.2 mm late with no fail (wide draw, project hole 116)
             self.trim = k + 1 < self.n
             if k == 0:
                 self._replay_level()
-            elif not self._engaged(self._hist_mean(self.h_n - self.N_min, self.h_n)):
-                self.gap_wait, self.x_rise = True, NAN
-
-    def _wait_for_engagement(self, x: float) -> None:
-        """Restarted in a gap (:meth:`_restart_after`: the interface's window, cut short to a
-        thin layer below, ended above the lower layer): the tests wait until the thrust (the mean
-        of the last N_min samples) has stood above the lower layer's engagement floor for a
-        locate_margin of travel (x [m]), and the regression restarts there, on the layer's
-        level. Why: restarted in air, the tests armed on the lower layer's rise, whose quiet
-        line the regression ran on above the plateau: a false drop 0.3 mm into a 2 mm CFRP
-        layer below a 0.81 mm gap, a mismatch fail and a hold (wide draw with the surface drawn,
-        foreign seed-23 hole 161; docs/stacks_history.md, sixteenth round)."""
-        if not self._engaged(self._hist_mean(self.h_n - self.N_min, self.h_n)):
-            self.x_rise = NAN
-        elif math.isnan(self.x_rise):
-            self.x_rise = x
-        elif x >= self.x_rise + self.locate_margin:
-            self.gap_wait = False
-            self._restart_window()
-
-    def _restart_window(self) -> None:
-        """An empty regression window: the next test arms after N_min quiet samples."""
-        self.n_buf, self.quiet, self.settled, self.steady, self.need = 0, 0, 0, 0, self.N_min
 
     def _fit(self, k: int, x_trig: float, lo: float, hi: float, h_n: int, air: float):
         """Event k's located position [m], the time the encoder passed it [s], its
@@ -1576,7 +1548,7 @@ class InterfaceDetector(KernelBlock, Block):
         (LEVEL_STEADY) that the thrust stands at (:meth:`_level_holds`)."""
         if self.flag == 0:
             return self.windows is None or x >= self.windows[0][0]
-        if self.gap_wait or not (self.quiet >= self.need and self._engaged(self.F_level)):
+        if not (self.quiet >= self.need and self._engaged(self.F_level)):
             return False
         return not self.relative or self.flag >= self.n or \
             self.steady >= min(self.need, self.N_min) and self._level_holds()
@@ -1753,8 +1725,8 @@ class InterfaceDetector(KernelBlock, Block):
 
 # the C step's state readable as the Python step's attributes (InterfaceDetector.__getattr__)
 _C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n fail fail_code h_event".split()},
-              **{name: bool for name in "armed drop exit_armed trim entry_rs gap_wait".split()},
-              **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last x_level x_rise "
+              **{name: bool for name in "armed drop exit_armed trim entry_rs".split()},
+              **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last x_level "
                                          "F_pred F_err F_level thd F_air F_air_sd mismatch orb_ref exit_cand_t "
                                          "exit_cand_x exit_cand_i exit_cand_M if_ref".split()}}
 _C_LISTS = ("t_ev", "x_ev", "levels", "x_arm", "loc", "pending", "cand", "err_hist", "cand_F", "cand_e")

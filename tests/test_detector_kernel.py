@@ -175,12 +175,6 @@ CASES = {
                                layer_feed_rate=[1e-4, 3e-4], process_ramp=0.2, exit_shape="quadratic"),
                           dict(levels=(30.0, 600.0), thick_mm=(3.0, 2.5), gaps_mm=(0.0, 0.05), engage_mm=0.3,
                                process=(1, 0.05, 3.0 ** -0.75, 0.04))),
-    # issue 23 round 16: the window after a Ti-like drop ends in a 0.8 mm gap at the foot of a layer
-    # rising over 0.3 mm; the restart there waits for that layer's engagement (_wait_for_engagement)
-    "plan_restart_in_gap": (dict(PLAN, kc=[4.0e7, 1.2e7, 1.5e7], feed_per_rev=[4e-6, 5e-6, 5e-6], max_gap=1.0 * MM,
-                                 interface_loc_after=[0.8 * MM, 0.8 * MM]),
-                            dict(levels=(160.0, 60.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.8, 0.0),
-                                 engage_mm=0.3)),
     "four_layers": (dict(thicknesses=(2 * MM, 2 * MM, 2 * MM, 2 * MM), thd2=30.0, N=60, N_min=10, rearm_samples=40),
                     dict(levels=(120.0, 300.0, 150.0, 350.0), thick_mm=(2.0, 2.0, 2.0, 2.0), gaps_mm=(0, 0, 0, 0),
                          engage_mm=0.02, thinning_mm=0.05)),
@@ -213,33 +207,6 @@ def test_c_step_is_bit_identical_to_the_python_step(case):
         assert 4.0 * MM <= p.loc["interface1"][0] <= 4.8 * MM, p.loc["interface1"]
     if case == "table4_nan_thinning":
         assert np.isnan(F).sum() > 10 and np.isfinite(_out(p, ys, "t_exit_thinning")[-1])
-
-
-def test_a_restart_in_a_gap_waits_for_the_lower_layers_engagement(monkeypatch):
-    """plan_restart_in_gap: interface 1's window (0.8 mm after its trigger) ends in the 0.8 mm gap,
-    at the foot of the middle layer's 0.3 mm rise. Restarted there without waiting, the tests armed
-    on the rise and the regression's line ran on above the plateau: a false drop 0.35 mm into the
-    layer, the real interface taken for the exit (as foreign seed-23 hole 161 of the wide draw with
-    the surface drawn). Waiting until the thrust has stood above the layer's engagement floor for a
-    locate_margin, every event is at its face (to the trace's 0.02 s sampling and the thinning)."""
-    settings, trace = CASES["plan_restart_in_gap"]
-
-    def run():
-        det = InterfaceDetector(**settings)
-        det.kernel = "python"
-        det.reset(0.0)
-        waited = 0
-        for ti, xi, Fi in zip(*_trace(**trace)):
-            det.step(ti, [Fi, xi])
-            waited += det.gap_wait
-        return det, waited
-
-    det, waited = run()
-    assert det.flag == 4 and not det.fail and waited > 50
-    assert np.allclose(det.x_ev[1:3], [4.0 * MM, 6.8 * MM], atol=0.05 * MM), det.x_ev
-    monkeypatch.setattr(InterfaceDetector, "_wait_for_engagement", lambda self, x: setattr(self, "gap_wait", False))
-    det, _ = run()
-    assert 4.9 * MM < det.x_ev[2] < 5.3 * MM, det.x_ev       # the case is real: a false drop on the rise
 
 
 def test_the_python_step_is_kept_when_numpy_s_dot_is_not_found(monkeypatch):

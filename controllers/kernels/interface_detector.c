@@ -49,8 +49,6 @@ typedef struct {
     double entry_gain;          /* the entry threshold's ramp_gain (its level test divides it out) */
     double entry_rs;            /* state: restarted after the entry before it was located */
     double x_level;             /* state: where the level the entry's restart kept began (NaN: none) */
-    double gap_wait;            /* state: restarted in a gap, the tests wait for the lower layer's engagement */
-    double x_rise;              /* state: where the thrust rose above its floor in that wait (NaN: not yet) */
     double exit_P;              /* the exit's orbit test: the last layer's orbit [samples] (0: off) */
     double h_event, orb_ref;    /* state: samples written at the last event; its highest orbit mean */
     double exit_cand_t, exit_cand_x, exit_cand_i, exit_cand_M;   /* state: the exit candidate (t NaN: none) */
@@ -196,7 +194,7 @@ static int may_arm(const Detector *s, double x)
 {
     if (s->flag == 0.0)
         return s->has_windows == 0.0 || x >= s->win_lo[0];
-    if (s->gap_wait != 0.0 || !(s->quiet >= s->need && engaged(s, s->F_level)))
+    if (!(s->quiet >= s->need && engaged(s, s->F_level)))
         return 0;
     /* interface_detector.py: an interface test arms on a steady level (LEVEL_STEADY) */
     return s->relative == 0.0 || s->flag >= s->n || (s->steady >= MIN(s->need, s->N_min) && level_holds(s));
@@ -585,7 +583,7 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
     }
     flag = (int)s->flag;
     if (s->relative != 0.0 && 1 <= flag && flag <= n && isnan(s->levels[flag - 1])
-            && s->gap_wait == 0.0 && s->quiet >= s->need && s->settled >= s->N_min && cut_level(s))
+            && s->quiet >= s->need && s->settled >= s->N_min && cut_level(s))
         check_level(s, t, x);
     if (s->armed == 0.0 && may_arm(s, x)) {
         s->armed = 1.0;
@@ -611,43 +609,19 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
     }
 }
 
-/* interface_detector.py _restart_window: an empty regression window, the next test arms after N_min */
-static void restart_window(Detector *s)
-{
-    s->n_buf = 0.0;
-    s->quiet = 0.0;
-    s->settled = 0.0;
-    s->steady = 0.0;
-    s->need = s->N_min;
-}
-
 /* interface_detector.py _restart_after: event k is behind the tool, restart the regression */
 static void restart_after(Detector *s, int k)
 {
     int n = (int)s->n;
     if (s->restart != 0.0 && k == (int)s->flag - 1 && k < n && s->armed == 0.0) {
-        restart_window(s);
+        s->n_buf = 0.0;
+        s->quiet = 0.0;
+        s->settled = 0.0;
+        s->steady = 0.0;
+        s->need = s->N_min;
         s->trim = k + 1 < n ? 1.0 : 0.0;   /* interface_detector.py: not for the exit's test */
         if (k == 0)
             replay_level(s);
-        else if (!engaged(s, hist_mean(s, s->h_n - s->N_min, s->h_n))) {
-            s->gap_wait = 1.0;
-            s->x_rise = NAN;
-        }
-    }
-}
-
-/* interface_detector.py _wait_for_engagement: restarted in a gap, the regression restarts once the
-   thrust has stood above the lower layer's floor for a locate_margin of travel */
-static void wait_for_engagement(Detector *s, double x)
-{
-    if (!engaged(s, hist_mean(s, s->h_n - s->N_min, s->h_n))) {
-        s->x_rise = NAN;
-    } else if (isnan(s->x_rise)) {
-        s->x_rise = x;
-    } else if (x >= s->x_rise + s->locate_margin) {
-        s->gap_wait = 0.0;
-        restart_window(s);
     }
 }
 
@@ -774,8 +748,6 @@ void interface_detector_step(Detector *s, double t, const double *u, double *y)
     s->h_x[i] = x;
     s->h_F[i] = F;
     s->h_n += 1.0;
-    if (s->gap_wait != 0.0)
-        wait_for_engagement(s, x);
     if (s->n_buf >= s->N_min)
         tests(s, t, x, F, predict(s));
     if (s->exit_P != 0.0 && (int)s->flag == (int)s->n) {
