@@ -676,9 +676,9 @@ def _rise_before_change(x, F, lo: float, engage, plan_ramp, share, air_run, fit)
     switches the process: the ramp's rest is the new feed per revolution's, bent by the
     drive's release and the observer's lag, and a ramp fitted through both put the onset late
     (foreign2 seed-24 hole 52: Al 4.1 -> Ti 14.5 um/rev, +0.034 mm; before the change +0.003).
-    Where the samples from the gap on rise (``x``, ``F``: the lower onset's): on a drop too, where the
-    adaptation's ramp from a trigger in the upper layer's push-out still runs at the lower face
-    (the lower layer's ramp before it is then the one process's as well)."""
+    The test is on ``x``, ``F`` (the lower onset's samples, from the gap on) rising, not on the
+    window: it holds on a drop too where the adaptation's ramp from a trigger in the upper layer's
+    push-out still runs at the lower face (the lower layer's ramp before it is then one process's)."""
     first, last = _end_levels(x, F)
     changed = np.flatnonzero(share != share[0])
     if not last > first or changed.size == 0:

@@ -761,12 +761,13 @@ static void loc_exit(LocFit *f, double period, double x0, double x1, double *x_l
  * interface window cut short to a thin layer below (event_locator.floor_gap); period
  * [samples]: the exit's fit on means over one orbit, the entry's fits the orbit's sinusoid
  * too (<= 1: none; locate's period); ghost: NULL, or the exit's {orbit [samples], decay per
- * sample} of locate's ghost, or an interface's (the lower layer's orbit); fall: NULL, or an
- * interface's upper fall (locate's process_change: a push-out grid of its law, release and share
- * per sample of x_in) */
+ * sample} of locate's ghost, or an interface's (the lower layer's orbit); change: NULL, or the
+ * adaptation's process change at an interface's trigger (locate's process_change: a push-out grid
+ * of the plan's law and release with the share per sample of x_in; a drop's upper fall under it, a
+ * rise's onset before it) */
 void event_locate(int kind, const double *x_in, const double *F_in, long n_in, double air, double x_trig,
                   double cut_floor, double period, const double *ghost, const LocGrid *engage, const LocGrid *push,
-                  const LocGrid *fall, double *x_loc, double *dx)
+                  const LocGrid *change, double *x_loc, double *dx)
 {
     *x_loc = *dx = NAN;
     double *x = malloc((size_t)(4 * (n_in > 0 ? n_in : 1)) * sizeof(double));
@@ -776,13 +777,13 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
     long n = 0;
     for (long i = 0; i < n_in; i++)
         if (isfinite(x_in[i]) && isfinite(F_in[i])) {
-            if (fall != NULL)
-                share[n] = fall->share[i];      /* _checked_change: the share of the samples kept */
+            if (change != NULL)
+                share[n] = change->share[i];    /* _checked_change: the share of the samples kept */
             x[n] = x_in[i];
             F[n++] = F_in[i];
         }
-    LocGrid fall_kept = fall != NULL ? *fall : *push, *kept = fall != NULL ? &fall_kept : NULL;
-    fall_kept.share = share;
+    LocGrid change_kept = change != NULL ? *change : *push, *kept = change != NULL ? &change_kept : NULL;
+    change_kept.share = share;
     long g0, g1;
     if (n < 5 * LOC_MIN_SEGMENT * 2) {
         free(x);

@@ -173,14 +173,14 @@ static const double *interface_ghost(const DetectorFMU *s, int k, double *ghost)
     return ghost[0] > 0.0 ? ghost : NULL;
 }
 
-/* InterfaceDetector._process_change: interface k's drop under the adaptation's switch at its trigger
+/* InterfaceDetector._process_change: the adaptation's process change at interface k's trigger
  * -- the share (f(t) / f_{k-1})^x_feed of the feed per revolution commanded at the force samples'
  * times t[0..m) [s], feed rate and spindle speed each blended by the raised cosine (cos, pow:
  * libm's, as the Python's math.cos and numpy's power; the exit's law, the drive's compliance) -- into share and
  * *fall; NULL where the plan gives no process or the hole has failed (the fail-safe's set is in
  * force) or the trigger has no time */
 static const LocGrid *detector_process_change(const DetectorFMU *s, int k, const double *t, long m, const LocGrid *push,
-                                          double *share, LocGrid *fall)
+                                              double *share, LocGrid *fall)
 {
     double t_ev = s->d.t_ev[k];
     if (s->process == 0.0 || s->d.fail != 0.0 || !isfinite(t_ev))
@@ -306,8 +306,8 @@ void interface_detector_fmu_step(DetectorFMU *s, double t, const double *u, doub
 /* the localisation alone, for tests against event_locator.locate: kind 0 entry, 1
  * interface, 2 exit; out = x_loc, dx [m]; tables as in DetectorFMU; period [samples],
  * ghost (NULL: none), exit_shape and entry_shape (DetectorFMU's codes), release (NULL: none; the exit's
- * {compliance [m/N], x_feed}) as event_locator.locate's; share (NULL: none) an interface's upper
- * fall (locate's process_change: a share per sample, the law fall_shape, fall_release {compliance, x_feed}) */
+ * {compliance [m/N], x_feed}) as event_locator.locate's; share (NULL: none) an interface's process
+ * change (locate's process_change: a share per sample, the law fall_shape, fall_release {compliance, x_feed}) */
 void event_locate_tables(int kind, const double *x, const double *F, long n, double air, double x_trig,
                          double cut_floor, double period, const double *ghost, const double *tables, double *out,
                          int exit_shape, int entry_shape, const double *release, const double *share, int fall_shape,
