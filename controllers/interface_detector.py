@@ -559,6 +559,7 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_exit_arm(exit_orbit_arm)
         self._set_interface_arm(interface_orbit_arm)
         self._set_process(layer_feed_rate, process_ramp, feed_per_rev)
+        self._set_entry_lag()
         self.windows = self._windows()
         self.reset(0.0)
 
@@ -739,6 +740,15 @@ class InterfaceDetector(KernelBlock, Block):
                              f"ramp_time), got {process_ramp!r}")
         self.process = (feed, fpr, float(process_ramp))
 
+    def _set_entry_lag(self) -> None:
+        """The level entry's lag [samples] (:meth:`_entry_level`): the plan's longest engagement
+        (locate_margin, or the entry ramp where that is longer) at the first layer's feed; 0
+        (off) without the confirmation's span or the plan's process."""
+        self.entry_lag = 0
+        if self.entry_confirm and self.entry_P and self.process is not None:
+            ramp = max(self.entry_ramp, self.locate_margin / self.process[0][0])
+            self.entry_lag = min(int(math.ceil(ramp / self.sample_period)), HISTORY // 2 - self.entry_P)
+
     def _process_change(self, k: int, t) -> ProcessChange | None:
         """The adaptation's process change at interface k's trigger (event_locator.ProcessChange):
         the share (f(t) / f_k)^x_feed of the feed per revolution commanded at the force samples'
@@ -897,6 +907,8 @@ class InterfaceDetector(KernelBlock, Block):
         self.cand = None            # entry candidate (t, x, F^, history index, strong) awaiting confirmation
         self.cand_F = []            # thrust samples since the candidate
         self.cand_e = deque(maxlen=ENTRY_SWING)   # its last F~
+        self.lcand = None           # entry level candidate (t, x, history index, samples written) (_entry_level)
+        self.h_armed = 0            # samples written when the tests last armed
         self.armed = False
         self.fail = 0
         self.fail_code = 0
@@ -1023,6 +1035,29 @@ class InterfaceDetector(KernelBlock, Block):
                 # the candidate put 3 of them 0.57-0.75 mm high, in the ringing)
                 self.pending[-1] = (0, x, self.h_n)
 
+    def _entry_level(self, t: float, x: float) -> None:
+        """The entry of a ramp slower than the regression window: the mean thrust of the last
+        entry_P samples (one orbit) above the mean of entry_P samples entry_lag earlier (the
+        plan's longest engagement at the first layer's feed) by the unscaled threshold makes a
+        level candidate at (t, x), dropped as soon as it is not; held for entry_P samples it
+        becomes the entry, at its (t, x), unless an F~ candidate is still being decided (that
+        path keeps every entry it finds). Why: the regression follows a ramp longer than its
+        window, and on an observer's noise its F~ never holds a candidate for N_min samples
+        (project seed-24 hole 121: aluminium at 5.8 mm/min over a 0.34 mm engagement, a 13 N
+        step under +-2 N of noise, candidates dropped within 5 samples, the entry missed and
+        every later event a layer off). Orbit means take the ringing in air out, as the span's
+        confirmation does."""
+        n, P, L = self.h_n, self.entry_P, self.entry_lag
+        if n - L - P < self.h_armed or \
+                self._hist_mean(n - P, n) - self._hist_mean(n - L - P, n - L) <= self.thd / self.entry_level_gain:
+            self.lcand = None
+        elif self.lcand is None:
+            self.lcand = (t, x, n - 1, n)
+        elif n - self.lcand[3] >= P and self.cand is None:
+            tc, xc, i_c, _n = self.lcand
+            self.lcand = None
+            self._event(0, tc, xc, i_c)
+
     def _hist_mean(self, j0: int, j1: int) -> float:
         """Mean thrust [N] of the history's samples j0..j1-1 (counted since the reset)."""
         return sum(self.h_F[np.arange(j0, j1) % HISTORY].tolist()) / (j1 - j0)
@@ -1145,12 +1180,15 @@ class InterfaceDetector(KernelBlock, Block):
                 self._check_level(t, x)
             if not self.armed and self._may_arm(x):
                 self.armed, self.trim = True, False
+                self.h_armed = self.h_n
                 self._armed_at(x)
             self.thd = NAN
             if self.flag == 0 and self.armed:
                 self.thd = self.thd1 if not self.relative else self.thd_entry
                 if self.entry_confirm:
                     self._entry_confirm(t, x, F, F_pred, e)
+                    if self.flag == 0 and self.entry_lag:
+                        self._entry_level(t, x)
                 elif e > self.thd:
                     self._event(0, t, x)
             elif self.flag < self.n and self.armed:
@@ -1572,7 +1610,7 @@ class InterfaceDetector(KernelBlock, Block):
         hi = self.windows[k][1]
         # an entry candidate inside the window is decided first (a span's confirmation
         # outlasts the window's end at a fast feed: 0.4 mm at 21 mm/min and a 0.9 Hz orbit)
-        if x > hi and not (k == 0 and self.cand is not None and self.cand[1] <= hi):
+        if x > hi and not (k == 0 and any(c is not None and c[1] <= hi for c in (self.cand, self.lcand))):
             self._set_fail(k + 1, t, x)
         elif self.feed_rate > 0 and k >= 1 and not math.isnan(self.x_last):
             t_max = self.time_margin * max(hi - self.x_last, 0.0) / self.feed_rate
@@ -1657,7 +1695,7 @@ class InterfaceDetector(KernelBlock, Block):
     def _c_fill(self, c) -> None:
         """Settings and the reset state -> the C struct (``_c_attach`` runs at the end of
         ``reset``); from then on the attributes of _C_SCALARS and _C_LISTS are the struct's."""
-        if self.h_n or self.pending or self.cand is not None or self.err_hist:
+        if self.h_n or self.pending or self.cand is not None or self.lcand is not None or self.err_hist:
             raise RuntimeError("InterfaceDetector: the C step starts from the reset state only")
         n = self.n
         fill(c, n=n, N=self.N, N_min=self.N_min, thd1=self.thd1, thd2=self.thd2, thd3=self.thd3,
@@ -1683,6 +1721,7 @@ class InterfaceDetector(KernelBlock, Block):
         c.if_P[:n - 1], c.if_ratio[:n - 1] = self.if_P, self.if_ratio
         c.loc[:] = [v for ev in LOC_EVENTS for v in self.loc[ev]]
         fill(c, err_n=0, err_pos=0, cand=0, cand_n=0, cand_e_n=0, cand_e_pos=0, n_pending=0)
+        fill(c, entry_lag=self.entry_lag, lcand_t=NAN, lcand_x=NAN, lcand_i=0, lcand_n=0)
         self._c_err = np.zeros(2 * self.N)       # |F~| of the last 2 N samples (a ring)
         self._c_locate_cb = detector_kernel.LOCATE_CALLBACK(self._c_locate)
         c.W, c.buf, c.err = self._W_flat.ctypes.data, self.buf.ctypes.data, self._c_err.ctypes.data
@@ -1719,14 +1758,16 @@ class InterfaceDetector(KernelBlock, Block):
             return [(int(s.pend_k[j]), s.pend_x[j], int(s.pend_i[j])) for j in range(int(s.n_pending))]
         if name == "cand":
             return None if not s.cand else (s.cand_t, s.cand_x, s.cand_level, int(s.cand_i), s.cand == 2.0)
+        if name == "lcand":
+            return None if math.isnan(s.lcand_t) else (s.lcand_t, s.lcand_x, int(s.lcand_i), int(s.lcand_n))
         raise AttributeError(f"InterfaceDetector.{name}: kept in the C step's state only "
                              "(kernel = 'python' to inspect it)")
 
 
 # the C step's state readable as the Python step's attributes (InterfaceDetector.__getattr__)
-_C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n fail fail_code h_event".split()},
+_C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n fail fail_code h_event h_armed".split()},
               **{name: bool for name in "armed drop exit_armed trim entry_rs".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last x_level "
                                          "F_pred F_err F_level thd F_air F_air_sd mismatch orb_ref exit_cand_t "
                                          "exit_cand_x exit_cand_i exit_cand_M if_ref".split()}}
-_C_LISTS = ("t_ev", "x_ev", "levels", "x_arm", "loc", "pending", "cand", "err_hist", "cand_F", "cand_e")
+_C_LISTS = ("t_ev", "x_ev", "levels", "x_arm", "loc", "pending", "cand", "lcand", "err_hist", "cand_F", "cand_e")

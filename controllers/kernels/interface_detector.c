@@ -49,6 +49,9 @@ typedef struct {
     double entry_gain;          /* the entry threshold's ramp_gain (its level test divides it out) */
     double entry_rs;            /* state: restarted after the entry before it was located */
     double x_level;             /* state: where the level the entry's restart kept began (NaN: none) */
+    double entry_lag;           /* the level entry's lag [samples] (0: off) */
+    double lcand_t, lcand_x, lcand_i, lcand_n;   /* state: the level entry candidate (t NaN: none) */
+    double h_armed;             /* state: samples written when the tests last armed */
     double exit_P;              /* the exit's orbit test: the last layer's orbit [samples] (0: off) */
     double h_event, orb_ref;    /* state: samples written at the last event; its highest orbit mean */
     double exit_cand_t, exit_cand_x, exit_cand_i, exit_cand_M;   /* state: the exit candidate (t NaN: none) */
@@ -309,6 +312,25 @@ static int entry_holds(Detector *s)
         return s->cand_n >= s->N_min && py_sum_end(s->cand_sum, s->cand_comp) / s->cand_n > s->cand_level + s->thd;
     return s->cand_n >= s->entry_P
            && hist_mean(s, s->h_n - s->entry_P, s->h_n) > s->cand_level + s->thd / s->entry_gain;
+}
+
+/* interface_detector.py _entry_level: the entry of a ramp slower than the regression window */
+static void entry_level(Detector *s, double t, double x)
+{
+    double n = s->h_n, P = s->entry_P, L = s->entry_lag;
+    if (n - L - P < s->h_armed
+            || hist_mean(s, n - P, n) - hist_mean(s, n - L - P, n - L) <= s->thd / s->entry_gain) {
+        s->lcand_t = NAN;
+    } else if (isnan(s->lcand_t)) {
+        s->lcand_t = t;
+        s->lcand_x = x;
+        s->lcand_i = n - 1.0;
+        s->lcand_n = n;
+    } else if (n - s->lcand_n >= P && s->cand == 0.0) {
+        double tc = s->lcand_t;
+        s->lcand_t = NAN;
+        event(s, 0, tc, s->lcand_x, s->lcand_i);
+    }
 }
 
 static void entry_confirm(Detector *s, double t, double x, double F, double F_pred, double e)
@@ -588,15 +610,18 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
     if (s->armed == 0.0 && may_arm(s, x)) {
         s->armed = 1.0;
         s->trim = 0.0;
+        s->h_armed = s->h_n;
         armed_at(s, x);
     }
     s->thd = NAN;
     flag = (int)s->flag;
     if (flag == 0 && s->armed != 0.0) {
         s->thd = s->relative == 0.0 ? s->thd1 : s->thd_entry;
-        if (s->entry_confirm != 0.0)
+        if (s->entry_confirm != 0.0) {
             entry_confirm(s, t, x, F, F_pred, e);
-        else if (e > s->thd)
+            if (s->flag == 0.0 && s->entry_lag != 0.0)
+                entry_level(s, t, x);
+        } else if (e > s->thd)
             event(s, 0, t, x, -1.0);
     } else if (flag < n && s->armed != 0.0) {
         s->thd = thd_interface(s, flag, s->F_level);
@@ -695,7 +720,7 @@ static void check_windows(Detector *s, double t, double x)
     int k = (int)s->flag;
     double hi = s->win_hi[k];
     /* an entry candidate inside the window is decided first (interface_detector.py _check_windows) */
-    if (x > hi && !(k == 0 && s->cand != 0.0 && s->cand_x <= hi)) {
+    if (x > hi && !(k == 0 && ((s->cand != 0.0 && s->cand_x <= hi) || (!isnan(s->lcand_t) && s->lcand_x <= hi)))) {
         set_fail(s, k + 1, t, x);
     } else if (s->feed_rate > 0.0 && k >= 1 && !isnan(s->x_last)) {
         double t_max = s->time_margin * MAX(hi - s->x_last, 0.0) / s->feed_rate;
