@@ -553,6 +553,13 @@ class InterfaceDetector(KernelBlock, Block):
                              engage_fraction, thd_min, rearm_level)
         self._set_entry_ramp(entry_ramp, entry_span, entry_orbit_period, entry_shape)
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
+        # a layer's level (the materials check) is taken only above where it may already push
+        # out: its event's trigger plus its thinnest and the travel in a gap above it, less
+        # push_out. Why: a short, noisy plateau
+        # never settles (+-3 N about 28 N of aluminium), its push-out's slow fall does, and a level
+        # taken there (7.5 N, 0.2 mm above the bottom of a 1.07 mm layer) against the titanium
+        # below failed a right plan (foreign seed-24 hole 107: observed ratio 184 against 35)
+        self.level_reach = [th - tt - self.push_out for th, tt in zip(self.thicknesses, self.thickness_tolerances)]
         self._set_loc_after(interface_loc_after)
         self._set_exit_loc(exit_orbit_period, exit_loc_after, exit_ripple_period, observer_forgetting,
                            exit_shape, exit_compliance, (exit_release_compliance, exit_feed_exponent))
@@ -909,6 +916,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.cand_e = deque(maxlen=ENTRY_SWING)   # its last F~
         self.lcand = None           # entry level candidate (t, x, history index, samples written) (_entry_level)
         self.h_armed = 0            # samples written when the tests last armed
+        self.x_air = 0.0            # encoder travel [m] with the thrust below the layer's floor since the last event
         self.armed = False
         self.fail = 0
         self.fail_code = 0
@@ -1113,6 +1121,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.need = self.rearm_samples
         self.t_last, self.x_last = t, x
         self.h_event = self.h_n
+        self.x_air = 0.0
         if self.localise:
             self.pending.append((k, x, self.h_n if i_hist is None else i_hist))
         if self.windows is not None and x < self.windows[k][0]:
@@ -1169,6 +1178,10 @@ class InterfaceDetector(KernelBlock, Block):
         i = self.h_n % HISTORY
         self.h_t[i], self.h_x[i], self.h_F[i] = t, x, F
         self.h_n += 1
+        if self.relative and 2 <= self.flag <= self.n and math.isnan(self.levels[self.flag - 1]) \
+                and self._above_air(F) < self.floor[self.flag - 1]:
+            # travel in air since the interface, a gap above the layer: where it may push out is further on
+            self.x_air += x - self.h_x[(self.h_n - 2) % HISTORY]
         if self.n_buf >= self.N_min:
             F_pred = self._predict()
             e = F - F_pred
@@ -1176,7 +1189,8 @@ class InterfaceDetector(KernelBlock, Block):
             if self.thd_noise_factor > 0.0:
                 self.err_hist.append(abs(e))
             if self.relative and 1 <= self.flag <= self.n and math.isnan(self.levels[self.flag - 1]) \
-                    and self.quiet >= self.need and self.settled >= self.N_min and self._cut_level():
+                    and self.quiet >= self.need and self.settled >= self.N_min and self._cut_level() \
+                    and x < self.x_ev[self.flag - 1] + self.x_air + self.level_reach[self.flag - 1]:
                 self._check_level(t, x)
             if not self.armed and self._may_arm(x):
                 self.armed, self.trim = True, False
@@ -1715,6 +1729,7 @@ class InterfaceDetector(KernelBlock, Block):
         c.step_signs[:n - 1] = self.step_signs
         if self.relative:
             c.step_gain[:n - 1], c.floor[:n], c.level_plan[:n] = self.step_gain, self.floor, self.level_plan
+            c.level_reach[:n] = self.level_reach
         fill(c, **{name: getattr(self, name) for name in _C_SCALARS})
         c.t_ev[:n + 1], c.x_ev[:n + 1], c.levels[:n] = self.t_ev, self.x_ev, self.levels
         c.x_arm[:n] = self.x_arm
@@ -1769,5 +1784,5 @@ _C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n
               **{name: bool for name in "armed drop exit_armed trim entry_rs".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last x_level "
                                          "F_pred F_err F_level thd F_air F_air_sd mismatch orb_ref exit_cand_t "
-                                         "exit_cand_x exit_cand_i exit_cand_M if_ref".split()}}
+                                         "exit_cand_x exit_cand_i exit_cand_M if_ref x_air".split()}}
 _C_LISTS = ("t_ev", "x_ev", "levels", "x_arm", "loc", "pending", "cand", "lcand", "err_hist", "cand_F", "cand_e")

@@ -43,7 +43,9 @@ typedef struct {
     double has_windows, win_lo[DET_EVENTS], win_hi[DET_EVENTS], feed_rate, time_margin;
     double fail_disarms, mismatch_factor, restart, thd_min, thd_noise_factor, entry_confirm;
     double step_signs[DET_MAX_LAYERS - 1], relative, thd_entry, step_gain[DET_MAX_LAYERS - 1], exit_gain;
-    double floor[DET_MAX_LAYERS], level_plan[DET_MAX_LAYERS], localise, locate_margin, push_out, max_gap;
+    double floor[DET_MAX_LAYERS], level_plan[DET_MAX_LAYERS];
+    double level_reach[DET_MAX_LAYERS];   /* m past each layer's event its level may be taken (interface_detector.py level_reach) */
+    double localise, locate_margin, push_out, max_gap;
     double py_sum_comp, loc_after[DET_MAX_LAYERS - 1], exit_after;
     double entry_P;             /* entry confirmation span [samples] (0: N_min, mean since the candidate) */
     double entry_gain;          /* the entry threshold's ramp_gain (its level test divides it out) */
@@ -52,6 +54,7 @@ typedef struct {
     double entry_lag;           /* the level entry's lag [samples] (0: off) */
     double lcand_t, lcand_x, lcand_i, lcand_n;   /* state: the level entry candidate (t NaN: none) */
     double h_armed;             /* state: samples written when the tests last armed */
+    double x_air;               /* state: encoder travel [m] below the layer's floor since the last event */
     double exit_P;              /* the exit's orbit test: the last layer's orbit [samples] (0: off) */
     double h_event, orb_ref;    /* state: samples written at the last event; its highest orbit mean */
     double exit_cand_t, exit_cand_x, exit_cand_i, exit_cand_M;   /* state: the exit candidate (t NaN: none) */
@@ -266,6 +269,7 @@ static void event(Detector *s, int k, double t, double x, double i_hist)
     s->t_last = t;
     s->x_last = x;
     s->h_event = s->h_n;
+    s->x_air = 0.0;
     if (s->localise != 0.0) {
         int j = (int)s->n_pending;
         s->pend_k[j] = k;
@@ -605,7 +609,8 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
     }
     flag = (int)s->flag;
     if (s->relative != 0.0 && 1 <= flag && flag <= n && isnan(s->levels[flag - 1])
-            && s->quiet >= s->need && s->settled >= s->N_min && cut_level(s))
+            && s->quiet >= s->need && s->settled >= s->N_min && cut_level(s)
+            && x < s->x_ev[flag - 1] + s->x_air + s->level_reach[flag - 1])
         check_level(s, t, x);
     if (s->armed == 0.0 && may_arm(s, x)) {
         s->armed = 1.0;
@@ -773,6 +778,10 @@ void interface_detector_step(Detector *s, double t, const double *u, double *y)
     s->h_x[i] = x;
     s->h_F[i] = F;
     s->h_n += 1.0;
+    int fl = (int)s->flag;
+    if (s->relative != 0.0 && 2 <= fl && fl <= (int)s->n && isnan(s->levels[fl - 1])
+            && above_air(s, F) < s->floor[fl - 1])
+        s->x_air += x - s->h_x[((long)s->h_n - 2) % DET_HISTORY];    /* interface_detector.py step: a gap's travel */
     if (s->n_buf >= s->N_min)
         tests(s, t, x, F, predict(s));
     if (s->exit_P != 0.0 && (int)s->flag == (int)s->n) {

@@ -129,10 +129,10 @@ class Detector(ctypes.Structure):
         _doubles("feed_rate time_margin fail_disarms mismatch_factor restart thd_min thd_noise_factor "
                  "entry_confirm") + [("step_signs", _D * (DET_LAYERS - 1))] + _doubles("relative thd_entry") + \
         [("step_gain", _D * (DET_LAYERS - 1)), ("exit_gain", _D), ("floor", _D * DET_LAYERS),
-         ("level_plan", _D * DET_LAYERS)] + \
+         ("level_plan", _D * DET_LAYERS), ("level_reach", _D * DET_LAYERS)] + \
         _doubles("localise locate_margin push_out max_gap py_sum_comp") + [("loc_after", _D * (DET_LAYERS - 1))] + \
         _doubles("exit_after") + \
-        _doubles("entry_P entry_gain entry_rs x_level entry_lag lcand_t lcand_x lcand_i lcand_n h_armed") + \
+        _doubles("entry_P entry_gain entry_rs x_level entry_lag lcand_t lcand_x lcand_i lcand_n h_armed x_air") + \
         _doubles("exit_P h_event orb_ref exit_cand_t exit_cand_x exit_cand_i exit_cand_M") + \
         [("x_arm", _D * DET_LAYERS), ("if_P", _D * (DET_LAYERS - 1)), ("if_ratio", _D * (DET_LAYERS - 1)),
          ("if_ref", _D)] + \
