@@ -1603,7 +1603,22 @@ class InterfaceDetector(KernelBlock, Block):
         if not (self.quiet >= self.need and self._engaged(self.F_level)):
             return False
         return not self.relative or self.flag >= self.n or \
-            self.steady >= min(self.need, self.N_min) and self._level_holds()
+            self.steady >= min(self.need, self.N_min) and self._level_holds() and not self._level_rises()
+
+    def _level_rises(self) -> bool:
+        """Whether the thrust still rises: the mean of the last N_min samples above the mean of
+        the N_min before by more than half the interface test's threshold. Why: the regression
+        follows a linear ramp, quiet and steady by F~, and an interface test armed on the lower
+        layer's engagement ramp (the restart in a gap, a window cut short to a thin layer)
+        fires once the ramp tops out and the regression's line overshoots the plateau: a false
+        drop 0.3 mm into the layer and every later event a layer off (wide draw, foreign seed-23
+        hole 161: 0.81 mm of gap). Under the orbit's ripple it holds the arming back for at most
+        the ripple's rising half."""
+        n, m = self.h_n, self.N_min
+        if n < 2 * m:
+            return False
+        rise = self._hist_mean(n - m, n) - self._hist_mean(n - 2 * m, n - m)
+        return rise > 0.5 * self._thd_interface(self.flag, self.F_level)
 
     def _level_holds(self) -> bool:
         """Whether the thrust stands at the level F_level [N]: the mean of the last N_min

@@ -127,6 +127,13 @@ CASES = {
     # ends it in air, where the locator places the event (event_locator.open_gap)
     "plan_short_loc_window": (dict(PLAN, max_gap=1.0 * MM, interface_loc_after=[0.5 * MM, 0.5 * MM]),
                               dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.8, 0.0))),
+    # issue 23 round 17: the window after interface 1 cut short (0.8 mm) ends in a 0.8 mm gap, the
+    # regression restarts there and the layer below rises over 0.3 mm: its test arms only once the
+    # level stops rising (_level_rises), not on the ramp, whose end it took for a drop
+    "plan_restart_in_gap_ramp": (dict(PLAN, kc=[4.0e7, 1.2e7, 1.5e7], feed_per_rev=[4e-6, 5e-6, 5e-6], max_gap=1.0 * MM,
+                                      interface_loc_after=[0.8 * MM, 0.8 * MM]),
+                                 dict(levels=(160.0, 60.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.8, 0.0),
+                                      engage_mm=0.3)),
     # issue 23 round 2: the middle layer's level half the plan's ratio (a worn first layer)
     # behind a gap: the materials check waits past the gap's reach (1.8 mm past the trigger)
     # before it takes it, and a 2.5 mm layer (2.2 mm at its thinnest, after 0.4 mm of gap) is
@@ -213,6 +220,8 @@ def test_c_step_is_bit_identical_to_the_python_step(case):
         assert p.levels[1] == pytest.approx(160.0, rel=0.1) and p.levels[0] == pytest.approx(120.0, rel=0.1)
     if case == "plan_short_loc_window":          # located in the part of the gap its window saw
         assert 4.0 * MM <= p.loc["interface1"][0] <= 4.8 * MM, p.loc["interface1"]
+    if case == "plan_restart_in_gap_ramp":      # interface 2 (at 6.8 mm) on its rise, none on layer 2's ramp
+        assert p.x_ev[2] > 6.7 * MM, p.x_ev
     if case == "plan_slow_entry_level":         # entry_lag: the plan's locate_margin at its feed
         assert p.entry_lag == math.ceil(0.45 / (5.8 / 60.0) / DT) and abs(p.loc["entry"][0] - 1.0 * MM) < 0.05 * MM
     if case == "table4_nan_thinning":

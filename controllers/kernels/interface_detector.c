@@ -196,6 +196,16 @@ static int level_holds(const Detector *s)
     return fabs(M - s->F_level) < MAX(s->rearm_level, DET_LEVEL_STEADY * fabs(s->F_level));
 }
 
+/* interface_detector.py _level_rises: the last N_min samples' mean above the N_min before by half the threshold */
+static int level_rises(const Detector *s)
+{
+    double n = s->h_n, m = s->N_min;
+    if (n < 2.0 * m)
+        return 0;
+    double rise = hist_mean(s, n - m, n) - hist_mean(s, n - 2.0 * m, n - m);
+    return rise > 0.5 * thd_interface(s, (int)s->flag, s->F_level);
+}
+
 static int may_arm(const Detector *s, double x)
 {
     if (s->flag == 0.0)
@@ -203,7 +213,8 @@ static int may_arm(const Detector *s, double x)
     if (!(s->quiet >= s->need && engaged(s, s->F_level)))
         return 0;
     /* interface_detector.py: an interface test arms on a steady level (LEVEL_STEADY) */
-    return s->relative == 0.0 || s->flag >= s->n || (s->steady >= MIN(s->need, s->N_min) && level_holds(s));
+    return s->relative == 0.0 || s->flag >= s->n
+           || (s->steady >= MIN(s->need, s->N_min) && level_holds(s) && !level_rises(s));
 }
 
 static void set_fail(Detector *s, int code, double t, double x)
