@@ -34,7 +34,8 @@
 #define LOC_RELEASE_NEWTON 8      /* event_locator.RELEASE_NEWTON */
 #define LOC_ENTRY_SETTLING 0.1   /* event_locator.ENTRY_SETTLING */
 #define LOC_RISE_SEEN 5.0         /* event_locator.RISE_SEEN */
-#define LOC_MAX_COLS 7             /* onset: level, trend, ramp, the orbit's sine and cosine and both times i / n;
+#define LOC_MAX_COLS 9             /* onset: level, trend, ramp, the orbit's sine and cosine, both times i / n and
+                                      both times the ramp;
                                       push-out: fall, its trend, air and four ghost or ringing columns */
 
 #define LOC_PYMAX(a, b) ((b) > (a) ? (b) : (a))   /* Python's max(a, b) */
@@ -199,7 +200,8 @@ static int loc_ring_columns(const LocFit *f, long i, double *c, int k)
 /* the design's columns at sample i: onset d = (x - x0)/L -> 1, d, shape(d); push-out
  * r = (xb - x)/L, g = shape(r) (0: r, 1: r^2, 2: r^1.5, clipped to [0, 1];
  * event_locator.EXIT_SHAPES) -> g, r g (and 1 when the air level is fitted); either followed
- * by the ringing's columns at ``orbit`` (loc_ring_columns) */
+ * by the ringing's columns at ``orbit`` (loc_ring_columns), an onset's then by the orbit's
+ * sine and cosine times its ramp */
 static int loc_columns(const LocFit *f, double face, double L, int shape, long i, double *c)
 {
     double xi = f->x[i];
@@ -208,7 +210,12 @@ static int loc_columns(const LocFit *f, double face, double L, int shape, long i
         c[0] = 1.0;
         c[1] = d;
         c[2] = shape == 0 ? u : u * u * (3.0 - 2.0 * u);
-        return loc_ring_columns(f, i, c, 3);
+        int k = loc_ring_columns(f, i, c, 3);
+        if (f->orbit == 0.0)
+            return k;
+        c[k] = c[2] * c[3];       /* the cut's orbital ripple, growing with the ramp (event_locator._onset_sse) */
+        c[k + 1] = c[2] * c[4];
+        return k + 2;
     }
     double r = (face - xi) / L, g = loc_push_law(shape, r);
     if (f->grid->share != NULL)
