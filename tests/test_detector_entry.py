@@ -116,6 +116,18 @@ def _recorded_al_entry():
     return t, x, F, 1.00005 * MM
 
 
+def _python_and_c(kw, t, x, F):
+    """(detector, entry flag at every sample) of a run through the trace with the Python step,
+    then with the C step where it builds here."""
+    for kernel in ("python", "c"):
+        det = InterfaceDetector(**kw)
+        det.kernel = kernel
+        det.reset(0.0)
+        if kernel == "c" and det.c_kernel is None:
+            continue
+        yield det, np.array([det.step(ti, [Fi, xi])[0] for ti, xi, Fi in zip(t, x, F)])
+
+
 @pytest.mark.parametrize("span", [False, True])
 def test_slow_orbit_ringing_in_air_confirmed_over_one_orbit(span):
     """Without a span the candidate's 0.5 s confirmation sits inside one positive half-cycle of
@@ -129,13 +141,7 @@ def test_slow_orbit_ringing_in_air_confirmed_over_one_orbit(span):
               kc=[2.5e6, 2.0e7, 6.5e7], feed_per_rev=[3.704e-6, 5.749e-6, 1.152e-5], exit_criterion="thinning",
               restart=True, entry_confirm=True, locate_margin=0.45 * MM, entry_span=60.0 / 51.95 if span else 0.0)
     runs = []
-    for kernel in ("python", "c"):
-        det = InterfaceDetector(**kw)
-        det.kernel = kernel
-        det.reset(0.0)
-        if kernel == "c" and det.c_kernel is None:
-            continue
-        flags = np.array([det.step(ti, [Fi, xi])[0] for ti, xi, Fi in zip(t, x, F)])
+    for det, flags in _python_and_c(kw, t, x, F):
         runs.append((det.x_ev[0], tuple(det.loc["entry"])))
     early = bool(np.any(flags[x < x_true] > 0))
     located = det.loc["entry"][0] - x_true
@@ -179,14 +185,7 @@ def test_entry_slower_than_the_regression_found_on_the_level(process):
     if process:
         kw.update(layer_feed_rate=[v, 3.289e-4, v, 3.289e-4], process_ramp=0.2)
     runs = []
-    for kernel in ("python", "c"):
-        det = InterfaceDetector(**kw)
-        det.kernel = kernel
-        det.reset(0.0)
-        if kernel == "c" and det.c_kernel is None:
-            continue
-        for ti, xi, Fi in zip(t, x, F):
-            det.step(ti, [Fi, xi])
+    for det, _flags in _python_and_c(kw, t, x, F):
         runs.append(np.array([det.fail_code, det.x_ev[0], *det.loc["entry"]]).tobytes())   # NaN equal to NaN
     if not process:
         assert det.entry_lag == 0 and det.fail == 1 and det.fail_code == 1 and np.isnan(det.x_ev[0])
