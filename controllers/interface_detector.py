@@ -545,7 +545,6 @@ class InterfaceDetector(KernelBlock, Block):
         self.fail_disarms = bool(fail_disarms)
         self._set_factors(mismatch_factor, thd_noise_factor)
         self.restart = bool(restart)
-        self.thd_min = float(thd_min)
         self.entry_confirm = bool(entry_confirm)
         self.step_signs = _step_signs(step_signs, kc, n)
         self.relative = kc is not None
@@ -553,20 +552,13 @@ class InterfaceDetector(KernelBlock, Block):
                              engage_fraction, thd_min, rearm_level)
         self._set_entry_ramp(entry_ramp, entry_span, entry_orbit_period, entry_shape)
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
-        # a layer's level (the materials check) is taken only above where it may already push
-        # out: its event's trigger plus its thinnest and the travel in a gap above it, less
-        # push_out. Why: a short, noisy plateau
-        # never settles (+-3 N about 28 N of aluminium), its push-out's slow fall does, and a level
-        # taken there (7.5 N, 0.2 mm above the bottom of a 1.07 mm layer) against the titanium
-        # below failed a right plan (foreign seed-24 hole 107: observed ratio 184 against 35)
-        self.level_reach = [th - tt - self.push_out for th, tt in zip(self.thicknesses, self.thickness_tolerances)]
+        self._set_level_reach()
         self._set_loc_after(interface_loc_after)
         self._set_exit_loc(exit_orbit_period, exit_loc_after, exit_ripple_period, observer_forgetting,
                            exit_shape, exit_compliance, (exit_release_compliance, exit_feed_exponent))
         self._set_exit_arm(exit_orbit_arm)
         self._set_interface_arm(interface_orbit_arm)
         self._set_process(layer_feed_rate, process_ramp, feed_per_rev)
-        self._set_entry_lag()
         self.windows = self._windows()
         self.reset(0.0)
 
@@ -594,6 +586,7 @@ class InterfaceDetector(KernelBlock, Block):
     def _set_thresholds(self, kc, feed_per_rev, feed_per_rev_min, entry_fraction, step_fraction,
                         engage_fraction, thd_min, rearm_level) -> None:
         """Process-following thresholds from the plan's ``kc`` and feeds, else Table 4's."""
+        self.thd_min = float(thd_min)
         if not self.relative:
             self.rearm_level = float(min(self.thd1, self.thd2, -self.thd3) if rearm_level is None else rearm_level)
             return
@@ -612,7 +605,6 @@ class InterfaceDetector(KernelBlock, Block):
         self.exit_gain = 0.5     # paper exit in relative terms: a drop of half the plateau
         self.floor = [engage_fraction * k_ * fmin for k_ in kc_]
         self.level_plan = [k_ * f_ for k_, f_ in zip(kc_, fpr)]   # N, new tool, own process
-        self.thd_min = float(thd_min)
         self.rearm_level = 0.5 * self.thd_min if rearm_level is None else float(rearm_level)
 
     def _set_entry_ramp(self, entry_ramp, entry_span, entry_orbit_period=0.0, entry_shape="any") -> None:
@@ -730,9 +722,20 @@ class InterfaceDetector(KernelBlock, Block):
                              "drive's deflection would be taken out of the exit twice; set one")
         self.exit_release_compliance, self.exit_feed_exponent = float(compliance), float(feed_exponent)
 
+    def _set_level_reach(self) -> None:
+        """Travel [m] past each layer's event up to which its level may be taken for the
+        materials check: its thinnest less push_out (a gap above it adds its own travel,
+        ``x_air``). Why: a short, noisy plateau never settles (+-3 N about 28 N of aluminium),
+        its push-out's slow fall does, and a level taken there (7.5 N, 0.2 mm above the bottom
+        of a 1.07 mm layer) against the titanium below failed a right plan (foreign seed-24
+        hole 107: observed ratio 184 against the plan's 35)."""
+        self.level_reach = [th - tt - self.push_out for th, tt in zip(self.thicknesses, self.thickness_tolerances)]
+
     def _set_process(self, layer_feed_rate, process_ramp, feed_per_rev) -> None:
-        """The plan's process per layer and the adaptation's ramp (:meth:`_process_change`), checked."""
+        """The plan's process per layer and the adaptation's ramp (:meth:`_process_change`), checked;
+        the level entry's lag that follows from it."""
         self.process = None
+        self.entry_lag = 0
         if layer_feed_rate is None:
             return
         if feed_per_rev is None:
@@ -746,13 +749,13 @@ class InterfaceDetector(KernelBlock, Block):
             raise ValueError(f"InterfaceDetector: process_ramp must be a number >= 0 s (the adaptation's "
                              f"ramp_time), got {process_ramp!r}")
         self.process = (feed, fpr, float(process_ramp))
+        self._set_entry_lag()
 
     def _set_entry_lag(self) -> None:
         """The level entry's lag [samples] (:meth:`_entry_level`): the plan's longest engagement
         (locate_margin, or the entry ramp where that is longer) at the first layer's feed; 0
-        (off) without the confirmation's span or the plan's process."""
-        self.entry_lag = 0
-        if self.entry_confirm and self.entry_P and self.process is not None:
+        (off) without the confirmation's span (or without the plan's process: _set_process)."""
+        if self.entry_confirm and self.entry_P:
             ramp = max(self.entry_ramp, self.locate_margin / self.process[0][0])
             self.entry_lag = min(int(math.ceil(ramp / self.sample_period)), HISTORY // 2 - self.entry_P)
 
