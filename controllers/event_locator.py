@@ -256,7 +256,7 @@ def _ringing(n: int, period: float) -> list[np.ndarray]:
 
 
 def onset_face(x, F, lo: float, hi: float, period: float | None = None,
-               shapes=ENGAGE_SHAPES, rise: bool = False) -> tuple[float, float]:
+               shapes=ENGAGE_SHAPES, rise: bool = False, cut_ripple: bool = False) -> tuple[float, float]:
     """Position [m] in [lo, hi] where the thrust leaves a level (with a trend) for a ramp
     of fitted length and one of ``shapes`` (ENGAGE_SHAPES or a leading part of it), and its
     uncertainty [m]. ``rise``: only a rising ramp is a fit (an entry: the tool goes from air
@@ -266,23 +266,24 @@ def onset_face(x, F, lo: float, hi: float, period: float | None = None,
     samples equally spaced in time) is fitted with the level: at a slow orbit the
     observer's DC estimate rings at the orbit frequency in air (+-5..20 N), which otherwise
     bends the level and the trend and pushes the onset onto its search bound (docs/stacks.md,
-    "Localisation")."""
-    return _best_face(lo, hi, _onset_sse(x, F, period, rise), ENGAGE_LENGTHS, shapes, x.size)
+    "Localisation"). ``cut_ripple``: with a period, the cut's own orbital ripple too, the ramp
+    times the orbit's sine and cosine (:func:`_onset_sse`)."""
+    return _best_face(lo, hi, _onset_sse(x, F, period, rise, cut_ripple), ENGAGE_LENGTHS, shapes, x.size)
 
 
-def _onset_sse(x, F, period: float | None, rise: bool):
+def _onset_sse(x, F, period: float | None, rise: bool, cut_ripple: bool = False):
     """onset_face's residual of a batch of onsets (G, 1) [m] for one ramp length [m] and shape."""
     orbit = _ringing(x.size, period) if period else []
-    cut = _orbit_sin_cos(x.size, period) if period else ()
+    cut = _orbit_sin_cos(x.size, period) if period and cut_ripple else ()
 
     def sse(x0, L, shape):
         d = (x[None, :] - x0) / L
         s = shape(d)
         # one sinusoid over the whole window: limited to the air part (times 1 - the ramp)
         # it put 13 of 29 replayed project entries over 0.05 mm against 5; one in air and
-        # one on the cut level, 6 (docs/stacks_history.md, "Entry (second pass)"). With it,
-        # the cut's own orbital ripple, which grows with the engaged share of the tool (the
-        # ramp times a sinusoid): without it a ripple of a quarter of an aluminium level at a
+        # one on the cut level, 6 (docs/stacks_history.md, "Entry (second pass)"). With
+        # cut_ripple, the cut's own orbital ripple, which grows with the engaged share of the
+        # tool (the ramp times a sinusoid): without it a ripple of a quarter of an aluminium level at a
         # 0.85 Hz orbit bent the ramp's top and put the onset 0.09 mm early (project seed-24
         # hole 175), a titanium entry's 0.08 mm (foreign seed-23 hole 169; seventeenth round)
         return _lstsq_batch([np.ones_like(d), d, s, *(np.broadcast_to(c, d.shape) for c in orbit),
@@ -529,7 +530,7 @@ def floor_gap(F, cut_floor: float | None) -> tuple[int, int] | None:
 def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cut_floor: float | None = None,
            period: float | None = None, entry_shape: str = "any", ghost: tuple[float, float] | None = None,
            exit_shape: str = "any", exit_release: tuple[float, float] | None = None,
-           process_change: ProcessChange | None = None):
+           process_change: ProcessChange | None = None, cut_ripple: bool = False):
     """Located position [m] of an event and its uncertainty [m] from the samples around
     its trigger: table positions ``x`` [m] (increasing along the feed), observed thrust
     ``F`` [N]. ``kind``: "entry", "interface" or "exit"; ``air`` [N]: the observed thrust
@@ -552,7 +553,8 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     x_feed in (0, 1]) or None: the exit's fall releases the deflection stored at its plateau
     (:func:`_release_of`); ``process_change`` (:class:`ProcessChange`) or None: an interface's drop
     fits its upper layer's push-out under the adaptation's process change, a rise its lower onset
-    before it (None: free laws, the process as it was). An entry's ramp rises; an
+    before it (None: free laws, the process as it was); ``cut_ripple``: the entry's fit with the
+    cut's own orbital ripple on its ramp too (:func:`onset_face`). An entry's ramp rises; an
     interface's may have either sign. (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
@@ -576,7 +578,7 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
         # hole 4: 0.3 mm of ringing air under a 20 N friction offset, a 0.6 mm rise to 46 N, then
         # the cut level sagging) the fit took the sag for a ramp down at its search bound, +0.61 mm
         return onset_face(x, F, x0, min(xt, x1), period if period is not None and 1.0 < period <= x.size else None,
-                          ENTRY_SHAPES[entry_shape], rise=True)
+                          ENTRY_SHAPES[entry_shape], rise=True, cut_ripple=cut_ripple)
     if kind == EXIT:
         if period is not None and not (period > 1.0 and x.size >= period + 10 * MIN_SEGMENT):
             period = None

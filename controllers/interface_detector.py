@@ -1395,7 +1395,7 @@ class InterfaceDetector(KernelBlock, Block):
                            process_change=self._process_change(k, ht[sel] - self.observer_delay)
                            if kind == "interface" else None)
         if k == 0:
-            x_loc, dx = self._entry_refit(x_fit, hF[sel], hi, x_trig, air, period, x_loc, dx)
+            x_loc, dx = self._entry_fit(x_fit, hF[sel], hi, x_trig, air, period, x_loc, dx)
         F_air = F_air_sd = NAN
         if k == 0 and math.isfinite(x_loc):
             # with a span the window is around the confirmation, which may leave only a few
@@ -1408,6 +1408,21 @@ class InterfaceDetector(KernelBlock, Block):
                 F_air, F_air_sd = air_level(hF[in_air], self._entry_period_samples())
         return x_loc, time_at(ht, hx, x_loc), dx, F_air, F_air_sd
 
+    def _entry_fit(self, xf, Fw, hi: float, x_trig: float, air: float, period, x_loc: float, dx: float):
+        """The entry's onset [m] and uncertainty [m] after the first fit (x_loc, dx): refitted
+        where the drive settles after the rise (:meth:`_entry_refit`), else fitted again with the
+        cut's own orbital ripple on the ramp (event_locator.locate's ``cut_ripple``; the first
+        fit's where that locates nothing). Why in this order: the ripple columns took part of a
+        settling fall into the ramp (foreign seed-24 hole 136, a worn tool's CFRP entry overshooting
+        to 430 N: -0.005 mm refitted, -0.141 with the ripple), and the settling is judged on the
+        first fit's ramp, as before the ripple was fitted."""
+        refit = self._entry_refit(xf, Fw, hi, x_trig, air, period, x_loc, dx)
+        if refit is not None or not math.isfinite(x_loc) or period is None:
+            return refit or (x_loc, dx)
+        x2, dx2 = locate("entry", xf, Fw, air=air, x_trig=x_trig, period=period, entry_shape=self.entry_shape,
+                         cut_ripple=True)
+        return (x2, dx2) if math.isfinite(x2) else (x_loc, dx)
+
     def _entry_refit(self, xf, Fw, hi: float, x_trig: float, air: float, period, x_loc: float, dx: float):
         """The entry's onset [m] and uncertainty [m] fitted again where the window (the cutting
         front's positions ``xf`` [m], :meth:`_front_positions`, of the samples up to the
@@ -1416,9 +1431,9 @@ class InterfaceDetector(KernelBlock, Block):
         over one orbit of the first layer, ``period`` [samples], or half a locate_margin).
         Refitted on the samples whose cutting front is at most a
         reach past the first fit's onset ``x_loc``: locate_margin, or the first fit's ramp
-        (:func:`onset_length`) and one orbit where those take more travel. The first fit's
-        (x_loc, dx) elsewhere, where the window ends within that reach or the refit locates
-        nothing. Why: with a span the window ends a locate_margin past the confirmation, an
+        (:func:`onset_length`) and one orbit where those take more travel; the first fit's
+        (x_loc, dx) where the refit locates nothing. None where the drive does not settle (or
+        the window ends within that reach): no refit. Why: with a span the window ends a locate_margin past the confirmation, an
         orbit after the candidate, and at a slow orbit it held up to 0.5 mm of cut level past
         the rise; a worn tool's entry on the foreign drive overshoots to 430 N and settles
         towards 140 N (seed-24 hole 136), which the fit's level with a trend cannot follow:
@@ -1429,7 +1444,7 @@ class InterfaceDetector(KernelBlock, Block):
         aluminium entries), and a locate_margin alone traded the sinusoid off against a long
         ramp (foreign2 seed-23 hole 77: +0.072 mm; docs/stacks_history.md, fourteenth round)."""
         if not math.isfinite(x_loc):
-            return x_loc, dx
+            return None
         # cut in the front's positions, as the fit: cut in the encoder's, a compliant drive's
         # Ti entry lost the top of its rise (foreign seed-24 hole 38: -0.045 -> +0.167 mm)
         orbit = period * (xf[-1] - xf[0]) / (xf.size - 1) if period is not None else 0.0   # at the mean feed
@@ -1437,7 +1452,7 @@ class InterfaceDetector(KernelBlock, Block):
         end = x_loc + max(self.locate_margin, orbit + ramp)
         span = orbit if orbit > 0.0 else 0.5 * self.locate_margin
         if not (end < hi and settling_fall(xf, Fw, x_loc, ramp, span) > ENTRY_SETTLING):
-            return x_loc, dx
+            return None
         keep = xf <= end
         x2, dx2 = locate("entry", xf[keep], Fw[keep], air=air, x_trig=x_trig, period=period,
                          entry_shape=self.entry_shape)

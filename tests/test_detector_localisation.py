@@ -202,7 +202,7 @@ def test_entry_refit_keeps_the_settling_after_the_rise_out(engage_mm):
     assert abs(x2) < 0.01 * MM
     # a window already ending within locate_margin of the onset is not fitted again
     short = x <= x1 + 0.4 * MM
-    assert det._entry_refit(x[short], F[short], x1 + 0.4 * MM, 0.28 * MM, 0.0, None, x1, dx) == (x1, dx)
+    assert det._entry_refit(x[short], F[short], x1 + 0.4 * MM, 0.28 * MM, 0.0, None, x1, dx) is None
 
 
 @pytest.mark.parametrize("engage_mm", [0.05, 0.2, 0.4])
@@ -248,8 +248,12 @@ def test_entry_refit_only_where_the_level_falls():
     x, F, period = _ringing_entry(0.35)
     x1, dx = locate("entry", x, F, air=0.0, x_trig=0.3 * MM, period=period, entry_shape="linear")
     assert 0.35 * MM / 1.19 <= onset_length(x, F, x1, period, "linear") <= 0.35 * MM * 1.19
-    assert det._entry_refit(x, F, x[-1], 0.3 * MM, 0.0, period, x1, dx) == (x1, dx)
+    assert det._entry_refit(x, F, x[-1], 0.3 * MM, 0.0, period, x1, dx) is None
+    # not refitted: fitted again with the cut's ripple on the ramp (_entry_fit)
+    x3, _ = det._entry_fit(x, F, x[-1], 0.3 * MM, 0.0, period, x1, dx)
+    assert abs(x3) <= 0.02 * MM
     x, F, period = _ringing_entry(0.35, settle_N=20.0)
     x1, dx = locate("entry", x, F, air=0.0, x_trig=0.3 * MM, period=period, entry_shape="linear")
     x2, _ = det._entry_refit(x, F, x[-1], 0.3 * MM, 0.0, period, x1, dx)
     assert x2 != x1 and abs(x2) <= 0.02 * MM
+    assert det._entry_fit(x, F, x[-1], 0.3 * MM, 0.0, period, x1, dx)[0] == x2    # the refit, not the ripple's

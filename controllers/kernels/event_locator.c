@@ -54,6 +54,7 @@ typedef struct {
                            (event_locator.locate's exit_release) */
     const double *share;   /* the push-out law's factor at each of the fit's samples, or NULL (1): an
                               interface drop's upper fall under the process change (event_locator.ProcessChange) */
+    int cut_ripple;     /* an onset's fit with the cut's orbital ripple on its ramp (event_locator.locate's cut_ripple) */
 } LocGrid;
 
 /* One fit problem: samples, the family (onset or push-out), the air level (NaN: fitted);
@@ -211,7 +212,7 @@ static int loc_columns(const LocFit *f, double face, double L, int shape, long i
         c[1] = d;
         c[2] = shape == 0 ? u : u * u * (3.0 - 2.0 * u);
         int k = loc_ring_columns(f, i, c, 3);
-        if (f->orbit == 0.0)
+        if (f->orbit == 0.0 || !f->grid->cut_ripple)
             return k;
         c[k] = c[2] * c[3];       /* the cut's orbital ripple, growing with the ramp (event_locator._onset_sse) */
         c[k + 1] = c[2] * c[4];

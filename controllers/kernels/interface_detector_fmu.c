@@ -265,6 +265,16 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
             out[0] = x2;
             out[2] = dx2;
         }
+    } else if (kind == LOC_ENTRY && isfinite(out[0]) && period > 0.0) {
+        /* InterfaceDetector._entry_fit: where the drive does not settle, again with the cut's
+         * orbital ripple on the ramp */
+        double x2, dx2;
+        engage.cut_ripple = 1;
+        event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, NULL, &x2, &dx2);
+        if (isfinite(x2)) {
+            out[0] = x2;
+            out[2] = dx2;
+        }
     }
     if (k == 0 && isfinite(out[0])) {
         long a = 0;         /* the samples in air before the entry, in the window (with a span: from a margin of air) */
@@ -307,11 +317,12 @@ void interface_detector_fmu_step(DetectorFMU *s, double t, const double *u, doub
  * interface, 2 exit; out = x_loc, dx [m]; tables as in DetectorFMU; period [samples],
  * ghost (NULL: none), exit_shape and entry_shape (DetectorFMU's codes), release (NULL: none; the exit's
  * {compliance [m/N], x_feed}) as event_locator.locate's; share (NULL: none) an interface's process
- * change (locate's process_change: a share per sample, the law fall_shape, fall_release {compliance, x_feed}) */
+ * change (locate's process_change: a share per sample, the law fall_shape, fall_release {compliance, x_feed});
+ * cut_ripple as locate's */
 void event_locate_tables(int kind, const double *x, const double *F, long n, double air, double x_trig,
                          double cut_floor, double period, const double *ghost, const double *tables, double *out,
                          int exit_shape, int entry_shape, const double *release, const double *share, int fall_shape,
-                         const double *fall_release)
+                         const double *fall_release, int cut_ripple)
 {
     LocGrid engage = {tables, tables + LOC_N_ENGAGE, LOC_N_ENGAGE, 0, 2};
     LocGrid push = {tables + LOC_N_ENGAGE + LOC_N_FINE, tables + LOC_N_ENGAGE + LOC_N_FINE + LOC_N_PUSH_OUT,
@@ -332,6 +343,7 @@ void event_locate_tables(int kind, const double *x, const double *F, long n, dou
     if (kind == LOC_ENTRY)
         engage = loc_exit_grid(&engage, entry_shape);
     engage.rise_shape = entry_shape;
+    engage.cut_ripple = cut_ripple;
     push.rise_shape = exit_shape;
     event_locate(kind, x, F, n, air, x_trig, cut_floor, period, ghost, &engage, &push, share != NULL ? &fall : NULL,
                  &out[0], &out[1]);
