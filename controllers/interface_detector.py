@@ -364,6 +364,9 @@ class InterfaceDetector(KernelBlock, Block):
         edge grows linearly with depth), a "smoothstep" (a rounded edge) or "any" (default:
         either, whichever fits better; event_locator.ENTRY_SHAPES); an interface's gap before
         a rise fits the lower layer's onset with it too (event_locator._rise_laws).
+    entry_ripple: where the drive does not settle after the entry's rise, the entry is
+        fitted again with the cut's orbital ripple on its ramp (event_locator.locate's
+        cut_ripple; True, the default); False keeps the first fit (foreign2's plans)
     Then entry: F~ > entry_fraction * kc_1 * f_1 * ramp_gain; interface k: |F~| >
     max(thd_min, step_fraction * |kc_{k+1}/kc_k - 1| * F^) (the step the
     observed level F^ makes when the material changes under an unchanged process);
@@ -513,7 +516,7 @@ class InterfaceDetector(KernelBlock, Block):
         entry_confirm: bool = False,
         entry_ramp: float = 0.0,
         entry_span: float = 0.0,
-        entry_orbit_period: float = 0.0, entry_shape: str = "any",
+        entry_orbit_period: float = 0.0, entry_shape: str = "any", entry_ripple: bool = True,
         step_signs: Sequence[float] | None = None,
         localise: bool = True, locate_margin: float = 0.3e-3,
         push_out: float = 0.5e-3, observer_delay: float = 0.0,
@@ -550,7 +553,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.relative = kc is not None
         self._set_thresholds(kc, feed_per_rev, feed_per_rev_min, entry_fraction, step_fraction,
                              engage_fraction, thd_min, rearm_level)
-        self._set_entry_ramp(entry_ramp, entry_span, entry_orbit_period, entry_shape)
+        self._set_entry_ramp(entry_ramp, entry_span, entry_orbit_period, entry_shape, entry_ripple)
         self._set_localisation(localise, locate_margin, push_out, observer_delay)
         self._set_level_reach()
         self._set_loc_after(interface_loc_after)
@@ -607,7 +610,8 @@ class InterfaceDetector(KernelBlock, Block):
         self.level_plan = [k_ * f_ for k_, f_ in zip(kc_, fpr)]   # N, new tool, own process
         self.rearm_level = 0.5 * self.thd_min if rearm_level is None else float(rearm_level)
 
-    def _set_entry_ramp(self, entry_ramp, entry_span, entry_orbit_period=0.0, entry_shape="any") -> None:
+    def _set_entry_ramp(self, entry_ramp, entry_span, entry_orbit_period=0.0, entry_shape="any",
+                        entry_ripple=True) -> None:
         """Scale the entry threshold to what the regression shows of the entry's ramp: a
         tool that engages over ``entry_ramp`` seconds (its engagement length at the first
         layer's feed) raises the thrust as a ramp, whose F~ is ``ramp_gain`` of its height
@@ -618,6 +622,9 @@ class InterfaceDetector(KernelBlock, Block):
             raise ValueError(f"InterfaceDetector: entry_shape must be one of {', '.join(ENTRY_SHAPES)}, "
                              f"got {entry_shape!r}")
         self.entry_shape = entry_shape
+        if not isinstance(entry_ripple, bool):
+            raise ValueError(f"InterfaceDetector: entry_ripple must be true or false, got {entry_ripple!r}")
+        self.entry_ripple = entry_ripple
         for name, v in (("entry_ramp", entry_ramp), ("entry_span", entry_span),
                         ("entry_orbit_period", entry_orbit_period)):
             _check_seconds(name, v, "0: off")
@@ -1417,7 +1424,7 @@ class InterfaceDetector(KernelBlock, Block):
         to 430 N: -0.005 mm refitted, -0.141 with the ripple), and the settling is judged on the
         first fit's ramp, as before the ripple was fitted."""
         refit = self._entry_refit(xf, Fw, hi, x_trig, air, period, x_loc, dx)
-        if refit is not None or not math.isfinite(x_loc) or period is None:
+        if refit is not None or not math.isfinite(x_loc) or period is None or not self.entry_ripple:
             return refit or (x_loc, dx)
         x2, dx2 = locate("entry", xf, Fw, air=air, x_trig=x_trig, period=period, entry_shape=self.entry_shape,
                          cut_ripple=True)
@@ -1769,7 +1776,8 @@ class InterfaceDetector(KernelBlock, Block):
         c.if_P[:n - 1], c.if_ratio[:n - 1] = self.if_P, self.if_ratio
         c.loc[:] = [v for ev in LOC_EVENTS for v in self.loc[ev]]
         fill(c, err_n=0, err_pos=0, cand=0, cand_n=0, cand_e_n=0, cand_e_pos=0, n_pending=0)
-        fill(c, entry_lag=self.entry_lag, lcand_t=NAN, lcand_x=NAN, lcand_i=0, lcand_n=0)
+        fill(c, entry_lag=self.entry_lag, entry_ripple=self.entry_ripple, lcand_t=NAN, lcand_x=NAN, lcand_i=0,
+             lcand_n=0)
         self._c_err = np.zeros(2 * self.N)       # |F~| of the last 2 N samples (a ring)
         self._c_locate_cb = detector_kernel.LOCATE_CALLBACK(self._c_locate)
         c.W, c.buf, c.err = self._W_flat.ctypes.data, self.buf.ctypes.data, self._c_err.ctypes.data

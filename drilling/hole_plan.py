@@ -43,7 +43,8 @@ OBSERVER_SETTLE_ORBITS = 6.0
 HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "approach", "breakthrough",
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
              "match_tolerance", "locate_margin", "push_out", "orbital_harmonics", "exit_orbit_mean", "engagement",
-             "entry_shape", "exit_shape", "exit_compliance", "exit_release_compliance", "feed_exponent"}
+             "entry_shape", "exit_shape", "exit_compliance", "exit_release_compliance", "feed_exponent",
+             "entry_ripple"}
 # Localisation (controllers/event_locator.py): travel on either side of an event that holds its
 # change and a stretch of level (engagement up to ~0.35 mm on the drives measured, and the
 # trigger up to ~0.1 mm into it: with 0.3 mm, Ti entries with a 0.22 mm engagement were
@@ -130,6 +131,12 @@ class HolePlan:
         self.exit_orbit_mean = hole.get("exit_orbit_mean", False)
         if not isinstance(self.exit_orbit_mean, bool):
             raise self.error("hole.exit_orbit_mean", f"expected true or false, got {self.exit_orbit_mean!r}")
+        # the entry fitted again with the cut's orbital ripple on its ramp (InterfaceDetector
+        # entry_ripple, docs/stacks.md "Localisation"): on by default; off where the drive's
+        # ramp fills the entry's window (foreign2's plans, seventeenth round)
+        self.entry_ripple = hole.get("entry_ripple", True)
+        if not isinstance(self.entry_ripple, bool):
+            raise self.error("hole.entry_ripple", f"expected true or false, got {self.entry_ripple!r}")
         self.fail_action = hole.get("fail_action", "hold")
         if self.fail_action not in FAIL_ACTIONS:
             raise error("hole.fail_action", f"expected one of {FAIL_ACTIONS}, got {self.fail_action!r}")
@@ -413,6 +420,7 @@ class HolePlan:
             # (the ringing in air, docs/stacks_history.md "Entry (second pass)")
             "entry_orbit_period": self.orbit_period(0),
             "entry_shape": self.entry_shape,
+            "entry_ripple": self.entry_ripple,
             "exit_shape": self.exit_shape,
             "exit_compliance": self.exit_compliance,
             "exit_release_compliance": self.exit_release_compliance,

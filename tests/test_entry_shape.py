@@ -129,6 +129,31 @@ def test_the_hole_plan_s_default_follows_the_point_length():
         _plan(entry_shape=True)
 
 
+def test_the_entry_s_second_fit_with_the_cut_s_ripple_is_a_plan_setting():
+    """On by default (the project's and the foreign drive's plans), off in foreign2's (its ramp
+    fills the entry's window); a detector without it keeps the first fit where the drive does not
+    settle; a value that is not true or false is an error naming the key."""
+    from drillcosim.analysis.stack_montecarlo import PLANTS, plan_of
+    assert _plan()["entry_ripple"] is True
+    assert plan_of(PLANTS["foreign2_ballscrew"].removesuffix(".toml"))["entry_ripple"] is False
+    with pytest.raises(ValueError, match="hole.entry_ripple"):
+        _plan(entry_ripple="no")
+    with pytest.raises(ValueError, match="entry_ripple"):
+        InterfaceDetector(entry_ripple=1)
+    rng = np.random.default_rng(2)
+    x = np.linspace(0.0, 1.2 * MM, 240)
+    ramp = np.clip((x - 0.4 * MM) / (0.35 * MM), 0.0, 1.0)
+    F = 35.0 * ramp * (1.0 + 0.25 * np.sin(2 * np.pi * np.arange(x.size) / 60.0)) + rng.normal(0.0, 1.0, x.size)
+    for ripple in (False, True):
+        det = InterfaceDetector(locate_margin=0.45 * MM, entry_shape="linear", entry_ripple=ripple)
+        x1, dx = locate("entry", x, F, air=0.0, x_trig=0.6 * MM, period=60.0, entry_shape="linear")
+        x2, _ = det._entry_fit(x, F, x[-1], 0.6 * MM, 0.0, 60.0, x1, dx)
+        if ripple:
+            assert abs(x2 - 0.4 * MM) <= abs(x1 - 0.4 * MM) and abs(x2 - 0.4 * MM) <= 0.01 * MM, (x1, x2)
+        else:
+            assert x2 == x1
+
+
 def test_the_shipped_plans_set_their_drive_s_point():
     """The project's and foreign2's drives engage linearly, the foreign drive's as a smoothstep."""
     from drillcosim.analysis.stack_montecarlo import PLANTS, plan_of

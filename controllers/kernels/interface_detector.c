@@ -52,6 +52,7 @@ typedef struct {
     double entry_rs;            /* state: restarted after the entry before it was located */
     double x_level;             /* state: where the level the entry's restart kept began (NaN: none) */
     double entry_lag;           /* the level entry's lag [samples] (0: off) */
+    double entry_ripple;        /* 1: the entry fitted again with the cut's ripple (interface_detector.py entry_ripple) */
     double lcand_t, lcand_x, lcand_i, lcand_n;   /* state: the level entry candidate (t NaN: none) */
     double h_armed;             /* state: samples written when the tests last armed */
     double x_air;               /* state: encoder travel [m] below the layer's floor since the last event */

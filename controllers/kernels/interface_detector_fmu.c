@@ -265,7 +265,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
             out[0] = x2;
             out[2] = dx2;
         }
-    } else if (kind == LOC_ENTRY && isfinite(out[0]) && period > 0.0) {
+    } else if (kind == LOC_ENTRY && isfinite(out[0]) && period > 0.0 && d->entry_ripple != 0.0) {
         /* InterfaceDetector._entry_fit: where the drive does not settle, again with the cut's
          * orbital ripple on the ramp */
         double x2, dx2;
