@@ -274,7 +274,7 @@ def onset_face(x, F, lo: float, hi: float, period: float | None = None,
 def _onset_sse(x, F, period: float | None, rise: bool, cut_ripple: bool = False):
     """onset_face's residual of a batch of onsets (G, 1) [m] for one ramp length [m] and shape."""
     orbit = _ringing(x.size, period) if period else []
-    cut = _orbit_sin_cos(x.size, period) if period and cut_ripple else ()
+    cut = orbit[:2] if cut_ripple else ()      # the ringing's own sine and cosine (_ringing)
 
     def sse(x0, L, shape):
         d = (x[None, :] - x0) / L
@@ -283,9 +283,10 @@ def _onset_sse(x, F, period: float | None, rise: bool, cut_ripple: bool = False)
         # it put 13 of 29 replayed project entries over 0.05 mm against 5; one in air and
         # one on the cut level, 6 (docs/stacks_history.md, "Entry (second pass)"). With
         # cut_ripple, the cut's own orbital ripple, which grows with the engaged share of the
-        # tool (the ramp times a sinusoid): without it a ripple of a quarter of an aluminium level at a
-        # 0.85 Hz orbit bent the ramp's top and put the onset 0.09 mm early (project seed-24
-        # hole 175), a titanium entry's 0.08 mm (foreign seed-23 hole 169; seventeenth round)
+        # tool (the ramp times a sinusoid): without it a ripple of a quarter of an aluminium
+        # level at a 0.85 Hz orbit bent the ramp's top and put the onset 0.09 mm early (project
+        # seed-24 hole 175), a titanium entry's 0.08 mm (foreign seed-23 hole 169; seventeenth
+        # round)
         return _lstsq_batch([np.ones_like(d), d, s, *(np.broadcast_to(c, d.shape) for c in orbit),
                              *(s * c for c in cut)], F, 2 if rise else None)
     return sse

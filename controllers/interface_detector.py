@@ -1440,9 +1440,9 @@ class InterfaceDetector(KernelBlock, Block):
         reach past the first fit's onset ``x_loc``: locate_margin, or the first fit's ramp
         (:func:`onset_length`) and one orbit where those take more travel; the first fit's
         (x_loc, dx) where the refit locates nothing. None where the drive does not settle (or
-        the window ends within that reach): no refit. Why: with a span the window ends a locate_margin past the confirmation, an
-        orbit after the candidate, and at a slow orbit it held up to 0.5 mm of cut level past
-        the rise; a worn tool's entry on the foreign drive overshoots to 430 N and settles
+        the window ends within that reach): no refit. Why: with a span the window ends a
+        locate_margin past the confirmation, an orbit after the candidate, and at a slow orbit
+        it held up to 0.5 mm of cut level past the rise; a worn tool's entry on the foreign drive overshoots to 430 N and settles
         towards 140 N (seed-24 hole 136), which the fit's level with a trend cannot follow:
         it took the fall into the ramp and put the onset early (-0.056 mm; refitted -0.008).
         The reach keeps the ramp and an orbit of level after it to tell the observer's

@@ -128,15 +128,11 @@ class HolePlan:
         self.harmonics = self._harmonics(hole)
         # the exit's fit on orbit means (InterfaceDetector exit_orbit_period): off by default,
         # its wide-draw measurement is mixed (docs/stacks_history.md, "Exit (first pass)")
-        self.exit_orbit_mean = hole.get("exit_orbit_mean", False)
-        if not isinstance(self.exit_orbit_mean, bool):
-            raise self.error("hole.exit_orbit_mean", f"expected true or false, got {self.exit_orbit_mean!r}")
+        self.exit_orbit_mean = self._flag(hole, "exit_orbit_mean", False)
         # the entry fitted again with the cut's orbital ripple on its ramp (InterfaceDetector
         # entry_ripple, docs/stacks.md "Localisation"): on by default; off where the drive's
         # ramp fills the entry's window (foreign2's plans, seventeenth round)
-        self.entry_ripple = hole.get("entry_ripple", True)
-        if not isinstance(self.entry_ripple, bool):
-            raise self.error("hole.entry_ripple", f"expected true or false, got {self.entry_ripple!r}")
+        self.entry_ripple = self._flag(hole, "entry_ripple", True)
         self.fail_action = hole.get("fail_action", "hold")
         if self.fail_action not in FAIL_ACTIONS:
             raise error("hole.fail_action", f"expected one of {FAIL_ACTIONS}, got {self.fail_action!r}")
@@ -148,6 +144,13 @@ class HolePlan:
         self.process = self._process(hole.get("process"))
 
     # ------------------------------------------------------------------ checks
+    def _flag(self, d, key, default: bool, where="hole") -> bool:
+        """d[key], true or false (default when absent); else an error naming the key."""
+        v = d.get(key, default)
+        if not isinstance(v, bool):
+            raise self.error(f"{where}.{key}", f"expected true or false, got {v!r}")
+        return v
+
     def _choice(self, d, key, choices, default, where="hole"):
         """d[key], one of ``choices`` (default when absent); else an error naming the key."""
         v = d.get(key, default)
