@@ -169,7 +169,8 @@ def export_state_type(detector_type, n_data: int):
     """ctypes mirror of DetectorFMU (kernels/interface_detector_fmu.c) with ``n_data`` doubles
     of arrays: the Detector's fields, then the fit's constants, then the arrays."""
     fields = list(detector_type._fields_) + [("observer_delay", _D), ("exit_period", _D), ("entry_period", _D), ("entry_shape", _D),
-                                              ("exit_ghost", _D * 2), ("exit_shape", _D), ("exit_compliance", _D), ("rise_laws", _D),
+                                              ("exit_ghost", _D * 2), ("exit_shape", _D), ("exit_compliance", _D), ("rise_ramp", _D),
+                                              ("entry_engagement", _D),
                                               ("exit_release", _D * 2), ("process", _D), ("layer_feed_rate", _D * DET_LAYERS),
                                               ("layer_feed_per_rev", _D * DET_LAYERS), ("process_ramp", _D),
                                               ("engage_lengths", _D * _C_TABLES["ENGAGE_LENGTHS"]),
@@ -181,8 +182,8 @@ def export_state_type(detector_type, n_data: int):
 
 def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
                  entry_period: float = 0.0, entry_shape: str = "any", exit_ghost=(0.0, 0.0),
-                 exit_shape: str = "any", exit_compliance: float = 0.0, rise_laws: bool = True,
-                 exit_release=(0.0, 0.75), process=None) -> ctypes.Structure:
+                 exit_shape: str = "any", exit_compliance: float = 0.0, rise_ramp: bool = True,
+                 exit_release=(0.0, 0.75), process=None, entry_engagement: float = 0.0) -> ctypes.Structure:
     """The exported FMU's state: the in-process C state ``state`` (a Detector) with its
     pointers cleared (the FMU sets them from its own memory at every step), the delay [s],
     the exit fit's orbit [samples, 0: none], the entry fit's [samples, 0: none], the
@@ -190,11 +191,12 @@ def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
     fit's ghost (orbit [samples], decay per sample; (0, 0): none), the exit's push-out law
     (event_locator.EXIT_SHAPES: code 0 any, 1 linear, 2 quadratic, 3 bending), the exit fit's
     compliance [m/N] (InterfaceDetector exit_compliance), whether an interface's rise takes
-    the plan's ramp and law (InterfaceDetector._plan_laws_at_rises), the exit's released push-out
+    the plan's ramp (InterfaceDetector._plan_ramp_at_rises), the exit's released push-out
     (compliance [m/N], x_feed; compliance 0: off), the plan's process (InterfaceDetector.process:
     each layer's feed rate [m/s] and feed per revolution [m/rev], the adaptation's ramp [s]; None:
-    none, an interface's drop fits free laws), the fit's tables and ``arrays`` (weights,
-    window, |F~| ring, history t, x, F) copied in."""
+    none, an interface's drop fits free laws), the plan's engagement at the entry [m] (0: none;
+    InterfaceDetector._entry_ramp_max), the fit's tables and ``arrays`` (weights, window,
+    |F~| ring, history t, x, F) copied in."""
     data = np.concatenate([np.asarray(a, dtype=float) for a in arrays])
     T = export_state_type(type(state), data.size)
     out = T()
@@ -208,7 +210,8 @@ def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
     out.exit_ghost[:] = [float(v) for v in exit_ghost]
     out.exit_shape = float(list(EXIT_SHAPES).index(exit_shape))
     out.exit_compliance = float(exit_compliance)
-    out.rise_laws = 1.0 if rise_laws else 0.0
+    out.rise_ramp = 1.0 if rise_ramp else 0.0
+    out.entry_engagement = float(entry_engagement)
     out.exit_release[:] = [float(v) for v in exit_release]
     if process is not None:
         feed, fpr, ramp = process
@@ -240,10 +243,10 @@ class ExportKernel:
 
 def export_kernel(state, observer_delay: float, arrays, exit_period: float = 0.0,
                   entry_period: float = 0.0, entry_shape: str = "any", exit_ghost=(0.0, 0.0),
-                  exit_shape: str = "any", exit_compliance: float = 0.0, rise_laws: bool = True,
-                  exit_release=(0.0, 0.75), process=None) -> ExportKernel:
+                  exit_shape: str = "any", exit_compliance: float = 0.0, rise_ramp: bool = True,
+                  exit_release=(0.0, 0.75), process=None, entry_engagement: float = 0.0) -> ExportKernel:
     """The exported FMU's C step started from the in-process C ``state`` (see export_state)."""
     s = export_state(state, observer_delay, arrays, exit_period, entry_period, entry_shape, exit_ghost, exit_shape,
-                     exit_compliance, rise_laws, exit_release, process)
+                     exit_compliance, rise_ramp, exit_release, process, entry_engagement)
     return ExportKernel(_source(EXPORT_NAME + ".c"), "interface_detector_fmu_step", s,
                         tuple(_source(n) for n in EXPORT_SOURCES[1:]), type(s).data.size)

@@ -53,6 +53,9 @@ AIR_SHARE = 0.5           # a level below this share of its neighbours' plateaus
 # a run at the air level whose median is above half its threshold is still a gap when its lowest
 # sample is below this share of the threshold: a narrow gap crossed by a falling and a rising face (a V)
 V_DIP_SHARE = 0.1
+# a cut level must stand this many of the window's noise spreads (:func:`noise_spread`) above air
+LEVEL_SNR = 3.0
+NORMAL_MAD = 0.6744897501960817     # the median of |z| for a standard normal z
 # an interface's drop at an orbit of at least this many samples (0.8 s at the detector's 0.02 s) is
 # located at the upper layer's free face fitted with the observer's ghost (:func:`_ghost_drop`)
 IF_GHOST_ORBIT = 40.0
@@ -63,23 +66,36 @@ IF_GHOST_ORBIT = 40.0
 EXIT_RING_ORBIT = 40.0
 
 
-def _end_levels(x, F) -> tuple[float, float]:
+def noise_spread(F) -> float:
+    """The samples' white noise [N] (its standard deviation) from their first differences:
+    their median magnitude over that of a normal difference's (0.6745 sqrt(2) sigma), which a
+    face's few steep samples and a slow ripple leave alone."""
+    return float(np.median(np.abs(np.diff(F)))) / (NORMAL_MAD * math.sqrt(2.0))
+
+
+def end_levels(x, F) -> tuple[float, float]:
     """The window's two cut levels [N]: the medians of F over the first and over the last
     fifth of the window's travel (at least MIN_SEGMENT samples each). By travel, not by
     count: the feed changes at the trigger (the lower layer's process), and a window reaching
     the push-out and a gap past a slow Al layer into a fast Ti one held more samples per mm of
     Ti, so its first fifth by count reached into the gap and no cut level was left above it
     (wide draw, foreign2 hole 132: -0.57 mm)."""
-    span = 0.2 * (x[-1] - x[0])
-    k0 = max(MIN_SEGMENT, int(np.count_nonzero(x <= x[0] + span)))
-    k1 = max(MIN_SEGMENT, int(np.count_nonzero(x >= x[-1] - span)))
+    k0, k1 = _fifths(x)
     return float(np.median(F[:k0])), float(np.median(F[-k1:]))
+
+
+def _fifths(x) -> tuple[int, int]:
+    """How many samples the first and the last fifth of the window's travel hold (at least
+    MIN_SEGMENT each): :func:`end_levels`."""
+    span = 0.2 * (x[-1] - x[0])
+    return (max(MIN_SEGMENT, int(np.count_nonzero(x <= x[0] + span))),
+            max(MIN_SEGMENT, int(np.count_nonzero(x >= x[-1] - span))))
 
 
 def air_run(x, F, air: float) -> tuple[int, int] | None:
     """(first, last + 1) sample of the longest run at the air level between two cut
     levels (a gap between two layers), or None. The levels are the medians of the first
-    and the last fifth of the window's travel (:func:`_end_levels`); a sample is at the air
+    and the last fifth of the window's travel (:func:`end_levels`); a sample is at the air
     level below AIR_SHARE of the lower of them, and the run must hold 2 MIN_SEGMENT samples
     with its median below half of that (a low cut level, Al after CFRP, is not air) or, a V,
     its lowest sample below V_DIP_SHARE of it: a gap of 10-20 um between a Ti layer pushed out
@@ -90,10 +106,18 @@ def air_run(x, F, air: float) -> tuple[int, int] | None:
     shortened to a thin lower layer: :func:`floor_gap` takes it with its open end). Taken for
     a closed gap, its middle bounded the lower onset's search with a few samples or none after
     it (wide draw, foreign2 hole 127: a 0.25 mm Ti/CFRP gap not located; foreign hole 87:
-    -0.055 mm)."""
-    first, last = _end_levels(x, F)
+    -0.055 mm). A last level within LEVEL_SNR noise spreads (its own samples') of air is no cut
+    level: a window cut short to a thin lower layer past a wide gap held so little of it that its
+    last fifth was the gap's, and the longest run below a threshold of a fraction of a newton was
+    noise in the upper layer's push-out tail, taken for the gap (wide draw, foreign seed-24 hole
+    164: an Al/CFRP gap of 0.51 mm, -0.071 mm); :func:`floor_gap` takes such a window. Not the
+    first level, nor the whole window's noise: a thin soft upper layer's window starts on its
+    push-out, a few newtons, and a Ti layer's samples above an aluminium one hold more noise than
+    its level (foreign seed-24 holes 27, 52, full windows with no floors to fall back on: -0.39,
+    -0.40 mm so)."""
+    first, last = end_levels(x, F)
     low = AIR_SHARE * min(first - air, last - air)
-    if not low > 0:
+    if not low > 0 or last - air < LEVEL_SNR * noise_spread(F[-_fifths(x)[1]:]):
         return None
     below = np.concatenate(([False], F - air < low, [False]))
     edges = np.flatnonzero(np.diff(below.astype(int)))
@@ -256,7 +280,8 @@ def _ringing(n: int, period: float) -> list[np.ndarray]:
 
 
 def onset_face(x, F, lo: float, hi: float, period: float | None = None,
-               shapes=ENGAGE_SHAPES, rise: bool = False, cut_ripple: bool = False) -> tuple[float, float]:
+               shapes=ENGAGE_SHAPES, rise: bool = False, cut_ripple: bool = False,
+               lengths=ENGAGE_LENGTHS) -> tuple[float, float]:
     """Position [m] in [lo, hi] where the thrust leaves a level (with a trend) for a ramp
     of fitted length and one of ``shapes`` (ENGAGE_SHAPES or a leading part of it), and its
     uncertainty [m]. ``rise``: only a rising ramp is a fit (an entry: the tool goes from air
@@ -267,8 +292,17 @@ def onset_face(x, F, lo: float, hi: float, period: float | None = None,
     observer's DC estimate rings at the orbit frequency in air (+-5..20 N), which otherwise
     bends the level and the trend and pushes the onset onto its search bound (docs/stacks.md,
     "Localisation"). ``cut_ripple``: with a period, the cut's own orbital ripple too, the ramp
-    times the orbit's sine and cosine (:func:`_onset_sse`)."""
-    return _best_face(lo, hi, _onset_sse(x, F, period, rise, cut_ripple), ENGAGE_LENGTHS, shapes, x.size)
+    times the orbit's sine and cosine (:func:`_onset_sse`). ``lengths``: the ramp lengths [m]
+    tried (:func:`engage_lengths`)."""
+    return _best_face(lo, hi, _onset_sse(x, F, period, rise, cut_ripple), lengths, shapes, x.size)
+
+
+def engage_lengths(ramp_max: float | None = None) -> np.ndarray:
+    """The ramp lengths [m] an onset's fit tries: ENGAGE_LENGTHS up to ``ramp_max`` [m] (at
+    least the shortest; None: all of them)."""
+    if ramp_max is None:
+        return ENGAGE_LENGTHS
+    return ENGAGE_LENGTHS[:max(1, int(np.count_nonzero(ENGAGE_LENGTHS <= ramp_max)))]
 
 
 def _onset_sse(x, F, period: float | None, rise: bool, cut_ripple: bool = False):
@@ -316,16 +350,18 @@ def settling_fall(x, F, x0: float, ramp: float, span: float) -> float:
     return (A - float(F[b].mean())) / (A - Z) if A > Z else NAN
 
 
-def onset_length(x, F, x0: float, period: float | None = None, entry_shape: str = "any") -> float:
+def onset_length(x, F, x0: float, period: float | None = None, entry_shape: str = "any",
+                 ramp_max: float | None = None) -> float:
     """The ramp length [m] (of ENGAGE_LENGTHS) that fits an entry's samples best with its onset
     at ``x0`` [m]: :func:`locate`'s entry model there, ``period`` and ``entry_shape`` as
-    locate's; NaN where no rising ramp fits. Tells how much of a window past the onset the
+    locate's, ``ramp_max`` its longest ramp [m] (:func:`engage_lengths`); NaN where no rising
+    ramp fits. Tells how much of a window past the onset the
     ramp takes (InterfaceDetector._entry_refit)."""
     x, F = np.asarray(x, float), np.asarray(F, float)
     ok = np.isfinite(x) & np.isfinite(F)
     x, F = x[ok], F[ok]
     sse = _onset_sse(x, F, period if period is not None and 1.0 < period <= x.size else None, rise=True)
-    best, arg = _best_on(sse, np.array([float(x0)]), ENGAGE_LENGTHS, ENTRY_SHAPES[entry_shape])
+    best, arg = _best_on(sse, np.array([float(x0)]), engage_lengths(ramp_max), ENTRY_SHAPES[entry_shape])
     return float(arg[0]) if np.isfinite(best[0]) else NAN
 
 
@@ -448,12 +484,12 @@ def _released(xb, x, L: float, shape, delta: float, p: float, share=None):
 def _release_of(x, F, release) -> tuple[float, float] | None:
     """The released push-out's (delta [m], 1 / x_feed) for an exit window, or None for the
     rigid law: ``release`` = (compliance [m/N], x_feed) or None; delta is the compliance times
-    the plateau's fall to air the window shows (:func:`_end_levels`). Where delta is not above
+    the plateau's fall to air the window shows (:func:`end_levels`). Where delta is not above
     the window's median travel per sample the law is the rigid one exactly (the implicit step
     over a sample's travel is at most one sample's lag from it; the aluminium exits' 3-6 um)."""
     if release is None or not release[0] > 0.0:
         return None
-    first, last = _end_levels(x, F)
+    first, last = end_levels(x, F)
     delta = release[0] * max(first - last, 0.0)
     if not delta > float(np.median(np.diff(x))):
         return None
@@ -531,7 +567,8 @@ def floor_gap(F, cut_floor: float | None) -> tuple[int, int] | None:
 def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cut_floor: float | None = None,
            period: float | None = None, entry_shape: str = "any", ghost: tuple[float, float] | None = None,
            exit_shape: str = "any", exit_release: tuple[float, float] | None = None,
-           process_change: ProcessChange | None = None, cut_ripple: bool = False):
+           process_change: ProcessChange | None = None, cut_ripple: bool = False,
+           ramp_max: float | None = None):
     """Located position [m] of an event and its uncertainty [m] from the samples around
     its trigger: table positions ``x`` [m] (increasing along the feed), observed thrust
     ``F`` [N]. ``kind``: "entry", "interface" or "exit"; ``air`` [N]: the observed thrust
@@ -555,7 +592,8 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     (:func:`_release_of`); ``process_change`` (:class:`ProcessChange`) or None: an interface's drop
     fits its upper layer's push-out under the adaptation's process change, a rise its lower onset
     before it (None: free laws, the process as it was); ``cut_ripple``: the entry's fit with the
-    cut's own orbital ripple on its ramp too (:func:`onset_face`). An entry's ramp rises; an
+    cut's own orbital ripple on its ramp too (:func:`onset_face`); ``ramp_max`` [m] or None: the
+    entry's longest ramp (:func:`engage_lengths`). An entry's ramp rises; an
     interface's may have either sign. (NaN, NaN) when there are too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
@@ -563,6 +601,8 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
         raise ValueError(f"event_locator.locate: entry_shape must be one of {', '.join(ENTRY_SHAPES)}, got {entry_shape!r}")
     if exit_shape not in EXIT_SHAPES:
         raise ValueError(f"event_locator.locate: exit_shape must be one of {', '.join(EXIT_SHAPES)}, got {exit_shape!r}")
+    if ramp_max is not None and not (isinstance(ramp_max, (int, float)) and ramp_max > 0.0):
+        raise ValueError(f"event_locator.locate: ramp_max must be None or a length > 0 m, got {ramp_max!r}")
     if exit_release is not None and not (exit_release[0] >= 0.0 and 0.0 < exit_release[1] <= 1.0):
         raise ValueError(f"event_locator.locate: exit_release must be (compliance >= 0 m/N, 0 < x_feed <= 1), "
                          f"got {exit_release!r}")
@@ -579,7 +619,8 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
         # hole 4: 0.3 mm of ringing air under a 20 N friction offset, a 0.6 mm rise to 46 N, then
         # the cut level sagging) the fit took the sag for a ramp down at its search bound, +0.61 mm
         return onset_face(x, F, x0, min(xt, x1), period if period is not None and 1.0 < period <= x.size else None,
-                          ENTRY_SHAPES[entry_shape], rise=True, cut_ripple=cut_ripple)
+                          ENTRY_SHAPES[entry_shape], rise=True, cut_ripple=cut_ripple,
+                          lengths=engage_lengths(ramp_max))
     if kind == EXIT:
         if period is not None and not (period > 1.0 and x.size >= period + 10 * MIN_SEGMENT):
             period = None
@@ -618,7 +659,7 @@ def _checked_change(change: ProcessChange | None, ok) -> ProcessChange | None:
 
 def _ghost_drop(x, F, ghost) -> bool:
     """Whether an interface's window is a drop onto a lower cut level (the last fifth's
-    median below the first's, :func:`_end_levels`) at a slow orbit (``ghost`` = (orbit
+    median below the first's, :func:`end_levels`) at a slow orbit (``ghost`` = (orbit
     [samples], decay per sample), the orbit at least IF_GHOST_ORBIT samples and within the
     window). The observer's ripple estimate lags the drop and rings at the orbit for
     seconds, +-40-80 N about an Al or CFRP level of 10-30 N and 0.3 mm of travel an orbit:
@@ -628,20 +669,20 @@ def _ghost_drop(x, F, ghost) -> bool:
     upper layer's free face fitted with the ghost (:func:`_ghost_columns`) over the whole
     window ends in the gap or at its upper face (replayed: within -0.020..+0.016 mm on 14
     slow-orbit drops of the project's drive), and any position in the gap is exact."""
-    first, last = _end_levels(x, F)
+    first, last = end_levels(x, F)
     return IF_GHOST_ORBIT <= ghost[0] <= x.size and 0.0 <= ghost[1] < 1.0 and last < first
 
 
 def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH_OUT_SHAPES),
                change: ProcessChange | None = None):
     """The middle of a gap's two faces and its uncertainty: the lower layer's onset after
-    the run's middle (``open_end``: the window ends in the gap, its last sample bounds the
+    the run's middle (``open_end``: the window ends in the gap, the run's last sample bounds the
     part seen), then the upper layer's free face on the samples before that onset. ``air``
     None: the air level is fitted. ``laws``: the plan's (ENTRY_SHAPES, EXIT_SHAPES) entries,
     taken when the lower layer cuts higher (:func:`_rise_laws`; a drop's ramp: :func:`_drop_onset`).
     ``change``: the adaptation's process change at the trigger (:class:`ProcessChange`): a drop's upper
     fall under it, a rise's lower onset before it."""
-    x0, x1 = float(x[0]), float(x[-1])
+    x0 = float(x[0])
     # the upper layer runs out at its free face, the lower one's rise leaves the air level
     # at its face: the middle of the two is inside the gap whatever its width
     mid = 0.5 * (x[gap[0]] + x[gap[1] - 1])
@@ -651,7 +692,10 @@ def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH
     start, lo_onset = _onset_from(x, F, gap, mid)
     down = x >= start
     engage, push_out = _rise_laws(x, F, laws)
-    hi, dhi = (x1, 0.0) if open_end else _drop_onset(x[down], F[down], lo_onset, engage, laws[0])
+    # an open end's run may stop a few samples short of the window's end, on the lower layer's
+    # first rise: its own last sample bounds the part of the gap seen (the window's last one put a
+    # Ti interface past a 0.74 mm gap on the ramp, 20 um into the Ti, its free face fitted to it)
+    hi, dhi = (float(x[gap[1] - 1]), 0.0) if open_end else _drop_onset(x[down], F[down], lo_onset, engage, laws[0])
     if not open_end and change is not None:
         hi, dhi = _rise_before_change(x[down], F[down], lo_onset, engage, laws[0], change.share[down],
                                       F[gap[0]:gap[1]], (hi, dhi))
@@ -688,7 +732,7 @@ def _rise_before_change(x, F, lo: float, engage, plan_ramp, share, air_run, fit)
     The test is on ``x``, ``F`` (the lower onset's samples, from the gap on) rising, not on the
     window: it holds on a drop too where the adaptation's ramp from a trigger in the upper layer's
     push-out still runs at the lower face (the lower layer's ramp before it is then one process's)."""
-    first, last = _end_levels(x, F)
+    first, last = end_levels(x, F)
     changed = np.flatnonzero(share != share[0])
     if not last > first or changed.size == 0:
         return fit
@@ -703,10 +747,10 @@ def _rise_before_change(x, F, lo: float, engage, plan_ramp, share, air_run, fit)
 
 def _drop_fall(x, F, fall: ProcessChange | None, up) -> ProcessChange | None:
     """``fall`` on the samples ``up`` where the window drops onto a lower cut level (the last
-    fifth's median below the first's, :func:`_end_levels`), else None."""
+    fifth's median below the first's, :func:`end_levels`), else None."""
     if fall is None:
         return None
-    first, last = _end_levels(x, F)
+    first, last = end_levels(x, F)
     return ProcessChange(fall.shape, fall.share[up], fall.release) if last < first else None
 
 
@@ -724,7 +768,7 @@ def _closed_drop(x, F, gap) -> bool:
     """Whether an interface's window drops onto a lower cut level (the last fifth's median
     below the first's) and its air run ends 2 MIN_SEGMENT samples or more before the window
     does: the lower onset's samples then start at the run's start (:func:`_onset_from`)."""
-    first, last = _end_levels(x, F)
+    first, last = end_levels(x, F)
     return last < first and gap[1] <= x.size - 2 * MIN_SEGMENT
 
 
@@ -733,7 +777,7 @@ def _rise_laws(x, F, laws):
     are fitted with: ``laws`` (the plan's, locate's ``entry_shape`` and ``exit_shape``: the
     tool's point engages every layer as it does the first, and pushes every layer out as the
     last) when the lower layer cuts higher (the last fifth's median above the first's,
-    :func:`_end_levels`), else either of ENGAGE_SHAPES and of PUSH_OUT_SHAPES. A soft upper
+    :func:`end_levels`), else either of ENGAGE_SHAPES and of PUSH_OUT_SHAPES. A soft upper
     layer (Al or CFRP, 10-50 N) before a harder one leaves its push-out's tail in the gap;
     offered r and r^2 the fit took either for the foreign2 drive's r^1.5 and ended the fall
     early, and offered the smoothstep it put the Ti's linear rise 0.05 mm early (wide draws,
@@ -748,7 +792,7 @@ def _rise_laws(x, F, laws):
     its ramp (closed loop: foreign2 hole 116 of seed 23, a CFRP rise after an 8 um gap, whose
     foot is rounded on the plant's true thrust too: 0.000 -> +0.033 mm); a drop's onset on its
     search bound is the exception (:func:`_drop_onset`)."""
-    first, last = _end_levels(x, F)
+    first, last = end_levels(x, F)
     return laws if last > first else (ENGAGE_SHAPES, PUSH_OUT_SHAPES)
 
 
@@ -791,7 +835,7 @@ def _onset_from(x, F, gap, mid: float) -> tuple[float, float]:
     +0.030..+0.062 mm). With the observer's ripple scaled by the thrust (docs/stacks.md,
     "The observer") the ringing the middle kept out is gone on these drops; a run to the
     window's end is a gap the window does not close (no lower level to fit there)."""
-    first, last = _end_levels(x, F)
+    first, last = end_levels(x, F)
     if last > first:
         return float(x[gap[0]]), mid
     if _closed_drop(x, F, gap):

@@ -107,8 +107,8 @@ from typing import Sequence
 import numpy as np
 
 from drillcosim.controllers import detector_kernel
-from drillcosim.controllers.event_locator import (ENTRY_SETTLING, ENTRY_SHAPES, EXIT_SHAPES, ProcessChange, locate,
-                                                   onset_length, settling_fall, time_at)
+from drillcosim.controllers.event_locator import (ENTRY_SETTLING, ENTRY_SHAPES, EXIT_SHAPES, ProcessChange, end_levels,
+                                                   locate, onset_length, settling_fall, time_at)
 from drillcosim.controllers.kernels import KernelBlock
 from drillcosim.controllers.kernels.structs import Detector as _DetectorState
 from drillcosim.controllers.kernels.structs import fill
@@ -127,6 +127,10 @@ HISTORY = 4096   # samples kept for the localisation (82 s at dt = 0.02 s: 1.6 m
 # 0.48 mm later left the surface before the window (project holes 4, 95, 128, 157, 170 of
 # the 200-hole draw, 0.26-0.56 mm late); 1.5-3 margins put replayed entries 0.1-0.7 mm high
 ENTRY_BACK = 1.0
+# the entry's ramp is fitted up to this many times the plan's engagement and the drive's
+# deflection under the step (InterfaceDetector._entry_ramp_max): the observer's lag and the
+# point's wear lengthen the ramp the encoder sees
+ENTRY_RAMP_SLACK = 1.5
 ENTRY_SWING = 5  # samples: an entry candidate is dropped once the mean of its last F~ is negative
 # an entry candidate needs F~ past this fraction of the entry threshold (issue 23): on a slow
 # feed the engagement ramp lasts longer than the regression window, which follows it, and F~
@@ -697,15 +701,38 @@ class InterfaceDetector(KernelBlock, Block):
                              f"got {exit_shape!r}")
         self.exit_shape = exit_shape
 
-    def _plan_laws_at_rises(self) -> bool:
-        """Whether an interface's rise is fitted with the plan's ramp and push-out law
-        (event_locator._rise_laws): only where the plan gives the point's engagement
+    def _plan_ramp_at_rises(self) -> bool:
+        """Whether an interface's rise is fitted with the plan's ramp (event_locator._rise_laws;
+        its push-out law always): only where the plan gives the point's engagement
         (``entry_ramp`` > 0, hole.engagement), the length its ramp is known over. The
         project's plan takes a linear entry ramp without one, and a Ti rise across a gap at a
         slow orbit (0.57 Hz: the observed rise bends over 0.3 mm with the ripple) was placed
         0.09 mm late with it, against 0.000 with either ramp offered (shipped plans' Monte
-        Carlo, seed 5, cfrp_al_ti hole 0)."""
+        Carlo, seed 5, cfrp_al_ti hole 0). The push-out law is the plan's whatever the
+        engagement: offered both laws the foreign drive's quadratic Al and CFRP push-outs before a
+        Ti or CFRP rise were fitted linear and their free faces came out early (wide draw, seed 24,
+        holes 39, 51: -0.050, -0.069 mm; with the plan's law, closed loop: -0.008, -0.017)."""
         return self.entry_ramp > 0.0
+
+    def _entry_ramp_max(self, x, F, air: float) -> float | None:
+        """The entry's longest ramp [m] (event_locator.locate's ``ramp_max``): ENTRY_RAMP_SLACK
+        times the plan's engagement (``entry_ramp`` at the first layer's feed) and the drive's
+        deflection under the window's step, the released compliance (exit_release_compliance)
+        times the last fifth's level (event_locator.end_levels) above ``air`` [N], which the
+        encoder's positions (``x`` [m], the fit's) add to the ramp; None where the plan gives no
+        engagement or no process. Why: on a CFRP entry the window's ramp and the observer's
+        ringing fitted a 0.6 mm ramp better than the drill's 0.3 mm point, and the onset came out
+        0.22 mm early (wide draw, foreign2 seed-23 hole 8; capped, +0.009)."""
+        engagement = self._entry_engagement()
+        if not (engagement > 0.0 and len(x)):
+            return None
+        step = max(end_levels(x, F)[1] - air, 0.0)
+        return ENTRY_RAMP_SLACK * (engagement + self.exit_release_compliance * step)
+
+    def _entry_engagement(self) -> float:
+        """The plan's engagement [m] at the entry: ``entry_ramp`` at the first layer's feed; 0
+        without one or without the plan's process."""
+        return self.entry_ramp * self.process[0][0] if self.entry_ramp > 0.0 and self.process is not None else 0.0
 
     def _set_exit_compliance(self, compliance) -> None:
         """The compliance [m/N] between the encoder and the cutting front the exit's and the
@@ -1393,16 +1420,17 @@ class InterfaceDetector(KernelBlock, Block):
             self.loc_after[k - 1] < self._full_loc_after() else None
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_fit = self._front_positions(xs[sel], hF[sel], air) if kind in ("exit", "entry") else xs[sel]
-        laws = kind != "interface" or self._plan_laws_at_rises()
+        ramp = kind != "interface" or self._plan_ramp_at_rises()
+        ramp_max = self._entry_ramp_max(x_fit, hF[sel], air) if k == 0 else None
         x_loc, dx = locate(kind, x_fit, hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period,
-                           entry_shape=self.entry_shape if laws else "any",
+                           entry_shape=self.entry_shape if ramp else "any",
                            ghost=self._exit_ghost() if kind == "exit" else self._interface_ghost(k) if k else None,
-                           exit_shape=self.exit_shape if laws else "any",
+                           exit_shape=self.exit_shape,
                            exit_release=self._exit_release() if kind == "exit" else None,
                            process_change=self._process_change(k, ht[sel] - self.observer_delay)
-                           if kind == "interface" else None)
+                           if kind == "interface" else None, ramp_max=ramp_max)
         if k == 0:
-            x_loc, dx = self._entry_fit(x_fit, hF[sel], hi, x_trig, air, period, x_loc, dx)
+            x_loc, dx = self._entry_fit(x_fit, hF[sel], hi, x_trig, air, period, x_loc, dx, ramp_max)
         F_air = F_air_sd = NAN
         if k == 0 and math.isfinite(x_loc):
             # with a span the window is around the confirmation, which may leave only a few
@@ -1415,22 +1443,25 @@ class InterfaceDetector(KernelBlock, Block):
                 F_air, F_air_sd = air_level(hF[in_air], self._entry_period_samples())
         return x_loc, time_at(ht, hx, x_loc), dx, F_air, F_air_sd
 
-    def _entry_fit(self, xf, Fw, hi: float, x_trig: float, air: float, period, x_loc: float, dx: float):
+    def _entry_fit(self, xf, Fw, hi: float, x_trig: float, air: float, period, x_loc: float, dx: float,
+                   ramp_max: float | None = None):
         """The entry's onset [m] and uncertainty [m] after the first fit (x_loc, dx): refitted
         where the drive settles after the rise (:meth:`_entry_refit`), else fitted again with the
         cut's own orbital ripple on the ramp (event_locator.locate's ``cut_ripple``; the first
         fit's where that locates nothing). Why in this order: the ripple columns took part of a
         settling fall into the ramp (foreign seed-24 hole 136, a worn tool's CFRP entry overshooting
         to 430 N: -0.005 mm refitted, -0.141 with the ripple), and the settling is judged on the
-        first fit's ramp, as before the ripple was fitted."""
-        refit = self._entry_refit(xf, Fw, hi, x_trig, air, period, x_loc, dx)
+        first fit's ramp, as before the ripple was fitted. ``ramp_max``: the longest ramp [m]
+        (:meth:`_entry_ramp_max`), of every fit."""
+        refit = self._entry_refit(xf, Fw, hi, x_trig, air, period, x_loc, dx, ramp_max)
         if refit is not None or not math.isfinite(x_loc) or period is None or not self.entry_ripple:
             return refit or (x_loc, dx)
         x2, dx2 = locate("entry", xf, Fw, air=air, x_trig=x_trig, period=period, entry_shape=self.entry_shape,
-                         cut_ripple=True)
+                         cut_ripple=True, ramp_max=ramp_max)
         return (x2, dx2) if math.isfinite(x2) else (x_loc, dx)
 
-    def _entry_refit(self, xf, Fw, hi: float, x_trig: float, air: float, period, x_loc: float, dx: float):
+    def _entry_refit(self, xf, Fw, hi: float, x_trig: float, air: float, period, x_loc: float, dx: float,
+                     ramp_max: float | None = None):
         """The entry's onset [m] and uncertainty [m] fitted again where the window (the cutting
         front's positions ``xf`` [m], :meth:`_front_positions`, of the samples up to the
         encoder's ``hi``; thrust ``Fw`` [N]: the first fit's) shows the drive settling after the rise:
@@ -1455,14 +1486,14 @@ class InterfaceDetector(KernelBlock, Block):
         # cut in the front's positions, as the fit: cut in the encoder's, a compliant drive's
         # Ti entry lost the top of its rise (foreign seed-24 hole 38: -0.045 -> +0.167 mm)
         orbit = period * (xf[-1] - xf[0]) / (xf.size - 1) if period is not None else 0.0   # at the mean feed
-        ramp = onset_length(xf, Fw, x_loc, period, self.entry_shape)
+        ramp = onset_length(xf, Fw, x_loc, period, self.entry_shape, ramp_max)
         end = x_loc + max(self.locate_margin, orbit + ramp)
         span = orbit if orbit > 0.0 else 0.5 * self.locate_margin
         if not (end < hi and settling_fall(xf, Fw, x_loc, ramp, span) > ENTRY_SETTLING):
             return None
         keep = xf <= end
         x2, dx2 = locate("entry", xf[keep], Fw[keep], air=air, x_trig=x_trig, period=period,
-                         entry_shape=self.entry_shape)
+                         entry_shape=self.entry_shape, ramp_max=ramp_max)
         return (x2, dx2) if math.isfinite(x2) else (x_loc, dx)
 
     def _entry_period_samples(self) -> float | None:
@@ -1739,8 +1770,9 @@ class InterfaceDetector(KernelBlock, Block):
         return detector_kernel.export_kernel(self.c_kernel.state, self.observer_delay, arrays,
                                              self._exit_period_samples() or 0.0, self._entry_period_samples() or 0.0,
                                              self.entry_shape, self._exit_ghost() or (0.0, 0.0), self.exit_shape,
-                                             self.exit_compliance, self._plan_laws_at_rises(),
-                                             (self.exit_release_compliance, self.exit_feed_exponent), self.process)
+                                             self.exit_compliance, self._plan_ramp_at_rises(),
+                                             (self.exit_release_compliance, self.exit_feed_exponent), self.process,
+                                             self._entry_engagement())
 
     def _c_supports(self) -> bool:
         return (detector_kernel.blas_ddot() is not None and detector_kernel.sums_like_python()

@@ -190,6 +190,13 @@ CASES = {
                                    entry_orbit_period=0.5, locate_margin=0.45 * MM, layer_feed_rate=[5.8 / 6e4]),
                               dict(levels=(13.0,), thick_mm=(4.0,), gaps_mm=(0.0,), feed_mm_min=5.8, engage_mm=0.34,
                                    noise=1.7, seed=2)),
+    # issue 23 round 18: the plan's engagement (a 0.3 mm point) and the drive's released compliance
+    # bound the entry's ramp (InterfaceDetector._entry_ramp_max), in Python, the C step and the
+    # exported FMU's C fit
+    "plan_entry_engagement": (dict(PLAN, entry_span=0.5, entry_orbit_period=0.5, entry_ramp=0.3 * MM / (15.0 / 6e4),
+                                   layer_feed_rate=[15.0 / 6e4] * 3, exit_release_compliance=1e-7),
+                              dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.0, 0.0),
+                                   ringing=10.0, feed_mm_min=15.0, engage_mm=0.3)),
     "four_layers": (dict(thicknesses=(2 * MM, 2 * MM, 2 * MM, 2 * MM), thd2=30.0, N=60, N_min=10, rearm_samples=40),
                     dict(levels=(120.0, 300.0, 150.0, 350.0), thick_mm=(2.0, 2.0, 2.0, 2.0), gaps_mm=(0, 0, 0, 0),
                          engage_mm=0.02, thinning_mm=0.05)),
@@ -224,6 +231,8 @@ def test_c_step_is_bit_identical_to_the_python_step(case):
         assert p.x_ev[2] > 6.7 * MM, p.x_ev
     if case == "plan_slow_entry_level":         # entry_lag: the plan's locate_margin at its feed
         assert p.entry_lag == math.ceil(0.45 / (5.8 / 60.0) / DT) and abs(p.loc["entry"][0] - 1.0 * MM) < 0.05 * MM
+    if case == "plan_entry_engagement":         # 1.5 x (0.3 mm + 0.1 um/N x 60 N), the 0.5 and 0.6 mm ramps out
+        assert abs(p.loc["entry"][0] - 1.0 * MM) < 0.03 * MM, p.loc["entry"]
     if case == "table4_nan_thinning":
         assert np.isnan(F).sum() > 10 and np.isfinite(_out(p, ys, "t_exit_thinning")[-1])
 

@@ -11,8 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from drillcosim.controllers import event_locator
 from drillcosim.controllers.event_locator import ENTRY_SHAPES, locate, onset_face
-from drillcosim.controllers.interface_detector import AIR_OFFSET_K, air_level
+from drillcosim.controllers.interface_detector import AIR_OFFSET_K, ENTRY_RAMP_SLACK, InterfaceDetector, air_level
 from test_export_detector import _assert_same_fit
 
 UM = 1e-6
@@ -117,3 +118,25 @@ def test_the_spread_is_the_rms_without_an_orbit_or_over_many_orbits():
     assert air_level(F, None)[1] == rms
     assert air_level(F, 12.0)[1] == rms          # 22 orbits >= AIR_RING_ORBITS: drift is no ringing
     assert air_level(F[:20], 12.0)[1] <= float(np.sqrt(np.mean((F[:20] - F[:20].mean()) ** 2)))
+
+
+def test_the_plans_engagement_bounds_the_entrys_ramp():
+    """The recorded window of the wide draw's foreign2 hole 8 (seed 23: a CFRP entry, the
+    drill's 0.3 mm point, a 12 N/um frame and a 20 N/um contact between the scale and the
+    front): the ramp and the observer's ringing at the orbit fitted a 0.6 mm ramp (the grid's
+    longest) better than the true one and put the onset 0.22 mm early. Fitted up to
+    ENTRY_RAMP_SLACK times the engagement and the deflection under the step
+    (InterfaceDetector._entry_ramp_max), it is at the surface within the encoder's 5 um and
+    the grid's 10 um step; the C fit the same. The detector's own bound is the same number."""
+    d = json.loads((Path(__file__).parent / "data" / "entry_window_long_ramp.json").read_text())
+    x, F = np.array(d["x"]), np.array(d["F"])
+    kw = dict(period=d["period"], entry_shape=d["entry_shape"])
+    det = InterfaceDetector(entry_ramp=d["engagement_m"] / 0.4e-3, layer_feed_rate=0.4e-3, feed_per_rev=4e-6,
+                            exit_release_compliance=d["release_compliance_m_per_N"])
+    ramp_max = det._entry_ramp_max(x, F, d["air"])
+    step = event_locator.end_levels(x, F)[1] - d["air"]
+    assert ramp_max == pytest.approx(ENTRY_RAMP_SLACK * (d["engagement_m"] + d["release_compliance_m_per_N"] * step))
+    x_loc, _ = _assert_same_fit("entry", x, F, d["air"], d["x_trig"], ramp_max=ramp_max, **kw)
+    assert abs(x_loc - d["surface_encoder_m"]) <= 0.015e-3, (x_loc - d["surface_encoder_m"]) / 1e-3
+    x_free, _ = locate("entry", x, F, air=d["air"], x_trig=d["x_trig"], **kw)
+    assert x_free - d["surface_encoder_m"] < -0.15e-3        # every ramp length offered

@@ -52,13 +52,13 @@ PREDICTION = ("F_pred", "F_err", "F_ref", "thd", "level_mismatch")
 
 
 def _c_locate(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any", entry_shape="any",
-              exit_release=None, process_change=None, cut_ripple=False):
+              exit_release=None, process_change=None, cut_ripple=False, ramp_max=None):
     fn = detector_kernel.export_library().event_locate_tables
     fn.restype = None
     fn.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_long, ctypes.c_double,
                    ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p,
                    ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int,
-                   ctypes.c_void_p, ctypes.c_int]
+                   ctypes.c_void_p, ctypes.c_int, ctypes.c_double]
     x, F = np.ascontiguousarray(x, float), np.ascontiguousarray(F, float)
     tables, out = detector_kernel.locator_tables(), np.zeros(2)
     g = None if ghost is None else np.array(ghost, float)
@@ -71,19 +71,20 @@ def _c_locate(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, 
        tables.ctypes.data, out.ctypes.data, list(EXIT_SHAPES).index(exit_shape), list(ENTRY_SHAPES).index(entry_shape),
        None if rel is None else rel.ctypes.data, None if share is None else share.ctypes.data,
        0 if process_change is None else list(EXIT_SHAPES).index(process_change.shape),
-       None if fall_rel is None else fall_rel.ctypes.data, int(cut_ripple))
+       None if fall_rel is None else fall_rel.ctypes.data, int(cut_ripple), math.nan if ramp_max is None else ramp_max)
     return float(out[0]), float(out[1])
 
 
 def _assert_same_fit(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any",
-                     entry_shape="any", exit_release=None, py=None, process_change=None, cut_ripple=False):
+                     entry_shape="any", exit_release=None, py=None, process_change=None, cut_ripple=False,
+                     ramp_max=None):
     """The C fit equals the Python one (``py``: already made, else fitted here)."""
     if py is None:
         py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost,
                     exit_shape=exit_shape, entry_shape=entry_shape, exit_release=exit_release, process_change=process_change,
-                    cut_ripple=cut_ripple)
+                    cut_ripple=cut_ripple, ramp_max=ramp_max)
     c = _c_locate(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, entry_shape, exit_release, process_change,
-                  cut_ripple)
+                  cut_ripple, ramp_max)
     for a, b in zip(py, c):
         assert (math.isnan(a) and math.isnan(b)) or abs(a - b) <= 1e-12, (kind, py, c)   # 1e-9 mm
     return py
@@ -108,13 +109,13 @@ def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
     calls = []
 
     def spy(kind, x, F, *, air=0.0, x_trig=None, cut_floor=None, period=None, entry_shape="any", ghost=None,
-            exit_shape="any", exit_release=None, process_change=None, cut_ripple=False):
+            exit_shape="any", exit_release=None, process_change=None, cut_ripple=False, ramp_max=None):
         assert entry_shape == "any"     # the cases fit both ramps, as event_locate_tables does
         py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost,
                     exit_shape=exit_shape, exit_release=exit_release, process_change=process_change,
-                    cut_ripple=cut_ripple)
+                    cut_ripple=cut_ripple, ramp_max=ramp_max)
         calls.append((kind, np.array(x), np.array(F), air, x_trig, cut_floor, period, ghost, exit_shape, exit_release,
-                      process_change, cut_ripple, py))
+                      process_change, (cut_ripple, ramp_max), py))
         return py
 
     monkeypatch.setattr(idm, "locate", spy)
@@ -130,12 +131,13 @@ def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
     assert any(c[0] == "interface" and c[7] is not None for c in calls)    # a drop's ghost (plan_slow_drops_ghost)
     assert any(c[10] is not None for c in calls)       # a drop under the process change (plan_process_drops)
     # ... and a rise (plan_process_rise): its onset fitted before the change
-    assert any(c[10] is not None and np.subtract(*event_locator._end_levels(c[1], c[2])) < 0 for c in calls)
-    assert any(c[11] for c in calls)      # an entry fitted again with the cut's ripple (an entry_orbit_period)
-    for kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, exit_release, process_change, ripple, py in calls:
+    assert any(c[10] is not None and np.subtract(*event_locator.end_levels(c[1], c[2])) < 0 for c in calls)
+    assert any(c[11][0] for c in calls)      # an entry fitted again with the cut's ripple (an entry_orbit_period)
+    for kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, exit_release, process_change, (ripple, ramp_max), \
+            py in calls:
         # the Python fit as the step made it (fitting it again took a third of the test's time)
         _assert_same_fit(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, exit_release=exit_release,
-                         py=py, process_change=process_change, cut_ripple=ripple)
+                         py=py, process_change=process_change, cut_ripple=ripple, ramp_max=ramp_max)
 
 
 def test_c_fit_of_a_window_cut_short_to_a_thin_layer():

@@ -63,10 +63,10 @@ def test_end_levels_by_travel_when_the_feed_changes():
     end: its median, 6 N, left the gap's 2 N above the air share, no air run was found,
     and the fit took the fall's start for the interface (wide draw, foreign2 hole 132: -0.57
     mm). By travel the first fifth is the Al's plateau; the located position lies in the gap."""
-    from drillcosim.controllers.event_locator import _end_levels
+    from drillcosim.controllers.event_locator import end_levels
     x, F = _feed_change_window(5)
     assert float(np.median(F[:x.size // 5])) < 0.5 * 20.0       # by count: below the Al's air share
-    first, _ = _end_levels(x, F)
+    first, _ = end_levels(x, F)
     assert first == pytest.approx(20.0, abs=1.5)
     x_loc, _ = locate("interface", x, F, air=0.0, x_trig=1.5 * MM)
     assert 1.9 * MM - 0.01 * MM <= x_loc <= 2.6 * MM + 0.01 * MM

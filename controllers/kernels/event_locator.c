@@ -19,6 +19,8 @@
 #define LOC_MIN_SEGMENT 3          /* event_locator.MIN_SEGMENT */
 #define LOC_AIR_SHARE 0.5          /* event_locator.AIR_SHARE */
 #define LOC_V_DIP_SHARE 0.1        /* event_locator.V_DIP_SHARE */
+#define LOC_LEVEL_SNR 3.0          /* event_locator.LEVEL_SNR */
+#define LOC_NORMAL_MAD 0.6744897501960817   /* event_locator.NORMAL_MAD */
 #define LOC_COARSE_STEP 10e-6      /* m, event_locator.COARSE_STEP */
 #define LOC_GRID_STEP 1e-6         /* m, event_locator.GRID_STEP */
 #define LOC_N_ENGAGE 25            /* len(event_locator.ENGAGE_LENGTHS) */
@@ -490,30 +492,51 @@ static void loc_best_face(const LocFit *f, double lo, double hi, double *face, d
     free(pc);
 }
 
-/* the medians of F over the first and the last fifth of the window's travel, at least
- * MIN_SEGMENT samples each (event_locator._end_levels) */
-static void loc_end_levels(const double *x, const double *F, long n, double *scratch, double *first, double *last)
+/* how many samples the first and the last fifth of the window's travel hold, at least
+ * MIN_SEGMENT each (event_locator._fifths) */
+static void loc_fifths(const double *x, long n, long *k0, long *k1)
 {
     double span = 0.2 * (x[n - 1] - x[0]);
-    long k0 = 0, k1 = 0;
+    *k0 = *k1 = 0;
     for (long i = 0; i < n; i++) {
-        k0 += x[i] <= x[0] + span;
-        k1 += x[i] >= x[n - 1] - span;
+        *k0 += x[i] <= x[0] + span;
+        *k1 += x[i] >= x[n - 1] - span;
     }
-    k0 = LOC_PYMAX((long)LOC_MIN_SEGMENT, k0);
-    k1 = LOC_PYMAX((long)LOC_MIN_SEGMENT, k1);
+    *k0 = LOC_PYMAX((long)LOC_MIN_SEGMENT, *k0);
+    *k1 = LOC_PYMAX((long)LOC_MIN_SEGMENT, *k1);
+}
+
+/* the medians of F over the first and the last fifth of the window's travel (event_locator.end_levels) */
+static void loc_end_levels(const double *x, const double *F, long n, double *scratch, double *first, double *last)
+{
+    long k0, k1;
+    loc_fifths(x, n, &k0, &k1);
     *first = loc_median(F, k0, scratch);
     *last = loc_median(F + n - k1, k1, scratch);
 }
 
 /* air_run: [i0, i1) of the longest run at the air level between two cut levels, or 0; the
  * levels over the first and the last fifth of the window's travel (loc_end_levels) */
+/* event_locator.noise_spread: the median |dF| over a normal difference's (scratch: n doubles) */
+static double loc_noise_spread(const double *F, long n, double *scratch)
+{
+    for (long i = 0; i + 1 < n; i++)
+        scratch[i] = fabs(F[i + 1] - F[i]);
+    qsort(scratch, (size_t)(n - 1), sizeof(double), loc_cmp);
+    long m = n - 1;
+    double median = m % 2 ? scratch[m / 2] : (scratch[m / 2 - 1] + scratch[m / 2]) / 2.0;
+    return median / (LOC_NORMAL_MAD * sqrt(2.0));
+}
+
 static int loc_air_run(const double *x, const double *F, long n, double air, double *scratch, long *i0, long *i1)
 {
     double first, last;
     loc_end_levels(x, F, n, scratch, &first, &last);
     double low = LOC_AIR_SHARE * LOC_PYMIN(first - air, last - air);
-    if (!(low > 0.0))
+    /* a last level within LEVEL_SNR noise spreads (its own samples') of air is no cut level (event_locator.air_run) */
+    long k0, k1;
+    loc_fifths(x, n, &k0, &k1);
+    if (!(low > 0.0) || last - air < LOC_LEVEL_SNR * loc_noise_spread(F + n - k1, k1, scratch))
         return 0;
     long best = 0, start = -1;
     *i0 = *i1 = 0;
@@ -709,8 +732,8 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
         int free_ramps = !(last > first) && engage->rise_shape != 0;
         LocFit down = {xd, Fd, n_down, 0, NAN, &ramp};
         double lo, dlo, hi, dhi;
-        if (open_end) {                      /* the window ends in the gap: its last sample bounds it */
-            hi = x[n - 1];
+        if (open_end) {                      /* the window ends in the gap: the run's last sample bounds it */
+            hi = x[g1 - 1];
             dhi = 0.0;
         } else {
             loc_drop_onset(&down, &ramp, &plan_ramp, free_ramps, lo_onset, &hi, &dhi);
@@ -825,6 +848,15 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
     else
         loc_best_face(&onset, x0, LOC_PYMIN(x_trig, x1), x_loc, dx);
     free(x);
+}
+
+/* event_locator.engage_lengths: how many of the (increasing) lengths are up to ramp_max [m], at least one */
+static int loc_engage_count(const double *lengths, int n, double ramp_max)
+{
+    int k = 0;
+    while (k < n && lengths[k] <= ramp_max)
+        k++;
+    return LOC_PYMAX(1, k);
 }
 
 /* event_locator.onset_length: the ramp length [m] of the engage grid's coarse lengths that fits

@@ -16,6 +16,7 @@
 #define DETECTOR_SELF_CONTAINED 1
 #define DET_ENTRY_BACK 1.0   /* interface_detector.ENTRY_BACK: margins before the entry candidate the fit reaches */
 #define DET_AIR_RING_ORBITS 2.0   /* interface_detector.AIR_RING_ORBITS */
+#define DET_ENTRY_RAMP_SLACK 1.5  /* interface_detector.ENTRY_RAMP_SLACK */
 #define DET_PI 3.141592653589793  /* math.pi */
 #include "event_locator.c"
 #include "interface_detector.c"
@@ -30,7 +31,8 @@ typedef struct {
     double exit_shape;                            /* the exit's push-out law: 0 any, 1 linear, 2 quadratic, 3 bending
                                                      (event_locator.EXIT_SHAPES) */
     double exit_compliance;                       /* m/N, encoder to cutting front (InterfaceDetector._front_positions) */
-    double rise_laws;                             /* 1: an interface's rise takes the plan's ramp and law (InterfaceDetector._plan_laws_at_rises) */
+    double rise_ramp;                             /* 1: an interface's rise takes the plan's ramp (InterfaceDetector._plan_ramp_at_rises) */
+    double entry_engagement;                      /* m, the plan's engagement at the entry (0: none; InterfaceDetector._entry_ramp_max) */
     double exit_release[2];                       /* the exit's released push-out: compliance [m/N] (0: off), x_feed
                                                      (InterfaceDetector._exit_release) */
     double process;                               /* 1: the plan gives each layer's process (InterfaceDetector.process),
@@ -233,8 +235,16 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
         push.release[0] = s->exit_release[0];
         push.release[1] = s->exit_release[1];
     }
-    engage.rise_shape = s->rise_laws != 0.0 ? (int)s->entry_shape : 0;   /* an interface's rise: the plan's ramp and law */
-    push.rise_shape = s->rise_laws != 0.0 ? (int)s->exit_shape : 0;
+    engage.rise_shape = s->rise_ramp != 0.0 ? (int)s->entry_shape : 0;   /* an interface's rise: the plan's ramp */
+    push.rise_shape = (int)s->exit_shape;                                 /* and its push-out law */
+    if (kind == LOC_ENTRY && s->entry_engagement > 0.0 && m >= 10 * LOC_MIN_SEGMENT) {
+        /* InterfaceDetector._entry_ramp_max: the plan's engagement and the drive's deflection under the step */
+        double first, last;
+        loc_end_levels(xsel, Fsel, m, share, &first, &last);
+        double step = LOC_PYMAX(last - air, 0.0);
+        engage.n_lengths = loc_engage_count(engage.lengths, LOC_N_ENGAGE,
+                                            DET_ENTRY_RAMP_SLACK * (s->entry_engagement + s->exit_release[0] * step));
+    }
     /* an interface window cut short to a thin layer below may end in the gap: air is below
      * the engagement floor of both layers around it (InterfaceDetector._fit; full: _full_loc_after) */
     double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0 && d->loc_after[k - 1] < d->max_gap + d->push_out + d->locate_margin
@@ -318,11 +328,11 @@ void interface_detector_fmu_step(DetectorFMU *s, double t, const double *u, doub
  * ghost (NULL: none), exit_shape and entry_shape (DetectorFMU's codes), release (NULL: none; the exit's
  * {compliance [m/N], x_feed}) as event_locator.locate's; share (NULL: none) an interface's process
  * change (locate's process_change: a share per sample, the law fall_shape, fall_release {compliance, x_feed});
- * cut_ripple as locate's */
+ * cut_ripple and ramp_max [m] (NaN: none) as locate's */
 void event_locate_tables(int kind, const double *x, const double *F, long n, double air, double x_trig,
                          double cut_floor, double period, const double *ghost, const double *tables, double *out,
                          int exit_shape, int entry_shape, const double *release, const double *share, int fall_shape,
-                         const double *fall_release, int cut_ripple)
+                         const double *fall_release, int cut_ripple, double ramp_max)
 {
     LocGrid engage = {tables, tables + LOC_N_ENGAGE, LOC_N_ENGAGE, 0, 2};
     LocGrid push = {tables + LOC_N_ENGAGE + LOC_N_FINE, tables + LOC_N_ENGAGE + LOC_N_FINE + LOC_N_PUSH_OUT,
@@ -340,8 +350,11 @@ void event_locate_tables(int kind, const double *x, const double *F, long n, dou
             push.release[1] = release[1];
         }
     }
-    if (kind == LOC_ENTRY)
+    if (kind == LOC_ENTRY) {
         engage = loc_exit_grid(&engage, entry_shape);
+        if (!isnan(ramp_max))
+            engage.n_lengths = loc_engage_count(engage.lengths, LOC_N_ENGAGE, ramp_max);
+    }
     engage.rise_shape = entry_shape;
     engage.cut_ripple = cut_ripple;
     push.rise_shape = exit_shape;
