@@ -41,14 +41,14 @@ def _outside(x_loc, face, top) -> float:
 
 
 @pytest.mark.parametrize("shape", [{}, {"gap_mm": 0.8, "past_mm": 0.2}, {"level_up": 25.0, "push_mm": 0.3}])
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("seed", [0, 1])
 def test_a_wide_gap_in_a_short_window_is_located_in_the_gap(shape, seed):
     x, F, face, top = _window(seed, **shape)
     x_loc, _ = _assert_same_fit("interface", x, F, 0.0, face, cut_floor=AL_FLOOR, exit_shape="quadratic")
     assert _outside(x_loc, face, top) <= 0.01 * MM
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("seed", [0, 1])
 def test_a_window_ending_on_the_lower_layers_first_rise_bounds_the_gap_by_its_run(seed):
     """The window ends 20 um into a Ti layer's 0.1 mm ramp to 1000 N (a few samples above the
     floors): the run below them is the gap's seen part, its last sample bounds it (the window's
@@ -100,7 +100,7 @@ def test_full_windows_whose_first_level_is_low_or_noisy_keep_their_gap(name):
     assert _outside(x_loc, face, top) <= 0.01 * MM
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("seed", [0, 1])
 def test_a_window_ending_on_the_lower_layers_first_rise_bounds_the_gap_by_its_run(seed):
     """The window ends 20 um into a Ti layer's 0.1 mm ramp to 1000 N (a few samples above the
     floors): the run below them is the gap's seen part, its last sample bounds it (the window's
