@@ -86,6 +86,21 @@ def test_hole_164_is_located_in_its_gap_and_was_not_without_the_level_test(monke
     assert _outside(x_base, face, top) > 0.03 * MM
 
 
+def test_noise_about_a_low_floor_does_not_close_an_open_gap(monkeypatch):
+    """Foreign seed-23 hole 128 (ti/al/ti): the window cut short to the Al below ends 0.22 mm into
+    a 0.66 mm gap, whose noise (1.6 N) crosses the Al's 2.9 N floor: split there, the run's first
+    part was taken for a closed gap and the lower onset fitted on the noise after it, 0.038 mm
+    early. Fewer than 2 MIN_SEGMENT samples above the floor between two below are the run's
+    (event_locator._bridged): the gap runs to the window's end, located in it."""
+    x, F, kw, (face, top) = _recorded("interface_window_open_gap_noise")
+    x_loc, _ = _assert_same_fit("interface", x, F, kw["air"], kw["x_trig"], cut_floor=kw["cut_floor"],
+                                exit_shape=kw["exit_shape"], process_change=kw["process_change"])
+    assert _outside(x_loc, face, top) <= 0.01 * MM
+    monkeypatch.setattr(event_locator, "_bridged", lambda below: below)
+    x_split, _ = event_locator.locate("interface", x, F, **kw)
+    assert _outside(x_split, face, top) > 0.03 * MM
+
+
 @pytest.mark.parametrize("name", ["interface_window_thin_al_wide_gap", "interface_window_ti_al_wide_gap"])
 def test_full_windows_whose_first_level_is_low_or_noisy_keep_their_gap(name):
     """Full windows (no floors to fall back on) past wide gaps: foreign seed-24 hole 27 (a 0.93 mm

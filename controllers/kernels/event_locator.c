@@ -574,10 +574,24 @@ static int loc_floor_gap(const double *F, long n, double cut_floor, double *scra
     long k = LOC_PYMAX((long)LOC_MIN_SEGMENT, n / 5);
     if (!(loc_median(F, k, scratch) > cut_floor))
         return 0;
+    /* below the floor, with fewer than 2 MIN_SEGMENT samples above it between two below counted
+       below (event_locator._bridged: noise splits a gap's run about a floor of a few newtons) */
+    for (long i = 0; i < n; i++)
+        scratch[i] = F[i] < cut_floor;
+    for (long i = 1, a = -1; i < n; i++) {
+        if (scratch[i] == 0.0 && scratch[i - 1] != 0.0)
+            a = i;                           /* a run above starts after one below */
+        if (scratch[i] != 0.0 && scratch[i - 1] == 0.0 && a >= 0) {
+            if (i - a < 2 * LOC_MIN_SEGMENT)
+                for (long j = a; j < i; j++)
+                    scratch[j] = 1.0;
+            a = -1;
+        }
+    }
     long best = 0, start = -1;
     *i0 = *i1 = 0;
     for (long i = 0; i <= n; i++) {
-        int below = i < n && F[i] < cut_floor;
+        int below = i < n && scratch[i] != 0.0;
         if (below && start < 0)
             start = i;
         if (!below && start >= 0) {
