@@ -76,14 +76,20 @@ def _recorded(name):
     return np.array(d["x"]), np.array(d["F"]), kw, d["gap_encoder_m"]
 
 
-def test_hole_164_is_located_in_its_gap_and_was_not_without_the_level_test(monkeypatch):
-    x, F, kw, (face, top) = _recorded("interface_window_wide_gap")
+def _in_its_gap_and_not_without(name, monkeypatch, attr, value) -> None:
+    """The recorded window ``name`` is located in its gap (Python = C) and, with
+    event_locator's ``attr`` set to ``value`` (the rule taken away), beyond the 0.03 mm bar."""
+    x, F, kw, (face, top) = _recorded(name)
     x_loc, _ = _assert_same_fit("interface", x, F, kw["air"], kw["x_trig"], cut_floor=kw["cut_floor"],
                                 exit_shape=kw["exit_shape"], process_change=kw["process_change"])
     assert _outside(x_loc, face, top) <= 0.01 * MM
-    monkeypatch.setattr(event_locator, "LEVEL_SNR", 0.0)
+    monkeypatch.setattr(event_locator, attr, value)
     x_base, _ = event_locator.locate("interface", x, F, **kw)
     assert _outside(x_base, face, top) > 0.03 * MM
+
+
+def test_hole_164_is_located_in_its_gap_and_was_not_without_the_level_test(monkeypatch):
+    _in_its_gap_and_not_without("interface_window_wide_gap", monkeypatch, "LEVEL_SNR", 0.0)
 
 
 def test_noise_about_a_low_floor_does_not_close_an_open_gap(monkeypatch):
@@ -92,13 +98,7 @@ def test_noise_about_a_low_floor_does_not_close_an_open_gap(monkeypatch):
     part was taken for a closed gap and the lower onset fitted on the noise after it, 0.038 mm
     early. Fewer than 2 MIN_SEGMENT samples above the floor between two below are the run's
     (event_locator._bridged): the gap runs to the window's end, located in it."""
-    x, F, kw, (face, top) = _recorded("interface_window_open_gap_noise")
-    x_loc, _ = _assert_same_fit("interface", x, F, kw["air"], kw["x_trig"], cut_floor=kw["cut_floor"],
-                                exit_shape=kw["exit_shape"], process_change=kw["process_change"])
-    assert _outside(x_loc, face, top) <= 0.01 * MM
-    monkeypatch.setattr(event_locator, "_bridged", lambda below: below)
-    x_split, _ = event_locator.locate("interface", x, F, **kw)
-    assert _outside(x_split, face, top) > 0.03 * MM
+    _in_its_gap_and_not_without("interface_window_open_gap_noise", monkeypatch, "_bridged", lambda below: below)
 
 
 @pytest.mark.parametrize("name", ["interface_window_thin_al_wide_gap", "interface_window_ti_al_wide_gap"])
@@ -114,40 +114,3 @@ def test_full_windows_whose_first_level_is_low_or_noisy_keep_their_gap(name):
                                 process_change=kw["process_change"])
     assert _outside(x_loc, face, top) <= 0.01 * MM
 
-
-@pytest.mark.parametrize("seed", [0, 1])
-def test_a_window_ending_on_the_lower_layers_first_rise_bounds_the_gap_by_its_run(seed):
-    """The window ends 20 um into a Ti layer's 0.1 mm ramp to 1000 N (a few samples above the
-    floors): the run below them is the gap's seen part, its last sample bounds it (the window's
-    last one, on the ramp, drew the Al's free face onto the ramp: 20 um into the Ti,
-    test_detector_unit's al/ti gap of 0.74 mm)."""
-    x, F, face, top = _window(seed, gap_mm=0.74, past_mm=0.02, level_up=30.0, push_mm=0.2, level_down=1000.0)
-    x_loc, _ = _assert_same_fit("interface", x, F, 0.0, face, cut_floor=AL_FLOOR)
-    assert _outside(x_loc, face, top) <= 0.01 * MM
-
-
-def test_the_noise_spread_is_the_samples_sigma():
-    """1.5 N of white noise on a window with a push-out and a ramp in it: within 10 % (the
-    median of 600 differences scatters by ~5 %)."""
-    x, F, _face, _top = _window(0)
-    assert noise_spread(F) == pytest.approx(1.5, rel=0.10)
-
-
-def _hole_164():
-    """The detector's window as it fitted it (the run's observer and encoder, its plan's settings)."""
-    d = json.loads((Path(__file__).parent / "data" / "interface_window_wide_gap.json").read_text())
-    pc = d["process_change"]
-    change = ProcessChange(pc["shape"], np.array(pc["share"]), tuple(pc["release"]))
-    kw = dict(air=d["air"], x_trig=d["x_trig"], cut_floor=d["cut_floor"], exit_shape=d["exit_shape"],
-              process_change=change)
-    return np.array(d["x"]), np.array(d["F"]), kw, d["gap_encoder_m"]
-
-
-def test_hole_164_is_located_in_its_gap_and_was_not_without_the_level_test(monkeypatch):
-    x, F, kw, (face, top) = _hole_164()
-    x_loc, _ = _assert_same_fit("interface", x, F, kw["air"], kw["x_trig"], cut_floor=kw["cut_floor"],
-                                exit_shape=kw["exit_shape"], process_change=kw["process_change"])
-    assert _outside(x_loc, face, top) <= 0.01 * MM
-    monkeypatch.setattr(event_locator, "LEVEL_SNR", 0.0)
-    x_base, _ = event_locator.locate("interface", x, F, **kw)
-    assert _outside(x_base, face, top) > 0.03 * MM
