@@ -53,7 +53,7 @@ AIR_SHARE = 0.5           # a level below this share of its neighbours' plateaus
 # a run at the air level whose median is above half its threshold is still a gap when its lowest
 # sample is below this share of the threshold: a narrow gap crossed by a falling and a rising face (a V)
 V_DIP_SHARE = 0.1
-# a cut level must stand this many of the window's noise spreads (:func:`noise_spread`) above air
+# the last cut level must stand this many noise spreads of its own samples (:func:`noise_spread`) above air
 LEVEL_SNR = 3.0
 NORMAL_MAD = 0.6744897501960817     # the median of |z| for a standard normal z
 # an interface's drop at an orbit of at least this many samples (0.8 s at the detector's 0.02 s) is

@@ -1420,10 +1420,10 @@ class InterfaceDetector(KernelBlock, Block):
             self.loc_after[k - 1] < self._full_loc_after() else None
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_fit = self._front_positions(xs[sel], hF[sel], air) if kind in ("exit", "entry") else xs[sel]
-        ramp = kind != "interface" or self._plan_ramp_at_rises()
+        plan_ramp = kind != "interface" or self._plan_ramp_at_rises()
         ramp_max = self._entry_ramp_max(x_fit, hF[sel], air) if k == 0 else None
         x_loc, dx = locate(kind, x_fit, hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period,
-                           entry_shape=self.entry_shape if ramp else "any",
+                           entry_shape=self.entry_shape if plan_ramp else "any",
                            ghost=self._exit_ghost() if kind == "exit" else self._interface_ghost(k) if k else None,
                            exit_shape=self.exit_shape,
                            exit_release=self._exit_release() if kind == "exit" else None,

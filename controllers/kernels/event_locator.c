@@ -122,14 +122,20 @@ static int loc_cmp(const void *a, const void *b)
     return (u > v) - (u < v);
 }
 
+/* numpy.median of n finite samples, sorting them in place */
+static double loc_median_in_place(double *a, long n)
+{
+    qsort(a, (size_t)n, sizeof(double), loc_cmp);
+    if (n % 2)
+        return a[n / 2];
+    return (a[n / 2 - 1] + a[n / 2]) / 2.0;
+}
+
 /* numpy.median of finite samples (scratch: n doubles) */
 static double loc_median(const double *a, long n, double *scratch)
 {
     memcpy(scratch, a, (size_t)n * sizeof(double));
-    qsort(scratch, (size_t)n, sizeof(double), loc_cmp);
-    if (n % 2)
-        return scratch[n / 2];
-    return (scratch[n / 2 - 1] + scratch[n / 2]) / 2.0;
+    return loc_median_in_place(scratch, n);
 }
 
 /* numpy.std of a contiguous array (ddof 0): the root of the mean square about its mean, both
@@ -515,19 +521,16 @@ static void loc_end_levels(const double *x, const double *F, long n, double *scr
     *last = loc_median(F + n - k1, k1, scratch);
 }
 
-/* air_run: [i0, i1) of the longest run at the air level between two cut levels, or 0; the
- * levels over the first and the last fifth of the window's travel (loc_end_levels) */
 /* event_locator.noise_spread: the median |dF| over a normal difference's (scratch: n doubles) */
 static double loc_noise_spread(const double *F, long n, double *scratch)
 {
     for (long i = 0; i + 1 < n; i++)
         scratch[i] = fabs(F[i + 1] - F[i]);
-    qsort(scratch, (size_t)(n - 1), sizeof(double), loc_cmp);
-    long m = n - 1;
-    double median = m % 2 ? scratch[m / 2] : (scratch[m / 2 - 1] + scratch[m / 2]) / 2.0;
-    return median / (LOC_NORMAL_MAD * sqrt(2.0));
+    return loc_median_in_place(scratch, n - 1) / (LOC_NORMAL_MAD * sqrt(2.0));
 }
 
+/* air_run: [i0, i1) of the longest run at the air level between two cut levels, or 0; the
+ * levels over the first and the last fifth of the window's travel (loc_end_levels) */
 static int loc_air_run(const double *x, const double *F, long n, double air, double *scratch, long *i0, long *i1)
 {
     double first, last;

@@ -240,7 +240,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     if (kind == LOC_ENTRY && s->entry_engagement > 0.0 && m >= 10 * LOC_MIN_SEGMENT) {
         /* InterfaceDetector._entry_ramp_max: the plan's engagement and the drive's deflection under the step */
         double first, last;
-        loc_end_levels(xsel, Fsel, m, share, &first, &last);
+        loc_end_levels(xsel, Fsel, m, share, &first, &last);     /* share: scratch (an entry has no process change) */
         double step = LOC_PYMAX(last - air, 0.0);
         engage.n_lengths = loc_engage_count(engage.lengths, LOC_N_ENGAGE,
                                             DET_ENTRY_RAMP_SLACK * (s->entry_engagement + s->exit_release[0] * step));
