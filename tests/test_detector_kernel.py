@@ -14,6 +14,7 @@ bit-identical to its Python reference step.
 """
 from __future__ import annotations
 
+import functools
 import json
 import math
 from pathlib import Path
@@ -21,7 +22,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drillcosim.controllers import detector_kernel
+from drillcosim.controllers import detector_kernel, event_locator
+from drillcosim.controllers import interface_detector as idm
 from drillcosim.controllers.interface_detector import InterfaceDetector
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -203,15 +205,55 @@ CASES = {
 }
 
 
+@functools.cache
+def _python_run(case: str):
+    """The case's hole through the Python step, once per test process (most of this file's
+    time is the Python step): its outputs at every sample, how many entry candidates it
+    dropped, the detector as it ended and every window it fitted (event_locator.locate's
+    kind, x, F, keywords and result)."""
+    settings, trace = CASES[case]
+    det = InterfaceDetector(**settings)
+    det.kernel = "python"
+    det.reset(0.0)
+    calls, fit = [], idm.locate
+
+    def spy(kind, x, F, **kw):
+        located = fit(kind, x, F, **kw)
+        calls.append((kind, np.array(x), np.array(F), kw, located))
+        return located
+
+    idm.locate = spy
+    try:
+        ys, dropped, had = [], 0, None
+        for ti, xi, Fi in zip(*_trace(**trace)):
+            ys.append(det.step(ti, [Fi, xi]))
+            dropped += had is not None and det.cand is None and det.flag == 0
+            had = det.cand
+    finally:
+        idm.locate = fit
+    return np.array(ys), dropped, det, calls
+
+
+def _assert_c_repeats(c, ys, t, x, F):
+    """The C step gives the Python step's outputs ``ys`` at every sample, to the bit."""
+    for ti, xi, Fi, yp in zip(t, x, F, ys):
+        yc = c.step(ti, [Fi, xi])
+        assert _bits(yc) == _bits(yp), (ti, [(n, a, b) for n, a, b in zip(c.output_names(), yc, yp)
+                                              if _bits([a]) != _bits([b])])
+
+
 @pytest.mark.parametrize("case", CASES)
 def test_c_step_is_bit_identical_to_the_python_step(case):
     settings, trace = CASES[case]
-    c, p = _pair(**settings)
+    ys, dropped, p, _calls = _python_run(case)
+    c = InterfaceDetector(**settings)
+    assert c.c_kernel is not None and c.step == c.c_kernel.step and p.c_kernel is None
     t, x, F = _trace(**trace)
-    for _run in range(2):                       # the second run checks the reset
+    for _run in range(2):                       # the second run checks the C step's reset
         c.reset(0.0)
-        p.reset(0.0)
-        ys, dropped = _run_both(c, p, t, x, F)
+        _assert_c_repeats(c, ys, t, x, F)
+        for name in MIRRORED:
+            assert _same(getattr(c, name), getattr(p, name)), name
     n = p.n
     if case == "plan_mismatch_fails":           # Ti drilled where the plan says a softer layer
         assert p.fail == 1 and p.fail_code == n + 2
@@ -235,6 +277,43 @@ def test_c_step_is_bit_identical_to_the_python_step(case):
         assert abs(p.loc["entry"][0] - 1.0 * MM) < 0.03 * MM, p.loc["entry"]
     if case == "table4_nan_thinning":
         assert np.isnan(F).sum() > 10 and np.isfinite(_out(p, ys, "t_exit_thinning")[-1])
+
+
+@pytest.mark.parametrize("case", ["plan_process_drops", "table4_nan_thinning"])
+def test_the_python_step_s_reset_repeats_its_run(case):
+    """The Python step reset after most of a hole (past its entry and first interface) gives
+    its first run's outputs again: the C step's reset is checked against that first run above."""
+    ys, _dropped, _p, _calls = _python_run(case)
+    settings, trace = CASES[case]
+    t, x, F = _trace(**trace)
+    det = InterfaceDetector(**settings)
+    det.kernel = "python"
+    det.reset(0.0)
+    for ti, xi, Fi in zip(t[: t.size * 2 // 3], x, F):
+        det.step(ti, [Fi, xi])
+    assert det.flag >= 2
+    det.reset(0.0)
+    assert _bits([det.step(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]) == _bits(ys)
+
+
+def test_c_fit_on_every_window_the_detector_fitted():
+    """The windows the Python step fitted in the synthetic holes, refitted in C (the exported
+    FMU's fit, kernels/event_locator.c): the same position and interval."""
+    from c_locator import assert_same_fit
+    calls = [call for case in CASES for call in _python_run(case)[3]]
+    kinds = {kind for kind, *_ in calls}
+    assert len(calls) >= 15 and kinds == {"entry", "interface", "exit"}
+    assert all(kw.get("entry_shape", "any") == "any" for *_, kw, _located in calls)   # as event_locate_tables fits
+    assert {kw.get("exit_shape", "any") for *_, kw, _ in calls} == {"any", "bending", "linear", "quadratic"}
+    assert any(kind == "interface" and kw.get("ghost") is not None for kind, *_, kw, _ in calls)   # a drop's ghost
+    changes = [(x, F) for _k, x, F, kw, _ in calls if kw.get("process_change") is not None]
+    assert changes                              # a drop under the process change (plan_process_drops) ...
+    assert any(np.subtract(*event_locator.end_levels(x, F)) < 0 for x, F in changes)    # ... and a rise
+    assert any(kw.get("cut_ripple") for *_, kw, _ in calls)    # an entry fitted with the cut's ripple
+    for kind, x, F, kw, located in calls:
+        # the Python fit as the step made it (fitting it again took a third of the test's time)
+        kw = {k: v for k, v in kw.items() if k != "entry_shape"}
+        assert_same_fit(kind, x, F, kw.pop("air", 0.0), kw.pop("x_trig", None), py=located, **kw)
 
 
 def test_the_python_step_is_kept_when_numpy_s_dot_is_not_found(monkeypatch):

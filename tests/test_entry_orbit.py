@@ -10,7 +10,7 @@ import pytest
 
 from drillcosim.controllers.event_locator import locate
 from drillcosim.controllers.interface_detector import InterfaceDetector
-from test_export_detector import _assert_same_fit
+from c_locator import assert_same_fit
 
 MM = 1e-3
 DT = 0.02                  # s, the detector's sample period (Table 4)
@@ -55,7 +55,7 @@ def test_a_window_shorter_than_one_orbit_fits_no_sinusoid():
 def test_the_c_fit_agrees_with_the_python_one():
     for seed in range(3):
         x, F, face = _ringing_entry(seed)
-        x_loc, _dx = _assert_same_fit("entry", x, F, 2.0, face + 0.25 * MM, period=ORBIT / DT)
+        x_loc, _dx = assert_same_fit("entry", x, F, 2.0, face + 0.25 * MM, period=ORBIT / DT)
         assert abs(x_loc - face) <= 0.02 * MM
 
 

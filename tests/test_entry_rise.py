@@ -14,7 +14,7 @@ import pytest
 from drillcosim.controllers import event_locator
 from drillcosim.controllers.event_locator import ENTRY_SHAPES, locate, onset_face
 from drillcosim.controllers.interface_detector import AIR_OFFSET_K, ENTRY_RAMP_SLACK, InterfaceDetector, air_level
-from test_export_detector import _assert_same_fit
+from c_locator import assert_same_fit
 
 UM = 1e-6
 WINDOW = Path(__file__).parent / "data" / "entry_window_late_al.json"
@@ -57,11 +57,11 @@ def test_a_window_without_a_rise_has_no_located_face():
 
 def test_the_c_fit_keeps_the_rising_ramp_too():
     x, F, d = _late_window()
-    x_loc, _ = _assert_same_fit("entry", x, F, d["air_N"], d["x_trig_um"] * UM, period=d["period_samples"])
+    x_loc, _ = assert_same_fit("entry", x, F, d["air_N"], d["x_trig_um"] * UM, period=d["period_samples"])
     assert math.isfinite(x_loc)
     xs = np.linspace(0.0, 1.0e-3, 200)
     Fs = 40.0 - 20.0 * np.clip((xs - 0.4e-3) / 0.2e-3, 0.0, 1.0)
-    assert _assert_same_fit("entry", xs, Fs, 0.0, 0.8e-3)[1] >= 0.35e-3
+    assert assert_same_fit("entry", xs, Fs, 0.0, 0.8e-3)[1] >= 0.35e-3
 
 
 def test_the_cuts_orbital_ripple_grows_with_the_ramp():
@@ -75,7 +75,7 @@ def test_the_cuts_orbital_ripple_grows_with_the_ramp():
     d = json.loads((Path(__file__).parent / "data" / "entry_window_ripple_al.json").read_text())
     x, F = np.array(d["x_um"]) * UM, np.array(d["F_N"])
     face, x_trig = d["face_um"] * UM, d["x_trig_um"] * UM
-    x_loc, dx = _assert_same_fit("entry", x, F, d["air_N"], x_trig, period=d["period_samples"],
+    x_loc, dx = assert_same_fit("entry", x, F, d["air_N"], x_trig, period=d["period_samples"],
                                  entry_shape=d["entry_shape"], cut_ripple=True)
     assert abs(x_loc - face) <= 0.01e-3, (x_loc - face) / 1e-3
     x_old, _ = locate("entry", x, F, air=d["air_N"], x_trig=x_trig, period=d["period_samples"],
@@ -136,7 +136,7 @@ def test_the_plans_engagement_bounds_the_entrys_ramp():
     ramp_max = det._entry_ramp_max(x, F, d["air"])
     step = event_locator.end_levels(x, F)[1] - d["air"]
     assert ramp_max == pytest.approx(ENTRY_RAMP_SLACK * (d["engagement_m"] + d["release_compliance_m_per_N"] * step))
-    x_loc, _ = _assert_same_fit("entry", x, F, d["air"], d["x_trig"], ramp_max=ramp_max, **kw)
+    x_loc, _ = assert_same_fit("entry", x, F, d["air"], d["x_trig"], ramp_max=ramp_max, **kw)
     assert abs(x_loc - d["surface_encoder_m"]) <= 0.015e-3, (x_loc - d["surface_encoder_m"]) / 1e-3
     x_free, _ = locate("entry", x, F, air=d["air"], x_trig=d["x_trig"], **kw)
     assert x_free - d["surface_encoder_m"] < -0.15e-3        # every ramp length offered

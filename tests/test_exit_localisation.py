@@ -31,7 +31,7 @@ from drillcosim.cosim.scenario.loader import load_scenario
 from drillcosim.drilling.hole_plan import EXIT_SHAPES as HOLE_EXIT_SHAPES
 from drillcosim.drilling import hole_plan
 from drillcosim.drilling.hole_plan import HolePlan
-from test_export_detector import _assert_same_fit
+from c_locator import assert_same_fit
 
 MM = 1e-3
 FEED = 0.3e-3          # m/s
@@ -99,11 +99,11 @@ def test_c_fit_of_an_exit_on_orbit_means():
     """The exported FMU's C fit (kernels/event_locator.c) on orbit means, as the Python."""
     for law in ("linear", "quadratic", "cap"):
         x, F = _window(law, 1.6)
-        x_loc, _dx = _assert_same_fit("exit", x, F, 0.0, FACE - 0.2 * MM, period=PERIOD)
+        x_loc, _dx = assert_same_fit("exit", x, F, 0.0, FACE - 0.2 * MM, period=PERIOD)
         assert abs(x_loc - FACE) < 0.05 * MM
     # a window without an orbit and 10 MIN_SEGMENT samples more: the raw samples, in both
     x, F = _window("linear", 0.0)
-    assert _assert_same_fit("exit", x, F, 0.0, FACE, period=x.size) == locate("exit", x, F, x_trig=FACE)
+    assert assert_same_fit("exit", x, F, 0.0, FACE, period=x.size) == locate("exit", x, F, x_trig=FACE)
 
 
 def test_hole_plan_gives_the_exit_its_orbit():
@@ -175,7 +175,7 @@ def test_the_observers_ripple_error_is_fitted_with_the_fall(law, raw_worst, ghos
     for k in range(8):
         x, F = _observed_window(law, 2 * math.pi * k / 8, seed=k)
         raw.append(locate("exit", x, F, x_trig=FACE)[0] - FACE)
-        ghost.append(_assert_same_fit("exit", x, F, 0.0, FACE, ghost=GHOST)[0] - FACE)
+        ghost.append(assert_same_fit("exit", x, F, 0.0, FACE, ghost=GHOST)[0] - FACE)
     assert max(abs(v) for v in raw) > raw_worst * MM
     assert max(abs(v) for v in ghost) <= ghost_worst * MM
 
@@ -184,7 +184,7 @@ def test_no_ghost_without_an_orbit_in_the_window():
     """A window shorter than one orbit cannot tell a sinusoid from the fall: the samples as they are."""
     x, F = _observed_window("linear", 0.0)
     assert locate("exit", x, F, x_trig=FACE, ghost=(x.size + 1.0, GHOST[1])) == locate("exit", x, F, x_trig=FACE)
-    assert _assert_same_fit("exit", x, F, 0.0, FACE, ghost=(x.size + 1.0, GHOST[1])) == \
+    assert assert_same_fit("exit", x, F, 0.0, FACE, ghost=(x.size + 1.0, GHOST[1])) == \
         locate("exit", x, F, x_trig=FACE)
 
 
@@ -197,7 +197,7 @@ def test_no_ghost_when_the_plateau_rings_more_than_the_air():
     x, F = _observed_window("linear", 0.0, ripple=0.0)
     t = np.arange(x.size) * DT
     F = F + 0.1 * 30.0 * _law("linear", FACE - x) * np.sin(2 * math.pi * ORBIT_HZ * t)
-    fit = _assert_same_fit("exit", x, F, 0.0, FACE, ghost=GHOST)
+    fit = assert_same_fit("exit", x, F, 0.0, FACE, ghost=GHOST)
     assert fit == locate("exit", x, F, x_trig=FACE, ghost=(PERIOD, 0.5))
     assert abs(fit[0] - FACE) <= 0.01 * MM < abs(locate("exit", x, F, x_trig=FACE)[0] - FACE)
 
@@ -244,8 +244,8 @@ def test_exit_located_on_a_bending_push_out(F0, worst_mm):
     assert max(abs(v) for v in new) <= worst_mm * MM
     assert min(old) > 0.05 * MM
     x, F = _bending_window(F0, 0)
-    assert _assert_same_fit("exit", x, F, 0.0, FACE, exit_shape="bending")[0] == new[0] + FACE
-    assert _assert_same_fit("exit", x, F, 0.0, FACE, exit_shape="quadratic")[0] == old[0] + FACE
+    assert assert_same_fit("exit", x, F, 0.0, FACE, exit_shape="bending")[0] == new[0] + FACE
+    assert assert_same_fit("exit", x, F, 0.0, FACE, exit_shape="quadratic")[0] == old[0] + FACE
 
 
 def test_the_plans_exit_shape_reaches_the_detector_and_bad_ones_are_named():
@@ -378,7 +378,7 @@ def test_the_observers_ringing_at_a_slow_orbit_is_fitted_with_the_fall():
         x, F = _ringing_window(2 * math.pi * k / 8, seed=k)
         assert not _ghost_visible(F)
         raw.append(locate("exit", x, F, x_trig=FACE, exit_shape="linear")[0] - FACE)
-        ring.append(_assert_same_fit("exit", x, F, 0.0, FACE, ghost=ghost, exit_shape="linear")[0] - FACE)
+        ring.append(assert_same_fit("exit", x, F, 0.0, FACE, ghost=ghost, exit_shape="linear")[0] - FACE)
     assert max(abs(v) for v in raw) > 0.025 * MM
     assert max(abs(v) for v in ring) <= 0.012 * MM
 

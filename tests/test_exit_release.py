@@ -20,7 +20,7 @@ from drillcosim.controllers.event_locator import EXIT_SHAPES, locate
 from drillcosim.controllers.interface_detector import InterfaceDetector
 from drillcosim.cosim.scenario.loader import load_scenario
 from drillcosim.drilling.hole_plan import HolePlan
-from test_export_detector import _assert_same_fit
+from c_locator import assert_same_fit
 
 MM = 1e-3
 FACE = 1.0 * MM          # the layer's free face [m]
@@ -96,7 +96,7 @@ def test_the_released_push_out_on_a_short_window():
 def test_the_c_fit_releases_the_same_deflection():
     """kernels/event_locator.c (the exported FMU's fit): the same faces as the Python."""
     x, F, C = _plant_exit(0.9, n=150, travel=6e-6)
-    _assert_same_fit("exit", x, F, 20.0, float(x[75]), exit_shape="bending", exit_release=(C, X_FEED))
+    assert_same_fit("exit", x, F, 20.0, float(x[75]), exit_shape="bending", exit_release=(C, X_FEED))
 
 
 def test_the_plan_states_the_drives_compliance_and_feed_exponent():

@@ -5,9 +5,9 @@ fit back (bit-identical to its Python step); an FMU has neither, so its C step i
 self-contained: a plain C dot product and the fit of controllers/event_locator.py ported
 to C (kernels/event_locator.c). What is checked here:
 
-* the C fit locates what the Python fit locates, on every window the detector fitted in
-  synthetic holes (air, engagement ramps, gaps, thinning exits, ripple, noise; the cases of
-  tests/test_detector_kernel.py) and on hand-made entry / gap / exit windows: the same
+* the C fit locates what the Python fit locates, on hand-made entry / gap / exit windows
+  (and in tests/test_detector_kernel.py on every window the detector fitted in its synthetic
+  holes, whose Python run that file makes once): the same
   position and interval, within 1e-9 mm (measured: the same doubles); an interface drop's
   upper fall under the plan's process (event_locator.ProcessChange) on a recorded window too;
 * the exported step against the in-process step, sample by sample on those holes: every
@@ -33,61 +33,21 @@ import pytest
 from fmpy.validation import validate_fmu
 
 from drillcosim.controllers import detector_kernel
-from drillcosim.controllers import interface_detector as idm
 from drillcosim.controllers import event_locator
-from drillcosim.controllers.event_locator import ENTRY_SHAPES, EXIT_SHAPES, locate
+from drillcosim.controllers.event_locator import locate
 from drillcosim.controllers.interface_detector import InterfaceDetector
 from drillcosim.cosim.exchange.export_fmu import export_blocks, has_c_step, with_exported_blocks
 from drillcosim.cosim.loop.algorithm import run
 from drillcosim.cosim.loop.recorder import Recorder
 from drillcosim.cosim.scenario.loader import load_scenario
+from c_locator import assert_same_fit, c_locate
 from test_detector_kernel import CASES, _trace
 
 ROOT = Path(__file__).resolve().parents[1]
 FANG = ROOT / "scenarios" / "fang_table5_hole.toml"
 MM = 1e-3
-KINDS = {"entry": 0, "interface": 1, "exit": 2}
 # outputs computed from the regression's prediction (the dot product): equal to rounding
 PREDICTION = ("F_pred", "F_err", "F_ref", "thd", "level_mismatch")
-
-
-def _c_locate(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any", entry_shape="any",
-              exit_release=None, process_change=None, cut_ripple=False, ramp_max=None):
-    fn = detector_kernel.export_library().event_locate_tables
-    fn.restype = None
-    fn.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_long, ctypes.c_double,
-                   ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p,
-                   ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int,
-                   ctypes.c_void_p, ctypes.c_int, ctypes.c_double]
-    x, F = np.ascontiguousarray(x, float), np.ascontiguousarray(F, float)
-    tables, out = detector_kernel.locator_tables(), np.zeros(2)
-    g = None if ghost is None else np.array(ghost, float)
-    rel = None if exit_release is None else np.array(exit_release, float)
-    # the upper fall: its share per sample, its law's code, its release (NULL share: none)
-    share = None if process_change is None else np.ascontiguousarray(process_change.share, float)
-    fall_rel = None if process_change is None else np.array(process_change.release, float)
-    fn(KINDS[kind], x.ctypes.data, F.ctypes.data, x.size, air, x_trig,
-       math.nan if cut_floor is None else cut_floor, period or 0.0, None if g is None else g.ctypes.data,
-       tables.ctypes.data, out.ctypes.data, list(EXIT_SHAPES).index(exit_shape), list(ENTRY_SHAPES).index(entry_shape),
-       None if rel is None else rel.ctypes.data, None if share is None else share.ctypes.data,
-       0 if process_change is None else list(EXIT_SHAPES).index(process_change.shape),
-       None if fall_rel is None else fall_rel.ctypes.data, int(cut_ripple), math.nan if ramp_max is None else ramp_max)
-    return float(out[0]), float(out[1])
-
-
-def _assert_same_fit(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any",
-                     entry_shape="any", exit_release=None, py=None, process_change=None, cut_ripple=False,
-                     ramp_max=None):
-    """The C fit equals the Python one (``py``: already made, else fitted here)."""
-    if py is None:
-        py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost,
-                    exit_shape=exit_shape, entry_shape=entry_shape, exit_release=exit_release, process_change=process_change,
-                    cut_ripple=cut_ripple, ramp_max=ramp_max)
-    c = _c_locate(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, entry_shape, exit_release, process_change,
-                  cut_ripple, ramp_max)
-    for a, b in zip(py, c):
-        assert (math.isnan(a) and math.isnan(b)) or abs(a - b) <= 1e-12, (kind, py, c)   # 1e-9 mm
-    return py
 
 
 def test_c_fit_on_hand_made_windows():
@@ -99,45 +59,9 @@ def test_c_fit_on_hand_made_windows():
                    5 + 120 * np.clip((x - 1.32 * MM) / (0.1 * MM), 0, 1))
     windows = {"entry": 5 + 80 * ramp, "interface": gap, "exit": 5 + 80 * np.clip((1.35 * MM - x) / (0.3 * MM), 0, 1)}
     for kind, F in windows.items():
-        x_loc, dx = _assert_same_fit(kind, x, F + rng.normal(0.0, 1.0, x.size), 5.0, 1.35 * MM)
+        x_loc, dx = assert_same_fit(kind, x, F + rng.normal(0.0, 1.0, x.size), 5.0, 1.35 * MM)
         assert math.isfinite(x_loc) and 1.2 * MM < x_loc < 1.4 * MM and dx > 0
-    assert all(math.isnan(v) for v in _c_locate("entry", x[:20], windows["entry"][:20], 5.0, 1.35 * MM))
-
-
-def test_c_fit_on_every_window_the_detector_fitted(monkeypatch):
-    """The windows the Python step fitted in the synthetic holes, refitted in C."""
-    calls = []
-
-    def spy(kind, x, F, *, air=0.0, x_trig=None, cut_floor=None, period=None, entry_shape="any", ghost=None,
-            exit_shape="any", exit_release=None, process_change=None, cut_ripple=False, ramp_max=None):
-        assert entry_shape == "any"     # the cases fit both ramps, as event_locate_tables does
-        py = locate(kind, x, F, air=air, x_trig=x_trig, cut_floor=cut_floor, period=period, ghost=ghost,
-                    exit_shape=exit_shape, exit_release=exit_release, process_change=process_change,
-                    cut_ripple=cut_ripple, ramp_max=ramp_max)
-        calls.append((kind, np.array(x), np.array(F), air, x_trig, cut_floor, period, ghost, exit_shape, exit_release,
-                      process_change, (cut_ripple, ramp_max), py))
-        return py
-
-    monkeypatch.setattr(idm, "locate", spy)
-    for settings, trace in CASES.values():
-        det = InterfaceDetector(**settings)
-        det.kernel = "python"
-        det.reset(0.0)
-        for ti, xi, Fi in zip(*_trace(**trace)):
-            det.step(ti, [Fi, xi])
-    kinds = {c[0] for c in calls}
-    assert len(calls) >= 15 and kinds == {"entry", "interface", "exit"}
-    assert {c[8] for c in calls} == {"any", "bending", "linear", "quadratic"}
-    assert any(c[0] == "interface" and c[7] is not None for c in calls)    # a drop's ghost (plan_slow_drops_ghost)
-    assert any(c[10] is not None for c in calls)       # a drop under the process change (plan_process_drops)
-    # ... and a rise (plan_process_rise): its onset fitted before the change
-    assert any(c[10] is not None and np.subtract(*event_locator.end_levels(c[1], c[2])) < 0 for c in calls)
-    assert any(c[11][0] for c in calls)      # an entry fitted again with the cut's ripple (an entry_orbit_period)
-    for kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, exit_release, process_change, (ripple, ramp_max), \
-            py in calls:
-        # the Python fit as the step made it (fitting it again took a third of the test's time)
-        _assert_same_fit(kind, x, F, air, x_trig, cut_floor, period, ghost, exit_shape, exit_release=exit_release,
-                         py=py, process_change=process_change, cut_ripple=ripple, ramp_max=ramp_max)
+    assert all(math.isnan(v) for v in c_locate("entry", x[:20], windows["entry"][:20], 5.0, 1.35 * MM))
 
 
 def test_c_fit_of_a_window_cut_short_to_a_thin_layer():
@@ -150,7 +74,7 @@ def test_c_fit_of_a_window_cut_short_to_a_thin_layer():
     for rise_at in (None, 1.42 * MM):                                        # gap to the end / a first rise
         F = upper + (0 if rise_at is None else 15 * np.clip((x - rise_at) / (0.2 * MM), 0, 1))
         F = F + rng.normal(0, 0.5, x.size)
-        x_py, dx_py = _assert_same_fit("interface", x, F, 5.0, 1.2 * MM, cut_floor=30.0)
+        x_py, dx_py = assert_same_fit("interface", x, F, 5.0, 1.2 * MM, cut_floor=30.0)
         assert 1.2 * MM < x_py < (rise_at or 1.5 * MM) + 0.01 * MM          # in the gap
         assert math.isfinite(dx_py)
 
@@ -361,7 +285,7 @@ def test_c_fit_of_a_soft_layer_pushed_onto_a_hard_one():
     and in C; from the run's middle it was 0.062 mm early."""
     d = json.loads((ROOT / "tests" / "data" / "interface_window_al_ti.json").read_text())
     x, F = np.array(d["x_um"]) * 1e-6, np.array(d["F_N"])
-    x_loc, _ = _assert_same_fit("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6)
+    x_loc, _ = assert_same_fit("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6)
     lo, hi = (v * 1e-6 for v in d["faces_um"])
     assert lo - 0.03 * MM <= x_loc <= hi + 0.03 * MM
 
@@ -376,9 +300,9 @@ def test_c_fit_of_a_drop_at_a_slow_orbit():
     d = json.loads((ROOT / "tests" / "data" / "interface_window_ti_al_slow.json").read_text())
     x, F = np.array(d["x_um"]) * 1e-6, np.array(d["F_N"])
     lo, hi = (v * 1e-6 for v in d["faces_um"])
-    x_loc, _ = _assert_same_fit("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6, ghost=tuple(d["ghost"]))
+    x_loc, _ = assert_same_fit("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6, ghost=tuple(d["ghost"]))
     assert lo - 0.03 * MM <= x_loc <= hi + 0.03 * MM
-    x_old, _ = _assert_same_fit("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6)
+    x_old, _ = assert_same_fit("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6)
     assert x_old > hi + 0.1 * MM        # the gap's two faces in the ringing, as before
 
 
@@ -410,7 +334,7 @@ def test_c_fit_of_a_narrow_drop_refits_its_onset_from_the_free_face(name):
     x, F = np.array(d["x_um"]) * 1e-6, np.array(d["F_N"])
     lo, hi = (v * 1e-6 for v in d["faces_um"])
     ghost = None if d["ghost"] is None else tuple(d["ghost"])
-    x_loc, _ = _assert_same_fit("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6, ghost=ghost,
+    x_loc, _ = assert_same_fit("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6, ghost=ghost,
                                 exit_shape=d["exit_shape"], entry_shape=d["entry_shape"])
     assert lo <= x_loc <= hi
     # the mechanism: the onset fitted from the run's start is late by more than the issue's bar
@@ -432,7 +356,7 @@ def test_a_narrow_drop_s_refit_never_makes_the_onset_later():
     d = json.loads((ROOT / "tests" / "data" / "interface_window_cfrp_al_light_rise.json").read_text())
     x, F = np.array(d["x_um"]) * 1e-6, np.array(d["F_N"])
     lo, hi = (v * 1e-6 for v in d["faces_um"])
-    x_loc, _ = _assert_same_fit("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6, cut_floor=d["cut_floor_N"],
+    x_loc, _ = assert_same_fit("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6, cut_floor=d["cut_floor_N"],
                                 exit_shape=d["exit_shape"], entry_shape=d["entry_shape"])
     assert lo - 0.03 * MM <= x_loc <= hi + 0.03 * MM
     gap = event_locator.air_run(x, F, d["air_N"])
@@ -459,17 +383,17 @@ def test_c_fit_of_a_drop_under_the_process_change():
     args = ("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6, d["cut_floor"])
     laws = dict(exit_shape=d["exit_shape"], entry_shape=d["entry_shape"])
     fall = event_locator.ProcessChange(d["fall_shape"], share, tuple(d["release"]))
-    x_loc, _ = _assert_same_fit(*args, **laws, process_change=fall)
+    x_loc, _ = assert_same_fit(*args, **laws, process_change=fall)
     assert abs(x_loc - mid) <= 0.01 * MM
-    x_free, _ = _assert_same_fit(*args, **laws)
+    x_free, _ = assert_same_fit(*args, **laws)
     assert x_free < mid - 0.05 * MM                       # the case is real: the free laws, early
-    _assert_same_fit(*args, **laws, process_change=fall._replace(release=(0.0, d["release"][1])))
+    assert_same_fit(*args, **laws, process_change=fall._replace(release=(0.0, d["release"][1])))
     # non-finite samples before the share falls (from sample 188): the share compacted with them;
     # read on from where the window's samples were (5 samples late) the event moved (0.028 mm early)
     assert np.all(share[:188] == 1.0) and share[188] < 1.0
     x_nan, F_nan = x.copy(), F.copy()
     x_nan[[20, 90]], F_nan[[5, 60, 150]] = np.nan, np.inf
-    x_kept, _ = _assert_same_fit("interface", x_nan, F_nan, *args[3:], **laws, process_change=fall)
+    x_kept, _ = assert_same_fit("interface", x_nan, F_nan, *args[3:], **laws, process_change=fall)
     ok = np.isfinite(x_nan) & np.isfinite(F_nan)
     late = fall._replace(share=share[:ok.sum()])
     x_late, _ = locate("interface", x[ok], F[ok], air=d["air_N"], x_trig=d["trigger_um"] * 1e-6,
@@ -491,12 +415,12 @@ def test_c_fit_of_a_rise_before_the_process_change():
     args = ("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6, d["cut_floor"])
     laws = dict(exit_shape=d["exit_shape"], entry_shape=d["entry_shape"])
     change = event_locator.ProcessChange(d["fall_shape"], share, tuple(d["release"]))
-    x_loc, _ = _assert_same_fit(*args, **laws, process_change=change)
+    x_loc, _ = assert_same_fit(*args, **laws, process_change=change)
     assert lo - 0.005 * MM <= x_loc <= hi + 0.005 * MM
-    x_all, _ = _assert_same_fit(*args, **laws)
+    x_all, _ = assert_same_fit(*args, **laws)
     assert x_all > hi + 0.03 * MM                           # the case is real: on every sample, late
     # non-finite samples in the gap and on the ramp before the change: the share compacted with them
     first = int(np.flatnonzero(share != share[0])[0])
     x_nan, F_nan = x.copy(), F.copy()
     x_nan[[30, first - 40]], F_nan[[100, first - 3]] = np.nan, np.inf
-    _assert_same_fit("interface", x_nan, F_nan, *args[3:], **laws, process_change=change)
+    assert_same_fit("interface", x_nan, F_nan, *args[3:], **laws, process_change=change)

@@ -62,9 +62,9 @@ def test_a_v_across_a_narrow_gap_is_a_gap():
 
 def test_c_fit_agrees_on_narrow_drops():
     """The exported FMU's C fit (kernels/event_locator.c loc_air_run, loc_gap) takes the same faces."""
-    from test_export_detector import _assert_same_fit
+    from c_locator import assert_same_fit
     for x, F, face, top in (_slow_soft_drop(seed=13), _v_dip(seed=14)):
-        x_loc, _ = _assert_same_fit("interface", x, F, 0.0, face + 0.03 * MM)
+        x_loc, _ = assert_same_fit("interface", x, F, 0.0, face + 0.03 * MM)
         assert face - 0.021 * MM <= x_loc <= top + 0.021 * MM
 
 
@@ -78,10 +78,10 @@ def test_a_window_ending_in_the_gap_is_located_in_it():
     import json
     from pathlib import Path
 
-    from test_export_detector import _assert_same_fit
+    from c_locator import assert_same_fit
     w = json.loads((Path(__file__).parent / "data" / "interface_window_ti_cfrp_open_gap.json").read_text())
     x, F = np.asarray(w["x_m"]), np.asarray(w["F_N"])
     assert air_run(x, F, w["air_N"]) is None
-    x_loc, _ = _assert_same_fit("interface", x, F, w["air_N"], w["x_trig_m"], cut_floor=w["cut_floor_N"])
+    x_loc, _ = assert_same_fit("interface", x, F, w["air_N"], w["x_trig_m"], cut_floor=w["cut_floor_N"])
     face, top = w["gap_faces_encoder_m"]
     assert face <= x_loc <= top

@@ -7,7 +7,7 @@ rise the gap's fit now takes the plan's laws (locate's ``entry_shape``, ``exit_s
 event_locator._rise_laws); a drop keeps both free, unless its lower onset lands on its search bound,
 where it takes the plan's ramp (event_locator._drop_onset; foreign2 hole 125 of seed 24, -0.038 mm). Profiles with 0.5 N of seeded noise, a
 sample every 4 um (the fit's grid is 1 um): located within 0.01 mm of the gap, a third of
-the issue's 0.03 mm bar; Python = C to 1e-12 m (test_export_detector._assert_same_fit)."""
+the issue's 0.03 mm bar; Python = C to 1e-12 m (c_locator.assert_same_fit)."""
 from __future__ import annotations
 
 import json
@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from test_export_detector import _assert_same_fit
+from c_locator import assert_same_fit
 
 MM = 1e-3
 PLAN = dict(entry_shape="linear", exit_shape="bending")     # the foreign2 drive's plan
@@ -43,14 +43,14 @@ def _outside(x_loc, face, top) -> float:
 @pytest.mark.parametrize("seed", [0, 1])
 def test_rise_after_a_bending_push_out_with_the_plans_laws(shape, seed):
     x, F, face, top = _rise(seed, **shape)
-    x_loc, _ = _assert_same_fit("interface", x, F, 0.0, top, **PLAN)
+    x_loc, _ = assert_same_fit("interface", x, F, 0.0, top, **PLAN)
     assert _outside(x_loc, face, top) <= 0.01 * MM
 
 
 def test_free_laws_put_the_rise_early():
     """The base's fit (either law, either ramp) on the same profile: beyond the issue's bar."""
     x, F, face, top = _rise(0)
-    x_loc, _ = _assert_same_fit("interface", x, F, 0.0, top, **FREE)
+    x_loc, _ = assert_same_fit("interface", x, F, 0.0, top, **FREE)
     assert face - x_loc > 0.025 * MM
 
 
@@ -60,7 +60,7 @@ def test_a_drop_keeps_both_laws_free():
     face, top = 2.0 * MM, 2.01 * MM
     F = 400.0 * np.clip((face - x) / (0.1 * MM), 0.0, 1.0) ** 1.5 + 30.0 * np.clip((x - top) / (0.2 * MM), 0.0, 1.0)
     F = F + np.random.default_rng(3).normal(0.0, 0.5, x.size)
-    assert _assert_same_fit("interface", x, F, 0.0, top, **PLAN) == _assert_same_fit("interface", x, F, 0.0, top, **FREE)
+    assert assert_same_fit("interface", x, F, 0.0, top, **PLAN) == assert_same_fit("interface", x, F, 0.0, top, **FREE)
 
 
 def _recorded(name):
@@ -74,9 +74,9 @@ def test_recorded_narrow_ti_cfrp_drop_of_foreign2_hole_116_keeps_the_free_ramps(
     and inside the gap; the plan's linear ramp put it 0.045 mm late (+0.033 mm located, closed
     loop) and is not taken (event_locator._drop_onset)."""
     x, F, air, x_trig, floor, (face, top) = _recorded("interface_window_ti_cfrp_narrow_drop.json")
-    x_loc, _ = _assert_same_fit("interface", x, F, air, x_trig, floor, **PLAN)
+    x_loc, _ = assert_same_fit("interface", x, F, air, x_trig, floor, **PLAN)
     assert _outside(x_loc, face, top) == 0.0
-    assert (x_loc, _) == _assert_same_fit("interface", x, F, air, x_trig, floor, **FREE)
+    assert (x_loc, _) == assert_same_fit("interface", x, F, air, x_trig, floor, **FREE)
 
 
 def test_recorded_ti_al_drop_of_foreign2_hole_125():
@@ -87,9 +87,9 @@ def test_recorded_ti_al_drop_of_foreign2_hole_125():
     located 0.038 mm above the gap (bb3cd97; the same on the plant's true thrust, -0.037). An
     onset on its bound takes the plan's linear ramp (event_locator._drop_onset): inside the gap."""
     x, F, air, x_trig, floor, (face, top) = _recorded("interface_window_ti_al_drop.json")
-    x_loc, _ = _assert_same_fit("interface", x, F, air, x_trig, floor, **PLAN)
+    x_loc, _ = assert_same_fit("interface", x, F, air, x_trig, floor, **PLAN)
     assert _outside(x_loc, face, top) == 0.0
-    x_free, _ = _assert_same_fit("interface", x, F, air, x_trig, floor, **FREE)
+    x_free, _ = assert_same_fit("interface", x, F, air, x_trig, floor, **FREE)
     assert face - x_free > 0.03 * MM
 
 
@@ -100,7 +100,7 @@ def test_recorded_al_ti_rise_of_foreign2_hole_184():
     w = json.loads((Path(__file__).parent / "data" / "interface_window_al_ti_rise.json").read_text())
     x, F = np.asarray(w["x_m"]), np.asarray(w["F_N"])
     face, top = w["gap_faces_encoder_m"]
-    x_loc, _ = _assert_same_fit("interface", x, F, w["air_N"], w["x_trig_m"], **PLAN)
+    x_loc, _ = assert_same_fit("interface", x, F, w["air_N"], w["x_trig_m"], **PLAN)
     assert _outside(x_loc, face, top) <= 0.015 * MM
-    x_free, _ = _assert_same_fit("interface", x, F, w["air_N"], w["x_trig_m"], **FREE)
+    x_free, _ = assert_same_fit("interface", x, F, w["air_N"], w["x_trig_m"], **FREE)
     assert face - x_free > 0.03 * MM

@@ -19,7 +19,7 @@ import pytest
 
 from drillcosim.controllers import event_locator
 from drillcosim.controllers.event_locator import ProcessChange, noise_spread
-from test_export_detector import _assert_same_fit
+from c_locator import assert_same_fit
 
 MM = 1e-3
 AL_FLOOR = 9.565          # N, the Al's engagement floor in hole 164's plan (the window's cut_floor)
@@ -44,7 +44,7 @@ def _outside(x_loc, face, top) -> float:
 @pytest.mark.parametrize("seed", [0, 1])
 def test_a_wide_gap_in_a_short_window_is_located_in_the_gap(shape, seed):
     x, F, face, top = _window(seed, **shape)
-    x_loc, _ = _assert_same_fit("interface", x, F, 0.0, face, cut_floor=AL_FLOOR, exit_shape="quadratic")
+    x_loc, _ = assert_same_fit("interface", x, F, 0.0, face, cut_floor=AL_FLOOR, exit_shape="quadratic")
     assert _outside(x_loc, face, top) <= 0.01 * MM
 
 
@@ -55,7 +55,7 @@ def test_a_window_ending_on_the_lower_layers_first_rise_bounds_the_gap_by_its_ru
     last one, on the ramp, drew the Al's free face onto the ramp: 20 um into the Ti,
     test_detector_unit's al/ti gap of 0.74 mm)."""
     x, F, face, top = _window(seed, gap_mm=0.74, past_mm=0.02, level_up=30.0, push_mm=0.2, level_down=1000.0)
-    x_loc, _ = _assert_same_fit("interface", x, F, 0.0, face, cut_floor=AL_FLOOR)
+    x_loc, _ = assert_same_fit("interface", x, F, 0.0, face, cut_floor=AL_FLOOR)
     assert _outside(x_loc, face, top) <= 0.01 * MM
 
 
@@ -80,7 +80,7 @@ def _in_its_gap_and_not_without(name, monkeypatch, attr, value) -> None:
     """The recorded window ``name`` is located in its gap (Python = C) and, with
     event_locator's ``attr`` set to ``value`` (the rule taken away), beyond the 0.03 mm bar."""
     x, F, kw, (face, top) = _recorded(name)
-    x_loc, _ = _assert_same_fit("interface", x, F, kw["air"], kw["x_trig"], cut_floor=kw["cut_floor"],
+    x_loc, _ = assert_same_fit("interface", x, F, kw["air"], kw["x_trig"], cut_floor=kw["cut_floor"],
                                 exit_shape=kw["exit_shape"], process_change=kw["process_change"])
     assert _outside(x_loc, face, top) <= 0.01 * MM
     monkeypatch.setattr(event_locator, attr, value)
@@ -110,7 +110,7 @@ def test_full_windows_whose_first_level_is_low_or_noisy_keep_their_gap(name):
     early; the level test is on the last level against its own samples' noise."""
     x, F, kw, (face, top) = _recorded(name)
     assert kw["cut_floor"] is None
-    x_loc, _ = _assert_same_fit("interface", x, F, kw["air"], kw["x_trig"], exit_shape=kw["exit_shape"],
+    x_loc, _ = assert_same_fit("interface", x, F, kw["air"], kw["x_trig"], exit_shape=kw["exit_shape"],
                                 process_change=kw["process_change"])
     assert _outside(x_loc, face, top) <= 0.01 * MM
 
