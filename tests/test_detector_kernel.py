@@ -6,7 +6,9 @@ bit-identical to its Python reference step.
   settings that switch branches (Table 4's fixed thresholds, the hole plan's process-following
   ones with entry confirmation, noise threshold, restart, mismatch and fail disarming, 1 to 4
   layers, localisation off): every output of every sample has the same bits, and the state the
-  C step holds reads back as the Python step's attributes.
+  C step holds reads back as the Python step's attributes. On the same holes, the exported
+  FMU's C step gives those outputs and its C fit every window the Python step fitted (each
+  case's Python run is made once: ``_python_run``).
 * Closed loop: the Fang hole (fang_table5_hole) and two holes of the wide stack draw
   (drillcosim.analysis.stack_montecarlo) with the C and with the Python detector record the same doubles
   in every signal, and the same scores (``<event>_dz_mm``, ``<event>_trigger_dz_mm``, ...);
@@ -25,6 +27,7 @@ import pytest
 from drillcosim.controllers import detector_kernel, event_locator
 from drillcosim.controllers import interface_detector as idm
 from drillcosim.controllers.interface_detector import InterfaceDetector
+from exported_c import assert_agree, assert_same_fit, exported_step
 
 ROOT = Path(__file__).resolve().parent.parent
 MM = 1e-3
@@ -249,11 +252,13 @@ def test_c_step_is_bit_identical_to_the_python_step(case):
     c = InterfaceDetector(**settings)
     assert c.c_kernel is not None and c.step == c.c_kernel.step and p.c_kernel is None
     t, x, F = _trace(**trace)
-    for _run in range(2):                       # the second run checks the C step's reset
-        c.reset(0.0)
-        _assert_c_repeats(c, ys, t, x, F)
-        for name in MIRRORED:
-            assert _same(getattr(c, name), getattr(p, name)), name
+    c.reset(0.0)
+    part = t.size * 2 // 3                      # a first run over most of the hole, then reset:
+    _assert_c_repeats(c, ys[:part], t[:part], x, F)
+    c.reset(0.0)                                # the second, whole run checks the C step's reset too
+    _assert_c_repeats(c, ys, t, x, F)
+    for name in MIRRORED:
+        assert _same(getattr(c, name), getattr(p, name)), name
     n = p.n
     if case == "plan_mismatch_fails":           # Ti drilled where the plan says a softer layer
         assert p.fail == 1 and p.fail_code == n + 2
@@ -299,7 +304,6 @@ def test_the_python_step_s_reset_repeats_its_run(case):
 def test_c_fit_on_every_window_the_detector_fitted():
     """The windows the Python step fitted in the synthetic holes, refitted in C (the exported
     FMU's fit, kernels/event_locator.c): the same position and interval."""
-    from c_locator import assert_same_fit
     calls = [call for case in CASES for call in _python_run(case)[3]]
     kinds = {kind for kind, *_ in calls}
     assert len(calls) >= 15 and kinds == {"entry", "interface", "exit"}
@@ -314,6 +318,19 @@ def test_c_fit_on_every_window_the_detector_fitted():
         # the Python fit as the step made it (fitting it again took a third of the test's time)
         kw = {k: v for k, v in kw.items() if k != "entry_shape"}
         assert_same_fit(kind, x, F, kw.pop("air", 0.0), kw.pop("x_trig", None), py=located, **kw)
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_exported_step_agrees_with_the_python_step(case):
+    """The exported FMU's C step (its own dot product and C fit) through the case's hole gives
+    the Python step's outputs (the in-process C step's, to the bit: above)."""
+    settings, trace = CASES[case]
+    ys, _dropped, p, _calls = _python_run(case)
+    det = InterfaceDetector(**settings)
+    assert det.c_kernel is not None and det.c_exportable
+    exported = exported_step(det)
+    assert_agree(det.output_names(), ys, [exported(ti, [Fi, xi]) for ti, xi, Fi in zip(*_trace(**trace))])
+    assert p.flag == p.n + 1 or case == "plan_mismatch_fails"
 
 
 def test_the_python_step_is_kept_when_numpy_s_dot_is_not_found(monkeypatch):

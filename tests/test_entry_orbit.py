@@ -10,7 +10,7 @@ import pytest
 
 from drillcosim.controllers.event_locator import locate
 from drillcosim.controllers.interface_detector import InterfaceDetector
-from c_locator import assert_same_fit
+from exported_c import assert_same_fit
 
 MM = 1e-3
 DT = 0.02                  # s, the detector's sample period (Table 4)
@@ -96,12 +96,12 @@ def test_the_exported_step_with_the_orbit_fit_agrees_with_the_in_process_step():
     """The exported FMU's C fit (event_locator.c, its entry_period) gives the in-process
     step's outputs."""
     from test_detector_kernel import PLAN, _trace
-    from test_export_detector import _assert_agree, _exported_step
+    from exported_c import assert_agree, exported_step
     det = InterfaceDetector(**dict(PLAN, entry_span=1.0 / 1.3, entry_orbit_period=1.0 / 1.3))
-    exported = _exported_step(det)
+    exported = exported_step(det)
     t, x, F = _trace(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.4, 0.0),
                      ringing=25.0, feed_mm_min=15.0)
     ys = [det.step(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
     ye = [exported(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
-    _assert_agree(det.output_names(), ys, ye)
+    assert_agree(det.output_names(), ys, ye)
     assert det.flag == det.n + 1 and math.isfinite(det.loc["entry"][0])

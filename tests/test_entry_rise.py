@@ -14,7 +14,7 @@ import pytest
 from drillcosim.controllers import event_locator
 from drillcosim.controllers.event_locator import ENTRY_SHAPES, locate, onset_face
 from drillcosim.controllers.interface_detector import AIR_OFFSET_K, ENTRY_RAMP_SLACK, InterfaceDetector, air_level
-from c_locator import assert_same_fit
+from exported_c import assert_same_fit
 
 UM = 1e-6
 WINDOW = Path(__file__).parent / "data" / "entry_window_late_al.json"

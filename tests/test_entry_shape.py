@@ -171,7 +171,7 @@ def test_the_exported_step_with_an_entry_shape_agrees_with_the_in_process_step(s
     orbit, growing with the ramp, takes part of the rounded top (seventeenth round: 0.000 ->
     -0.025 mm)."""
     from test_detector_kernel import PLAN, _trace
-    from test_export_detector import _assert_agree, _exported_step
+    from exported_c import assert_agree, exported_step
     settings = dict(PLAN, entry_span=1.0 / 1.3, entry_orbit_period=1.0 / 1.3)
     t, x, F = _trace(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.4, 0.0),
                      ringing=25.0, feed_mm_min=15.0, engage_mm=0.4)
@@ -181,10 +181,10 @@ def test_the_exported_step_with_an_entry_shape_agrees_with_the_in_process_step(s
     located = {}
     for shape in shapes:
         det = InterfaceDetector(**dict(settings, entry_shape=shape))
-        exported = _exported_step(det)
+        exported = exported_step(det)
         ys = [det.step(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
         ye = [exported(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
-        _assert_agree(det.output_names(), ys, ye)
+        assert_agree(det.output_names(), ys, ye)
         assert det.flag == det.n + 1 and math.isfinite(det.loc["entry"][0])
         located[shape] = det.loc["entry"][0]
     if "any" in located:

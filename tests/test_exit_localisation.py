@@ -31,7 +31,7 @@ from drillcosim.cosim.scenario.loader import load_scenario
 from drillcosim.drilling.hole_plan import EXIT_SHAPES as HOLE_EXIT_SHAPES
 from drillcosim.drilling import hole_plan
 from drillcosim.drilling.hole_plan import HolePlan
-from c_locator import assert_same_fit
+from exported_c import assert_same_fit
 
 MM = 1e-3
 FEED = 0.3e-3          # m/s

@@ -20,7 +20,7 @@ from drillcosim.controllers.event_locator import EXIT_SHAPES, locate
 from drillcosim.controllers.interface_detector import InterfaceDetector
 from drillcosim.cosim.scenario.loader import load_scenario
 from drillcosim.drilling.hole_plan import HolePlan
-from c_locator import assert_same_fit
+from exported_c import assert_same_fit
 
 MM = 1e-3
 FACE = 1.0 * MM          # the layer's free face [m]

@@ -10,7 +10,8 @@ to C (kernels/event_locator.c). What is checked here:
   holes, whose Python run that file makes once): the same
   position and interval, within 1e-9 mm (measured: the same doubles); an interface drop's
   upper fall under the plan's process (event_locator.ProcessChange) on a recorded window too;
-* the exported step against the in-process step, sample by sample on those holes: every
+* the exported step against the in-process step, sample by sample on the synthetic holes
+  (in tests/test_detector_kernel.py, against the Python step's run it makes once): every
   output the same doubles. The exported dot sums in the order of OpenBLAS's AVX2 ddot kernel
   (portable C); where numpy uses another kernel, the prediction F^ and what is computed
   from it (F~, F_ref, the relative thresholds) are held to 1e-12 of their peak instead
@@ -40,14 +41,12 @@ from drillcosim.cosim.exchange.export_fmu import export_blocks, has_c_step, with
 from drillcosim.cosim.loop.algorithm import run
 from drillcosim.cosim.loop.recorder import Recorder
 from drillcosim.cosim.scenario.loader import load_scenario
-from c_locator import assert_same_fit, c_locate
+from exported_c import assert_agree, assert_same_fit, c_locate, exported_step
 from test_detector_kernel import CASES, _trace
 
 ROOT = Path(__file__).resolve().parents[1]
 FANG = ROOT / "scenarios" / "fang_table5_hole.toml"
 MM = 1e-3
-# outputs computed from the regression's prediction (the dot product): equal to rounding
-PREDICTION = ("F_pred", "F_err", "F_ref", "thd", "level_mismatch")
 
 
 def test_c_fit_on_hand_made_windows():
@@ -89,20 +88,6 @@ def test_the_c_mean_is_numpy_s():
         assert fn(a.ctypes.data, n) == float(np.mean(a)), n
 
 
-def _exported_step(det):
-    """The exported C step on a copy of ``det``'s state (reset), as a function of (t, u)."""
-    fn = detector_kernel.export_library().interface_detector_fmu_step
-    fn.restype, fn.argtypes = None, [ctypes.c_void_p, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p]
-    state = det.c_export_kernel().state
-    u, y = (ctypes.c_double * 2)(), (ctypes.c_double * len(det.outputs))()
-
-    def step(t, inputs):
-        u[0], u[1] = inputs
-        fn(ctypes.addressof(state), t, u, y)
-        return y[:]
-    return step
-
-
 def test_the_c_process_change_s_share_is_python_s():
     """The exported step's share of an interface's drop (detector_process_change) is
     InterfaceDetector._process_change's to the bit: over the adaptation's ramp and as a step, at the
@@ -127,34 +112,6 @@ def test_the_c_process_change_s_share_is_python_s():
         assert py[0] == 1.0 and py[-1] == pytest.approx((fpr[1] / fpr[0]) ** x_feed)
     state.fail = 1.0
     assert fn(ctypes.addressof(state), 1, t.ctypes.data, t.size, share.ctypes.data) == 0
-
-
-def _assert_agree(names, a, b):
-    """Every output the same doubles. Where the exported dot is not numpy's (numpy on another
-    BLAS kernel than the AVX2 one), those computed from the prediction: within 1e-12 of
-    their peak (and NaN where the other is)."""
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    exact = detector_kernel.export_dot_is_numpys()
-    for j, name in enumerate(names):
-        if exact or name not in PREDICTION:
-            assert np.array_equal(a[:, j], b[:, j], equal_nan=True), name
-            continue
-        assert np.array_equal(np.isnan(a[:, j]), np.isnan(b[:, j])), name
-        peak = np.nanmax(np.abs(a[:, j])) if np.isfinite(a[:, j]).any() else 0.0
-        assert np.nanmax(np.abs(a[:, j] - b[:, j]), initial=0.0) <= 1e-12 * max(peak, 1.0), name
-
-
-@pytest.mark.parametrize("case", CASES)
-def test_exported_step_agrees_with_the_in_process_step(case):
-    settings, trace = CASES[case]
-    det = InterfaceDetector(**settings)
-    assert det.c_kernel is not None and det.c_exportable
-    exported = _exported_step(det)
-    t, x, F = _trace(**trace)
-    ys = [det.step(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
-    ye = [exported(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
-    _assert_agree(det.output_names(), ys, ye)
-    assert det.flag == det.n + 1 or case == "plan_mismatch_fails"
 
 
 @pytest.fixture(scope="module")
@@ -190,7 +147,7 @@ def test_fang_detector_fmu_through_fmi_gives_the_in_process_outputs(fang_detecto
     blk.reset(0.0)
     ys = [det.step(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
     yf = [blk.step(ti, [Fi, xi]) for ti, xi, Fi in zip(t, x, F)]
-    _assert_agree(det.output_names(), ys, yf)
+    assert_agree(det.output_names(), ys, yf)
     assert det.flag == 3 and math.isfinite(det.loc["interface1"][0])
     deaf = FMUBlock(str(fmu), parameters={"thd1": 1e6})               # no entry with a 1 MN threshold
     deaf.reset(0.0)
@@ -213,7 +170,7 @@ def _fang_with_fmus(tmp: Path, stop_time: float | None, only: list | None = None
     assert a.signals == b.signals
     det = [s for s in a.signals if s.startswith("detector.")]
     names = [s.split(".", 1)[1] for s in det]
-    _assert_agree(names, np.column_stack([a[s] for s in det]), np.column_stack([b[s] for s in det]))
+    assert_agree(names, np.column_stack([a[s] for s in det]), np.column_stack([b[s] for s in det]))
     for s in a.signals:               # the plant and every other block: the same doubles
         if not s.startswith("detector."):
             assert np.array_equal(a[s], b[s], equal_nan=True), s

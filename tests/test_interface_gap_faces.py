@@ -41,7 +41,7 @@ def test_soft_upper_layer_pushed_out_is_located_at_its_face(level_up, push_mm, g
 
 def test_c_fit_agrees_on_a_soft_push_out():
     """The exported FMU's C fit (kernels/event_locator.c loc_gap) takes the same faces."""
-    from c_locator import assert_same_fit
+    from exported_c import assert_same_fit
     x, F, face, top = _window(20.0, 0.3, 0.001, seed=4)
     x_loc, _ = assert_same_fit("interface", x, F, 0.0, top + 0.02 * MM)
     assert face - 0.01 * MM <= x_loc <= top + 0.01 * MM
@@ -74,7 +74,7 @@ def test_end_levels_by_travel_when_the_feed_changes():
 
 def test_c_fit_agrees_on_end_levels_by_travel():
     """The C air run (kernels/event_locator.c loc_air_run) takes its end levels by travel too."""
-    from c_locator import assert_same_fit
+    from exported_c import assert_same_fit
     x, F = _feed_change_window(6)
     x_loc, _ = assert_same_fit("interface", x, F, 0.0, 1.5 * MM)
     assert 1.9 * MM - 0.01 * MM <= x_loc <= 2.6 * MM + 0.01 * MM
@@ -86,7 +86,7 @@ def test_a_trigger_before_the_windows_samples_is_not_located():
     to search: NaN in Python as in the C fit, never an exception in the detector's step."""
     import math
 
-    from c_locator import assert_same_fit
+    from exported_c import assert_same_fit
     x, F = np.linspace(2.0 * MM, 2.5 * MM, 300), np.full(300, 80.0)     # on a cut level, no onset
     for kind in ("interface", "entry"):
         x_loc, dx = assert_same_fit(kind, x, F, 0.0, 1.9 * MM)

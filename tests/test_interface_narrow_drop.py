@@ -62,7 +62,7 @@ def test_a_v_across_a_narrow_gap_is_a_gap():
 
 def test_c_fit_agrees_on_narrow_drops():
     """The exported FMU's C fit (kernels/event_locator.c loc_air_run, loc_gap) takes the same faces."""
-    from c_locator import assert_same_fit
+    from exported_c import assert_same_fit
     for x, F, face, top in (_slow_soft_drop(seed=13), _v_dip(seed=14)):
         x_loc, _ = assert_same_fit("interface", x, F, 0.0, face + 0.03 * MM)
         assert face - 0.021 * MM <= x_loc <= top + 0.021 * MM
@@ -78,7 +78,7 @@ def test_a_window_ending_in_the_gap_is_located_in_it():
     import json
     from pathlib import Path
 
-    from c_locator import assert_same_fit
+    from exported_c import assert_same_fit
     w = json.loads((Path(__file__).parent / "data" / "interface_window_ti_cfrp_open_gap.json").read_text())
     x, F = np.asarray(w["x_m"]), np.asarray(w["F_N"])
     assert air_run(x, F, w["air_N"]) is None

@@ -7,7 +7,7 @@ rise the gap's fit now takes the plan's laws (locate's ``entry_shape``, ``exit_s
 event_locator._rise_laws); a drop keeps both free, unless its lower onset lands on its search bound,
 where it takes the plan's ramp (event_locator._drop_onset; foreign2 hole 125 of seed 24, -0.038 mm). Profiles with 0.5 N of seeded noise, a
 sample every 4 um (the fit's grid is 1 um): located within 0.01 mm of the gap, a third of
-the issue's 0.03 mm bar; Python = C to 1e-12 m (c_locator.assert_same_fit)."""
+the issue's 0.03 mm bar; Python = C to 1e-12 m (exported_c.assert_same_fit)."""
 from __future__ import annotations
 
 import json
@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from c_locator import assert_same_fit
+from exported_c import assert_same_fit
 
 MM = 1e-3
 PLAN = dict(entry_shape="linear", exit_shape="bending")     # the foreign2 drive's plan

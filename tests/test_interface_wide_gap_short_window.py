@@ -19,7 +19,7 @@ import pytest
 
 from drillcosim.controllers import event_locator
 from drillcosim.controllers.event_locator import ProcessChange, noise_spread
-from c_locator import assert_same_fit
+from exported_c import assert_same_fit
 
 MM = 1e-3
 AL_FLOOR = 9.565          # N, the Al's engagement floor in hole 164's plan (the window's cut_floor)

@@ -1,6 +1,8 @@
-"""The exported detector's C fit (kernels/event_locator.c through ``event_locate_tables``)
-called on one window, and the check that it is event_locator.locate's: shared by the test
-files that compare the two (test_export_detector, test_detector_kernel)."""
+"""The exported detector's C (kernels/interface_detector_fmu.c, kernels/event_locator.c) called
+from the tests: its fit on one window (``event_locate_tables``) checked against
+event_locator.locate, and its step driven sample by sample and checked against the in-process
+one. Shared by the files that compare the two (test_export_detector, test_detector_kernel, the
+locator's and the entry's tests)."""
 from __future__ import annotations
 
 import ctypes
@@ -12,6 +14,8 @@ from drillcosim.controllers import detector_kernel
 from drillcosim.controllers.event_locator import ENTRY_SHAPES, EXIT_SHAPES, locate
 
 KINDS = {"entry": 0, "interface": 1, "exit": 2}
+# outputs computed from the regression's prediction (the dot product): equal to rounding
+PREDICTION = ("F_pred", "F_err", "F_ref", "thd", "level_mismatch")
 
 
 def c_locate(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=None, exit_shape="any", entry_shape="any",
@@ -51,3 +55,32 @@ def assert_same_fit(kind, x, F, air, x_trig, cut_floor=None, period=None, ghost=
     for a, b in zip(py, c):
         assert (math.isnan(a) and math.isnan(b)) or abs(a - b) <= 1e-12, (kind, py, c)   # 1e-9 mm
     return py
+
+
+def exported_step(det):
+    """The exported C step on a copy of ``det``'s state (reset), as a function of (t, u)."""
+    fn = detector_kernel.export_library().interface_detector_fmu_step
+    fn.restype, fn.argtypes = None, [ctypes.c_void_p, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p]
+    state = det.c_export_kernel().state
+    u, y = (ctypes.c_double * 2)(), (ctypes.c_double * len(det.outputs))()
+
+    def step(t, inputs):
+        u[0], u[1] = inputs
+        fn(ctypes.addressof(state), t, u, y)
+        return y[:]
+    return step
+
+
+def assert_agree(names, a, b):
+    """Every output the same doubles. Where the exported dot is not numpy's (numpy on another
+    BLAS kernel than the AVX2 one), those computed from the prediction: within 1e-12 of
+    their peak (and NaN where the other is)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    exact = detector_kernel.export_dot_is_numpys()
+    for j, name in enumerate(names):
+        if exact or name not in PREDICTION:
+            assert np.array_equal(a[:, j], b[:, j], equal_nan=True), name
+            continue
+        assert np.array_equal(np.isnan(a[:, j]), np.isnan(b[:, j])), name
+        peak = np.nanmax(np.abs(a[:, j])) if np.isfinite(a[:, j]).any() else 0.0
+        assert np.nanmax(np.abs(a[:, j] - b[:, j]), initial=0.0) <= 1e-12 * max(peak, 1.0), name
