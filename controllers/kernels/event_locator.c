@@ -851,15 +851,22 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
             exit_.orbit = ghost[0];     /* ... else at a slow orbit the observer's ringing is fitted */
         }
     }
-    if (kind == LOC_INTERFACE && ghost != NULL && loc_ghost_drop(x, F, n, ghost, scratch)) {
+    int air_gap = 0, floor_gap = 0;
+    if (kind == LOC_INTERFACE) {
+        air_gap = loc_air_run(x, F, n, air, scratch, &g0, &g1);
+        floor_gap = !air_gap && loc_floor_gap(F, n, cut_floor, scratch, &g0, &g1);
+    }
+    /* event_locator._outlasts_orbit: a run at the air level an orbit long is a gap, not the ringing's trough */
+    int outlasts = (air_gap || floor_gap) && ghost != NULL && (double)(g1 - g0) >= ghost[0];
+    if (kind == LOC_INTERFACE && ghost != NULL && !outlasts && loc_ghost_drop(x, F, n, ghost, scratch)) {
         exit_.ghost_orbit = ghost[0];   /* the upper layer's free face with the observer's ghost */
         exit_.ghost_decay = ghost[1];
         loc_best_face(&exit_, x0, x1, x_loc, dx);
     } else if (kind == LOC_EXIT)
         loc_exit(&exit_, period, x0, x1, x_loc, dx);
-    else if (kind == LOC_INTERFACE && loc_air_run(x, F, n, air, scratch, &g0, &g1))
+    else if (air_gap)
         loc_gap(x, F, n, air, g0, g1, 0, engage, push, kept, x_loc, dx);
-    else if (kind == LOC_INTERFACE && loc_floor_gap(F, n, cut_floor, scratch, &g0, &g1))
+    else if (floor_gap)
         loc_gap(x, F, n, NAN, g0, g1, n - g1 < 2 * LOC_MIN_SEGMENT, engage, push, kept,
                 x_loc, dx);   /* air fitted */
     else
