@@ -95,14 +95,26 @@ def _same(a, b) -> bool:
     return a == b
 
 
+def _assert_same_outputs(det, t, yc, yp) -> None:
+    """The C step's outputs ``yc`` at time t [s] are the Python step's ``yp`` to the bit (else
+    the assertion names the outputs that differ)."""
+    assert _bits(yc) == _bits(yp), (t, [(n, a, b) for n, a, b in zip(det.output_names(), yc, yp)
+                                         if _bits([a]) != _bits([b])])
+
+
+def _most(t) -> int:
+    """The samples of a first run over most of a hole (past its entry and first interface),
+    before a reset: two thirds of the trace."""
+    return t.size * 2 // 3
+
+
 def _run_both(c, p, t, x, F):
     """Steps both detectors through the trace, comparing outputs and the mirrored state at
     every sample; returns the Python step's outputs and how many entry candidates it dropped."""
     ys, dropped, had = [], 0, None
     for ti, xi, Fi in zip(t, x, F):
-        yc, yp = c.step(ti, [Fi, xi]), p.step(ti, [Fi, xi])
-        assert _bits(yc) == _bits(yp), (ti, [(n, a, b) for n, a, b in zip(c.output_names(), yc, yp)
-                                              if _bits([a]) != _bits([b])])
+        yp = p.step(ti, [Fi, xi])
+        _assert_same_outputs(c, ti, c.step(ti, [Fi, xi]), yp)
         dropped += had is not None and p.cand is None and p.flag == 0
         had = p.cand
         ys.append(yp)
@@ -240,9 +252,7 @@ def _python_run(case: str):
 def _assert_c_repeats(c, ys, t, x, F):
     """The C step gives the Python step's outputs ``ys`` at every sample, to the bit."""
     for ti, xi, Fi, yp in zip(t, x, F, ys):
-        yc = c.step(ti, [Fi, xi])
-        assert _bits(yc) == _bits(yp), (ti, [(n, a, b) for n, a, b in zip(c.output_names(), yc, yp)
-                                              if _bits([a]) != _bits([b])])
+        _assert_same_outputs(c, ti, c.step(ti, [Fi, xi]), yp)
 
 
 @pytest.mark.parametrize("case", CASES)
@@ -253,7 +263,7 @@ def test_c_step_is_bit_identical_to_the_python_step(case):
     assert c.c_kernel is not None and c.step == c.c_kernel.step and p.c_kernel is None
     t, x, F = _trace(**trace)
     c.reset(0.0)
-    part = t.size * 2 // 3                      # a first run over most of the hole, then reset:
+    part = _most(t)                             # a first run over most of the hole, then reset:
     _assert_c_repeats(c, ys[:part], t[:part], x, F)
     c.reset(0.0)                                # the second, whole run checks the C step's reset too
     _assert_c_repeats(c, ys, t, x, F)
@@ -294,7 +304,7 @@ def test_the_python_step_s_reset_repeats_its_run(case):
     det = InterfaceDetector(**settings)
     det.kernel = "python"
     det.reset(0.0)
-    for ti, xi, Fi in zip(t[: t.size * 2 // 3], x, F):
+    for ti, xi, Fi in zip(t[:_most(t)], x, F):
         det.step(ti, [Fi, xi])
     assert det.flag >= 2
     det.reset(0.0)
