@@ -62,6 +62,7 @@ typedef struct {
     double x_arm[DET_MAX_LAYERS];   /* state: encoder position where each layer's tests first armed */
     double if_P[DET_MAX_LAYERS - 1], if_ratio[DET_MAX_LAYERS - 1];   /* the interfaces' orbit tests (0: off) */
     double if_ref;              /* state: the interface orbit test's highest orbit mean (NaN: not armed) */
+    double gap_ref;             /* state: the highest cut level's orbit mean in the layer (NaN: none; in_gap) */
     /* state */
     double n_buf, flag, t_ev[DET_EVENTS], x_ev[DET_EVENTS], t_paper, x_paper, t_thin, x_thin, F_ref;
     double drop, exit_armed, quiet, need, err_n, err_pos;
@@ -509,6 +510,20 @@ static void armed_at(Detector *s, double x)
         s->x_arm[flag - 1] = flag == 1 && isfinite(s->x_level) ? MIN(x, s->x_level) : x;
 }
 
+/* interface_detector.py _in_gap: 1 when the orbit mean M says the tool left layer k (0-based) for a gap */
+static int in_gap(Detector *s, double M, int k)
+{
+    double Ma;
+    if (s->fail != 0.0 && s->fail_disarms != 0.0)
+        return 0;
+    Ma = above_air(s, M);
+    if (Ma >= MAX(s->floor[k], s->thd_min)) {
+        s->gap_ref = isnan(s->gap_ref) ? M : MAX(s->gap_ref, M);
+        return 0;
+    }
+    return !isnan(s->gap_ref) && Ma < min_of(s->floor, 0, (int)s->n);
+}
+
 /* interface_detector.py _interface_orbit: interface k's drop test on the mean over the last orbit */
 static void interface_orbit(Detector *s, double t, double x)
 {
@@ -516,10 +531,16 @@ static void interface_orbit(Detector *s, double t, double x)
     double P = s->if_P[k - 1], M;
     if (s->h_n - s->h_event < 2.0 * P || !isnan(s->x_arm[k - 1])
             || (s->has_windows != 0.0 && x < s->win_lo[k]) || (k >= 2 && isnan(s->loc[4 * (k - 1) + 3]))) {
-        s->if_ref = NAN;
+        s->if_ref = s->gap_ref = NAN;
         return;
     }
     M = hist_mean(s, s->h_n - P, s->h_n);
+    if (s->max_gap > 0.0 && in_gap(s, M, k - 1)) {
+        event(s, k, t, x, -1.0);
+        return;
+    }
+    if (s->if_ratio[k - 1] == 0.0)
+        return;
     if (isnan(s->if_ref) && !orbit_arms(s, M, P, k - 1))
         return;
     s->if_ref = isnan(s->if_ref) ? M : MAX(s->if_ref, M);
@@ -800,7 +821,8 @@ void interface_detector_step(Detector *s, double t, const double *u, double *y)
         exit_orbit(s, t, x);
         if (!isnan(s->exit_cand_t))
             exit_confirm(s, t, x);
-    } else if (1 <= (int)s->flag && (int)s->flag < (int)s->n && s->if_ratio[(int)s->flag - 1] != 0.0)
+    } else if (1 <= (int)s->flag && (int)s->flag < (int)s->n && s->if_P[(int)s->flag - 1] != 0.0
+               && (s->if_ratio[(int)s->flag - 1] != 0.0 || s->max_gap > 0.0))
         interface_orbit(s, t, x);
     push(s, F);                 /* after the tests, which may have trimmed the window */
     if (s->n_pending > 0.0)
