@@ -333,6 +333,33 @@ def _onset_sse(x, F, period: float | None, rise: bool, cut_ripple: bool = False)
 ENTRY_SETTLING = 0.1
 
 
+# an entry window whose orbit-mean thrust ends below this share of its highest orbit mean's step
+# over the air holds the first layer's push-out (pushed_out_end); a drive settling after its rise
+# falls back by up to 0.47 of the step (ENTRY_SETTLING's worn-tool entries)
+ENTRY_PUSHED_OUT = 0.5
+
+
+def pushed_out_end(x, F, air: float, period: float | None) -> float | None:
+    """Where an entry's window (positions ``x`` [m] increasing, thrust ``F`` [N]) stops holding
+    the first layer's cut: the last position [m] of the orbit (``period`` samples) with the highest
+    mean thrust, when the window's last orbit mean is below ENTRY_PUSHED_OUT of that mean's step
+    over ``air`` [N]; else None (the layer's level lasts to the window's end, or no whole orbit
+    or period). Why: a first layer thinner than the trigger's lag and a locate_margin is pushed
+    out inside the entry's window, and an onset fitted with a level to the window's end took the
+    hump of its cut and push-out for a long ramp from the air (wide draw seed 25, a 0.93 mm CFRP
+    layer at 15 mm/min whose thrust rises to 330 N and falls to air within 0.9 mm: the foreign
+    drive's entry -0.214 mm, foreign2's -0.060)."""
+    x, F = np.asarray(x, float), np.asarray(F, float)
+    if period is None or not (1.0 < period and x.size > period + 2.0):
+        return None
+    M = orbit_mean(F, period)
+    K = (x.size - M.size) // 2
+    j = int(np.argmax(M))
+    if not M[-1] - air < ENTRY_PUSHED_OUT * (M[j] - air):
+        return None
+    return float(x[j + 2 * K])
+
+
 def settling_fall(x, F, x0: float, ramp: float, span: float) -> float:
     """How far the thrust falls after an entry's ramp, as a share of the ramp's step: the mean
     over ``span`` [m] from the ramp's top (onset ``x0`` [m] + ``ramp`` [m]) less the mean over

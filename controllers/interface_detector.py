@@ -108,7 +108,7 @@ import numpy as np
 
 from drillcosim.controllers import detector_kernel
 from drillcosim.controllers.event_locator import (ENTRY_SETTLING, ENTRY_SHAPES, EXIT_SHAPES, ProcessChange, end_levels,
-                                                   locate, onset_length, settling_fall, time_at)
+                                                   locate, onset_length, pushed_out_end, settling_fall, time_at)
 from drillcosim.controllers.kernels import KernelBlock
 from drillcosim.controllers.kernels.structs import Detector as _DetectorState
 from drillcosim.controllers.kernels.structs import fill
@@ -1421,9 +1421,12 @@ class InterfaceDetector(KernelBlock, Block):
             self.loc_after[k - 1] < self._full_loc_after() else None
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_fit = self._front_positions(xs[sel], hF[sel], air) if kind in ("exit", "entry") else xs[sel]
+        F_fit = hF[sel]
+        if k == 0 and (end := pushed_out_end(x_fit, F_fit, air, period)) is not None:
+            x_fit, F_fit, hi = x_fit[x_fit <= end], F_fit[x_fit <= end], min(hi, end)
         plan_ramp = kind != "interface" or self._plan_ramp_at_rises()
-        ramp_max = self._entry_ramp_max(x_fit, hF[sel], air) if k == 0 else None
-        x_loc, dx = locate(kind, x_fit, hF[sel], air=air, x_trig=x_trig, cut_floor=floor, period=period,
+        ramp_max = self._entry_ramp_max(x_fit, F_fit, air) if k == 0 else None
+        x_loc, dx = locate(kind, x_fit, F_fit, air=air, x_trig=x_trig, cut_floor=floor, period=period,
                            entry_shape=self.entry_shape if plan_ramp else "any",
                            ghost=self._exit_ghost() if kind == "exit" else self._interface_ghost(k) if k else None,
                            exit_shape=self.exit_shape,
@@ -1431,7 +1434,7 @@ class InterfaceDetector(KernelBlock, Block):
                            process_change=self._process_change(k, ht[sel] - self.observer_delay)
                            if kind == "interface" else None, ramp_max=ramp_max)
         if k == 0:
-            x_loc, dx = self._entry_fit(x_fit, hF[sel], hi, x_trig, air, period, x_loc, dx, ramp_max)
+            x_loc, dx = self._entry_fit(x_fit, F_fit, hi, x_trig, air, period, x_loc, dx, ramp_max)
         F_air = F_air_sd = NAN
         if k == 0 and math.isfinite(x_loc):
             # with a span the window is around the confirmation, which may leave only a few

@@ -35,6 +35,7 @@
 #define LOC_EXIT_RING_ORBIT 40.0  /* samples, event_locator.EXIT_RING_ORBIT */
 #define LOC_RELEASE_NEWTON 8      /* event_locator.RELEASE_NEWTON */
 #define LOC_ENTRY_SETTLING 0.1   /* event_locator.ENTRY_SETTLING */
+#define LOC_ENTRY_PUSHED_OUT 0.5 /* event_locator.ENTRY_PUSHED_OUT */
 #define LOC_RISE_SEEN 5.0         /* event_locator.RISE_SEEN */
 #define LOC_MAX_COLS 9             /* onset: level, trend, ramp, the orbit's sine and cosine, both times i / n and
                                       both times the ramp;
@@ -920,4 +921,25 @@ double event_settling_fall(const double *x, const double *F, long n, double x0, 
         return NAN;
     double A = sum[0] / (double)cnt[0], Z = sum[2] / (double)cnt[2];
     return A > Z ? (A - sum[1] / (double)cnt[1]) / (A - Z) : NAN;
+}
+
+/* event_locator.pushed_out_end: the last position [m] of the orbit (period samples) with the
+ * highest mean thrust where the window's last orbit mean is below LOC_ENTRY_PUSHED_OUT of that
+ * mean's step over air (a first layer pushed out inside the entry's window); NaN otherwise */
+double event_pushed_out_end(const double *x, const double *F, long n, double air, double period)
+{
+    if (!(1.0 < period && (double)n > period + 2.0))
+        return NAN;
+    double *S = malloc((2 * (size_t)n + 1) * sizeof(double));
+    if (S == NULL)
+        return NAN;
+    double *M = S + n + 1, end = NAN;
+    long m = loc_orbit_mean(F, n, period, S, M), K = (n - m) / 2, j = 0;
+    for (long i = 1; i < m; i++)
+        if (M[i] > M[j])
+            j = i;
+    if (m > 0 && M[m - 1] - air < LOC_ENTRY_PUSHED_OUT * (M[j] - air))
+        end = x[j + 2 * K];
+    free(S);
+    return end;
 }

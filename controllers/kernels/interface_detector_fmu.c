@@ -226,6 +226,21 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
             tsel[m] = t[j] - s->observer_delay;       /* when the observer saw the force (_process_change's t) */
             Fsel[m++] = F[j];
         }
+    if (kind == LOC_ENTRY) {
+        /* InterfaceDetector._fit: a first layer pushed out inside the window ends it at its top */
+        double end = event_pushed_out_end(xsel, Fsel, m, air, s->entry_period);
+        if (!isnan(end)) {
+            long m2 = 0;
+            for (long i = 0; i < m; i++)
+                if (xsel[i] <= end) {
+                    xsel[m2] = xsel[i];
+                    tsel[m2] = tsel[i];
+                    Fsel[m2++] = Fsel[i];
+                }
+            m = m2;
+            hi = LOC_PYMIN(hi, end);
+        }
+    }
     /* the engage grid fits the entry's onset, or an interface's: only the entry's may be linear alone */
     int shape = kind == LOC_ENTRY ? (int)s->entry_shape : 0;
     LocGrid engage = {s->engage_lengths, s->engage_fine, LOC_N_ENGAGE, shape == 2 ? 1 : 0, shape == 0 ? 2 : 1};
