@@ -1228,7 +1228,8 @@ class InterfaceDetector(KernelBlock, Block):
                 self.err_hist.append(abs(e))
             if self.relative and 1 <= self.flag <= self.n and math.isnan(self.levels[self.flag - 1]) \
                     and self.quiet >= self.need and self.settled >= self.N_min and self._cut_level() \
-                    and x < self.x_ev[self.flag - 1] + self.x_air + self.level_reach[self.flag - 1]:
+                    and x < self.x_ev[self.flag - 1] + self.x_air + self.level_reach[self.flag - 1] \
+                    and not self._level_rises():
                 self._check_level(t, x)
             if not self.armed and self._may_arm(x):
                 self.armed, self.trim = True, False
@@ -1691,18 +1692,23 @@ class InterfaceDetector(KernelBlock, Block):
 
     def _level_rises(self) -> bool:
         """Whether the thrust still rises: the mean of the last N_min samples above the mean of
-        the N_min before by more than half the interface test's threshold. Why: the regression
-        follows a linear ramp, quiet and steady by F~, and an interface test armed on the lower
-        layer's engagement ramp (the restart in a gap, a window cut short to a thin layer)
-        fires once the ramp tops out and the regression's line overshoots the plateau: a false
-        drop 0.3 mm into the layer and every later event a layer off (wide draw, foreign seed-23
-        hole 161: 0.81 mm of gap). Under the orbit's ripple it holds the arming back for at most
+        the N_min before by more than half the layer's test's threshold (the interface's, in
+        the last layer the exit's). Why: the regression follows a linear ramp, quiet and steady
+        by F~, and an interface test armed on the lower layer's engagement ramp (the restart in
+        a gap, a window cut short to a thin layer) fires once the ramp tops out and the
+        regression's line overshoots the plateau: a false drop 0.3 mm into the layer and every
+        later event a layer off (wide draw, foreign seed-23 hole 161: 0.81 mm of gap). The
+        materials check waits for it too: a level taken on a slow ramp is a fraction of the
+        layer's (foreign2 seed-26 hole 68: Ti at 5.8 mm/min over a 0.35 mm engagement, 181 N
+        taken 0.08 mm into the ramp of a ~600 N level, the CFRP below then 4.8x the plan's ratio
+        above it: a false fail). Under the orbit's ripple it holds the arming back for at most
         the ripple's rising half."""
         n, m = self.h_n, self.N_min
         if n < 2 * m:
             return False
         rise = self._hist_mean(n - m, n) - self._hist_mean(n - 2 * m, n - m)
-        return rise > 0.5 * self._thd_interface(self.flag, self.F_level)
+        thd = self._thd_interface(self.flag, self.F_level) if self.flag < self.n else -self._thd_exit(self.F_level)
+        return rise > 0.5 * thd
 
     def _level_holds(self) -> bool:
         """Whether the thrust stands at the level F_level [N]: the mean of the last N_min

@@ -205,7 +205,8 @@ static int level_rises(const Detector *s)
     if (n < 2.0 * m)
         return 0;
     double rise = hist_mean(s, n - m, n) - hist_mean(s, n - 2.0 * m, n - m);
-    return rise > 0.5 * thd_interface(s, (int)s->flag, s->F_level);
+    double thd = (int)s->flag < (int)s->n ? thd_interface(s, (int)s->flag, s->F_level) : -thd_exit(s, s->F_level);
+    return rise > 0.5 * thd;
 }
 
 static int may_arm(const Detector *s, double x)
@@ -643,7 +644,7 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
     flag = (int)s->flag;
     if (s->relative != 0.0 && 1 <= flag && flag <= n && isnan(s->levels[flag - 1])
             && s->quiet >= s->need && s->settled >= s->N_min && cut_level(s)
-            && x < s->x_ev[flag - 1] + s->x_air + s->level_reach[flag - 1])
+            && x < s->x_ev[flag - 1] + s->x_air + s->level_reach[flag - 1] && !level_rises(s))
         check_level(s, t, x);
     if (s->armed == 0.0 && may_arm(s, x)) {
         s->armed = 1.0;
