@@ -21,17 +21,13 @@ Any position inside a gap is exact for the scorer; the located interface is aske
 issue's 0.03 mm of the gap, the entry within its 0.05 mm."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from drillcosim.controllers import event_locator
-from drillcosim.controllers.interface_detector import InterfaceDetector
-from drillcosim.cosim.scenario.loader import load_scenario
+from recorded_traces import run_recorded
 
 MM = 1e-3
-STACKS = Path(__file__).resolve().parents[1] / "scenarios" / "stacks"
 HOLES = {   # the drawn plans (nominal thicknesses, +-15 % tolerances, processes) and the true gap [mm]
     "thin_al_gap_ti": ({
         "hole.layers": [{"material": "al", "thickness": 1.0402e-3, "tolerance": 0.15603e-3},
@@ -54,19 +50,7 @@ HOLES = {   # the drawn plans (nominal thicknesses, +-15 % tolerances, processes
 
 
 def _run(name: str, kernel: str | None, patch=None) -> dict:
-    plan, _ = HOLES[name]
-    settings = load_scenario(STACKS / "cfrp_ti.toml", overrides={**plan, "hole.gap_tolerance": 1e-3}
-                             ).raw["blocks"]["detector"]["settings"]
-    det = InterfaceDetector(sample_period=0.02, **settings)
-    if kernel:
-        det.kernel = kernel
-    if patch:
-        patch(det)
-    t, x, F = np.loadtxt(Path(__file__).parent / "data" / f"{name}.csv", delimiter=",", unpack=True)
-    det.reset(float(t[0]))
-    for ti, xi, Fi in zip(t, x, F):
-        y = det.step(float(ti), [float(Fi), float(xi)])
-    return dict(zip(det.output_names(), y))
+    return run_recorded("cfrp_ti.toml", HOLES[name][0], name, kernel, patch)[0]
 
 
 @pytest.mark.parametrize("name", list(HOLES))

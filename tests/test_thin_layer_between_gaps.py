@@ -19,16 +19,12 @@ Any position inside a gap is exact for the scorer; the located interface is aske
 issue's 0.03 mm of the gap, the trigger inside it (the rule waits for one orbit mean in air)."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-from drillcosim.controllers.interface_detector import InterfaceDetector
-from drillcosim.cosim.scenario.loader import load_scenario
+from recorded_traces import run_recorded
 
 MM = 1e-3
-STACKS = Path(__file__).resolve().parents[1] / "scenarios" / "stacks"
 HOLES = {   # base scenario, the drawn plan (hole.* overrides), the interface, the gap's faces [mm]
     "thin_cfrp_between_gaps": ("cfrp_ti.toml", {
         "hole.layers": [{"material": "ti", "thickness": 0.0040137, "tolerance": 0.000602055},
@@ -57,18 +53,7 @@ HOLES = {   # base scenario, the drawn plan (hole.* overrides), the interface, t
 
 def _run(name: str, kernel: str | None, patch=None) -> dict:
     scenario, plan, _k, _gap = HOLES[name]
-    settings = load_scenario(STACKS / scenario, overrides={**plan, "hole.gap_tolerance": 1e-3}
-                             ).raw["blocks"]["detector"]["settings"]
-    det = InterfaceDetector(sample_period=0.02, **settings)
-    if kernel:
-        det.kernel = kernel
-    if patch:
-        patch(det)
-    t, x, F = np.loadtxt(Path(__file__).parent / "data" / f"{name}.csv", delimiter=",", unpack=True)
-    det.reset(float(t[0]))
-    for ti, xi, Fi in zip(t, x, F):
-        y = det.step(float(ti), [float(Fi), float(xi)])
-    return dict(zip(det.output_names(), y))
+    return run_recorded(scenario, plan, name, kernel, patch)[0]
 
 
 @pytest.mark.parametrize("name", list(HOLES))

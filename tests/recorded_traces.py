@@ -1,0 +1,32 @@
+"""Recorded detector inputs run through an InterfaceDetector built as a shipped stack scenario
+builds it (tests/data/*.csv: time [s], encoder [m], F_dc_hat [N] at every detector sample)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from drillcosim.controllers.interface_detector import InterfaceDetector
+from drillcosim.cosim.scenario.loader import load_scenario
+
+STACKS = Path(__file__).resolve().parents[1] / "scenarios" / "stacks"
+DATA = Path(__file__).parent / "data"
+
+
+def run_recorded(scenario: str, plan: dict, name: str, kernel: str | None = None, patch=None):
+    """The detector of ``scenario`` (a file of scenarios/stacks) with the hole plan ``plan``
+    (hole.* overrides; gaps to 1 mm) on the recording ``name``: its last outputs by name and
+    the block. ``kernel``: None (the C step where it builds) or "python"; ``patch(det)`` before
+    the reset."""
+    settings = load_scenario(STACKS / scenario, overrides={**plan, "hole.gap_tolerance": 1e-3}
+                             ).raw["blocks"]["detector"]["settings"]
+    det = InterfaceDetector(sample_period=0.02, **settings)
+    if kernel:
+        det.kernel = kernel
+    if patch:
+        patch(det)
+    t, x, F = np.loadtxt(DATA / f"{name}.csv", delimiter=",", unpack=True)
+    det.reset(float(t[0]))
+    for ti, xi, Fi in zip(t, x, F):
+        y = det.step(float(ti), [float(Fi), float(xi)])
+    return dict(zip(det.output_names(), y)), det
