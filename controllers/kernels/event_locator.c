@@ -36,6 +36,7 @@
 #define LOC_RELEASE_NEWTON 8      /* event_locator.RELEASE_NEWTON */
 #define LOC_ENTRY_SETTLING 0.1   /* event_locator.ENTRY_SETTLING */
 #define LOC_ENTRY_PUSHED_OUT 0.5 /* event_locator.ENTRY_PUSHED_OUT */
+#define LOC_RUN_FEET 0.25        /* event_locator.RUN_FEET */
 #define LOC_RISE_SEEN 5.0         /* event_locator.RISE_SEEN */
 #define LOC_MAX_COLS 9             /* onset: level, trend, ramp, the orbit's sine and cosine, both times i / n and
                                       both times the ramp;
@@ -559,8 +560,12 @@ static int loc_air_run(const double *x, const double *F, long n, double air, dou
     }
     if (best == 0 || *i1 - *i0 < 2 * LOC_MIN_SEGMENT || *i1 == n)   /* a run to the window's end: no gap */
         return 0;
-    /* the run's median below half the threshold, or a V: its lowest sample below V_DIP_SHARE of it */
+    /* the run's median below half the threshold, or its middle's (RUN_FEET off either end), or a V: its lowest
+     * sample below V_DIP_SHARE of it */
+    long q = (long)(LOC_RUN_FEET * (double)(*i1 - *i0));
     if (loc_median(F + *i0, *i1 - *i0, scratch) - air < 0.5 * low)
+        return 1;
+    if (loc_median(F + *i0 + q, *i1 - *i0 - 2 * q, scratch) - air < 0.5 * low)
         return 1;
     double lowest = F[*i0];
     for (long i = *i0 + 1; i < *i1; i++)
