@@ -102,7 +102,7 @@ def air_run(x, F, air: float) -> tuple[int, int] | None:
     median of its middle (the two faces' feet, RUN_FEET of the run at either end, left
     out: after a 440 N Ti level the observer leaves a 0.16 mm gap at 3-5 N, and with the Al's
     18 N ramp foot in the run its median was 4.7 N against 4.4, the gap missed and the onset put
-    at the push-out's start, foreign2 seed-26 hole 71: -0.370 mm; the middle half's 4.1 N, in
+    at the push-out's start, foreign2 seed-26 hole 71: -0.370 mm; the middle's 4.1 N, in
     the gap), or, a V, its lowest sample below V_DIP_SHARE of it: a gap of 10-20 um between a Ti layer pushed out
     over 0.1 mm and a CFRP one engaging over 0.1 mm is crossed in a few samples, the run holds
     the two faces' feet and its median (60 N of 114) failed the test; the fit then took the

@@ -1613,7 +1613,9 @@ class InterfaceDetector(KernelBlock, Block):
         interface it arms only once that interface is located (its window after the trigger
         complete): an interface fired on the upper layer's push-out leaves its slowly falling
         tail, steady over an orbit, and a test armed on it fired a false interface 0.2 mm
-        later (wide draw, foreign hole 45: a Ti push-out above a thin CFRP layer)."""
+        later (wide draw, foreign hole 45: a Ti push-out above a thin CFRP layer). With a gap
+        allowed, under the same conditions, the fall into a gap fires it too (:meth:`_in_gap`),
+        whatever the plan's ratio."""
         k = self.flag
         P = self.if_P[k - 1]
         if self.h_n - self.h_event < 2 * P or not math.isnan(self.x_arm[k - 1]) \
@@ -1700,7 +1702,7 @@ class InterfaceDetector(KernelBlock, Block):
         later event a layer off (wide draw, foreign seed-23 hole 161: 0.81 mm of gap). The
         materials check waits for it too: a level taken on a slow ramp is a fraction of the
         layer's (foreign2 seed-26 hole 68: Ti at 5.8 mm/min over a 0.35 mm engagement, 181 N
-        taken 0.08 mm into the ramp of a ~600 N level, the CFRP below then 4.8x the plan's ratio
+        taken 0.08 mm into the ramp of a ~980 N level, the CFRP below then 4.8x the plan's ratio
         above it: a false fail). Under the orbit's ripple it holds the arming back for at most
         the ripple's rising half."""
         n, m = self.h_n, self.N_min
