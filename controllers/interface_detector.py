@@ -940,7 +940,7 @@ class InterfaceDetector(KernelBlock, Block):
         # and orbit mean there (NaN: none)
         self.exit_cand_t = self.exit_cand_x = self.exit_cand_i = self.exit_cand_M = NAN
         self.if_ref = NAN           # highest orbit mean since the interface's orbit test armed (NaN: not armed)
-        self.gap_ref = NAN          # highest cut level's orbit mean in the layer (NaN: none yet; _in_gap)
+        self.gap_cut = False        # an orbit mean on the layer's cut level seen (_in_gap)
         self.quiet = 0              # consecutive samples with |F~| < rearm level
         self.settled = 0            # ... and below LEVEL_SETTLED of the level (the materials check)
         self.steady = 0             # ... and below LEVEL_STEADY of the level (an interface test's arming)
@@ -1193,8 +1193,12 @@ class InterfaceDetector(KernelBlock, Block):
         this test can tell) -- a thin, noisy low-thrust layer still arms for a large step."""
         if not self.relative:
             return self.rearm_level
-        thd = self._thd_interface(self.flag, F_pred) if 1 <= self.flag < self.n else -self._thd_exit(F_pred)
-        return max(self.rearm_level, 0.5 * thd)
+        return max(self.rearm_level, 0.5 * self._layer_threshold(F_pred))
+
+    def _layer_threshold(self, F_pred: float) -> float:
+        """The threshold [N] of the test the layer the flag says arms (relative mode): an
+        interface's, in the last layer the exit's drop as a positive number."""
+        return self._thd_interface(self.flag, F_pred) if 1 <= self.flag < self.n else -self._thd_exit(F_pred)
 
     def _engaged(self, F_pred: float) -> bool:
         """The tool cuts a layer (not in a gap above it): its tests may arm. After a fail
@@ -1424,7 +1428,8 @@ class InterfaceDetector(KernelBlock, Block):
         x_fit = self._front_positions(xs[sel], hF[sel], air) if kind in ("exit", "entry") else xs[sel]
         F_fit = hF[sel]
         if k == 0 and (end := pushed_out_end(x_fit, F_fit, air, period)) is not None:
-            x_fit, F_fit, hi = x_fit[x_fit <= end], F_fit[x_fit <= end], min(hi, end)
+            keep = x_fit <= end
+            x_fit, F_fit, hi = x_fit[keep], F_fit[keep], min(hi, end)
         plan_ramp = kind != "interface" or self._plan_ramp_at_rises()
         ramp_max = self._entry_ramp_max(x_fit, F_fit, air) if k == 0 else None
         x_loc, dx = locate(kind, x_fit, F_fit, air=air, x_trig=x_trig, cut_floor=floor, period=period,
@@ -1621,7 +1626,7 @@ class InterfaceDetector(KernelBlock, Block):
         if self.h_n - self.h_event < 2 * P or not math.isnan(self.x_arm[k - 1]) \
                 or self.windows is not None and x < self.windows[k][0] \
                 or k >= 2 and math.isnan(self.loc[LOC_EVENTS[k - 1]][3]):
-            self.if_ref = self.gap_ref = NAN
+            self.if_ref, self.gap_cut = NAN, False
             return
         M = self._hist_mean(self.h_n - P, self.h_n)
         if self.max_gap > 0.0 and self._in_gap(M, k - 1):
@@ -1637,8 +1642,8 @@ class InterfaceDetector(KernelBlock, Block):
 
     def _in_gap(self, M: float, k: int) -> bool:
         """Whether the orbit mean M [N] says the tool has left layer k (0-based) for a gap: after
-        an orbit mean on the layer's cut level (its floor and thd_min; the highest kept in
-        gap_ref), one below every material's floor (air: no layer is cut there). Why: a thin
+        an orbit mean on the layer's cut level (its floor and thd_min; remembered in
+        gap_cut), one below every material's floor (air: no layer is cut there). Why: a thin
         layer between two gaps whose F~ tests never armed (its plateau too short or too loud
         for N_min quiet samples, a drop too small for the orbit drop test) was left without
         its interface, and the next layer's tests armed on its level past the window: a false
@@ -1650,9 +1655,9 @@ class InterfaceDetector(KernelBlock, Block):
             return False
         Ma = self._above_air(M)
         if Ma >= max(self.floor[k], self.thd_min):
-            self.gap_ref = M if math.isnan(self.gap_ref) else max(self.gap_ref, M)
+            self.gap_cut = True
             return False
-        return not math.isnan(self.gap_ref) and Ma < min(self.floor)
+        return self.gap_cut and Ma < min(self.floor)
 
     def _orbit_arms(self, M: float, P: int, k: int) -> bool:
         """Whether an orbit test of layer k (0-based) arms on the last orbit mean M [N] (P
@@ -1709,8 +1714,7 @@ class InterfaceDetector(KernelBlock, Block):
         if n < 2 * m:
             return False
         rise = self._hist_mean(n - m, n) - self._hist_mean(n - 2 * m, n - m)
-        thd = self._thd_interface(self.flag, self.F_level) if self.flag < self.n else -self._thd_exit(self.F_level)
-        return rise > 0.5 * thd
+        return rise > 0.5 * self._layer_threshold(self.F_level)
 
     def _level_holds(self) -> bool:
         """Whether the thrust stands at the level F_level [N]: the mean of the last N_min
@@ -1890,8 +1894,8 @@ class InterfaceDetector(KernelBlock, Block):
 
 # the C step's state readable as the Python step's attributes (InterfaceDetector.__getattr__)
 _C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n fail fail_code h_event h_armed".split()},
-              **{name: bool for name in "armed drop exit_armed trim entry_rs".split()},
+              **{name: bool for name in "armed drop exit_armed trim entry_rs gap_cut".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last x_level "
                                          "F_pred F_err F_level thd F_air F_air_sd mismatch orb_ref exit_cand_t "
-                                         "exit_cand_x exit_cand_i exit_cand_M if_ref gap_ref x_air".split()}}
+                                         "exit_cand_x exit_cand_i exit_cand_M if_ref x_air".split()}}
 _C_LISTS = ("t_ev", "x_ev", "levels", "x_arm", "loc", "pending", "cand", "lcand", "err_hist", "cand_F", "cand_e")

@@ -62,7 +62,7 @@ typedef struct {
     double x_arm[DET_MAX_LAYERS];   /* state: encoder position where each layer's tests first armed */
     double if_P[DET_MAX_LAYERS - 1], if_ratio[DET_MAX_LAYERS - 1];   /* the interfaces' orbit tests (0: off) */
     double if_ref;              /* state: the interface orbit test's highest orbit mean (NaN: not armed) */
-    double gap_ref;             /* state: the highest cut level's orbit mean in the layer (NaN: none; in_gap) */
+    double gap_cut;             /* state: 1 once an orbit mean on the layer's cut level was seen (in_gap) */
     /* state */
     double n_buf, flag, t_ev[DET_EVENTS], x_ev[DET_EVENTS], t_paper, x_paper, t_thin, x_thin, F_ref;
     double drop, exit_armed, quiet, need, err_n, err_pos;
@@ -163,13 +163,18 @@ static double thd_onset(const Detector *s, int k, double e, double thd)
     return MIN(thd, MAX(s->thd_min, s->thd_noise_factor * noise));
 }
 
+/* interface_detector.py _layer_threshold: the threshold of the test the flag's layer arms */
+static double layer_threshold(const Detector *s, double F_pred)
+{
+    int flag = (int)s->flag;
+    return (1 <= flag && flag < (int)s->n) ? thd_interface(s, flag, F_pred) : -thd_exit(s, F_pred);
+}
+
 static double rearm_level(const Detector *s, double F_pred)
 {
     if (s->relative == 0.0)
         return s->rearm_level;
-    int flag = (int)s->flag;
-    double thd = (1 <= flag && flag < (int)s->n) ? thd_interface(s, flag, F_pred) : -thd_exit(s, F_pred);
-    return MAX(s->rearm_level, 0.5 * thd);
+    return MAX(s->rearm_level, 0.5 * layer_threshold(s, F_pred));
 }
 
 static double min_of(const double *v, int from, int to)
@@ -205,8 +210,7 @@ static int level_rises(const Detector *s)
     if (n < 2.0 * m)
         return 0;
     double rise = hist_mean(s, n - m, n) - hist_mean(s, n - 2.0 * m, n - m);
-    double thd = (int)s->flag < (int)s->n ? thd_interface(s, (int)s->flag, s->F_level) : -thd_exit(s, s->F_level);
-    return rise > 0.5 * thd;
+    return rise > 0.5 * layer_threshold(s, s->F_level);
 }
 
 static int may_arm(const Detector *s, double x)
@@ -519,10 +523,10 @@ static int in_gap(Detector *s, double M, int k)
         return 0;
     Ma = above_air(s, M);
     if (Ma >= MAX(s->floor[k], s->thd_min)) {
-        s->gap_ref = isnan(s->gap_ref) ? M : MAX(s->gap_ref, M);
+        s->gap_cut = 1.0;
         return 0;
     }
-    return !isnan(s->gap_ref) && Ma < min_of(s->floor, 0, (int)s->n);
+    return s->gap_cut != 0.0 && Ma < min_of(s->floor, 0, (int)s->n);
 }
 
 /* interface_detector.py _interface_orbit: interface k's drop test on the mean over the last orbit */
@@ -532,7 +536,8 @@ static void interface_orbit(Detector *s, double t, double x)
     double P = s->if_P[k - 1], M;
     if (s->h_n - s->h_event < 2.0 * P || !isnan(s->x_arm[k - 1])
             || (s->has_windows != 0.0 && x < s->win_lo[k]) || (k >= 2 && isnan(s->loc[4 * (k - 1) + 3]))) {
-        s->if_ref = s->gap_ref = NAN;
+        s->if_ref = NAN;
+        s->gap_cut = 0.0;
         return;
     }
     M = hist_mean(s, s->h_n - P, s->h_n);

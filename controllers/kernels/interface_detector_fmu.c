@@ -203,6 +203,19 @@ static const LocGrid *detector_process_change(const DetectorFMU *s, int k, const
 }
 
 /* InterfaceDetector._fit: out = x_loc [m], t_loc [s], dx [m], F_air [N], F_air_sd [N] */
+/* the samples (x, F, t) with x <= end [m], moved to the front in their order; returns their count */
+static long detector_keep_upto(double end, double *x, double *F, double *t, long m)
+{
+    long kept = 0;
+    for (long i = 0; i < m; i++)
+        if (x[i] <= end) {
+            x[kept] = x[i];
+            F[kept] = F[i];
+            t[kept++] = t[i];
+        }
+    return kept;
+}
+
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
 {
@@ -230,14 +243,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
         /* InterfaceDetector._fit: a first layer pushed out inside the window ends it at its top */
         double end = event_pushed_out_end(xsel, Fsel, m, air, s->entry_period);
         if (!isnan(end)) {
-            long m2 = 0;
-            for (long i = 0; i < m; i++)
-                if (xsel[i] <= end) {
-                    xsel[m2] = xsel[i];
-                    tsel[m2] = tsel[i];
-                    Fsel[m2++] = Fsel[i];
-                }
-            m = m2;
+            m = detector_keep_upto(end, xsel, Fsel, tsel, m);
             hi = LOC_PYMIN(hi, end);
         }
     }
@@ -278,13 +284,8 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
         /* InterfaceDetector._entry_refit: where the level falls after the rise (the drive settling),
          * again on the samples whose front is up to a reach past the onset: locate_margin, or the
          * first fit's ramp and an orbit of level */
-        double end = out[0] + reach, x2, dx2;
-        long m2 = 0;
-        for (long i = 0; i < m; i++)
-            if (xsel[i] <= end) {
-                xsel[m2] = xsel[i];
-                Fsel[m2++] = Fsel[i];
-            }
+        double x2, dx2;
+        long m2 = detector_keep_upto(out[0] + reach, xsel, Fsel, tsel, m);
         event_locate(kind, xsel, Fsel, m2, air, x_trig, cut_floor, period, ghost, &engage, &push, NULL, &x2, &dx2);
         if (isfinite(x2)) {
             out[0] = x2;

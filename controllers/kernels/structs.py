@@ -135,7 +135,7 @@ class Detector(ctypes.Structure):
         _doubles("entry_P entry_gain entry_rs x_level entry_lag entry_ripple lcand_t lcand_x lcand_i lcand_n h_armed x_air") + \
         _doubles("exit_P h_event orb_ref exit_cand_t exit_cand_x exit_cand_i exit_cand_M") + \
         [("x_arm", _D * DET_LAYERS), ("if_P", _D * (DET_LAYERS - 1)), ("if_ratio", _D * (DET_LAYERS - 1)),
-         ("if_ref", _D), ("gap_ref", _D)] + \
+         ("if_ref", _D), ("gap_cut", _D)] + \
         _doubles("n_buf flag") + \
         [("t_ev", _D * DET_EVENTS), ("x_ev", _D * DET_EVENTS)] + \
         _doubles("t_paper x_paper t_thin x_thin F_ref drop exit_armed quiet need err_n err_pos "
