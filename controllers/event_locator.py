@@ -871,10 +871,14 @@ def _drop_onset(x, F, lo: float, engage, plan_ramp) -> tuple[float, float]:
     located -0.038 mm; the same on the plant's true thrust; with the plan's linear ramp inside
     the gap). Taken on every drop the plan's ramp moved good narrow drops late (a CFRP rise
     after an 8 um gap, rounded on the plant's true thrust too: foreign2 hole 116 of seed 23,
-    0.000 -> +0.033 mm)."""
-    hi, dhi = onset_face(x, F, lo, float(x[-1]), shapes=engage)
+    0.000 -> +0.033 mm). The onset's ramp rises (the lower layer starts to cut): a level with a
+    trend and a ramp also draws a V as a falling ramp from the bound onto a rising trend, and
+    on a closed drop, whose samples from the run's start hold the upper push-out's tail, that
+    fit put the onset on the bound (foreign2 seed-25 hole 188: Ti -> CFRP across 12 um, the
+    onset 0.05 mm above the V's bottom; located -0.049 mm)."""
+    hi, dhi = onset_face(x, F, lo, float(x[-1]), shapes=engage, rise=True)
     if hi <= lo and engage is not plan_ramp:
-        return onset_face(x, F, lo, float(x[-1]), shapes=plan_ramp)
+        return onset_face(x, F, lo, float(x[-1]), shapes=plan_ramp, rise=True)
     return hi, dhi
 
 

@@ -1284,8 +1284,10 @@ class InterfaceDetector(KernelBlock, Block):
             # the observed level the relative thresholds scale with: frozen as soon as
             # F~ grows (a step), else the threshold would climb the step with F^
             self.quiet += 1
-            self.F_level = F_pred
-            self.settled = self.settled + 1 if abs(e) < max(self.rearm_level, LEVEL_SETTLED * abs(F_pred)) else 0
+            settled = abs(e) < max(self.rearm_level, LEVEL_SETTLED * abs(F_pred))
+            if settled or not self._armed_rise():
+                self.F_level = F_pred
+            self.settled = self.settled + 1 if settled else 0
             self.steady = self.steady + 1 if abs(e) < max(self.rearm_level, LEVEL_STEADY * abs(F_pred)) else 0
         else:
             self.quiet = self.settled = self.steady = 0
@@ -1296,6 +1298,15 @@ class InterfaceDetector(KernelBlock, Block):
                 # quiet samples after the transient, not once a longer window has left it
                 self.buf[:self.N_min] = self.buf[self.n_buf - self.N_min:self.n_buf]
                 self.n_buf = self.N_min
+
+    def _armed_rise(self) -> bool:
+        """Whether an interface test into a harder layer is armed. Its threshold's level then
+        follows F^ only on settled samples (LEVEL_SETTLED): the regression predicts a slow ramp,
+        its F~ stays under the re-arm level, a level following every such sample climbed the
+        lower layer's ramp, and the threshold with it (wide draw, project seed-27 hole 111: Al at
+        32 N onto Ti at 1170 N engaging over 0.5 mm, F~ 336 N against a threshold of 2147 N
+        grown from 243 N; the interface missed, a false fail)."""
+        return bool(self.armed) and 1 <= self.flag < self.n and self.step_signs[self.flag - 1] > 0.0
 
     def _push(self, F: float) -> None:
         """Shift the regression window (oldest first)."""

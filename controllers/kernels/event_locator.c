@@ -679,10 +679,12 @@ static LocGrid loc_upper_grid(const LocGrid *law, const LocGrid *fall, int drop,
 }
 
 /* event_locator._drop_onset: the lower layer's onset in [lo, the last sample] on f's samples with
- * ``ramp``; on its bound lo with a drop's free ramps (``free_ramps``: not the plan's), again with ``plan_ramp`` */
+ * ``ramp``, a rising one; on its bound lo with a drop's free ramps (``free_ramps``: not the plan's), again
+ * with ``plan_ramp`` */
 static void loc_drop_onset(LocFit *f, const LocGrid *ramp, const LocGrid *plan_ramp, int free_ramps, double lo,
                            double *hi, double *dhi)
 {
+    f->rise = 1;
     f->grid = ramp;
     loc_best_face(f, lo, f->x[f->n - 1], hi, dhi);
     if (*hi <= lo && free_ramps) {

@@ -571,9 +571,13 @@ static void count(Detector *s, double F_pred, double e)
         s->F_level = F_pred;
     if (fabs(e) < rearm_level(s, s->F_level)) {
         s->quiet += 1.0;
-        s->F_level = F_pred;
-        /* interface_detector.py LEVEL_SETTLED: the materials check's level */
-        s->settled = fabs(e) < MAX(s->rearm_level, DET_LEVEL_SETTLED * fabs(F_pred)) ? s->settled + 1.0 : 0.0;
+        /* interface_detector.py LEVEL_SETTLED: the materials check's level; an armed test into a
+           harder layer's level follows only settled samples (_armed_rise) */
+        int settled = fabs(e) < MAX(s->rearm_level, DET_LEVEL_SETTLED * fabs(F_pred));
+        int armed_rise = s->armed != 0.0 && s->flag >= 1.0 && s->flag < s->n && s->step_signs[(int)s->flag - 1] > 0.0;
+        if (settled || !armed_rise)
+            s->F_level = F_pred;
+        s->settled = settled ? s->settled + 1.0 : 0.0;
         s->steady = fabs(e) < MAX(s->rearm_level, DET_LEVEL_STEADY * fabs(F_pred)) ? s->steady + 1.0 : 0.0;
     } else {
         s->quiet = 0.0;
