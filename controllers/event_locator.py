@@ -762,6 +762,8 @@ def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH
     if not open_end and change is not None:
         hi, dhi = _rise_before_change(x[down], F[down], lo_onset, engage, laws[0], change.share[down],
                                       F[gap[0]:gap[1]], (hi, dhi))
+    if not open_end:
+        hi, dhi = _foot_bound(x, F, gap, mid, (hi, dhi))
     # the upper layer's fall is fitted up to the lower layer's onset, not only to the run's
     # middle: the run below AIR_SHARE of a soft upper layer (Al, 10-30 N) holds the tail of its
     # push-out, and a free face bounded by the middle ended the fall early (wide draw, foreign
@@ -806,6 +808,31 @@ def _rise_before_change(x, F, lo: float, engage, plan_ramp, share, air_run, fit)
     if not (h > lo and np.count_nonzero(x[:n] > h) >= 2 * MIN_SEGMENT):
         return fit
     return h, dh
+
+
+def _foot_bound(x, F, gap, mid: float, fit) -> tuple[float, float]:
+    """A rise's lower onset [m] and its uncertainty [m]: ``fit`` (the ramp's), or where the thrust
+    leaves the gap if that is earlier: the first sample past the run's middle ``mid`` [m] from
+    which 2 MIN_SEGMENT samples in a row stand RISE_SEEN noise spreads (the run's,
+    :func:`noise_spread`) above the level of the run's second half (the lower face's side). A rise
+    cannot start after its thrust stands out of the gap, whatever its shape; the ramp fitted
+    through an S-shaped rise, its foot steep, then bent by the drive's compliance as the
+    adaptation raised the feed at the trigger on that foot, then steep again, put its onset
+    where the steep part's line meets the gap level (foreign2 seed-25 hole 161: Al -> Ti across
+    0.2 mm onto 760 N, the thrust 18 N above the gap 5 um past its face, the onset 0.065 mm
+    late). A drop's lower onset is left to its own rules (:func:`_onset_from`)."""
+    first, last = end_levels(x, F)
+    if not last > first:
+        return fit
+    run = F[gap[0]:gap[1]]
+    seen = F > float(np.median(run[run.size // 2:])) + RISE_SEEN * noise_spread(run)
+    n = 2 * MIN_SEGMENT
+    held = np.convolve(seen, np.ones(n, int), "valid") == n       # held[j]: seen[j:j + n] all
+    held[:int(np.searchsorted(x, mid))] = False
+    j = int(np.argmax(held))
+    if not held[j] or not float(x[j]) < fit[0]:
+        return fit
+    return float(x[j]), max(fit[1], float(x[j] - x[j - 1]))
 
 
 def _drop_fall(x, F, fall: ProcessChange | None, up) -> ProcessChange | None:

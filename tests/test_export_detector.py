@@ -307,7 +307,8 @@ def test_a_narrow_drop_s_refit_never_makes_the_onset_later():
     """Recorded window (tests/data/interface_window_cfrp_al_light_rise.json: wide draw, foreign2
     seed-24 hole 42, CFRP onto 20-40 N of aluminium across 13 um, the window cut to the thin Al
     by its floor). On the samples from the CFRP's free face on, the Al's long light rise fits a
-    ramp 0.28 mm later than the first fit's (+0.149 mm located with it); the refit only takes the
+    ramp 0.28 mm later than the first fit's (+0.149 mm located with it; with the onset's ramp held
+    rising, event_locator._drop_onset, 0.06 mm past the gap); the refit only takes the
     upper fall's tail out, so it is kept only where it is earlier: the event within 0.03 mm of
     the gap (the issue's bar), Python = C."""
     d = json.loads((ROOT / "tests" / "data" / "interface_window_cfrp_al_light_rise.json").read_text())
@@ -323,7 +324,7 @@ def test_a_narrow_drop_s_refit_never_makes_the_onset_later():
     engage, _ = event_locator._rise_laws(x, F, laws)
     past = x >= free_face
     late, _ = event_locator._drop_onset(x[past], F[past], free_face, engage, laws[0])
-    assert gap is not None and late - hi > 0.2 * MM       # the case is real: from the free face on, late
+    assert gap is not None and late - hi > 0.03 * MM      # the case is real: from the free face on, late
 
 
 def test_c_fit_of_a_drop_under_the_process_change():
@@ -374,8 +375,14 @@ def test_c_fit_of_a_rise_before_the_process_change():
     change = event_locator.ProcessChange(d["fall_shape"], share, tuple(d["release"]))
     x_loc, _ = assert_same_fit(*args, **laws, process_change=change)
     assert lo - 0.005 * MM <= x_loc <= hi + 0.005 * MM
-    x_all, _ = assert_same_fit(*args, **laws)
-    assert x_all > hi + 0.03 * MM                           # the case is real: on every sample, late
+    assert_same_fit(*args, **laws)
+    # the case is real: on every sample, late (without the rise's foot bound, event_locator._foot_bound,
+    # which now also keeps this fit within 0.02 mm of the gap)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(event_locator, "_foot_bound", lambda x_, F_, gap, mid, fit: fit)
+        x_all, _ = event_locator.locate("interface", x, F, air=d["air_N"], x_trig=d["trigger_um"] * 1e-6,
+                                        cut_floor=d["cut_floor"], **laws)
+    assert x_all > hi + 0.03 * MM
     # non-finite samples in the gap and on the ramp before the change: the share compacted with them
     first = int(np.flatnonzero(share != share[0])[0])
     x_nan, F_nan = x.copy(), F.copy()

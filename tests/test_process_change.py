@@ -100,8 +100,17 @@ def _recorded(name: str):
     kw = dict(air=d["air_N"], x_trig=d["trigger_um"] * 1e-6, cut_floor=d["cut_floor"],
               entry_shape=d["entry_shape"], exit_shape=d["exit_shape"])
     change = el.ProcessChange(d["fall_shape"], np.array(d["share"]), tuple(d["release"]))
-    return (el.locate("interface", x, F, **kw)[0], el.locate("interface", x, F, **kw, process_change=change)[0],
-            tuple(v * 1e-6 for v in d["faces_um"]))
+    return (_without_foot(lambda: el.locate("interface", x, F, **kw)[0]),
+            el.locate("interface", x, F, **kw, process_change=change)[0], tuple(v * 1e-6 for v in d["faces_um"]))
+
+
+def _without_foot(fit):
+    """``fit()`` without a rise's foot bound (event_locator._foot_bound): the free laws' fit as the
+    process change's rules found it. The bound keeps a rise no later than its thrust leaves the gap,
+    and takes part of the late fit out on its own (hole 52 below: +0.038 -> +0.019 mm)."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(el, "_foot_bound", lambda x, F, gap, mid, bound: bound)
+        return fit()
 
 
 def test_the_recorded_drop_of_the_foreign_drive():
@@ -139,7 +148,7 @@ def test_a_rise_s_onset_is_fitted_before_the_process_changes():
     fine-grid steps and the noise."""
     x, F, share = _plant_rise(FACE + 0.1 * MM)
     face = FACE + 0.03 * MM
-    free = el.locate("interface", x, F, air=0.0)
+    free = _without_foot(lambda: el.locate("interface", x, F, air=0.0))
     fall = el.locate("interface", x, F, air=0.0, process_change=_fall(share, 5e-8))
     assert free[0] < FACE - 0.01 * MM or free[0] > face + 0.01 * MM     # outside the gap: its ramp's level and
     assert FACE - 0.005 * MM <= fall[0] <= face + 0.005 * MM             # trend took the bend (here early)

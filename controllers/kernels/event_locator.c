@@ -726,6 +726,35 @@ static void loc_rise_before_change(const LocFit *down, const double *share, cons
     }
 }
 
+/* event_locator._foot_bound: on a rise (rising), *hi no later than the first sample past the run's
+ * middle ``mid`` from which 2 MIN_SEGMENT samples in a row stand LOC_RISE_SEEN noise spreads (the
+ * run F[g0..g1)'s) above the median of the run's second half: a rise cannot start after its thrust
+ * stands out of the gap (scratch: n doubles) */
+static void loc_foot_bound(const double *x, const double *F, long n, long g0, long g1, double mid, int rising,
+                           double *scratch, double *hi, double *dhi)
+{
+    if (!rising)
+        return;
+    long half = (g1 - g0) / 2, m = 2 * LOC_MIN_SEGMENT, held = 0;
+    double level = loc_median(F + g0 + half, g1 - g0 - half, scratch);
+    double thr = level + LOC_RISE_SEEN * loc_noise_spread(F + g0, g1 - g0, scratch);
+    long i = 0;
+    while (i < n && x[i] < mid)          /* numpy.searchsorted(x, mid) */
+        i++;
+    for (; i < n; i++) {
+        held = F[i] > thr ? held + 1 : 0;
+        if (held == m)
+            break;
+    }
+    if (held < m)
+        return;
+    long j = i - m + 1;
+    if (!(x[j] < *hi))
+        return;
+    *hi = x[j];
+    *dhi = LOC_PYMAX(*dhi, x[j] - x[j - 1]);
+}
+
 /* a gap: the upper layer's free face and the lower one's onset around the air run; ``change``
  * (NULL: none) the adaptation's process change at the trigger (its share per sample of x): a drop's
  * upper fall under it (loc_upper_grid), a rise's onset before it (loc_rise_before_change) */
@@ -767,6 +796,7 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
                 loc_rise_before_change(&down, share_down, F + g0, g1 - g0, &ramp, &plan_ramp, free_ramps, lo_onset,
                                        scratch, &hi, &dhi);
             }
+            loc_foot_bound(x, F, n, g0, g1, mid, last > first, scratch, &hi, &dhi);
         }
         /* the upper layer's fall up to the lower layer's onset (event_locator._gap_faces) */
         n_up = loc_select(x, F, n, -INFINITY, hi, xu, Fu);

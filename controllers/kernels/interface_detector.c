@@ -655,6 +655,13 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
             && s->quiet >= s->need && s->settled >= s->N_min && cut_level(s)
             && x < s->x_ev[flag - 1] + s->x_air + s->level_reach[flag - 1] && !level_rises(s))
         check_level(s, t, x);
+    flag = (int)s->flag;
+    if (s->armed != 0.0 && s->relative != 0.0 && s->max_gap > 0.0 && 2 <= flag && flag < n
+            && isnan(s->levels[flag - 1]) && above_air(s, s->F_level) < s->floor[flag - 1]) {
+        /* interface_detector.py _armed_above_layer: armed in a gap above the layer, disarmed */
+        s->armed = s->quiet = s->settled = s->steady = 0.0;
+        s->x_arm[flag - 1] = NAN;
+    }
     if (s->armed == 0.0 && may_arm(s, x)) {
         s->armed = 1.0;
         s->trim = 0.0;
