@@ -38,7 +38,7 @@ def test_a_test_armed_on_the_push_out_tail_rearms_on_the_layer(kernel):
 
 def test_without_the_rule_the_al_onset_fires_a_false_interface():
     def kept(det):
-        det._armed_above_layer = lambda: False
+        det._armed_above_layer = lambda x: False
     out, det = run_recorded("foreign_cfrp_ti.toml", PLAN, "push_out_tail_above_al", "python", kept)
     assert out["flag"] == 3 and AL_FACE < det.x_ev[2] < AL_FACE + 0.1e-3
     assert not math.isnan(det.x_arm[1]) and det.x_arm[1] < AL_FACE

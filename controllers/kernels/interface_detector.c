@@ -534,15 +534,19 @@ static void interface_orbit(Detector *s, double t, double x)
 {
     int k = (int)s->flag;
     double P = s->if_P[k - 1], M;
-    if (s->h_n - s->h_event < 2.0 * P || !isnan(s->x_arm[k - 1])
+    if (s->h_n - s->h_event < 2.0 * P
             || (s->has_windows != 0.0 && x < s->win_lo[k]) || (k >= 2 && isnan(s->loc[4 * (k - 1) + 3]))) {
         s->if_ref = NAN;
         s->gap_cut = 0.0;
         return;
     }
     M = hist_mean(s, s->h_n - P, s->h_n);
-    if (s->max_gap > 0.0 && in_gap(s, M, k - 1)) {
+    if (s->max_gap > 0.0 && in_gap(s, M, k - 1)) {   /* armed or not */
         event(s, k, t, x, -1.0);
+        return;
+    }
+    if (!isnan(s->x_arm[k - 1])) {                    /* the drop test only while the F~ tests are not armed */
+        s->if_ref = NAN;
         return;
     }
     if (s->if_ratio[k - 1] == 0.0)
@@ -657,7 +661,7 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
         check_level(s, t, x);
     flag = (int)s->flag;
     if (s->armed != 0.0 && s->relative != 0.0 && s->max_gap > 0.0 && 2 <= flag && flag < n
-            && isnan(s->levels[flag - 1]) && above_air(s, s->F_level) < s->floor[flag - 1]) {
+            && isnan(s->levels[flag - 1]) && !past_gap(s, x) && above_air(s, s->F_level) < s->floor[flag - 1]) {
         /* interface_detector.py _armed_above_layer: armed in a gap above the layer, disarmed */
         s->armed = s->quiet = s->settled = s->steady = 0.0;
         s->x_arm[flag - 1] = NAN;
