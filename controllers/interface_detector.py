@@ -1656,10 +1656,14 @@ class InterfaceDetector(KernelBlock, Block):
         (:meth:`_in_gap`), whatever the plan's ratio: an armed F~ test does not see a push-out
         slower than its window, its level follows the fall (seed-27 draw, foreign hole 67: CFRP at
         88 N at 5 mm/min pushed out over 0.5 mm into a 0.14 mm gap above Al, the interface fired
-        on noise 1.07 mm into the Al: a false event)."""
+        on noise 1.07 mm into the Al: a false event). The gap test needs one orbit after the last
+        event, the drop test two (its two orbit means): a 1.1 mm Al first layer at 21 mm/min and a
+        1 Hz orbit stood at its level for less than two orbits after the entry's confirmation, no
+        cut level was seen before its push-out, and its interface was missed (seed 27, foreign hole
+        181: a false fail, the hole unfinished)."""
         k = self.flag
         P = self.if_P[k - 1]
-        if self.h_n - self.h_event < 2 * P or self.windows is not None and x < self.windows[k][0] \
+        if self.h_n - self.h_event < P or self.windows is not None and x < self.windows[k][0] \
                 or k >= 2 and math.isnan(self.loc[LOC_EVENTS[k - 1]][3]):
             self.if_ref, self.gap_cut = NAN, False
             return
@@ -1670,7 +1674,7 @@ class InterfaceDetector(KernelBlock, Block):
         if not math.isnan(self.x_arm[k - 1]):
             self.if_ref = NAN
             return
-        if not self.if_ratio[k - 1]:
+        if not self.if_ratio[k - 1] or self.h_n - self.h_event < 2 * P:
             return
         if math.isnan(self.if_ref) and not self._orbit_arms(M, P, k - 1):
             return

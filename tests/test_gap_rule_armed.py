@@ -41,3 +41,37 @@ def test_without_the_rule_the_interface_fires_in_the_al():
         det._in_gap = lambda M, k: math.isnan(det.x_arm[k]) and in_gap(M, k)
     out, det = run_recorded("foreign_cfrp_ti.toml", PLAN, "slow_cfrp_push_out_armed", "python", armed_blind)
     assert math.isnan(det.x_ev[2]) or det.x_ev[2] > GAP[1] + 0.5e-3
+
+
+# foreign seed-27 hole 181 (al/cfrp/ti/cfrp): 1.12 mm of Al first at 21 mm/min and a 1.06 Hz orbit
+# (47 samples), a 0.27 mm gap, CFRP at 150 N; recorded closed loop without the rule to 0.34 mm into
+# the CFRP. The entry is confirmed 0.37 mm into the Al; its level (22 N) then lasts 1.5 orbits before
+# the push-out. The Al's gap is at 2.994-3.260 mm of the encoder.
+THIN_AL = {"hole.layers": [{"material": "al", "thickness": 0.00104471, "tolerance": 0.000156706},
+                           {"material": "cfrp", "thickness": 0.00359178, "tolerance": 0.000538768},
+                           {"material": "ti", "thickness": 0.00676636, "tolerance": 0.00101495},
+                           {"material": "cfrp", "thickness": 0.00766296, "tolerance": 0.00114944}],
+           "hole.process.al.feed_rate": 0.000349569, "hole.process.al.spindle_speed": 3437.45,
+           "hole.process.al.orbital_speed": 63.4338,
+           "hole.process.cfrp.feed_rate": 0.00029815, "hole.process.cfrp.spindle_speed": 1780.5,
+           "hole.process.cfrp.orbital_speed": 224.423,
+           "hole.process.ti.feed_rate": 0.000382512, "hole.process.ti.spindle_speed": 4227.88,
+           "hole.process.ti.orbital_speed": 151.402, "hole.surface": 0.00187373}
+THIN_AL_GAP = (2.994e-3, 3.260e-3)
+
+
+@pytest.mark.parametrize("kernel", [None, "python"])
+def test_the_gap_test_takes_one_orbit_after_the_entry(kernel):
+    """The gap test needs one orbit mean on the layer's cut level after the last event, not the
+    drop test's two: the Al's interface fires in its push-out's tail or the gap."""
+    out, det = run_recorded("foreign_cfrp_ti.toml", THIN_AL, "thin_al_first_short_plateau", kernel)
+    assert out["fail"] == 0 and out["flag"] == 2
+    assert THIN_AL_GAP[0] - 0.1e-3 < det.x_ev[1] < THIN_AL_GAP[1]
+
+
+def test_after_two_orbits_the_thin_al_had_no_cut_level_left():
+    def two_orbits(det):
+        in_gap = det._in_gap
+        det._in_gap = lambda M, k: det.h_n - det.h_event >= 2 * det.if_P[k] and in_gap(M, k)
+    out, det = run_recorded("foreign_cfrp_ti.toml", THIN_AL, "thin_al_first_short_plateau", "python", two_orbits)
+    assert out["flag"] == 1 and math.isnan(det.x_ev[1])

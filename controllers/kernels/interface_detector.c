@@ -534,7 +534,7 @@ static void interface_orbit(Detector *s, double t, double x)
 {
     int k = (int)s->flag;
     double P = s->if_P[k - 1], M;
-    if (s->h_n - s->h_event < 2.0 * P
+    if (s->h_n - s->h_event < P
             || (s->has_windows != 0.0 && x < s->win_lo[k]) || (k >= 2 && isnan(s->loc[4 * (k - 1) + 3]))) {
         s->if_ref = NAN;
         s->gap_cut = 0.0;
@@ -549,7 +549,7 @@ static void interface_orbit(Detector *s, double t, double x)
         s->if_ref = NAN;
         return;
     }
-    if (s->if_ratio[k - 1] == 0.0)
+    if (s->if_ratio[k - 1] == 0.0 || s->h_n - s->h_event < 2.0 * P)   /* the drop test: two orbits after the event */
         return;
     if (isnan(s->if_ref) && !orbit_arms(s, M, P, k - 1))
         return;
