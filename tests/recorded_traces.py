@@ -30,3 +30,15 @@ def run_recorded(scenario: str, plan: dict, name: str, kernel: str | None = None
     for ti, xi, Fi in zip(t, x, F):
         y = det.step(float(ti), [float(Fi), float(xi)])
     return dict(zip(det.output_names(), y)), det
+
+
+def hole_plan(layers, process, surface: float) -> dict:
+    """The hole.* overrides of a recorded hole: ``layers`` [(material, thickness [m], tolerance
+    [m]), ...] from the surface down, ``process`` {material: (feed_rate [m/s], spindle_speed
+    [rpm], orbital_speed [rpm])}, ``surface`` [m]."""
+    plan = {"hole.layers": [{"material": m, "thickness": t, "tolerance": tol} for m, t, tol in layers],
+            "hole.surface": surface}
+    for material, (feed, spindle, orbit) in process.items():
+        plan.update({f"hole.process.{material}.feed_rate": feed, f"hole.process.{material}.spindle_speed": spindle,
+                     f"hole.process.{material}.orbital_speed": orbit})
+    return plan

@@ -14,16 +14,12 @@ import math
 
 import pytest
 
-from recorded_traces import run_recorded
+from recorded_traces import hole_plan, run_recorded
 
-PLAN = {"hole.layers": [{"material": "ti", "thickness": 0.00256965, "tolerance": 0.000385447},
-                        {"material": "al", "thickness": 0.00752738, "tolerance": 0.00112911},
-                        {"material": "ti", "thickness": 0.00453429, "tolerance": 0.000680144},
-                        {"material": "al", "thickness": 0.00616544, "tolerance": 0.000924816}],
-        "hole.process.ti.feed_rate": 0.000353759, "hole.process.ti.spindle_speed": 6267.47,
-        "hole.process.ti.orbital_speed": 292.778,
-        "hole.process.al.feed_rate": 8.59214e-05, "hole.process.al.spindle_speed": 476.402,
-        "hole.process.al.orbital_speed": 103.731, "hole.surface": 0.0046668}
+PLAN = hole_plan([("ti", 0.00256965, 0.000385447), ("al", 0.00752738, 0.00112911),
+                   ("ti", 0.00453429, 0.000680144), ("al", 0.00616544, 0.000924816)],
+                  {"ti": (0.000353759, 6267.47, 292.778), "al": (8.59214e-05, 476.402, 103.731)},
+                  0.0046668)
 AL_FACE = 8.121e-3        # m, encoder
 
 

@@ -14,15 +14,11 @@ import math
 
 import pytest
 
-from recorded_traces import run_recorded
+from recorded_traces import hole_plan, run_recorded
 
-PLAN = {"hole.layers": [{"material": "al", "thickness": 0.00300144, "tolerance": 0.000450217},
-                        {"material": "cfrp", "thickness": 0.00791008, "tolerance": 0.00118651},
-                        {"material": "al", "thickness": 0.00564368, "tolerance": 0.000846552}],
-        "hole.process.al.feed_rate": 0.000338482, "hole.process.al.spindle_speed": 1824.77,
-        "hole.process.al.orbital_speed": 261.192,
-        "hole.process.cfrp.feed_rate": 8.46123e-05, "hole.process.cfrp.spindle_speed": 1621.42,
-        "hole.process.cfrp.orbital_speed": 45.1787, "hole.surface": 0.00164905}
+PLAN = hole_plan([("al", 0.00300144, 0.000450217), ("cfrp", 0.00791008, 0.00118651), ("al", 0.00564368, 0.000846552)],
+                  {"al": (0.000338482, 1824.77, 261.192), "cfrp": (8.46123e-05, 1621.42, 45.1787)},
+                  0.00164905)
 GAP = (13.558e-3, 13.694e-3)       # m, encoder
 
 
@@ -47,16 +43,11 @@ def test_without_the_rule_the_interface_fires_in_the_al():
 # (47 samples), a 0.27 mm gap, CFRP at 150 N; recorded closed loop without the rule to 0.34 mm into
 # the CFRP. The entry is confirmed 0.37 mm into the Al; its level (22 N) then lasts 1.5 orbits before
 # the push-out. The Al's gap is at 2.994-3.260 mm of the encoder.
-THIN_AL = {"hole.layers": [{"material": "al", "thickness": 0.00104471, "tolerance": 0.000156706},
-                           {"material": "cfrp", "thickness": 0.00359178, "tolerance": 0.000538768},
-                           {"material": "ti", "thickness": 0.00676636, "tolerance": 0.00101495},
-                           {"material": "cfrp", "thickness": 0.00766296, "tolerance": 0.00114944}],
-           "hole.process.al.feed_rate": 0.000349569, "hole.process.al.spindle_speed": 3437.45,
-           "hole.process.al.orbital_speed": 63.4338,
-           "hole.process.cfrp.feed_rate": 0.00029815, "hole.process.cfrp.spindle_speed": 1780.5,
-           "hole.process.cfrp.orbital_speed": 224.423,
-           "hole.process.ti.feed_rate": 0.000382512, "hole.process.ti.spindle_speed": 4227.88,
-           "hole.process.ti.orbital_speed": 151.402, "hole.surface": 0.00187373}
+THIN_AL = hole_plan([("al", 0.00104471, 0.000156706), ("cfrp", 0.00359178, 0.000538768),
+                      ("ti", 0.00676636, 0.00101495), ("cfrp", 0.00766296, 0.00114944)],
+                     {"al": (0.000349569, 3437.45, 63.4338), "cfrp": (0.00029815, 1780.5, 224.423),
+                      "ti": (0.000382512, 4227.88, 151.402)},
+                     0.00187373)
 THIN_AL_GAP = (2.994e-3, 3.260e-3)
 
 

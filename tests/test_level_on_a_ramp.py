@@ -12,17 +12,12 @@ from __future__ import annotations
 
 import pytest
 
-from recorded_traces import run_recorded
+from recorded_traces import hole_plan, run_recorded
 
-PLAN = {"hole.layers": [{"material": "al", "thickness": 0.00116816, "tolerance": 0.000175223},
-                        {"material": "ti", "thickness": 0.00127224, "tolerance": 0.000190837},
-                        {"material": "cfrp", "thickness": 0.00570188, "tolerance": 0.000855282}],
-        "hole.process.al.feed_rate": 0.000272311, "hole.process.al.spindle_speed": 1753.27,
-        "hole.process.al.orbital_speed": 116.775,
-        "hole.process.ti.feed_rate": 9.63582e-05, "hole.process.ti.spindle_speed": 575.752,
-        "hole.process.ti.orbital_speed": 180.78,
-        "hole.process.cfrp.feed_rate": 0.000379546, "hole.process.cfrp.spindle_speed": 1630.44,
-        "hole.process.cfrp.orbital_speed": 279.253, "hole.surface": 0.00428307}
+PLAN = hole_plan([("al", 0.00116816, 0.000175223), ("ti", 0.00127224, 0.000190837), ("cfrp", 0.00570188, 0.000855282)],
+                  {"al": (0.000272311, 1753.27, 116.775), "ti": (9.63582e-05, 575.752, 180.78),
+                   "cfrp": (0.000379546, 1630.44, 279.253)},
+                  0.00428307)
 
 
 @pytest.mark.parametrize("kernel", [None, "python"])     # the C step (default) and the Python reference

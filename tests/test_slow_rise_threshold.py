@@ -15,14 +15,11 @@ import math
 
 import pytest
 
-from recorded_traces import run_recorded
+from recorded_traces import hole_plan, run_recorded
 
-PLAN = {"hole.layers": [{"material": "al", "thickness": 0.00259485, "tolerance": 0.000389227},
-                        {"material": "ti", "thickness": 0.00300619, "tolerance": 0.000450928}],
-        "hole.process.al.feed_rate": 0.000221853, "hole.process.al.spindle_speed": 1095.75,
-        "hole.process.al.orbital_speed": 63.2428,
-        "hole.process.ti.feed_rate": 0.000245674, "hole.process.ti.spindle_speed": 1365.88,
-        "hole.process.ti.orbital_speed": 127.879, "hole.surface": 0.00132129}
+PLAN = hole_plan([("al", 0.00259485, 0.000389227), ("ti", 0.00300619, 0.000450928)],
+                  {"al": (0.000221853, 1095.75, 63.2428), "ti": (0.000245674, 1365.88, 127.879)},
+                  0.00132129)
 GAP_END = 4.090e-3        # m, encoder: the Ti's face
 
 
