@@ -1697,9 +1697,18 @@ class InterfaceDetector(KernelBlock, Block):
             return False
         Ma = self._above_air(M)
         if Ma >= max(self.floor[k], self.thd_min):
-            self.gap_cut = True
+            if self._orbit_on_layer(k):
+                self.gap_cut = True
             return False
         return self.gap_cut and Ma < min(self.floor)
+
+    def _orbit_on_layer(self, k: int) -> bool:
+        """Whether the last orbit of layer k (0-based; if_P samples) lies past where the event
+        above the layer was located (or that event has no located position): its mean is the
+        layer's, not the upper layer's push-out tail. An interface located early, its window cut
+        to a thin CFRP layer below, left the Ti's tail above the CFRP's floor, and the gap above the
+        CFRP then fired the CFRP's interface 1.5 mm early (seed 27, foreign hole 129)."""
+        return not self.h_x[(self.h_n - self.if_P[k]) % HISTORY] < self.loc[LOC_EVENTS[k]][0]
 
     def _orbit_arms(self, M: float, P: int, k: int) -> bool:
         """Whether an orbit test of layer k (0-based) arms on the last orbit mean M [N] (P

@@ -66,3 +66,31 @@ def test_after_two_orbits_the_thin_al_had_no_cut_level_left():
         det._in_gap = lambda M, k: det.h_n - det.h_event >= 2 * det.if_P[k] and in_gap(M, k)
     out, det = run_recorded("foreign_cfrp_ti.toml", THIN_AL, "thin_al_first_short_plateau", "python", two_orbits)
     assert out["flag"] == 1 and math.isnan(det.x_ev[1])
+
+
+# foreign seed-27 hole 129 (ti/cfrp/ti/cfrp): Ti at 630 N down to 7.074 mm of the encoder, a 0.53 mm
+# gap, 1.1 mm of CFRP (7.607-8.707), a 0.85 mm gap, Ti; recorded closed loop without the rule to
+# 9.2 mm. The Ti/CFRP interface fires on the Ti's push-out and is located early (its window cut to
+# the thin CFRP); the orbit means of the Ti's tail then stood above the CFRP's floor.
+TAIL_ABOVE_CFRP = hole_plan([("ti", 0.00503115, 0.000754673), ("cfrp", 0.00114572, 0.000171858),
+                             ("ti", 0.00494692, 0.000742038), ("cfrp", 0.00574911, 0.000862367)],
+                            {"ti": (0.000316292, 3253.05, 178.94), "cfrp": (0.000302323, 1531.87, 66.9616)},
+                            0.00236043)
+THIN_CFRP = (7.607e-3, 8.707e-3)
+
+
+@pytest.mark.parametrize("kernel", [None, "python"])
+def test_a_cut_level_for_the_gap_test_is_the_layer_s_own(kernel):
+    """The orbit mean on the layer's cut level that the gap test waits for lies past where the
+    interface above was located: the CFRP's interface fires on the CFRP's own push-out, not in the
+    gap above it."""
+    out, det = run_recorded("foreign_cfrp_ti.toml", TAIL_ABOVE_CFRP, "ti_tail_above_thin_cfrp", kernel)
+    assert out["fail"] == 0 and out["flag"] == 3
+    assert THIN_CFRP[1] - 0.3e-3 < det.x_ev[2] < THIN_CFRP[1] + 0.85e-3
+
+
+def test_on_the_tail_s_orbit_means_the_gap_above_fired_it():
+    def any_orbit(det):
+        det._orbit_on_layer = lambda k: True
+    out, det = run_recorded("foreign_cfrp_ti.toml", TAIL_ABOVE_CFRP, "ti_tail_above_thin_cfrp", "python", any_orbit)
+    assert det.x_ev[2] < THIN_CFRP[0]

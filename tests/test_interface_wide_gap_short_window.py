@@ -170,3 +170,14 @@ def test_a_rise_starts_no_later_than_its_thrust_leaves_the_gap(monkeypatch):
     thrust leaves the gap (event_locator._foot_bound): located in the gap."""
     _in_its_gap_and_not_without("interface_window_al_ti_s_rise", monkeypatch, "_foot_bound",
                                 lambda x, F, gap, mid, fit: fit)
+
+
+def test_the_rise_s_foot_is_sought_from_the_gap_s_level(monkeypatch):
+    """Foreign seed-27 hole 96 (cfrp/ti on a worn tool), interface 1: CFRP at 200 N pushed out over
+    0.3 mm onto a 77 um gap, Ti at 600 N. The run below the air share holds the CFRP's tail, which
+    stands above the gap's level past the run's middle: sought from the middle, the foot bound lay in
+    the tail, 0.108 mm above the gap. From the first sample at the gap's level past the middle
+    (event_locator._foot_from): located in the gap."""
+    def from_middle(x, seen, mid):
+        return int(np.searchsorted(x, mid))
+    _in_its_gap_and_not_without("interface_window_cfrp_ti_tail_past_middle", monkeypatch, "_foot_from", from_middle)

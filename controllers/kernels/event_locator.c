@@ -727,7 +727,8 @@ static void loc_rise_before_change(const LocFit *down, const double *share, cons
 }
 
 /* event_locator._foot_bound: on a rise (rising), *hi no later than the first sample past the run's
- * middle ``mid`` from which 2 MIN_SEGMENT samples in a row stand LOC_RISE_SEEN noise spreads (the
+ * middle ``mid`` (and the first sample at the gap's level after it) from which 2 MIN_SEGMENT samples in a
+ * row stand LOC_RISE_SEEN noise spreads (the
  * run F[g0..g1)'s) above the median of the run's second half: a rise cannot start after its thrust
  * stands out of the gap (scratch: n doubles) */
 static void loc_foot_bound(const double *x, const double *F, long n, long g0, long g1, double mid, int rising,
@@ -740,6 +741,8 @@ static void loc_foot_bound(const double *x, const double *F, long n, long g0, lo
     double thr = level + LOC_RISE_SEEN * loc_noise_spread(F + g0, g1 - g0, scratch);
     long i = 0;
     while (i < n && x[i] < mid)          /* numpy.searchsorted(x, mid) */
+        i++;
+    while (i < n && F[i] > thr)          /* from the first sample at the gap's level: past a push-out's tail */
         i++;
     for (; i < n; i++) {
         held = F[i] > thr ? held + 1 : 0;

@@ -523,7 +523,9 @@ static int in_gap(Detector *s, double M, int k)
         return 0;
     Ma = above_air(s, M);
     if (Ma >= MAX(s->floor[k], s->thd_min)) {
-        s->gap_cut = 1.0;
+        /* interface_detector.py _in_gap: an orbit past where the event above the layer was located */
+        if (!(s->h_x[((long)s->h_n - (long)s->if_P[k]) % DET_HISTORY] < s->loc[4 * k]))
+            s->gap_cut = 1.0;
         return 0;
     }
     return s->gap_cut != 0.0 && Ma < min_of(s->floor, 0, (int)s->n);
