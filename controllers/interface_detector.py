@@ -1252,7 +1252,7 @@ class InterfaceDetector(KernelBlock, Block):
                 elif e > self.thd:
                     self._event(0, t, x)
             elif self.flag < self.n and self.armed:
-                self.thd = self._thd_interface(self.flag, self.F_level)
+                self.thd = self._thd_interface(self.flag, self._test_level())
                 if abs(e) > self._thd_onset(self.flag, e, self.thd):
                     self._event(self.flag, t, x)
             elif self.flag >= self.n and (self.armed or self.exit_armed):
@@ -1288,7 +1288,7 @@ class InterfaceDetector(KernelBlock, Block):
             # F~ grows (a step), else the threshold would climb the step with F^
             self.quiet += 1
             settled = abs(e) < max(self.rearm_level, LEVEL_SETTLED * abs(F_pred))
-            if settled or not self._armed_rise():
+            if settled or not self._armed_unlevelled_rise():
                 self.F_level = F_pred
             self.settled = self.settled + 1 if settled else 0
             self.steady = self.steady + 1 if abs(e) < max(self.rearm_level, LEVEL_STEADY * abs(F_pred)) else 0
@@ -1321,14 +1321,29 @@ class InterfaceDetector(KernelBlock, Block):
         return self.relative and self.max_gap > 0.0 and 2 <= k < self.n and math.isnan(self.levels[k - 1]) \
             and not self._past_gap(x) and self._above_air(self.F_level) < self.floor[k - 1]
 
-    def _armed_rise(self) -> bool:
-        """Whether an interface test into a harder layer is armed. Its threshold's level then
-        follows F^ only on settled samples (LEVEL_SETTLED): the regression predicts a slow ramp,
-        its F~ stays under the re-arm level, a level following every such sample climbed the
-        lower layer's ramp, and the threshold with it (wide draw, project seed-27 hole 111: Al at
-        32 N onto Ti at 1170 N engaging over 0.5 mm, F~ 336 N against a threshold of 2147 N
-        grown from 243 N; the interface missed, a false fail)."""
-        return bool(self.armed) and 1 <= self.flag < self.n and self.step_signs[self.flag - 1] > 0.0
+    def _armed_unlevelled_rise(self) -> bool:
+        """Whether an interface test into a harder layer is armed before the layer's level is
+        taken (levels). Its level then follows F^ only on settled samples (LEVEL_SETTLED): it
+        may stand on the upper layer's push-out tail, whose fall is no plateau; following it, the
+        threshold fell with the tail and a bump of it fired the test (seed 27, foreign hole 6:
+        0.7 mm above the Al; :meth:`_armed_above_layer` disarms it once the tail is in the gap)."""
+        k = self.flag
+        return bool(self.armed) and 1 <= k < self.n and self.step_signs[k - 1] > 0.0 and math.isnan(self.levels[k - 1])
+
+    def _test_level(self) -> float:
+        """The level [N] an armed interface test's threshold scales with: F_level, and into a
+        harder layer no more than the layer's own level once the materials check has taken it
+        (levels). Why: the regression predicts a slow ramp, its F~ stays under the re-arm level,
+        and F_level, which follows every such sample, climbed the lower layer's ramp and the
+        threshold with it (wide draw, project seed-27 hole 111: Al at 32 N onto Ti at 1170 N
+        engaging over 0.5 mm, F~ 336 N against a threshold grown from 243 to 2147 N; the interface
+        missed, a false fail). Below the layer's level it follows F_level down: an Al layer pushed
+        out into a gap above Ti brings the threshold down to thd_min, and the Ti's rise fires at
+        once (held at the Al's level, 0.085 mm later: the shipped plans' short Monte Carlo)."""
+        k = self.flag
+        if self.step_signs[k - 1] > 0.0 and self.F_level > self.levels[k - 1]:
+            return self.levels[k - 1]
+        return self.F_level
 
     def _push(self, F: float) -> None:
         """Shift the regression window (oldest first)."""

@@ -1,5 +1,5 @@
 """An armed interface test into a harder layer keeps its threshold's level off the lower layer's
-ramp (InterfaceDetector._armed_rise; docs/stacks.md, "Interfaces").
+ramp (InterfaceDetector._test_level; docs/stacks.md, "Interfaces").
 
 tests/data/slow_ti_rise_threshold.csv: the detector's input on the project drive's hole 111 of the
 wide draw's seed 27 (al/ti: 2.7 mm of Al at 13.3 mm/min and 12 um/rev, a 0.066 mm gap, 2.6 mm of
@@ -33,6 +33,6 @@ def test_a_slow_ramp_into_ti_fires_its_interface(kernel):
 
 def test_without_the_rule_the_interface_is_missed():
     def following(det):
-        det._armed_rise = lambda: False
+        det._test_level = lambda: det.F_level
     out, det = run_recorded("cfrp_ti.toml", PLAN, "slow_ti_rise_threshold", "python", following)
     assert out["flag"] == 1 and math.isnan(det.x_ev[1])

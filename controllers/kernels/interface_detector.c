@@ -577,11 +577,13 @@ static void count(Detector *s, double F_pred, double e)
         s->F_level = F_pred;
     if (fabs(e) < rearm_level(s, s->F_level)) {
         s->quiet += 1.0;
-        /* interface_detector.py LEVEL_SETTLED: the materials check's level; an armed test into a
-           harder layer's level follows only settled samples (_armed_rise) */
+        /* interface_detector.py LEVEL_SETTLED: the materials check's level; an armed test into a harder
+           layer whose level is not taken follows only settled samples (_armed_unlevelled_rise) */
         int settled = fabs(e) < MAX(s->rearm_level, DET_LEVEL_SETTLED * fabs(F_pred));
-        int armed_rise = s->armed != 0.0 && s->flag >= 1.0 && s->flag < s->n && s->step_signs[(int)s->flag - 1] > 0.0;
-        if (settled || !armed_rise)
+        int flag = (int)s->flag;
+        int unlevelled = s->armed != 0.0 && 1 <= flag && flag < (int)s->n && s->step_signs[flag - 1] > 0.0
+                         && isnan(s->levels[flag - 1]);
+        if (settled || !unlevelled)
             s->F_level = F_pred;
         s->settled = settled ? s->settled + 1.0 : 0.0;
         s->steady = fabs(e) < MAX(s->rearm_level, DET_LEVEL_STEADY * fabs(F_pred)) ? s->steady + 1.0 : 0.0;
@@ -685,7 +687,9 @@ static void tests(Detector *s, double t, double x, double F, double F_pred)
         } else if (e > s->thd)
             event(s, 0, t, x, -1.0);
     } else if (flag < n && s->armed != 0.0) {
-        s->thd = thd_interface(s, flag, s->F_level);
+        /* interface_detector.py _test_level: into a harder layer no more than the layer's own level */
+        double level = s->step_signs[flag - 1] > 0.0 && s->F_level > s->levels[flag - 1] ? s->levels[flag - 1] : s->F_level;
+        s->thd = thd_interface(s, flag, level);
         if (fabs(e) > thd_onset(s, flag, e, s->thd))
             event(s, flag, t, x, -1.0);
     } else if (flag >= n && (s->armed != 0.0 || s->exit_armed != 0.0)) {
