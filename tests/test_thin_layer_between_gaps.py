@@ -22,32 +22,23 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from recorded_traces import run_recorded
+from recorded_traces import hole_plan, run_recorded
 
 MM = 1e-3
 
 
-def _plan(layers, surface: float, **process) -> dict:
-    """hole.* overrides: layers (material, thickness [m], tolerance [m]), the surface [m] and per
-    material (feed rate [m/s], spindle speed [rpm], orbital speed [rpm])."""
-    plan = {"hole.layers": [{"material": m, "thickness": h, "tolerance": tol} for m, h, tol in layers],
-            "hole.surface": surface}
-    for material, values in process.items():
-        plan.update({f"hole.process.{material}.{key}": v
-                     for key, v in zip(("feed_rate", "spindle_speed", "orbital_speed"), values)})
-    return plan
-
-
 HOLES = {   # base scenario, the drawn plan, the interface, the gap's faces [mm] (encoder)
-    "thin_cfrp_between_gaps": ("cfrp_ti.toml", _plan(
+    "thin_cfrp_between_gaps": ("cfrp_ti.toml", hole_plan(
         [("ti", 0.0040137, 0.000602055), ("cfrp", 0.00129717, 0.000194575), ("al", 0.00266891, 0.000400336),
-         ("cfrp", 0.00283723, 0.000425584)], 0.00259171,
-        ti=(0.000398359, 4957.31, 47.09), cfrp=(0.000388012, 6833.72, 221.573), al=(0.000315322, 1870.4, 109.599)),
+         ("cfrp", 0.00283723, 0.000425584)],
+        {"ti": (0.000398359, 4957.31, 47.09), "cfrp": (0.000388012, 6833.72, 221.573),
+         "al": (0.000315322, 1870.4, 109.599)}, 0.00259171),
         2, (8.655, 9.620)),
-    "thin_cfrp_push_out_gap_ti": ("foreign_cfrp_ti.toml", _plan(
+    "thin_cfrp_push_out_gap_ti": ("foreign_cfrp_ti.toml", hole_plan(
         [("cfrp", 0.00104642, 0.000156964), ("ti", 0.00529922, 0.000794882), ("al", 0.00364188, 0.000546282),
-         ("ti", 0.00279405, 0.000419107)], 0.00303512,
-        cfrp=(0.000254342, 1065.99, 65.9457), ti=(0.000330797, 1440.56, 153.362), al=(9.74036e-05, 995.461, 102.705)),
+         ("ti", 0.00279405, 0.000419107)],
+        {"cfrp": (0.000254342, 1065.99, 65.9457), "ti": (0.000330797, 1440.56, 153.362),
+         "al": (9.74036e-05, 995.461, 102.705)}, 0.00303512),
         1, (3.969, 4.317)),
 }
 
