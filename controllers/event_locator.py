@@ -820,8 +820,8 @@ def _foot_bound(x, F, gap, mid: float, fit) -> tuple[float, float]:
     adaptation raised the feed at the trigger on that foot, then steep again, put its onset
     where the steep part's line meets the gap level (foreign2 seed-25 hole 161: Al -> Ti across
     0.2 mm onto 760 N, the thrust 18 N above the gap 5 um past its face, the onset 0.065 mm
-    late). The search starts at the first sample at the gap's level past the middle (:func:`_foot_from`). A drop's
-    lower onset is left to its own rules (:func:`_onset_from`)."""
+    late). The search starts at the first sample at the gap's level past the middle
+    (:func:`_foot_from`). A drop's lower onset is left to its own rules (:func:`_onset_from`)."""
     first, last = end_levels(x, F)
     if not last > first:
         return fit

@@ -727,10 +727,10 @@ static void loc_rise_before_change(const LocFit *down, const double *share, cons
 }
 
 /* event_locator._foot_bound: on a rise (rising), *hi no later than the first sample past the run's
- * middle ``mid`` (and the first sample at the gap's level after it) from which 2 MIN_SEGMENT samples in a
- * row stand LOC_RISE_SEEN noise spreads (the
- * run F[g0..g1)'s) above the median of the run's second half: a rise cannot start after its thrust
- * stands out of the gap (scratch: n doubles) */
+ * middle ``mid`` and past the first sample at the gap's level after it (_foot_from) from which
+ * 2 MIN_SEGMENT samples in a row stand LOC_RISE_SEEN noise spreads (the run F[g0..g1)'s) above the
+ * median of the run's second half: a rise cannot start after its thrust stands out of the gap
+ * (scratch: n doubles) */
 static void loc_foot_bound(const double *x, const double *F, long n, long g0, long g1, double mid, int rising,
                            double *scratch, double *hi, double *dhi)
 {
