@@ -116,6 +116,24 @@ def test_fmu_extraction_folder_removed_after_crash(tmp_path, fault_fmu, monkeypa
     assert list((tmp_path / "tmp").iterdir()) == []
 
 
+def test_a_killed_run_s_extraction_folder_is_removed_by_the_next_run(tmp_path, mass_fmu, monkeypatch):
+    """A run killed with SIGKILL leaves its child's FMU folder behind (no cleanup ran); the next
+    run removes the folders of runs whose process is gone, not those of live ones."""
+    from drillcosim.cosim.runs.outputs import process_start
+    (tmp_path / "tmp").mkdir()
+    import tempfile
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()
+    dead = tmp_path / "tmp" / f"drillcosim-{gone.pid}-{12345}-abc"
+    live = tmp_path / "tmp" / f"drillcosim-{os.getpid()}-{process_start(os.getpid())}-def"
+    for d in (dead, live):
+        (d / "binaries").mkdir(parents=True)
+    path = scenario(tmp_path, mass_fmu, fail=-1, stop=0.01)
+    assert run_supervised(path, tmp_path / "out", progress=False)["status"] == "completed"
+    assert sorted(p.name for p in (tmp_path / "tmp").iterdir()) == [live.name]
+
+
 def test_hang_in_c_ends_by_wall_timeout(tmp_path, fault_fmu):
     path = scenario(tmp_path, fault_fmu("hang"), fail=0.5, stop=5.0)
     t0 = time.monotonic()
