@@ -346,25 +346,38 @@ ENTRY_SETTLING = 0.1
 ENTRY_PUSHED_OUT = 0.5
 
 
-def pushed_out_end(x, F, air: float, period: float | None) -> float | None:
-    """Where an entry's window (positions ``x`` [m] increasing, thrust ``F`` [N]) stops holding
-    the first layer's cut: the last position [m] of the orbit (``period`` samples) with the highest
-    mean thrust, when the window's last orbit mean is below ENTRY_PUSHED_OUT of that mean's step
-    over ``air`` [N]; else None (the layer's level lasts to the window's end, or no whole orbit
-    or period). Why: a first layer thinner than the trigger's lag and a locate_margin is pushed
-    out inside the entry's window, and an onset fitted with a level to the window's end took the
-    hump of its cut and push-out for a long ramp from the air (wide draw seed 25, a 0.93 mm CFRP
-    layer at 15 mm/min whose thrust rises to 330 N and falls to air within 0.9 mm: the foreign
-    drive's entry -0.214 mm, foreign2's -0.060)."""
+# an entry window reaching past where the plan's first layer may end (InterfaceDetector._layer_end)
+# holds its push-out when its last orbit mean has fallen below this share of its highest one's step:
+# replayed thin first layers pushed out inside the window 0.79-0.81, those still on their level
+# 0.93-1.00 (wide draw seed 27, foreign and foreign2)
+ENTRY_LAYER_FALL = 0.9
+
+
+def orbit_fell(x, F, air: float, period: float | None, share: float) -> float | None:
+    """The last position [m] of the orbit (``period`` samples) with the highest mean thrust in
+    a window (positions ``x`` [m] increasing, thrust ``F`` [N]) whose last orbit mean is below
+    ``share`` of that mean's step over ``air`` [N]; else None (or no whole orbit or period)."""
     x, F = np.asarray(x, float), np.asarray(F, float)
     if period is None or not (1.0 < period and x.size > period + 2.0):
         return None
     M = orbit_mean(F, period)
     K = (x.size - M.size) // 2
     j = int(np.argmax(M))
-    if not M[-1] - air < ENTRY_PUSHED_OUT * (M[j] - air):
+    if not M[-1] - air < share * (M[j] - air):
         return None
     return float(x[j + 2 * K])
+
+
+def pushed_out_end(x, F, air: float, period: float | None) -> float | None:
+    """Where an entry's window (positions ``x`` [m] increasing, thrust ``F`` [N]) stops holding
+    the first layer's cut: the last position [m] of the orbit (``period`` samples) with the highest
+    mean thrust, when the window's last orbit mean is below ENTRY_PUSHED_OUT of that mean's step
+    over ``air`` [N] (:func:`orbit_fell`); else None. Why: a first layer thinner than the
+    trigger's lag and a locate_margin is pushed out inside the entry's window, and an onset fitted
+    with a level to the window's end took the hump of its cut and push-out for a long ramp from the
+    air (wide draw seed 25, a 0.93 mm CFRP layer at 15 mm/min whose thrust rises to 330 N and falls
+    to air within 0.9 mm: the foreign drive's entry -0.214 mm, foreign2's -0.060)."""
+    return orbit_fell(x, F, air, period, ENTRY_PUSHED_OUT)
 
 
 def settling_fall(x, F, x0: float, ramp: float, span: float) -> float:

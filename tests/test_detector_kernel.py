@@ -185,6 +185,15 @@ CASES = {
     "plan_entry_span_slow_orbit": (dict(PLAN, entry_span=1.3, entry_orbit_period=1.3),
                                    dict(levels=(60.0, 160.0, 75.0), thick_mm=(3.0, 2.0, 2.5), gaps_mm=(0.0, 0.0, 0.0),
                                         ringing=10.0, feed_mm_min=15.0)),
+    # issue 23 round 22: a thin first layer (0.8 mm, plan 1.0 +- 0.2 mm: 0.3 mm of level reach) under
+    # a slow orbit, pushed out onto a softer layer inside the entry's window (its last orbit mean
+    # 0.8 of its highest): the entry fitted again up to the reach (InterfaceDetector._layer_end),
+    # in Python, the C step and the exported FMU's C fit
+    "plan_entry_thin_first_layer": (dict(PLAN, thicknesses=(1.0 * MM, 2 * MM, 2.5 * MM), thickness_tolerances=0.2 * MM,
+                                         kc=[2.0e7, 1.75e7, 4e7], feed_per_rev=[5e-6, 4e-6, 4e-6], entry_span=1.3,
+                                         entry_orbit_period=1.3, locate_margin=0.5 * MM),
+                                    dict(levels=(100.0, 70.0, 160.0), thick_mm=(0.8, 2.0, 2.5), gaps_mm=(0.0, 0.0, 0.0),
+                                         ringing=10.0, feed_mm_min=15.0)),
     # issue 23: a drop across a gap under the plan's process (each layer's feed rate, the adaptation's
     # 0.2 s ramp from the trigger): the upper layer's push-out fitted with the plan's law times the
     # share of the feed per revolution commanded (event_locator.ProcessChange), released with the drive's

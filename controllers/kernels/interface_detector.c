@@ -28,6 +28,7 @@
 #define DET_ENTRY_CANDIDATE 0.5              /* interface_detector.py ENTRY_CANDIDATE */
 #define DET_LEVEL_SETTLED 0.1                /* interface_detector.py LEVEL_SETTLED */
 #define DET_LEVEL_STEADY 0.5                 /* interface_detector.py LEVEL_STEADY */
+#define DET_LEVEL_RISE_SHARE 0.25            /* interface_detector.py LEVEL_RISE_SHARE */
 #define DET_ORBIT_STEADY 0.1                 /* interface_detector.py ORBIT_STEADY */
 #define DET_AIR_OFFSET_K 2.0                 /* interface_detector.py AIR_OFFSET_K */
 #define DET_LEVEL_BAND_K 2.5                 /* interface_detector.py LEVEL_BAND_K */
@@ -210,7 +211,8 @@ static int level_rises(const Detector *s)
     if (n < 2.0 * m)
         return 0;
     double rise = hist_mean(s, n - m, n) - hist_mean(s, n - 2.0 * m, n - m);
-    return rise > 0.5 * layer_threshold(s, s->F_level);
+    double own = MAX(DET_LEVEL_RISE_SHARE * fabs(above_air(s, s->F_level)), 0.5 * s->rearm_level);
+    return rise > MIN(0.5 * layer_threshold(s, s->F_level), own);
 }
 
 static int may_arm(const Detector *s, double x)

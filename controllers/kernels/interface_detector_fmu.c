@@ -216,16 +216,55 @@ static long detector_keep_upto(double end, double *x, double *F, double *t, long
     return kept;
 }
 
+/* InterfaceDetector._entry_fit_once: the entry's first fit out[0] (x_loc [m]), out[2] (dx [m])
+ * refitted where the drive settles after the rise (_entry_refit), else with the cut's orbital ripple */
+static void detector_entry_once(const Detector *d, const double *xsel, const double *Fsel, long m, double hi,
+                                double x_trig, double air, double period, LocGrid *engage, const LocGrid *push,
+                                double *scratch, double *out)
+{
+    double orbit = period > 0.0 && m > 1 ? period * (xsel[m - 1] - xsel[0]) / (double)(m - 1) : 0.0;
+    double ramp = isfinite(out[0]) ? event_onset_length(xsel, Fsel, m, out[0], period, engage) : NAN;
+    double reach = LOC_PYMAX(d->locate_margin, orbit + ramp), span = orbit > 0.0 ? orbit : 0.5 * d->locate_margin;
+    if (isfinite(out[0]) && out[0] + reach < hi &&
+        event_settling_fall(xsel, Fsel, m, out[0], ramp, span) > LOC_ENTRY_SETTLING) {
+        /* _entry_refit: where the level falls after the rise (the drive settling), again on the
+         * samples whose front is up to a reach past the onset: locate_margin, or the first fit's
+         * ramp and an orbit of level (copied: the caller's window is cut again after) */
+        double x2, dx2, *xk = scratch, *Fk = scratch + DET_HISTORY;
+        long m2 = 0;
+        for (long i = 0; i < m; i++)
+            if (xsel[i] <= out[0] + reach) {
+                xk[m2] = xsel[i];
+                Fk[m2++] = Fsel[i];
+            }
+        event_locate(LOC_ENTRY, xk, Fk, m2, air, x_trig, NAN, period, NULL, engage, push, NULL, &x2, &dx2);
+        if (isfinite(x2)) {
+            out[0] = x2;
+            out[2] = dx2;
+        }
+    } else if (isfinite(out[0]) && period > 0.0 && d->entry_ripple != 0.0) {
+        /* _entry_fit_once: where the drive does not settle, again with the cut's orbital ripple on the ramp */
+        double x2, dx2;
+        engage->cut_ripple = 1;
+        event_locate(LOC_ENTRY, xsel, Fsel, m, air, x_trig, NAN, period, NULL, engage, push, NULL, &x2, &dx2);
+        engage->cut_ripple = 0;
+        if (isfinite(x2)) {
+            out[0] = x2;
+            out[2] = dx2;
+        }
+    }
+}
+
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
 {
     const DetectorFMU *s = (const DetectorFMU *)d;
     out[0] = out[1] = out[2] = out[3] = out[4] = NAN;
-    double *t = malloc(8 * DET_HISTORY * sizeof(double));
+    double *t = malloc(10 * DET_HISTORY * sizeof(double));
     if (t == NULL)
         return;
     double *x = t + DET_HISTORY, *F = x + DET_HISTORY, *xs = F + DET_HISTORY, *xsel = xs + DET_HISTORY;
-    double *tsel = xsel + 2 * DET_HISTORY, *share = tsel + DET_HISTORY;
+    double *tsel = xsel + 2 * DET_HISTORY, *share = tsel + DET_HISTORY, *scratch = share + DET_HISTORY;
     if (k == 0 && s->entry_period > 0.0 && isfinite(d->x_ev[0]))    /* the window reaches back to the candidate */
         lo = LOC_PYMIN(lo, d->x_ev[0] - DET_ENTRY_BACK * d->locate_margin);
     double *Fsel = xsel + DET_HISTORY;
@@ -276,30 +315,22 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     LocGrid fall_grid;
     const LocGrid *fall = kind == LOC_INTERFACE ? detector_process_change(s, k, tsel, m, &push, share, &fall_grid) : NULL;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, fall, &out[0], &out[2]);
-    double orbit = period > 0.0 && m > 1 ? period * (xsel[m - 1] - xsel[0]) / (double)(m - 1) : 0.0;
-    double ramp = kind == LOC_ENTRY && isfinite(out[0]) ? event_onset_length(xsel, Fsel, m, out[0], period, &engage) : NAN;
-    double reach = LOC_PYMAX(d->locate_margin, orbit + ramp), span = orbit > 0.0 ? orbit : 0.5 * d->locate_margin;
-    if (kind == LOC_ENTRY && isfinite(out[0]) && out[0] + reach < hi &&
-        event_settling_fall(xsel, Fsel, m, out[0], ramp, span) > LOC_ENTRY_SETTLING) {
-        /* InterfaceDetector._entry_refit: where the level falls after the rise (the drive settling),
-         * again on the samples whose front is up to a reach past the onset: locate_margin, or the
-         * first fit's ramp and an orbit of level */
-        double x2, dx2;
-        long m2 = detector_keep_upto(out[0] + reach, xsel, Fsel, tsel, m);
-        event_locate(kind, xsel, Fsel, m2, air, x_trig, cut_floor, period, ghost, &engage, &push, NULL, &x2, &dx2);
-        if (isfinite(x2)) {
-            out[0] = x2;
-            out[2] = dx2;
-        }
-    } else if (kind == LOC_ENTRY && isfinite(out[0]) && period > 0.0 && d->entry_ripple != 0.0) {
-        /* InterfaceDetector._entry_fit: where the drive does not settle, again with the cut's
-         * orbital ripple on the ramp */
-        double x2, dx2;
-        engage.cut_ripple = 1;
-        event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, NULL, &x2, &dx2);
-        if (isfinite(x2)) {
-            out[0] = x2;
-            out[2] = dx2;
+    if (kind == LOC_ENTRY) {
+        detector_entry_once(d, xsel, Fsel, m, hi, x_trig, air, period, &engage, &push, scratch, out);
+        /* InterfaceDetector._entry_fit: again on the samples up to where the plan's first layer
+         * may end past the onset (_layer_end), where the window reaches beyond */
+        long m2 = isfinite(out[0]) ? detector_keep_upto(out[0] + d->level_reach[0], xsel, Fsel, tsel, m) : m;
+        if (m2 < m && m2 >= 2 * (long)d->N_min) {
+            double fit[3], end = xsel[m2 - 1], trig = LOC_PYMIN(x_trig, end);
+            engage.cut_ripple = 0;
+            event_locate(kind, xsel, Fsel, m2, air, trig, NAN, period, NULL, &engage, &push, NULL, &fit[0], &fit[2]);
+            if (isfinite(fit[0])) {
+                detector_entry_once(d, xsel, Fsel, m2, end, trig, air, period, &engage, &push, scratch, fit);
+                if (isfinite(fit[0])) {
+                    out[0] = fit[0];
+                    out[2] = fit[2];
+                }
+            }
         }
     }
     if (k == 0 && isfinite(out[0])) {
