@@ -842,7 +842,7 @@ def _foot_bound(x, F, gap, mid: float, fit) -> tuple[float, float]:
     seen = F > float(np.median(run[run.size // 2:])) + RISE_SEEN * noise_spread(run)
     n = 2 * MIN_SEGMENT
     held = np.convolve(seen, np.ones(n, int), "valid") == n       # held[j]: seen[j:j + n] all
-    start = _foot_from(x, seen, mid)
+    start = _foot_from(x, F, seen, mid, fit[0])
     if start is None:
         return fit
     held[:start] = False
@@ -852,14 +852,19 @@ def _foot_bound(x, F, gap, mid: float, fit) -> tuple[float, float]:
     return float(x[j]), max(fit[1], float(x[j] - x[j - 1]))
 
 
-def _foot_from(x, seen, mid: float) -> int | None:
-    """The first sample past the run's middle ``mid`` [m] at the gap's level (not ``seen``), where
-    :func:`_foot_bound` starts, or None. A soft upper layer's push-out tail runs past the run's
+def _foot_from(x, F, seen, mid: float, onset: float) -> int | None:
+    """Where :func:`_foot_bound` starts: the lowest sample between the run's middle ``mid`` [m] and
+    the fitted onset ``onset`` [m] (the first such), or None where there is none or it stands
+    above the gap's level (``seen``). A soft upper layer's push-out tail runs past the run's
     middle above that level: from the middle, the bound lay in the tail (foreign seed-27 hole 96:
-    CFRP onto Ti across 77 um, 0.108 mm early)."""
-    i = int(np.searchsorted(x, mid))
-    at_gap = np.flatnonzero(~seen[i:])
-    return i + int(at_gap[0]) if at_gap.size else None
+    CFRP onto Ti across 77 um, 0.108 mm early); from the first sample at the gap's level, where a
+    slow tail crosses that level under noise, a bump of it was the foot (seed 28, foreign2 hole
+    150: CFRP's bending push-out over 0.37 mm onto Ti across 28 um, 0.064 mm early)."""
+    i, j = int(np.searchsorted(x, mid)), int(np.searchsorted(x, onset))
+    if j <= i:
+        return None
+    low = i + int(np.argmin(F[i:j]))
+    return None if seen[low] else low
 
 
 def _drop_fall(x, F, fall: ProcessChange | None, up) -> ProcessChange | None:

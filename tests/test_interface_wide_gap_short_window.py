@@ -178,6 +178,20 @@ def test_the_rise_s_foot_is_sought_from_the_gap_s_level(monkeypatch):
     stands above the gap's level past the run's middle: sought from the middle, the foot bound lay in
     the tail, 0.108 mm above the gap. From the first sample at the gap's level past the middle
     (event_locator._foot_from): located in the gap."""
-    def from_middle(x, seen, mid):
+    def from_middle(x, F, seen, mid, onset):
         return int(np.searchsorted(x, mid))
     _in_its_gap_and_not_without("interface_window_cfrp_ti_tail_past_middle", monkeypatch, "_foot_from", from_middle)
+
+
+def test_the_rise_s_foot_is_sought_from_the_gap_s_lowest_sample(monkeypatch):
+    """Seed 28, foreign2 hole 150 (ti/cfrp/ti, a worn tool), interface 2: CFRP at 150 N pushed out
+    by the bending law over 0.37 mm onto a 28 um gap, Ti at 800 N. The tail crosses the gap's level
+    (5 spreads of the run's noise above its second half's median) under noise: sought from the
+    first sample at that level, six samples of a bump 0.06 mm above the gap were the foot (0.064 mm
+    early). From the lowest sample before the fitted onset (event_locator._foot_from): in the gap."""
+    def first_at_gap_level(x, F, seen, mid, onset):
+        i = int(np.searchsorted(x, mid))
+        at_gap = np.flatnonzero(~seen[i:])
+        return i + int(at_gap[0]) if at_gap.size else None
+    _in_its_gap_and_not_without("interface_window_cfrp_ti_tail_at_gap_level", monkeypatch, "_foot_from",
+                                first_at_gap_level)

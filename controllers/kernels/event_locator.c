@@ -739,12 +739,20 @@ static void loc_foot_bound(const double *x, const double *F, long n, long g0, lo
     long half = (g1 - g0) / 2, m = 2 * LOC_MIN_SEGMENT, held = 0;
     double level = loc_median(F + g0 + half, g1 - g0 - half, scratch);
     double thr = level + LOC_RISE_SEEN * loc_noise_spread(F + g0, g1 - g0, scratch);
-    long i = 0;
+    long i = 0, end = 0;
     while (i < n && x[i] < mid)          /* numpy.searchsorted(x, mid) */
         i++;
-    while (i < n && F[i] > thr)          /* from the first sample at the gap's level: past a push-out's tail */
-        i++;
-    for (; i < n; i++) {
+    while (end < n && x[end] < *hi)      /* numpy.searchsorted(x, onset) */
+        end++;
+    if (end <= i)
+        return;
+    long low = i;                        /* _foot_from: the lowest sample before the onset (the first) */
+    for (long k = i + 1; k < end; k++)
+        if (F[k] < F[low])
+            low = k;
+    if (F[low] > thr)                    /* above the gap's level: no foot to bound */
+        return;
+    for (i = low; i < n; i++) {
         held = F[i] > thr ? held + 1 : 0;
         if (held == m)
             break;
