@@ -782,7 +782,7 @@ def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH
     # push-out, and a free face bounded by the middle ended the fall early (wide draw, foreign
     # holes 8, 73, 133, 172, 184, 199: 0.055-0.10 mm early; replayed: within 0.016 mm)
     up = x <= hi
-    lo, dlo = _upper_face(x[up], F[up], x0, hi, air, push_out, _drop_fall(x, F, change, up))
+    lo, dlo = _upper_face(x[up], F[up], x0, hi, air, push_out, _drop_fall(x, F, change, up, float(x[gap[0]])))
     if not open_end and lo > start and _closed_drop(x, F, gap):
         # the onset's level was fitted from the run's start, which holds the tail of the upper
         # layer's fall: its trend carried the fall on and the ramp started late, on the
@@ -867,13 +867,21 @@ def _foot_from(x, F, seen, mid: float, onset: float) -> int | None:
     return None if seen[low] else low
 
 
-def _drop_fall(x, F, fall: ProcessChange | None, up) -> ProcessChange | None:
+def _drop_fall(x, F, fall: ProcessChange | None, up, run_start: float) -> ProcessChange | None:
     """``fall`` on the samples ``up`` where the window drops onto a lower cut level (the last
-    fifth's median below the first's, :func:`end_levels`), else None."""
+    fifth's median below the first's, :func:`end_levels`) or the process changed before the run at
+    air starts (``run_start`` [m]: the trigger came on the upper layer's fall), else None. Why the
+    second: the plan's process can
+    make the lower layer cut higher than the upper one's push-out (Ti at 3.4 um/rev onto CFRP at
+    15 um/rev), and a trigger on the push-out raised the feed 3-fold there; fitted without the
+    change, the fall's bump put the free face at the lower onset (seed 28, foreign hole 27: Ti onto
+    CFRP across 0.16 mm, +0.031 mm; with it, in the gap)."""
     if fall is None:
         return None
     first, last = end_levels(x, F)
-    return ProcessChange(fall.shape, fall.share[up], fall.release) if last < first else None
+    above = fall.share[x < run_start]
+    changed = above.size > 0 and above.min() < above.max()
+    return ProcessChange(fall.shape, fall.share[up], fall.release) if last < first or changed else None
 
 
 def _upper_face(x, F, x0: float, hi: float, air, push_out, fall: ProcessChange | None):

@@ -195,3 +195,17 @@ def test_the_rise_s_foot_is_sought_from_the_gap_s_lowest_sample(monkeypatch):
         return i + int(at_gap[0]) if at_gap.size else None
     _in_its_gap_and_not_without("interface_window_cfrp_ti_tail_at_gap_level", monkeypatch, "_foot_from",
                                 first_at_gap_level)
+
+
+def test_a_rise_whose_trigger_came_on_the_upper_fall_fits_that_fall_under_the_change(monkeypatch):
+    """Seed 28, foreign hole 27 (ti/cfrp), interface 1: the plan's process has the CFRP (15 um/rev)
+    cut higher than the Ti's push-out (3.4 um/rev), so the window rises; the trigger came on the
+    Ti's push-out, and the adaptation's 3-fold feed there bent the fall into a bump. Fitted with
+    the free laws, the free face went to the lower onset (+0.031 mm); with the plan's law under the
+    process's share, as on a drop (event_locator._drop_fall), in the 0.16 mm gap."""
+    def drops_only(x, F, fall, up, run_start):
+        first, last = event_locator.end_levels(x, F)
+        return None if fall is None or not last < first else \
+            event_locator.ProcessChange(fall.shape, fall.share[up], fall.release)
+    _in_its_gap_and_not_without("interface_window_ti_cfrp_trigger_on_push_out", monkeypatch, "_drop_fall",
+                                drops_only, worse_mm=0.02)

@@ -83,12 +83,13 @@ def test_a_drop_under_a_process_change_is_located_in_its_gap(m1):
 def test_without_a_change_or_on_a_rise_the_fall_changes_little_or_nothing():
     """A share of 1 (no switch inside the window) with the plan's law: the face within 0.01 mm
     as well; a rise (the lower layer cuts higher: its trigger is past the lower face) is fitted
-    as before, bit for bit, whatever the share."""
+    as before, bit for bit, whatever the share past the trigger. (A rise whose trigger came on
+    the upper layer's fall fits that fall under the change: test_interface_wide_gap_short_window.)"""
     x, F, share, C = _plant_drop(1.0)
     assert abs(el.locate("interface", x, F, air=0.0, process_change=_fall(share, C))[0] - FACE - 0.5 * GAP) <= 0.01 * MM
     rise = F.copy()
     rise[x > FACE + GAP] += 3.0 * F_PL * np.clip((x[x > FACE + GAP] - FACE - GAP) / (0.1 * MM), 0.0, 1.0)
-    odd = np.linspace(1.0, 0.3, x.size)
+    odd = np.where(x > FACE + GAP, np.linspace(1.0, 0.3, x.size), 1.0)
     assert el.locate("interface", x, rise, air=0.0, process_change=_fall(odd, C)) == el.locate("interface", x, rise, air=0.0)
 
 

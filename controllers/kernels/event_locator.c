@@ -661,19 +661,29 @@ static void loc_release_of(LocFit *f)
 }
 
 /* event_locator._drop_fall: the grid of the upper layer's free face on the window's samples
- * x <= hi: on a drop (``drop``: the whole window's last level below its first) where the plan
- * knows the process (``fall``: its law, release and share per sample of the window), the fall's
- * with the share of those samples (written to share_up); else ``law``, the free laws */
+ * x <= hi: on a drop (``drop``: the whole window's last level below its first), or where the
+ * process changed before the run at air (x < ``run_start``), where the plan knows the process (``fall``: its law, release
+ * and share per sample of the window), the fall's with the share of those samples (written to
+ * share_up); else ``law``, the free laws */
 static LocGrid loc_upper_grid(const LocGrid *law, const LocGrid *fall, int drop, const double *x, long n, double hi,
-                              double *share_up)
+                              double run_start, double *share_up)
 {
-    if (fall == NULL || !drop)
+    if (fall == NULL)
         return *law;
     LocGrid g = *fall;
-    long m = 0;
-    for (long i = 0; i < n; i++)
+    long m = 0, first = -1;
+    int changed = 0;
+    for (long i = 0; i < n; i++) {
         if (x[i] <= hi)              /* loc_select's samples, Python's up = x <= hi */
             share_up[m++] = fall->share[i];
+        if (x[i] < run_start) {      /* the process changed before the run at air: on the upper fall */
+            if (first < 0)
+                first = i;
+            changed |= fall->share[i] != fall->share[first];
+        }
+    }
+    if (!drop && !changed)           /* a rise whose trigger came past the upper layer's fall */
+        return *law;
     g.share = share_up;
     return g;
 }
@@ -811,7 +821,7 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
         }
         /* the upper layer's fall up to the lower layer's onset (event_locator._gap_faces) */
         n_up = loc_select(x, F, n, -INFINITY, hi, xu, Fu);
-        LocGrid upper = loc_upper_grid(&law, change, last < first, x, n, hi, share_up);
+        LocGrid upper = loc_upper_grid(&law, change, last < first, x, n, hi, x[g0], share_up);
         LocFit up = {xu, Fu, n_up, 1, air, &upper};
         loc_release_of(&up);                 /* the fall's release on the up samples (_upper_face); else none */
         loc_best_face(&up, x[0], hi, &lo, &dlo);
