@@ -833,7 +833,7 @@ def _foot_bound(x, F, gap, mid: float, fit) -> tuple[float, float]:
     adaptation raised the feed at the trigger on that foot, then steep again, put its onset
     where the steep part's line meets the gap level (foreign2 seed-25 hole 161: Al -> Ti across
     0.2 mm onto 760 N, the thrust 18 N above the gap 5 um past its face, the onset 0.065 mm
-    late). The search starts at the first sample at the gap's level past the middle
+    late). The search starts at the lowest sample between the middle and the fitted onset
     (:func:`_foot_from`). A drop's lower onset is left to its own rules (:func:`_onset_from`)."""
     first, last = end_levels(x, F)
     if not last > first:
@@ -871,11 +871,10 @@ def _drop_fall(x, F, fall: ProcessChange | None, up, run_start: float) -> Proces
     """``fall`` on the samples ``up`` where the window drops onto a lower cut level (the last
     fifth's median below the first's, :func:`end_levels`) or the process changed before the run at
     air starts (``run_start`` [m]: the trigger came on the upper layer's fall), else None. Why the
-    second: the plan's process can
-    make the lower layer cut higher than the upper one's push-out (Ti at 3.4 um/rev onto CFRP at
-    15 um/rev), and a trigger on the push-out raised the feed 3-fold there; fitted without the
-    change, the fall's bump put the free face at the lower onset (seed 28, foreign hole 27: Ti onto
-    CFRP across 0.16 mm, +0.031 mm; with it, in the gap)."""
+    second: the plan's process can make the lower layer cut higher than the upper one's push-out
+    (Ti at 3.4 um/rev onto CFRP at 15 um/rev), and a trigger on the push-out raised the feed
+    3-fold there; fitted without the change, the fall's bump put the free face at the lower onset
+    (seed 28, foreign hole 27: Ti onto CFRP across 0.16 mm, +0.031 mm; with it, in the gap)."""
     if fall is None:
         return None
     first, last = end_levels(x, F)

@@ -107,8 +107,9 @@ from typing import Sequence
 import numpy as np
 
 from drillcosim.controllers import detector_kernel
-from drillcosim.controllers.event_locator import (ENTRY_LAYER_FALL, ENTRY_SETTLING, ENTRY_SHAPES, EXIT_SHAPES, ProcessChange, end_levels,
-                                                   locate, onset_length, orbit_fell, pushed_out_end, settling_fall, time_at)
+from drillcosim.controllers.event_locator import (ENTRY_LAYER_FALL, ENTRY_SETTLING, ENTRY_SHAPES, EXIT_SHAPES,
+                                                   ProcessChange, end_levels, locate, onset_length, orbit_fell,
+                                                   pushed_out_end, settling_fall, time_at)
 from drillcosim.controllers.kernels import KernelBlock
 from drillcosim.controllers.kernels.structs import Detector as _DetectorState
 from drillcosim.controllers.kernels.structs import fill
@@ -1548,8 +1549,9 @@ class InterfaceDetector(KernelBlock, Block):
         ``x_loc`` [m], where the window reaches further and its thrust has fallen there: its last
         orbit mean below ENTRY_LAYER_FALL of its highest one's step over ``air`` [N]
         (event_locator.orbit_fell; ``period`` [samples]). None otherwise, where the onset is not
-        located, or fewer than 2 N_min samples past the onset would be left. Why: a thin first layer's push-out
-        starts inside the window when the trigger lags (a slow rise under a slow orbit); its fall,
+        located, or fewer than 2 N_min samples past the onset would be left (C: detector_layer_end).
+        Why: a thin first layer's push-out starts inside the window when the trigger lags (a slow
+        rise under a slow orbit); its fall,
         above ENTRY_PUSHED_OUT within the window, made the fit's level bend over the whole hump and
         put the onset early (wide draw seed 27: foreign hole 181, 1.1 mm of Al, -0.078 mm; foreign2
         hole 171, 0.9 mm of CFRP, -0.053). The fall is asked for as well: the reach takes the plan's

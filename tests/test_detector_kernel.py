@@ -194,6 +194,12 @@ CASES = {
                                          entry_orbit_period=1.3, locate_margin=0.5 * MM),
                                     dict(levels=(100.0, 70.0, 160.0), thick_mm=(0.8, 2.0, 2.5), gaps_mm=(0.0, 0.0, 0.0),
                                          ringing=10.0, feed_mm_min=15.0)),
+    # and a window past the reach whose thrust stays on its level (a 1.2 mm layer): not cut, in the
+    # exported FMU's C fit too (_layer_end asks for the fall as well)
+    "plan_entry_past_reach_on_level": (dict(PLAN, thicknesses=(1.2 * MM, 2 * MM, 2.5 * MM), entry_span=1.3,
+                                            entry_orbit_period=1.3),
+                                       dict(levels=(60.0, 160.0, 75.0), thick_mm=(1.2, 2.0, 2.5),
+                                            gaps_mm=(0.0, 0.0, 0.0), ringing=10.0, feed_mm_min=15.0)),
     # issue 23: a drop across a gap under the plan's process (each layer's feed rate, the adaptation's
     # 0.2 s ramp from the trigger): the upper layer's push-out fitted with the plan's law times the
     # share of the feed per revolution commanded (event_locator.ProcessChange), released with the drive's

@@ -36,6 +36,7 @@
 #define LOC_RELEASE_NEWTON 8      /* event_locator.RELEASE_NEWTON */
 #define LOC_ENTRY_SETTLING 0.1   /* event_locator.ENTRY_SETTLING */
 #define LOC_ENTRY_PUSHED_OUT 0.5 /* event_locator.ENTRY_PUSHED_OUT */
+#define LOC_ENTRY_LAYER_FALL 0.9 /* event_locator.ENTRY_LAYER_FALL */
 #define LOC_RUN_FEET 0.25        /* event_locator.RUN_FEET */
 #define LOC_RISE_SEEN 5.0         /* event_locator.RISE_SEEN */
 #define LOC_MAX_COLS 9             /* onset: level, trend, ramp, the orbit's sine and cosine, both times i / n and
@@ -662,9 +663,9 @@ static void loc_release_of(LocFit *f)
 
 /* event_locator._drop_fall: the grid of the upper layer's free face on the window's samples
  * x <= hi: on a drop (``drop``: the whole window's last level below its first), or where the
- * process changed before the run at air (x < ``run_start``), where the plan knows the process (``fall``: its law, release
- * and share per sample of the window), the fall's with the share of those samples (written to
- * share_up); else ``law``, the free laws */
+ * process changed before the run at air (x < ``run_start``), where the plan knows the process
+ * (``fall``: its law, release and share per sample of the window), the fall's with the share of
+ * those samples (written to share_up); else ``law``, the free laws */
 static LocGrid loc_upper_grid(const LocGrid *law, const LocGrid *fall, int drop, const double *x, long n, double hi,
                               double run_start, double *share_up)
 {
@@ -736,11 +737,11 @@ static void loc_rise_before_change(const LocFit *down, const double *share, cons
     }
 }
 
-/* event_locator._foot_bound: on a rise (rising), *hi no later than the first sample past the run's
- * middle ``mid`` and past the first sample at the gap's level after it (_foot_from) from which
- * 2 MIN_SEGMENT samples in a row stand LOC_RISE_SEEN noise spreads (the run F[g0..g1)'s) above the
- * median of the run's second half: a rise cannot start after its thrust stands out of the gap
- * (scratch: n doubles) */
+/* event_locator._foot_bound: on a rise (rising), *hi no later than the first sample from the
+ * lowest one between the run's middle ``mid`` and *hi (_foot_from; none where it stands above the
+ * gap's level) from which 2 MIN_SEGMENT samples in a row stand LOC_RISE_SEEN noise spreads (the run
+ * F[g0..g1)'s) above the median of the run's second half: a rise cannot start after its thrust
+ * stands out of the gap (scratch: n doubles) */
 static void loc_foot_bound(const double *x, const double *F, long n, long g0, long g1, double mid, int rising,
                            double *scratch, double *hi, double *dhi)
 {
@@ -981,10 +982,10 @@ double event_settling_fall(const double *x, const double *F, long n, double x0, 
     return A > Z ? (A - sum[1] / (double)cnt[1]) / (A - Z) : NAN;
 }
 
-/* event_locator.pushed_out_end: the last position [m] of the orbit (period samples) with the
- * highest mean thrust where the window's last orbit mean is below LOC_ENTRY_PUSHED_OUT of that
- * mean's step over air (a first layer pushed out inside the entry's window); NaN otherwise */
-double event_pushed_out_end(const double *x, const double *F, long n, double air, double period)
+/* event_locator.orbit_fell: the last position [m] of the orbit (period samples) with the highest
+ * mean thrust where the window's last orbit mean is below ``share`` of that mean's step over air;
+ * NaN otherwise (or no whole orbit or period) */
+double event_orbit_fell(const double *x, const double *F, long n, double air, double period, double share)
 {
     if (!(1.0 < period && (double)n > period + 2.0))
         return NAN;
@@ -996,8 +997,15 @@ double event_pushed_out_end(const double *x, const double *F, long n, double air
     for (long i = 1; i < m; i++)
         if (M[i] > M[j])
             j = i;
-    if (m > 0 && M[m - 1] - air < LOC_ENTRY_PUSHED_OUT * (M[j] - air))
+    if (m > 0 && M[m - 1] - air < share * (M[j] - air))
         end = x[j + 2 * K];
     free(S);
     return end;
+}
+
+/* event_locator.pushed_out_end: event_orbit_fell below LOC_ENTRY_PUSHED_OUT (a first layer pushed
+ * out inside the entry's window) */
+double event_pushed_out_end(const double *x, const double *F, long n, double air, double period)
+{
+    return event_orbit_fell(x, F, n, air, period, LOC_ENTRY_PUSHED_OUT);
 }

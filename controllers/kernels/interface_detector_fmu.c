@@ -255,6 +255,25 @@ static void detector_entry_once(const Detector *d, const double *xsel, const dou
     }
 }
 
+/* InterfaceDetector._layer_end: whether the entry's window (xsel, Fsel: m samples) is fitted again
+ * up to level_reach[0] past its onset x_loc [m]: it reaches further, keeps 2 N_min samples past
+ * the onset, and its last orbit mean has fallen below LOC_ENTRY_LAYER_FALL of its highest */
+static int detector_layer_end(const Detector *d, const double *xsel, const double *Fsel, long m, double x_loc,
+                              double air, double period)
+{
+    if (!isfinite(x_loc))
+        return 0;
+    double end = x_loc + d->level_reach[0];
+    long kept = 0, past = 0;
+    for (long i = 0; i < m; i++)
+        if (xsel[i] <= end) {
+            kept++;
+            past += xsel[i] > x_loc;
+        }
+    return kept < m && past >= 2 * (long)d->N_min
+           && !isnan(event_orbit_fell(xsel, Fsel, m, air, period, LOC_ENTRY_LAYER_FALL));
+}
+
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
 {
@@ -319,10 +338,9 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
         detector_entry_once(d, xsel, Fsel, m, hi, x_trig, air, period, &engage, &push, scratch, out);
         /* InterfaceDetector._entry_fit: again on the samples up to where the plan's first layer
          * may end past the onset (_layer_end), where the window reaches beyond */
-        long m2 = isfinite(out[0]) ? detector_keep_upto(out[0] + d->level_reach[0], xsel, Fsel, tsel, m) : m;
-        if (m2 < m && m2 >= 2 * (long)d->N_min) {
+        if (detector_layer_end(d, xsel, Fsel, m, out[0], air, period)) {
+            long m2 = detector_keep_upto(out[0] + d->level_reach[0], xsel, Fsel, tsel, m);
             double fit[3], end = xsel[m2 - 1], trig = LOC_PYMIN(x_trig, end);
-            engage.cut_ripple = 0;
             event_locate(kind, xsel, Fsel, m2, air, trig, NAN, period, NULL, &engage, &push, NULL, &fit[0], &fit[2]);
             if (isfinite(fit[0])) {
                 detector_entry_once(d, xsel, Fsel, m2, end, trig, air, period, &engage, &push, scratch, fit);
