@@ -192,7 +192,8 @@ def row_of(hole: int, stack_type: str, summary: dict) -> dict:
     row = {"hole": hole, "type": stack_type, "status": summary.get("status"),
            "overrides": summary.get("overrides"),
            **{k: v for k, v in sc.items() if not isinstance(v, (dict, list))},
-           "between": {name: ev.get("between") for name, ev in (sc.get("events") or {}).items()}}
+           "between": {name: ev.get("between") for name, ev in (sc.get("events") or {}).items()},
+           "loc_uncertainty_mm": {name: ev.get("loc_uncertainty_mm") for name, ev in (sc.get("events") or {}).items()}}
     if summary.get("status") not in ("completed", "stopped", "incomplete"):
         row["error"] = summary.get("error") or summary.get("stop_reason", "")
     return row
@@ -266,6 +267,18 @@ def _stats(v: list[float]) -> dict:
             "bias": float(np.mean(a))}
 
 
+def within_dx(rows: list[dict]) -> dict:
+    """Per event kind, the share of located errors within the uncertainty the detector reported
+    with them (its ``dx_<event>_loc``, one standard deviation: 68 % expected; NaN without any)."""
+    held = {}
+    for r in rows:
+        for name, u in (r.get("loc_uncertainty_mm") or {}).items():
+            dz = r.get(f"{name}_dz_mm")
+            if isinstance(u, (int, float)) and isinstance(dz, (int, float)) and math.isfinite(u) and math.isfinite(dz):
+                held.setdefault("interface" if name.startswith("interface") else name, []).append(abs(dz) <= u)
+    return {kind: float(np.mean(held[kind])) if kind in held else math.nan for kind in WIDE_BARS_MM}
+
+
 def summarize_wide(rows: list[dict], refused: int = 0) -> dict:
     """The wide draw on one plant: counts (holes, refused plans, missed / false events,
     false fails, unfinished holes, events not located) and, per event kind and per the
@@ -277,7 +290,8 @@ def summarize_wide(rows: list[dict], refused: int = 0) -> dict:
            "false": int(sum(r.get("false_events", 0) for r in rows)),
            "false_fails": int(sum(r.get("false_fail", 0) for r in rows)),
            "not_completed": int(sum(r.get("status") not in ("completed", "stopped") for r in rows)),
-           "not_located": int(sum(1 for _k, _b, d, t in ev if math.isfinite(t) and not math.isfinite(d)))}
+           "not_located": int(sum(1 for _k, _b, d, t in ev if math.isfinite(t) and not math.isfinite(d))),
+           "within_dx": within_dx(rows)}
     groups = {}
     for kind, between, dz, trig in ev:
         for key in (f"{kind} (all)", f"{kind} {between}"):
@@ -306,7 +320,10 @@ def table_wide_markdown(summaries: dict) -> str:
     for plant, s in summaries.items():
         out.append(f"**{plant}**: {s['holes']} holes ({s['refused']} plans refused at load and redrawn, "
                    f"{100 * s['refused_share']:.1f} %); missed {s['missed']}, false {s['false']}, false fails "
-                   f"{s['false_fails']}, not completed {s['not_completed']}, events not located {s['not_located']}\n")
+                   f"{s['false_fails']}, not completed {s['not_completed']}, events not located {s['not_located']}; "
+                   "located errors within the reported uncertainty: "
+                   + ", ".join(f"{k} {100 * v:.0f} %" for k, v in s.get("within_dx", {}).items() if math.isfinite(v))
+                   + "\n")
         out.append("| event | n | located worst / p95 [mm] | located bias [mm] | trigger worst [mm] | trigger bias [mm] "
                    "| bars |\n|---|---|---|---|---|---|---|")
         for key, g in s["events"].items():

@@ -183,10 +183,19 @@ ORBIT_DROP = 0.35
 # stands at (the orbit's ripple is 1.4 spreads at its peaks): the engagement ramp's lower part
 # and the observer's ringing below it stay out of the window (:meth:`_replay_level`)
 LEVEL_BAND_K = 2.5
+# the located position's reported uncertainty (dx_<event>_loc) is the fit's interval
+# (event_locator._best_face) and the fit model's own error, sd = floor + share x the layer's feed
+# per orbit, added in quadrature; (floor [m], share) of the entry, the interfaces, the exit. The
+# fit's interval alone is a white-noise one and held 12-27 % of the located errors (the residual
+# is the observer's ringing, correlated over tens of samples; the ramp and push-out laws are the
+# plan's, not the plant's). Calibrated by analysis.loc_uncertainty to hold 68 % on the wide draws
+# of seeds 25-27 (1800 holes over the three drives), checked on seeds 28, 29 (docs/stacks.md,
+# "Uncertainty"); an interface's interval (a gap's half-width) held 98 % without it
+LOC_MODEL_SD = ((2.6e-6, 0.026), (0.0, 0.0), (6.0e-6, 0.013))
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
                   ("t", "s", "time the encoder passed the located position"),
-                  ("dx", "m", "uncertainty (+-) of the located position"),
+                  ("dx", "m", "uncertainty (one standard deviation) of the located position"),
                   ("tknown", "s", "time the located position became known"))
 
 
@@ -468,6 +477,10 @@ class InterfaceDetector(KernelBlock, Block):
         then fits its upper layer's push-out under the new process (with ``exit_shape`` and the
         drive's compliance), a rise its lower onset before it (event_locator.ProcessChange);
         None (default): free laws, the process as it was.
+    loc_model_sd: the fit model's share of each located position's uncertainty (outputs
+        ``dx_<event>_loc``, added in quadrature to the fit's own interval): (floor [m], share of
+        the layer's feed per orbit) for the entry, the interfaces and the exit; default
+        LOC_MODEL_SD (calibrated: analysis.loc_uncertainty), ((0, 0),) * 3 for the fit's alone.
     exit_loc_after [m]: travel after the exit's trigger its localisation window holds
         (default locate_margin; the hole plan adds half an orbit of the last layer's feed:
         the orbit means of the last half orbit need the samples after it).
@@ -539,7 +552,7 @@ class InterfaceDetector(KernelBlock, Block):
         exit_orbit_arm: float = 0.0, exit_release_compliance: float = 0.0, exit_feed_exponent: float = 0.75,
         interface_orbit_arm: Sequence[float] | None = None,
         exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0, exit_shape: str = "any",
-        layer_feed_rate: Sequence[float] | None = None, process_ramp: float = 0.0,
+        layer_feed_rate: Sequence[float] | None = None, process_ramp: float = 0.0, loc_model_sd=LOC_MODEL_SD,
     ):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
@@ -552,9 +565,8 @@ class InterfaceDetector(KernelBlock, Block):
         self.exit_criterion, self.exit_ratio = exit_criterion, float(exit_ratio)
         self.rearm_samples = int(self.N if rearm_samples is None else rearm_samples)
         self.surface = None if surface is None else float(surface)
-        self.thicknesses = thicknesses
+        self.thicknesses, self.max_gap = thicknesses, float(max_gap)
         self.thickness_tolerances = _per_layer("thickness_tolerances", thickness_tolerances, n)
-        self.max_gap = float(max_gap)
         self.tolerance, self.exit_tolerance = float(tolerance), float(exit_tolerance)
         self.feed_rate, self.time_margin = float(feed_rate), float(time_margin)
         self.fail_disarms = bool(fail_disarms)
@@ -574,6 +586,7 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_exit_arm(exit_orbit_arm)
         self._set_interface_arm(interface_orbit_arm)
         self._set_process(layer_feed_rate, process_ramp, feed_per_rev)
+        self._set_loc_model(loc_model_sd)
         self.windows = self._windows()
         self.reset(0.0)
 
@@ -792,6 +805,23 @@ class InterfaceDetector(KernelBlock, Block):
                              f"ramp_time), got {process_ramp!r}")
         self.process = (feed, fpr, float(process_ramp))
         self._set_entry_lag()
+
+    def _set_loc_model(self, loc_model_sd) -> None:
+        """The model's share of each located event's uncertainty [m] (``loc_sd``: entry,
+        interfaces, exit; LOC_MODEL_SD) from its (floor [m], share of the feed per orbit) and the
+        plan's orbit and feed in the first and the last layer (the slowest nominal feed where the
+        plan gives no layer's; no orbit: the floor alone), checked."""
+        seq = (list, tuple)
+        pairs = [tuple(p) for p in loc_model_sd if isinstance(p, seq)] if isinstance(loc_model_sd, seq) else []
+        if len(pairs) != 3 or len(loc_model_sd) != 3 or not all(len(p) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v)
+                                                          and v >= 0.0 for v in p) for p in pairs):
+            raise ValueError(f"InterfaceDetector: loc_model_sd must be three (floor >= 0 m, share of the feed per "
+                             f"orbit >= 0) pairs, entry, interfaces, exit; got {loc_model_sd!r}")
+        feed = self.process[0] if self.process is not None else [self.feed_rate] * self.n
+        orbit = (self.entry_orbit_period * feed[0], 0.0,
+                 (self.exit_orbit_period or self.exit_ripple_period) * feed[-1])
+        self.loc_model_sd = pairs
+        self.loc_sd = [float(a + b * L) for (a, b), L in zip(pairs, orbit)]
 
     def _set_entry_lag(self) -> None:
         """The level entry's lag [samples] (:meth:`_entry_level`): the plan's longest engagement
@@ -1434,7 +1464,8 @@ class InterfaceDetector(KernelBlock, Block):
         if k == 0 and math.isfinite(x_loc):
             self.F_air, self.F_air_sd = F_air, F_air_sd
         name = LOC_EVENTS[0] if k == 0 else LOC_EVENTS[-1] if k == self.n else f"interface{k}"
-        self.loc[name] = [x_loc, t_loc, dx, t_now]
+        sd = self.loc_sd[0 if k == 0 else 2 if k == self.n else 1]
+        self.loc[name] = [x_loc, t_loc, math.sqrt(dx * dx + sd * sd), t_now]
         if not (k == 0 and self.entry_rs):
             self._restart_after(k)
 
@@ -1911,6 +1942,7 @@ class InterfaceDetector(KernelBlock, Block):
         "layer_feed_per_rev": ("m", "feed per revolution of each layer's process, m/rev (an interface's process change)"),
         "process_ramp": ("s", "the adaptation's raised-cosine ramp between two layers' processes from the trigger"),
         "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
+        "loc_sd": ("m", "the fit model's share of the located positions' uncertainty: entry, interfaces, exit"),
     }
 
     @property
@@ -1950,6 +1982,7 @@ class InterfaceDetector(KernelBlock, Block):
              max_gap=self.max_gap, py_sum_comp=detector_kernel.PY_SUM_COMPENSATED, exit_after=self.exit_after,
              entry_P=self.entry_P, entry_gain=self.entry_level_gain, exit_P=self.exit_P)
         c.loc_after[:n - 1] = self.loc_after
+        c.loc_sd[:] = self.loc_sd
         if self.windows is not None:
             c.win_lo[:n + 1] = [float(w[0]) for w in self.windows]
             c.win_hi[:n + 1] = [float(w[1]) for w in self.windows]

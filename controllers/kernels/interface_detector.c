@@ -48,6 +48,7 @@ typedef struct {
     double level_reach[DET_MAX_LAYERS];   /* m past each layer's event its level may be taken (interface_detector.py level_reach) */
     double localise, locate_margin, push_out, max_gap;
     double py_sum_comp, loc_after[DET_MAX_LAYERS - 1], exit_after;
+    double loc_sd[3];           /* m, the fit model's share of dx: entry, interfaces, exit (LOC_MODEL_SD) */
     double entry_P;             /* entry confirmation span [samples] (0: N_min, mean since the candidate) */
     double entry_gain;          /* the entry threshold's ramp_gain (its level test divides it out) */
     double entry_rs;            /* state: restarted after the entry before it was located */
@@ -737,7 +738,8 @@ static void locate(Detector *s, int k, double x_trig, double before, double afte
     int name = k == 0 ? 0 : k == n ? DET_EVENTS - 1 : k;
     s->loc[4 * name] = out[0];
     s->loc[4 * name + 1] = out[1];
-    s->loc[4 * name + 2] = out[2];
+    double sd = s->loc_sd[k == 0 ? 0 : k == n ? 2 : 1];
+    s->loc[4 * name + 2] = sqrt(out[2] * out[2] + sd * sd);
     s->loc[4 * name + 3] = t_now;
     if (k == 0 && isfinite(out[0])) {
         s->F_air = out[3];

@@ -131,7 +131,7 @@ class Detector(ctypes.Structure):
         [("step_gain", _D * (DET_LAYERS - 1)), ("exit_gain", _D), ("floor", _D * DET_LAYERS),
          ("level_plan", _D * DET_LAYERS), ("level_reach", _D * DET_LAYERS)] + \
         _doubles("localise locate_margin push_out max_gap py_sum_comp") + [("loc_after", _D * (DET_LAYERS - 1))] + \
-        _doubles("exit_after") + \
+        _doubles("exit_after") + [("loc_sd", _D * 3)] + \
         _doubles("entry_P entry_gain entry_rs x_level entry_lag entry_ripple lcand_t lcand_x lcand_i lcand_n h_armed x_air") + \
         _doubles("exit_P h_event orb_ref exit_cand_t exit_cand_x exit_cand_i exit_cand_M") + \
         [("x_arm", _D * DET_LAYERS), ("if_P", _D * (DET_LAYERS - 1)), ("if_ratio", _D * (DET_LAYERS - 1)),
