@@ -15,7 +15,8 @@ OUT_*: ``stack_montecarlo --draw wide`` outputs (``<plant>/rows.json``; rows wit
 uncertainty read it from ``<plant>/runs/run_NNN/summary.json``). ``--applied`` gives the model the
 runs were made with (``default``: LOC_MODEL_SD; ``none``: runs made before it, the fit's interval
 alone), so that u_fit is taken back out of the reported dx. Writes ``loc_uncertainty.csv`` (one
-row per plant and kind) and ``loc_uncertainty.png`` (|error| against dx).
+row per plant and kind), the same as ``loc_uncertainty.md`` and ``loc_uncertainty.png`` (|error|
+against dx).
 """
 from __future__ import annotations
 
@@ -166,6 +167,16 @@ def coverage_rows(events, model, label: str) -> list[dict]:
     return rows
 
 
+def table_markdown(rows: list[dict]) -> str:
+    """The coverage rows as a markdown table (docs/stacks.md, "The located position's uncertainty")."""
+    out = ["| set | drive | event | n | within dx | within 2 dx | the fit's interval alone | median dx [mm] |",
+           "|---|---|---|---|---|---|---|---|"]
+    out += [f"| {r['set']} | {r['plant']} | {r['kind']} | {r['n']} | {100 * r['within_dx']:.0f} % | "
+            f"{100 * r['within_2dx']:.0f} % | {100 * r['fit_interval_alone']:.0f} % | {r['median_dx_mm']:.4f} |"
+            for r in rows]
+    return "\n".join(out) + "\n"
+
+
 def figure(events, model, path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
@@ -217,6 +228,7 @@ def main(argv=None) -> int:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
+    (out / "loc_uncertainty.md").write_text(table_markdown(rows))
     figure(check_ev or fit_ev, model, out / "loc_uncertainty.png")
     for kind, (floor, share), s in zip(KINDS, model, spread):
         if not math.isfinite(s):

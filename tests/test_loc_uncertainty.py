@@ -106,3 +106,13 @@ def test_the_cli_writes_its_table_and_figure(tmp_path):
     rows = (tmp_path / "o" / "loc_uncertainty.csv").read_text().splitlines()
     assert rows[0].startswith("set,plant,kind,n,within_dx") and len(rows) == 1 + 2 * 2      # entry, exit x (plant, all)
     assert (tmp_path / "o" / "loc_uncertainty.png").stat().st_size > 10_000
+    assert (tmp_path / "o" / "loc_uncertainty.md").read_text().count("\n") == len(rows) + 1
+
+
+def test_the_wide_draws_summary_says_how_many_errors_their_dx_held():
+    from drillcosim.analysis.stack_montecarlo import summarize_wide
+    rows = [{"hole": i, "status": "completed", "between": {"entry": "air/al", "exit": "al/air"},
+             "entry_dz_mm": dz, "exit_dz_mm": -dz, "loc_uncertainty_mm": {"entry": 0.005, "exit": u_exit}}
+            for i, (dz, u_exit) in enumerate([(0.001, 0.0), (0.004, 0.01), (-0.006, 0.01), (0.02, None)])]
+    held = summarize_wide(rows)["within_dx"]
+    assert held["entry"] == 0.5 and held["exit"] == pytest.approx(2 / 3) and math.isnan(held["interface"])
