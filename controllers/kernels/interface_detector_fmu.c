@@ -274,6 +274,29 @@ static int detector_layer_end(const Detector *d, const double *xsel, const doubl
            && !isnan(event_orbit_fell(xsel, Fsel, m, air, period, LOC_ENTRY_LAYER_FALL));
 }
 
+/* interface_detector.without_gap_head: the window (m samples) less its head where that lies in a
+ * gap (the median of its first 2 MIN_SEGMENT samples below the layer's floor), up to its first
+ * run of 2 MIN_SEGMENT samples at or above the floor; the samples left */
+static long detector_gap_head(double *xsel, double *Fsel, double *tsel, long m, double floor, double *scratch)
+{
+    long seg = 2 * LOC_MIN_SEGMENT, head = 0, run = 0;
+    if (m < 2 * seg || !(loc_median(Fsel, seg, scratch) < floor))
+        return m;
+    for (long i = 0; i < m; i++) {
+        run = Fsel[i] >= floor ? run + 1 : 0;
+        if (run == seg) {
+            head = i - seg + 1;
+            break;
+        }
+    }
+    if (head == 0)
+        return m;
+    memmove(xsel, xsel + head, (size_t)(m - head) * sizeof(double));
+    memmove(Fsel, Fsel + head, (size_t)(m - head) * sizeof(double));
+    memmove(tsel, tsel + head, (size_t)(m - head) * sizeof(double));
+    return m - head;
+}
+
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
 {
@@ -297,6 +320,8 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
             tsel[m] = t[j] - s->observer_delay;       /* when the observer saw the force (_process_change's t) */
             Fsel[m++] = F[j];
         }
+    if (kind == LOC_INTERFACE && d->relative != 0.0)     /* InterfaceDetector._fit: not the gap above the layer */
+        m = detector_gap_head(xsel, Fsel, tsel, m, air_offset(d) + d->floor[k - 1], scratch);
     if (kind == LOC_ENTRY) {
         /* InterfaceDetector._fit: a first layer pushed out inside the window ends it at its top */
         double end = event_pushed_out_end(xsel, Fsel, m, air, s->entry_period);
