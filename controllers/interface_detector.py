@@ -108,8 +108,8 @@ import numpy as np
 
 from drillcosim.controllers import detector_kernel
 from drillcosim.controllers.event_locator import (ENTRY_LAYER_FALL, ENTRY_SETTLING, ENTRY_SHAPES, EXIT_SHAPES,
-                                                   MIN_SEGMENT, ProcessChange, end_levels, locate, onset_length, orbit_fell,
-                                                   pushed_out_end, settling_fall, time_at)
+                                                   MIN_SEGMENT, ProcessChange, end_levels, locate, onset_length,
+                                                   orbit_fell, pushed_out_end, settling_fall, time_at)
 from drillcosim.controllers.kernels import KernelBlock
 from drillcosim.controllers.kernels.structs import Detector as _DetectorState
 from drillcosim.controllers.kernels.structs import fill
@@ -189,8 +189,8 @@ LEVEL_BAND_K = 2.5
 # fit's interval alone is a white-noise one and held 12-27 % of the located errors (the residual
 # is the observer's ringing, correlated over tens of samples; the ramp and push-out laws are the
 # plan's, not the plant's). Calibrated by analysis.loc_uncertainty to hold 68 % on the wide draws
-# of seeds 25-27 (1800 holes over the three drives), checked on seeds 28, 29 (docs/stacks.md,
-# "Uncertainty"); an interface's interval (a gap's half-width) held 98 % without it
+# of seeds 25-27 (1800 holes over the three drives), checked on seeds 28, 29 (docs/stacks.md, "The
+# located position's uncertainty"); an interface's interval (a gap's half-width) held 98 % without it
 LOC_MODEL_SD = ((2.6e-6, 0.026), (0.0, 0.0), (6.0e-6, 0.013))
 LOC_EVENTS = ("entry", *(f"interface{k}" for k in range(1, MAX_LAYERS)), "exit")
 LOC_QUANTITIES = (("x", "m", "located encoder position"),
@@ -836,8 +836,10 @@ class InterfaceDetector(KernelBlock, Block):
         plan gives no layer's; no orbit: the floor alone), checked."""
         seq = (list, tuple)
         pairs = [tuple(p) for p in loc_model_sd if isinstance(p, seq)] if isinstance(loc_model_sd, seq) else []
-        if len(pairs) != 3 or len(loc_model_sd) != 3 or not all(len(p) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v)
-                                                          and v >= 0.0 for v in p) for p in pairs):
+        ok = (len(pairs) == 3 == len(loc_model_sd)
+              and all(len(p) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) and v >= 0.0 for v in p)
+                      for p in pairs))
+        if not ok:
             raise ValueError(f"InterfaceDetector: loc_model_sd must be three (floor >= 0 m, share of the feed per "
                              f"orbit >= 0) pairs, entry, interfaces, exit; got {loc_model_sd!r}")
         feed = self.process[0] if self.process is not None else [self.feed_rate] * self.n
