@@ -29,6 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from drillcosim.analysis.stack_montecarlo import row_of
 from drillcosim.controllers.interface_detector import LOC_MODEL_SD
 
 KINDS = ("entry", "interface", "exit")
@@ -56,18 +57,19 @@ def _orbit_of(overrides: dict, layer: int) -> float:
 
 
 def _row_events(row: dict, summary_path: Path) -> dict:
-    """{event name: (error [mm], reported dx [mm])} of one row (its summary where the row lacks dx)."""
-    if "loc_uncertainty_mm" in row:
-        u = row["loc_uncertainty_mm"]
-        return {name: (row.get(f"{name}_dz_mm"), u.get(name)) for name in row.get("between") or {}}
-    if not summary_path.exists():
-        return {}
-    sc = (json.loads(summary_path.read_text()).get("scores") or {}).get("score_stack") or {}
-    return {name: (row.get(f"{name}_dz_mm"), ev.get("loc_uncertainty_mm")) for name, ev in (sc.get("events") or {}).items()}
+    """{event name: (error [mm], reported dx [mm])} of one row (the row again from its summary,
+    :func:`stack_montecarlo.row_of`, where it was written before the rows carried dx)."""
+    if "loc_uncertainty_mm" not in row:
+        if not summary_path.exists():
+            return {}
+        row = row_of(row["hole"], row.get("type"), json.loads(summary_path.read_text()))
+    u = row["loc_uncertainty_mm"]
+    return {name: (row.get(f"{name}_dz_mm"), u.get(name)) for name in row.get("between") or {}}
 
 
 def applied_sd(model, kind: str, orbit: float) -> float:
-    """The model's sd [m] of an event kind at a feed per orbit [m] (``model``: LOC_MODEL_SD's form)."""
+    """The model's sd [m] of an event kind at a feed per orbit [m] (a number or an array; ``model``:
+    LOC_MODEL_SD's form)."""
     floor, share = model[KINDS.index(kind)]
     return floor + share * orbit
 
@@ -139,14 +141,16 @@ def fit_all(events, coverage: float = ONE_SIGMA, boot: int = 20, seed: int = 0):
     model = tuple(fit_model(events, k, coverage) if k in present else (0.0, 0.0) for k in KINDS)
     rng = np.random.default_rng(seed)
     spread = []
-    for kind, (a, b) in zip(KINDS, model):
+    for kind in KINDS:
         ev = [e for e in events if e.kind == kind]
         if not ev:
             spread.append(math.nan)
             continue
         L = float(np.median([e.orbit for e in ev]))
-        sds = [applied_sd((fit_model([ev[i] for i in rng.integers(0, len(ev), len(ev))], kind, coverage),) * 3,
-                          kind, L) for _ in range(boot)]
+        sds = []
+        for _ in range(boot):
+            floor, share = fit_model([ev[i] for i in rng.integers(0, len(ev), len(ev))], kind, coverage)
+            sds.append(floor + share * L)
         spread.append(float(np.std(sds)))
     return model, spread
 
@@ -158,7 +162,7 @@ def coverage_rows(events, model, label: str) -> list[dict]:
         err, u, orbit, plant = _arrays(events, kind)
         if err.size == 0:
             continue
-        dx = np.sqrt(u * u + np.array([applied_sd(model, kind, L) for L in orbit]) ** 2)
+        dx = np.sqrt(u * u + applied_sd(model, kind, orbit) ** 2)
         for p in sorted(set(plant)) + ["all"]:
             m = plant == p if p != "all" else np.ones(err.size, bool)
             rows.append({"set": label, "plant": p, "kind": kind, "n": int(m.sum()),
@@ -184,7 +188,7 @@ def figure(events, model, path: Path) -> None:
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
     for ax, kind in zip(axes, ("entry", "exit")):
         err, u, orbit, _p = _arrays(events, kind)
-        dx = np.sqrt(u * u + np.array([applied_sd(model, kind, L) for L in orbit]) ** 2)
+        dx = np.sqrt(u * u + applied_sd(model, kind, orbit) ** 2)
         ax.loglog(1e3 * np.maximum(dx, 1e-7), 1e3 * np.maximum(err, 1e-7), ".", ms=2, alpha=0.5)
         lim = np.array([1e-4, 0.2])
         for k, style in ((1, "-"), (2, "--")):
