@@ -108,8 +108,8 @@ import numpy as np
 
 from drillcosim.controllers import detector_kernel
 from drillcosim.controllers.event_locator import (ENTRY_LAYER_FALL, ENTRY_SETTLING, ENTRY_SHAPES, EXIT_SHAPES,
-                                                   MIN_SEGMENT, ProcessChange, end_levels, locate, onset_length,
-                                                   orbit_fell, pushed_out_end, settling_fall, time_at)
+                                                   MIN_SEGMENT, RUN_FEET, ProcessChange, air_run, end_levels, locate,
+                                                   onset_length, orbit_fell, pushed_out_end, settling_fall, time_at)
 from drillcosim.controllers.kernels import KernelBlock
 from drillcosim.controllers.kernels.structs import Detector as _DetectorState
 from drillcosim.controllers.kernels.structs import fill
@@ -610,6 +610,8 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_interface_arm(interface_orbit_arm)
         self._set_process(layer_feed_rate, process_ramp, feed_per_rev)
         self._set_loc_model(loc_model_sd)
+        # the feed each layer's air level belongs to (_measure_air): the plan's, or the one feed rate
+        self.air_feed = list(self.process[0]) if self.process is not None else [float(self.feed_rate)] * self.n
         self.windows = self._windows()
         self.reset(0.0)
 
@@ -1032,8 +1034,10 @@ class InterfaceDetector(KernelBlock, Block):
         self.h_t, self.h_x, self.h_F = (np.full(HISTORY, NAN) for _ in range(3))
         self.h_n = 0                # samples written since the reset
         self.pending = []           # (event index, x at trigger, index of the trigger sample)
-        self.F_air = NAN            # observed thrust in air (the entry's level before contact)
+        self.F_air = NAN            # observed thrust in air at the current layer's feed (_refresh_air)
         self.F_air_sd = NAN         # its spread (air_level)
+        self.air_F = [NAN] * self.n     # air level measured at each layer's feed (the approach's, a gap's) [N]
+        self.air_S = [NAN] * self.n     # and its spread [N]
         self.levels = [NAN] * self.n   # observed level of each layer when its tests armed
         self.x_arm = [NAN] * self.n    # encoder position [m] where each layer's tests first armed
         self.mismatch = NAN         # last observed/plan level ratio between two layers
@@ -1068,6 +1072,34 @@ class InterfaceDetector(KernelBlock, Block):
         """The air level [N] when it stands out of its spread (AIR_OFFSET_K): a friction offset;
         else 0 (within its spread it is the observer's ringing in air, no offset)."""
         return self.F_air if abs(self.F_air) > AIR_OFFSET_K * self.F_air_sd else 0.0
+
+    def _measure_air(self, j: int, F: float, sd: float) -> None:
+        """An air level F [N] (spread sd [N]) measured at layer j's feed (0-based; the approach
+        before the entry, or a gap above layer j, :meth:`_gap_air`): every layer of that feed
+        takes it, and the current layer's air level follows (:meth:`_refresh_air`). Why: the
+        observer's friction model differs from the drive's by an amount that depends on the
+        speed (a Stribeck curve, or Coulomb friction, drifted since commissioning), so the air
+        level moves with the feed: a foreign drive drawn at coulomb x0.81 showed -2.5 N in air at
+        8 mm/min and -7.5 N at 20-22 mm/min; its last aluminium layer (15 N) was tested against
+        the approach's level, its orbit means in ringing fell below the thinning ratio, and the
+        exit fired 3.3 mm early (plant-options draw, seed 30, foreign hole 13)."""
+        for i in range(self.n):
+            if self.air_feed[i] == self.air_feed[j]:
+                self.air_F[i], self.air_S[i] = F, sd
+        self._refresh_air()
+
+    def _refresh_air(self) -> None:
+        """F_air, F_air_sd: the air level measured at the current layer's feed, else at the
+        nearest feed measured (on a tie, the later layer's); unchanged while none is measured."""
+        j = min(max(self.flag - 1, 0), self.n - 1)
+        best = None
+        for i in range(self.n):
+            if math.isfinite(self.air_F[i]):
+                d = abs(self.air_feed[i] - self.air_feed[j])
+                if best is None or d <= best[0]:
+                    best = (d, i)
+        if best is not None:
+            self.F_air, self.F_air_sd = self.air_F[best[1]], self.air_S[best[1]]
 
     def _check_level(self, t: float, x: float) -> None:
         """The first quiet level of a layer (the statistics its tests arm on; any
@@ -1216,6 +1248,7 @@ class InterfaceDetector(KernelBlock, Block):
         sample's index in the history (default the latest)."""
         self.t_ev[k], self.x_ev[k] = t, x
         self.flag = k + 1
+        self._refresh_air()
         self.armed = False
         self.quiet = self.settled = self.steady = 0
         self.trim = False
@@ -1486,8 +1519,8 @@ class InterfaceDetector(KernelBlock, Block):
             lo = max(lo, self.x_arm[k - 1])
         air = self.F_air if math.isfinite(self.F_air) else 0.0
         x_loc, t_loc, dx, F_air, F_air_sd = self._fit(k, x_trig, lo, x_trig + after, self.h_n, air)
-        if k == 0 and math.isfinite(x_loc):
-            self.F_air, self.F_air_sd = F_air, F_air_sd
+        if k == 0 and math.isfinite(x_loc) or 0 < k < self.n and math.isfinite(F_air):
+            self._measure_air(k, F_air, F_air_sd)
         name = LOC_EVENTS[0] if k == 0 else LOC_EVENTS[-1] if k == self.n else f"interface{k}"
         sd = self.loc_sd[0 if k == 0 else 2 if k == self.n else 1]
         self.loc[name] = [x_loc, t_loc, math.sqrt(dx * dx + sd * sd), t_now]
@@ -1556,6 +1589,8 @@ class InterfaceDetector(KernelBlock, Block):
         if k == 0:
             x_loc, dx = self._entry_fit(x_fit, F_fit, hi, x_trig, air, period, x_loc, dx, ramp_max)
         F_air = F_air_sd = NAN
+        if kind == "interface" and math.isfinite(x_loc):
+            F_air, F_air_sd = self._gap_air(k, x_fit, F_fit, ht[sel] - self.observer_delay, air)
         if k == 0 and math.isfinite(x_loc):
             # with a span the window is around the confirmation, which may leave only a few
             # samples of it in air: the air level then from a locate_margin of air whatever the
@@ -1566,6 +1601,23 @@ class InterfaceDetector(KernelBlock, Block):
             if in_air.any():
                 F_air, F_air_sd = air_level(hF[in_air], self._entry_period_samples())
         return x_loc, time_at(ht, hx, x_loc), dx, F_air, F_air_sd
+
+    def _gap_air(self, k: int, x, F, t, air: float) -> tuple[float, float]:
+        """The air level [N] and its spread [N] (air_level) in the gap interface k's window (x [m],
+        F [N] at the observer's times t [s]) crosses (event_locator.air_run, its faces' feet,
+        RUN_FEET of it at either end, left out), on the samples at layer k's feed: past the
+        trigger and the adaptation's ramp; (NaN, NaN) without 2 MIN_SEGMENT of them, or once the
+        hole has failed (the fail-safe's process is no layer's)."""
+        gap = air_run(x, F, air) if not self.fail else None
+        if gap is None:
+            return NAN, NAN
+        q = int(RUN_FEET * (gap[1] - gap[0]))
+        idx = np.arange(gap[0] + q, gap[1] - q)
+        if self.process is not None:
+            idx = idx[t[idx] >= self.t_ev[k] + self.process[2]]
+        if idx.size < 2 * MIN_SEGMENT:
+            return NAN, NAN
+        return air_level(F[idx], None)
 
     def _entry_fit(self, xf, Fw, hi: float, x_trig: float, air: float, period, x_loc: float, dx: float,
                    ramp_max: float | None = None):
@@ -1970,6 +2022,7 @@ class InterfaceDetector(KernelBlock, Block):
         "process_ramp": ("s", "the adaptation's raised-cosine ramp between two layers' processes from the trigger"),
         "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
         "loc_sd": ("m", "the fit model's share of the located positions' uncertainty: entry, interfaces, exit"),
+        "air_feed": ("m/s", "feed each layer's air level is measured at and taken for (layers of one feed share it)"),
     }
 
     @property
@@ -2010,6 +2063,7 @@ class InterfaceDetector(KernelBlock, Block):
              entry_P=self.entry_P, entry_gain=self.entry_level_gain, exit_P=self.exit_P)
         c.loc_after[:n - 1] = self.loc_after
         c.loc_sd[:] = self.loc_sd
+        c.air_feed[:n] = self.air_feed
         if self.windows is not None:
             c.win_lo[:n + 1] = [float(w[0]) for w in self.windows]
             c.win_hi[:n + 1] = [float(w[1]) for w in self.windows]
@@ -2020,6 +2074,7 @@ class InterfaceDetector(KernelBlock, Block):
         fill(c, **{name: getattr(self, name) for name in _C_SCALARS})
         c.t_ev[:n + 1], c.x_ev[:n + 1], c.levels[:n] = self.t_ev, self.x_ev, self.levels
         c.x_arm[:n] = self.x_arm
+        c.air_F[:n], c.air_S[:n] = self.air_F, self.air_S
         c.if_P[:n - 1], c.if_ratio[:n - 1] = self.if_P, self.if_ratio
         c.loc[:] = [v for ev in LOC_EVENTS for v in self.loc[ev]]
         fill(c, err_n=0, err_pos=0, cand=0, cand_n=0, cand_e_n=0, cand_e_pos=0, n_pending=0)
@@ -2053,7 +2108,7 @@ class InterfaceDetector(KernelBlock, Block):
             return _C_SCALARS[name](getattr(s, name))
         if name in ("t_ev", "x_ev"):
             return list(getattr(s, name)[:n + 1])
-        if name in ("levels", "x_arm"):
+        if name in ("levels", "x_arm", "air_F", "air_S"):
             return list(getattr(s, name)[:n])
         if name == "loc":
             return {ev: list(s.loc[4 * j:4 * j + 4]) for j, ev in enumerate(LOC_EVENTS)}
@@ -2073,4 +2128,4 @@ _C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last x_level "
                                          "F_pred F_err F_level thd F_air F_air_sd mismatch orb_ref exit_cand_t "
                                          "exit_cand_x exit_cand_i exit_cand_M if_ref x_air".split()}}
-_C_LISTS = ("t_ev", "x_ev", "levels", "x_arm", "loc", "pending", "cand", "lcand", "err_hist", "cand_F", "cand_e")
+_C_LISTS = ("t_ev", "x_ev", "levels", "x_arm", "air_F", "air_S", "loc", "pending", "cand", "lcand", "err_hist", "cand_F", "cand_e")

@@ -49,6 +49,7 @@ typedef struct {
     double localise, locate_margin, push_out, max_gap;
     double py_sum_comp, loc_after[DET_MAX_LAYERS - 1], exit_after;
     double loc_sd[3];           /* m, the fit model's share of dx: entry, interfaces, exit (LOC_MODEL_SD) */
+    double air_feed[DET_MAX_LAYERS];   /* m/s, the feed each layer's air level belongs to (interface_detector.py air_feed) */
     double entry_P;             /* entry confirmation span [samples] (0: N_min, mean since the candidate) */
     double entry_gain;          /* the entry threshold's ramp_gain (its level test divides it out) */
     double entry_rs;            /* state: restarted after the entry before it was located */
@@ -73,6 +74,7 @@ typedef struct {
     double armed, fail, fail_code, t_fail, x_fail, t_last, x_last, F_pred, F_err, F_level, thd, h_n;
     double n_pending, pend_k[DET_EVENTS], pend_x[DET_EVENTS], pend_i[DET_EVENTS];
     double F_air, F_air_sd, levels[DET_MAX_LAYERS], mismatch, trim, settled, steady, loc[4 * DET_EVENTS];
+    double air_F[DET_MAX_LAYERS], air_S[DET_MAX_LAYERS];   /* air level [N] and spread measured at each layer's feed */
     /* the block's arrays and functions */
     const double *W;            /* weights of every window length N_min..N, one after the other */
     double *buf, *h_t, *h_x, *h_F, *err;
@@ -127,6 +129,38 @@ double detector_py_sum(double compensated, const double *x, long n)
 static double air_offset(const Detector *s)
 {
     return fabs(s->F_air) > DET_AIR_OFFSET_K * s->F_air_sd ? s->F_air : 0.0;
+}
+
+/* interface_detector.py _refresh_air: F_air, F_air_sd measured at the current layer's feed, else at
+ * the nearest feed measured (a tie: the later layer's); unchanged while none is */
+static void refresh_air(Detector *s)
+{
+    int n = (int)s->n, j = (int)s->flag - 1, best = -1;
+    double d_best = 0.0;
+    j = j < 0 ? 0 : j > n - 1 ? n - 1 : j;
+    for (int i = 0; i < n; i++)
+        if (isfinite(s->air_F[i])) {
+            double d = fabs(s->air_feed[i] - s->air_feed[j]);
+            if (best < 0 || d <= d_best) {
+                best = i;
+                d_best = d;
+            }
+        }
+    if (best >= 0) {
+        s->F_air = s->air_F[best];
+        s->F_air_sd = s->air_S[best];
+    }
+}
+
+/* interface_detector.py _measure_air: an air level measured at layer j's feed, for every layer of that feed */
+static void measure_air(Detector *s, int j, double F, double sd)
+{
+    for (int i = 0; i < (int)s->n; i++)
+        if (s->air_feed[i] == s->air_feed[j]) {
+            s->air_F[i] = F;
+            s->air_S[i] = sd;
+        }
+    refresh_air(s);
 }
 
 /* interface_detector.py _above_air: F over the air offset */
@@ -281,6 +315,7 @@ static void event(Detector *s, int k, double t, double x, double i_hist)
     s->t_ev[k] = t;
     s->x_ev[k] = x;
     s->flag = k + 1;
+    refresh_air(s);
     s->armed = 0.0;
     s->quiet = 0.0;
     s->settled = 0.0;
@@ -741,10 +776,8 @@ static void locate(Detector *s, int k, double x_trig, double before, double afte
     double sd = s->loc_sd[k == 0 ? 0 : k == n ? 2 : 1];
     s->loc[4 * name + 2] = sqrt(out[2] * out[2] + sd * sd);
     s->loc[4 * name + 3] = t_now;
-    if (k == 0 && isfinite(out[0])) {
-        s->F_air = out[3];
-        s->F_air_sd = out[4];
-    }
+    if ((k == 0 && isfinite(out[0])) || (k > 0 && k < n && isfinite(out[3])))
+        measure_air(s, k, out[3], out[4]);
     if (!(k == 0 && s->entry_rs != 0.0))
         restart_after(s, k);
 }

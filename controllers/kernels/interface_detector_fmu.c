@@ -297,6 +297,24 @@ static long detector_gap_head(double *xsel, double *Fsel, double *tsel, long m, 
     return m - head;
 }
 
+/* InterfaceDetector._gap_air: out[0] the air level [N] and out[1] its spread in the gap interface k's
+ * window (x, F at the observer's times t: m samples) crosses, its faces' feet left out, on the
+ * samples at layer k's feed (past the trigger and the adaptation's ramp); unchanged without
+ * 2 LOC_MIN_SEGMENT of them or once the hole has failed */
+static void detector_gap_air(const DetectorFMU *s, int k, const double *x, const double *F, const double *t, long m,
+                             double air, double *scratch, double *out)
+{
+    long i0, i1, a = 0;
+    if (s->d.fail != 0.0 || !loc_air_run(x, F, m, air, scratch, &i0, &i1))
+        return;
+    long q = (long)(LOC_RUN_FEET * (double)(i1 - i0));
+    for (long i = i0 + q; i < i1 - q; i++)
+        if (s->process == 0.0 || t[i] >= s->d.t_ev[k] + s->process_ramp)
+            scratch[a++] = F[i];
+    if (a >= 2 * LOC_MIN_SEGMENT)
+        detector_air_level(scratch, a, 0.0, out);
+}
+
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
 {
@@ -359,6 +377,8 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     LocGrid fall_grid;
     const LocGrid *fall = kind == LOC_INTERFACE ? detector_process_change(s, k, tsel, m, &push, share, &fall_grid) : NULL;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, fall, &out[0], &out[2]);
+    if (kind == LOC_INTERFACE && isfinite(out[0]))
+        detector_gap_air(s, k, xsel, Fsel, tsel, m, air, scratch, &out[3]);
     if (kind == LOC_ENTRY) {
         detector_entry_once(d, xsel, Fsel, m, hi, x_trig, air, period, &engage, &push, scratch, out);
         /* InterfaceDetector._entry_fit: again on the samples up to where the plan's first layer

@@ -131,7 +131,7 @@ class Detector(ctypes.Structure):
         [("step_gain", _D * (DET_LAYERS - 1)), ("exit_gain", _D), ("floor", _D * DET_LAYERS),
          ("level_plan", _D * DET_LAYERS), ("level_reach", _D * DET_LAYERS)] + \
         _doubles("localise locate_margin push_out max_gap py_sum_comp") + [("loc_after", _D * (DET_LAYERS - 1))] + \
-        _doubles("exit_after") + [("loc_sd", _D * 3)] + \
+        _doubles("exit_after") + [("loc_sd", _D * 3), ("air_feed", _D * DET_LAYERS)] + \
         _doubles("entry_P entry_gain entry_rs x_level entry_lag entry_ripple lcand_t lcand_x lcand_i lcand_n h_armed x_air") + \
         _doubles("exit_P h_event orb_ref exit_cand_t exit_cand_x exit_cand_i exit_cand_M") + \
         [("x_arm", _D * DET_LAYERS), ("if_P", _D * (DET_LAYERS - 1)), ("if_ratio", _D * (DET_LAYERS - 1)),
@@ -144,5 +144,6 @@ class Detector(ctypes.Structure):
         _doubles("cand_e_n cand_e_pos armed fail fail_code t_fail x_fail t_last x_last F_pred F_err F_level "
                  "thd h_n n_pending") + \
         [("pend_k", _D * DET_EVENTS), ("pend_x", _D * DET_EVENTS), ("pend_i", _D * DET_EVENTS), ("F_air", _D), ("F_air_sd", _D),
-         ("levels", _D * DET_LAYERS), ("mismatch", _D), ("trim", _D), ("settled", _D), ("steady", _D), ("loc", _D * (4 * DET_EVENTS))] + \
+         ("levels", _D * DET_LAYERS), ("mismatch", _D), ("trim", _D), ("settled", _D), ("steady", _D), ("loc", _D * (4 * DET_EVENTS)),
+         ("air_F", _D * DET_LAYERS), ("air_S", _D * DET_LAYERS)] + \
         [(n, ctypes.c_void_p) for n in "W buf h_t h_x h_F err dot locate".split()]
