@@ -107,9 +107,10 @@ from typing import Sequence
 import numpy as np
 
 from drillcosim.controllers import detector_kernel
-from drillcosim.controllers.event_locator import (ENTRY_LAYER_FALL, ENTRY_SETTLING, ENTRY_SHAPES, EXIT_SHAPES,
-                                                   MIN_SEGMENT, RUN_FEET, ProcessChange, air_run, end_levels, locate,
-                                                   onset_length, orbit_fell, pushed_out_end, settling_fall, time_at)
+from drillcosim.controllers.event_locator import (AIR_SHARE, ENTRY_LAYER_FALL, ENTRY_SETTLING, ENTRY_SHAPES,
+                                                   EXIT_SHAPES, MIN_SEGMENT, ProcessChange, RUN_FEET, air_run,
+                                                   end_levels, floor_gap, locate, onset_length, orbit_fell,
+                                                   pushed_out_end, settling_fall, time_at)
 from drillcosim.controllers.kernels import KernelBlock
 from drillcosim.controllers.kernels.structs import Detector as _DetectorState
 from drillcosim.controllers.kernels.structs import fill
@@ -1566,10 +1567,7 @@ class InterfaceDetector(KernelBlock, Block):
         kind = "entry" if k == 0 else "exit" if k == self.n else "interface"
         if kind == "interface" and self.relative:
             sel = without_gap_head(sel, hF, self._air_offset() + self.floor[k - 1])
-        # an interface window shortened to a thin layer below may end in the gap: air is
-        # below the engagement floor of both layers around it (Al's is the lowest), over the
-        # air level (a friction offset lifts the gap's air above a bare floor)
-        floor = self._air_offset() + min(self.floor[k - 1], self.floor[k]) if self.relative and kind == "interface" and \
+        floor = self._window_cut_floor(k) if self.relative and kind == "interface" and \
             self.loc_after[k - 1] < self._full_loc_after() else None
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_fit = self._front_positions(xs[sel], hF[sel], air) if kind in ("exit", "entry") else xs[sel]
@@ -1590,7 +1588,7 @@ class InterfaceDetector(KernelBlock, Block):
             x_loc, dx = self._entry_fit(x_fit, F_fit, hi, x_trig, air, period, x_loc, dx, ramp_max)
         F_air = F_air_sd = NAN
         if kind == "interface" and math.isfinite(x_loc):
-            F_air, F_air_sd = self._gap_air(k, x_fit, F_fit, ht[sel] - self.observer_delay, air)
+            F_air, F_air_sd = self._gap_air(k, x_fit, F_fit, ht[sel] - self.observer_delay, air, floor)
         if k == 0 and math.isfinite(x_loc):
             # with a span the window is around the confirmation, which may leave only a few
             # samples of it in air: the air level then from a locate_margin of air whatever the
@@ -1602,13 +1600,37 @@ class InterfaceDetector(KernelBlock, Block):
                 F_air, F_air_sd = air_level(hF[in_air], self._entry_period_samples())
         return x_loc, time_at(ht, hx, x_loc), dx, F_air, F_air_sd
 
-    def _gap_air(self, k: int, x, F, t, air: float) -> tuple[float, float]:
+    def _window_cut_floor(self, k: int) -> float:
+        """The level [N] below which interface k's window, shortened to a thin layer below, is in
+        a gap (event_locator.floor_gap): over the air level, the engagement floor of both layers
+        around it (Al's is the lowest) or, where higher, the least level the upper layer's
+        observed one leaves the lower (the plan's ratio over mismatch_factor, the materials
+        check's bound), at most AIR_SHARE of the upper's (air_run's share). Why: the air level
+        moves with the feed (:meth:`_measure_air`), and the first gap at a new feed has none
+        measured: a CFRP layer at 6.6 mm/min over 0.22 mm of gap and 1.07 mm of Al at
+        20.7 mm/min showed +2.4 N in air at the approach and +7.7 N in that gap, above the Al's
+        2.8 N floor; the window, ending in the gap, had no run below it and its fit took the
+        CFRP's push-out start for the interface (plant-options draw, seed 30, hole 20: -0.44 mm on
+        both ball-screw drives). The CFRP at 154 N leaves the Al no less than 11.5 N."""
+        floor = min(self.floor[k - 1], self.floor[k])
+        upper = self._above_air(self.levels[k - 1])
+        if self.mismatch_factor > 0.0 and upper > 0.0:
+            least = upper * self.level_plan[k] / self.level_plan[k - 1] / self.mismatch_factor
+            floor = max(floor, min(AIR_SHARE * upper, least))
+        return self._air_offset() + floor
+
+    def _gap_air(self, k: int, x, F, t, air: float, cut_floor: float | None) -> tuple[float, float]:
         """The air level [N] and its spread [N] (air_level) in the gap interface k's window (x [m],
-        F [N] at the observer's times t [s]) crosses (event_locator.air_run, its faces' feet,
-        RUN_FEET of it at either end, left out), on the samples at layer k's feed: past the
-        trigger and the adaptation's ramp; (NaN, NaN) without 2 MIN_SEGMENT of them, or once the
-        hole has failed (the fail-safe's process is no layer's)."""
-        gap = air_run(x, F, air) if not self.fail else None
+        F [N] at the observer's times t [s]) crosses (event_locator.air_run, or floor_gap below
+        ``cut_floor`` [N] in a shortened window; its faces' feet, RUN_FEET of it at either end,
+        left out), on the samples at layer k's feed: past the trigger and the adaptation's ramp;
+        (NaN, NaN) without 2 MIN_SEGMENT of them, or once the hole has failed (the fail-safe's
+        process is no layer's)."""
+        if self.fail:
+            return NAN, NAN
+        gap = air_run(x, F, air)
+        if gap is None:
+            gap = floor_gap(F, cut_floor)
         if gap is None:
             return NAN, NAN
         q = int(RUN_FEET * (gap[1] - gap[0]))

@@ -297,15 +297,30 @@ static long detector_gap_head(double *xsel, double *Fsel, double *tsel, long m, 
     return m - head;
 }
 
+/* InterfaceDetector._window_cut_floor: the level [N] below which interface k's shortened window is in a
+ * gap: over the air level, both layers' floor or, where higher, the least level the upper layer's
+ * observed one leaves the lower (the plan's ratio over mismatch_factor), at most AIR_SHARE of the upper's */
+static double detector_window_cut_floor(const Detector *d, int k)
+{
+    double floor = LOC_PYMIN(d->floor[k - 1], d->floor[k]), upper = above_air(d, d->levels[k - 1]);
+    if (d->mismatch_factor > 0.0 && upper > 0.0) {
+        double least = upper * d->level_plan[k] / d->level_plan[k - 1] / d->mismatch_factor;
+        floor = LOC_PYMAX(floor, LOC_PYMIN(LOC_AIR_SHARE * upper, least));
+    }
+    return air_offset(d) + floor;
+}
+
 /* InterfaceDetector._gap_air: out[0] the air level [N] and out[1] its spread in the gap interface k's
- * window (x, F at the observer's times t: m samples) crosses, its faces' feet left out, on the
+ * window (x, F at the observer's times t: m samples) crosses (its air run, or its run below cut_floor
+ * [N], NaN: none, in a shortened window), its faces' feet left out, on the
  * samples at layer k's feed (past the trigger and the adaptation's ramp); unchanged without
  * 2 LOC_MIN_SEGMENT of them or once the hole has failed */
 static void detector_gap_air(const DetectorFMU *s, int k, const double *x, const double *F, const double *t, long m,
-                             double air, double *scratch, double *out)
+                             double air, double cut_floor, double *scratch, double *out)
 {
     long i0, i1, a = 0;
-    if (s->d.fail != 0.0 || !loc_air_run(x, F, m, air, scratch, &i0, &i1))
+    if (s->d.fail != 0.0 || !(loc_air_run(x, F, m, air, scratch, &i0, &i1)
+                              || loc_floor_gap(F, m, cut_floor, scratch, &i0, &i1)))
         return;
     long q = (long)(LOC_RUN_FEET * (double)(i1 - i0));
     for (long i = i0 + q; i < i1 - q; i++)
@@ -367,10 +382,10 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
         engage.n_lengths = loc_engage_count(engage.lengths, LOC_N_ENGAGE,
                                             DET_ENTRY_RAMP_SLACK * (s->entry_engagement + s->exit_release[0] * step));
     }
-    /* an interface window cut short to a thin layer below may end in the gap: air is below
-     * the engagement floor of both layers around it (InterfaceDetector._fit; full: _full_loc_after) */
+    /* an interface window cut short to a thin layer below may end in the gap (InterfaceDetector._fit;
+     * full: _full_loc_after) */
     double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0 && d->loc_after[k - 1] < d->max_gap + d->push_out + d->locate_margin
-        ? air_offset(d) + LOC_PYMIN(d->floor[k - 1], d->floor[k]) : NAN;     /* over the air offset */
+        ? detector_window_cut_floor(d, k) : NAN;
     double period = kind == LOC_EXIT ? s->exit_period : kind == LOC_ENTRY ? s->entry_period : 0.0;
     double if_ghost[2];
     const double *ghost = kind == LOC_EXIT ? s->exit_ghost : kind == LOC_INTERFACE ? interface_ghost(s, k, if_ghost) : NULL;
@@ -378,7 +393,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     const LocGrid *fall = kind == LOC_INTERFACE ? detector_process_change(s, k, tsel, m, &push, share, &fall_grid) : NULL;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, fall, &out[0], &out[2]);
     if (kind == LOC_INTERFACE && isfinite(out[0]))
-        detector_gap_air(s, k, xsel, Fsel, tsel, m, air, scratch, &out[3]);
+        detector_gap_air(s, k, xsel, Fsel, tsel, m, air, cut_floor, scratch, &out[3]);
     if (kind == LOC_ENTRY) {
         detector_entry_once(d, xsel, Fsel, m, hi, x_trig, air, period, &engage, &push, scratch, out);
         /* InterfaceDetector._entry_fit: again on the samples up to where the plan's first layer
