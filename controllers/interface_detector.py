@@ -611,8 +611,6 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_interface_arm(interface_orbit_arm)
         self._set_process(layer_feed_rate, process_ramp, feed_per_rev)
         self._set_loc_model(loc_model_sd)
-        # the feed each layer's air level belongs to (_measure_air): the plan's, or the one feed rate
-        self.air_feed = list(self.process[0]) if self.process is not None else [float(self.feed_rate)] * self.n
         self.windows = self._windows()
         self.reset(0.0)
 
@@ -814,9 +812,11 @@ class InterfaceDetector(KernelBlock, Block):
 
     def _set_process(self, layer_feed_rate, process_ramp, feed_per_rev) -> None:
         """The plan's process per layer and the adaptation's ramp (:meth:`_process_change`), checked;
-        the level entry's lag that follows from it."""
+        the level entry's lag that follows from it, and the feed each layer's air level belongs to
+        (``air_feed``, :meth:`_measure_air`: the plan's, or the one feed rate)."""
         self.process = None
         self.entry_lag = 0
+        self.air_feed = [float(self.feed_rate)] * self.n
         if layer_feed_rate is None:
             return
         if feed_per_rev is None:
@@ -830,6 +830,7 @@ class InterfaceDetector(KernelBlock, Block):
             raise ValueError(f"InterfaceDetector: process_ramp must be a number >= 0 s (the adaptation's "
                              f"ramp_time), got {process_ramp!r}")
         self.process = (feed, fpr, float(process_ramp))
+        self.air_feed = list(feed)
         self._set_entry_lag()
 
     def _set_loc_model(self, loc_model_sd) -> None:

@@ -32,6 +32,25 @@ def run_recorded(scenario: str, plan: dict, name: str, kernel: str | None = None
     return dict(zip(det.output_names(), y)), det
 
 
+def python_and_exported(scenario: str, plan: dict, name: str):
+    """The recording ``name`` through the Python step and through the exported FMU's C step of
+    the detector ``scenario`` and ``plan`` build (as :func:`run_recorded`): (output names,
+    the Python step's outputs at every sample, the exported step's)."""
+    from exported_c import exported_step
+    settings = load_scenario(STACKS / scenario, overrides={**plan, "hole.gap_tolerance": 1e-3}
+                             ).raw["blocks"]["detector"]["settings"]
+    t, x, F = np.loadtxt(DATA / f"{name}.csv", delimiter=",", unpack=True)
+    runs = []
+    for exported in (False, True):
+        det = InterfaceDetector(sample_period=0.02, **settings)
+        if not exported:
+            det.kernel = "python"
+        det.reset(float(t[0]))
+        step = exported_step(det) if exported else det.step
+        runs.append([step(float(ti), [float(Fi), float(xi)]) for ti, xi, Fi in zip(t, x, F)])
+    return det.output_names(), runs[0], runs[1]
+
+
 def hole_plan(layers, process, surface: float) -> dict:
     """The hole.* overrides of a recorded hole: ``layers`` [(material, thickness [m], tolerance
     [m]), ...] from the surface down, ``process`` {material: (feed_rate [m/s], spindle_speed

@@ -15,13 +15,11 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
-from exported_c import assert_agree, exported_step
-from recorded_traces import DATA, STACKS, hole_plan, run_recorded
+from exported_c import assert_agree
+from recorded_traces import hole_plan, python_and_exported, run_recorded
 
 from drillcosim.controllers.interface_detector import InterfaceDetector
-from drillcosim.cosim.scenario.loader import load_scenario
 
 MM = 1e-3
 PLAN = hole_plan([("cfrp", 5.81206e-3, 0.871810e-3), ("ti", 7.89418e-3, 1.184128e-3),
@@ -57,19 +55,9 @@ def test_with_the_approach_s_air_alone_the_exit_fired_in_the_aluminium(monkeypat
 
 
 def test_the_exported_step_measures_the_gaps_as_the_python_step():
-    settings = load_scenario(STACKS / "foreign_cfrp_ti.toml", overrides={**PLAN, "hole.gap_tolerance": 1e-3}
-                             ).raw["blocks"]["detector"]["settings"]
-    t, x, F = np.loadtxt(DATA / f"{NAME}.csv", delimiter=",", unpack=True)
-    runs = []
-    for exported in (False, True):
-        det = InterfaceDetector(sample_period=0.02, **settings)
-        if not exported:
-            det.kernel = "python"
-        det.reset(float(t[0]))
-        step = exported_step(det) if exported else det.step
-        runs.append([step(float(ti), [float(Fi), float(xi)]) for ti, xi, Fi in zip(t, x, F)])
-    assert_agree(det.output_names(), *runs)
-    assert runs[1][-1][det.output_names().index("F_air")] == pytest.approx(AIR_FAST, abs=1.0)
+    names, python, exported = python_and_exported("foreign_cfrp_ti.toml", PLAN, NAME)
+    assert_agree(names, python, exported)
+    assert exported[-1][names.index("F_air")] == pytest.approx(AIR_FAST, abs=1.0)
 
 
 def _detector(feeds_mm_min):

@@ -13,12 +13,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from exported_c import assert_agree, exported_step
-from recorded_traces import DATA, STACKS, hole_plan, run_recorded
+from exported_c import assert_agree
+from recorded_traces import hole_plan, python_and_exported, run_recorded
 
 from drillcosim.controllers import interface_detector
 from drillcosim.controllers.interface_detector import InterfaceDetector, without_gap_head
-from drillcosim.cosim.scenario.loader import load_scenario
 
 MM = 1e-3
 PLAN = hole_plan([("ti", 5.12101e-3, 0.768152e-3), ("al", 1.04499e-3, 0.156748e-3), ("cfrp", 1.92909e-3, 0.289364e-3)],
@@ -43,19 +42,9 @@ def test_fitted_from_the_gap_above_the_layer_it_took_the_layer_s_onset(monkeypat
 
 
 def test_the_exported_step_cuts_the_head_as_the_python_step():
-    settings = load_scenario(STACKS / "foreign_cfrp_ti.toml", overrides={**PLAN, "hole.gap_tolerance": 1e-3}
-                             ).raw["blocks"]["detector"]["settings"]
-    t, x, F = np.loadtxt(DATA / f"{NAME}.csv", delimiter=",", unpack=True)
-    runs = []
-    for exported in (False, True):
-        det = InterfaceDetector(sample_period=0.02, **settings)
-        if not exported:
-            det.kernel = "python"
-        det.reset(float(t[0]))
-        step = exported_step(det) if exported else det.step
-        runs.append([step(float(ti), [float(Fi), float(xi)]) for ti, xi, Fi in zip(t, x, F)])
-    assert_agree(det.output_names(), *runs)
-    assert GAP[0] <= runs[1][-1][det.output_names().index("x_interface2_loc")] <= GAP[1]
+    names, python, exported = python_and_exported("foreign_cfrp_ti.toml", PLAN, NAME)
+    assert_agree(names, python, exported)
+    assert GAP[0] <= exported[-1][names.index("x_interface2_loc")] <= GAP[1]
 
 
 @pytest.mark.parametrize("F, kept", [
