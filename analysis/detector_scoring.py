@@ -391,8 +391,10 @@ _DET = ("t_entry", "t_interface1", "t_interface2", "t_interface3", "t_exit", "t_
 _LOC = tuple(f"{q}_{ev}_loc" for ev in ("entry", "interface1", "interface2", "interface3", "exit")
              for q in ("t", "dx", "tknown"))
 
-# The friction-drift note: the detector's air level F_air [N] (its entry fit's mean observed
-# thrust in air) is the drive's friction not explained by the commissioned one -- the observer
+# The friction-drift note: the detector's air level F_air [N] at the end of the hole (the mean
+# observed thrust in air at the last layer's feed: the approach's, or a gap's, the nearest feed
+# measured; InterfaceDetector._measure_air) is the drive's friction not explained by the
+# commissioned one at that speed -- the observer
 # subtracts the commissioned friction, so with it the air level is zero up to the observer's
 # noise and ringing. A drift is reported where the detector takes the air level as an offset
 # (|F_air| > AIR_OFFSET_K x F_air_sd, the spread of the samples it is the mean of) and it
