@@ -184,6 +184,12 @@ ORBIT_DROP = 0.35
 # stands at (the orbit's ripple is 1.4 spreads at its peaks): the engagement ramp's lower part
 # and the observer's ringing below it stay out of the window (:meth:`_replay_level`)
 LEVEL_BAND_K = 2.5
+# a gap's samples give the air level (InterfaceDetector._gap_air) only where their rms about their
+# mean is within this many times their noise (from successive differences, as air_level's): after a
+# large drop the observer rings in the gap, and a mean over part of a swing stood 40-56 N off with
+# rms 12-39 N, 4-10 times the noise (seed-29 wide draw, project holes 54, 87, 189, 194; foreign2 77,
+# 195: friction drift warnings on nominal plants); quiet gaps of the plant-options draw 1.06-1.43
+AIR_GAP_QUIET = 2.0
 # the located position's reported uncertainty (dx_<event>_loc) is the fit's interval
 # (event_locator._best_face) and the fit model's own error, sd = floor + share x the layer's feed
 # per orbit, added in quadrature; (floor [m], share) of the entry, the interfaces, the exit. The
@@ -1625,8 +1631,8 @@ class InterfaceDetector(KernelBlock, Block):
         F [N] at the observer's times t [s]) crosses (event_locator.air_run, or floor_gap below
         ``cut_floor`` [N] in a shortened window; its faces' feet, RUN_FEET of it at either end,
         left out), on the samples at layer k's feed: past the trigger and the adaptation's ramp;
-        (NaN, NaN) without 2 MIN_SEGMENT of them, or once the hole has failed (the fail-safe's
-        process is no layer's)."""
+        (NaN, NaN) without 2 MIN_SEGMENT of them, where they ring (their rms beyond AIR_GAP_QUIET
+        times their noise), or once the hole has failed (the fail-safe's process is no layer's)."""
         if self.fail:
             return NAN, NAN
         gap = air_run(x, F, air)
@@ -1640,7 +1646,9 @@ class InterfaceDetector(KernelBlock, Block):
             idx = idx[t[idx] >= self.t_ev[k] + self.process[2]]
         if idx.size < 2 * MIN_SEGMENT:
             return NAN, NAN
-        return air_level(F[idx], None)
+        F_air, sd = air_level(F[idx], None)
+        noise = float(np.sqrt(np.mean(np.diff(F[idx]) ** 2) / 2.0))
+        return (F_air, sd) if sd <= AIR_GAP_QUIET * noise else (NAN, NAN)
 
     def _entry_fit(self, xf, Fw, hi: float, x_trig: float, air: float, period, x_loc: float, dx: float,
                    ramp_max: float | None = None):

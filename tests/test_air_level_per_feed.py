@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from exported_c import assert_agree
 from recorded_traces import hole_plan, python_and_exported, run_recorded
@@ -129,3 +130,23 @@ def test_with_the_floors_alone_the_push_out_start_was_taken(monkeypatch):
                         lambda self, k: self._air_offset() + min(self.floor[k - 1], self.floor[k]))
     out, _det = run_recorded("foreign_cfrp_ti.toml", THIN_PLAN, THIN, "python")
     assert out["x_interface1_loc"] < THIN_GAP[0] - 0.4 * MM               # measured -0.44 mm
+
+
+@pytest.mark.parametrize("ring_n, taken", [(0.0, True), (20.0, False)])
+def test_a_gap_gives_the_air_level_only_where_it_does_not_ring(ring_n, taken):
+    """A gap between two 100 N levels, at 3 N with 1 N of white noise (rms / noise ~1: taken), or
+    with the observer's ringing after the drop on it, +-20 N at a 40-sample orbit (rms / noise ~10
+    on the seed-29 draw's ringing gaps, 4-10: left; AIR_GAP_QUIET = 2)."""
+    rng = np.random.default_rng(3)
+    j = np.arange(60)
+    gap = 3.0 + rng.normal(0.0, 1.0, j.size) + ring_n * np.exp(-j / 60.0) * np.sin(2 * np.pi * j / 40.0)
+    F = np.concatenate([100.0 + rng.normal(0.0, 1.0, 60), gap, 100.0 + rng.normal(0.0, 1.0, 60)])
+    x = np.arange(F.size) * 5e-6
+    det = InterfaceDetector(surface=1e-3, thicknesses=[3e-3, 3e-3], kc=[1e9, 1e9], feed_per_rev=[5e-6, 5e-6])
+    det.kernel = "python"
+    det.reset(0.0)
+    F_air, sd = det._gap_air(1, x, F, x / 1e-4, 0.0, None)
+    if taken:
+        assert F_air == pytest.approx(3.0, abs=3 * 1.0 / np.sqrt(30)) and sd == pytest.approx(1.0, rel=0.4)
+    else:
+        assert math.isnan(F_air) and math.isnan(sd)

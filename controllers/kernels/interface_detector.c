@@ -31,6 +31,7 @@
 #define DET_LEVEL_RISE_SHARE 0.25            /* interface_detector.py LEVEL_RISE_SHARE */
 #define DET_ORBIT_STEADY 0.1                 /* interface_detector.py ORBIT_STEADY */
 #define DET_AIR_OFFSET_K 2.0                 /* interface_detector.py AIR_OFFSET_K */
+#define DET_AIR_GAP_QUIET 2.0                /* interface_detector.py AIR_GAP_QUIET */
 #define DET_LEVEL_BAND_K 2.5                 /* interface_detector.py LEVEL_BAND_K */
 #define DET_N_OUT 50
 

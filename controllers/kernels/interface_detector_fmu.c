@@ -314,7 +314,8 @@ static double detector_window_cut_floor(const Detector *d, int k)
  * window (x, F at the observer's times t: m samples) crosses (its air run, or its run below cut_floor
  * [N], NaN: none, in a shortened window), its faces' feet left out, on the
  * samples at layer k's feed (past the trigger and the adaptation's ramp); unchanged without
- * 2 LOC_MIN_SEGMENT of them or once the hole has failed */
+ * 2 LOC_MIN_SEGMENT of them, where they ring (rms beyond DET_AIR_GAP_QUIET times their noise) or
+ * once the hole has failed */
 static void detector_gap_air(const DetectorFMU *s, int k, const double *x, const double *F, const double *t, long m,
                              double air, double cut_floor, double *scratch, double *out)
 {
@@ -326,8 +327,16 @@ static void detector_gap_air(const DetectorFMU *s, int k, const double *x, const
     for (long i = i0 + q; i < i1 - q; i++)
         if (s->process == 0.0 || t[i] >= s->d.t_ev[k] + s->process_ramp)
             scratch[a++] = F[i];
-    if (a >= 2 * LOC_MIN_SEGMENT)
-        detector_air_level(scratch, a, 0.0, out);
+    if (a < 2 * LOC_MIN_SEGMENT)
+        return;
+    double level[2], *dev = scratch + a;
+    detector_air_level(scratch, a, 0.0, level);
+    for (long j = 0; j + 1 < a; j++)   /* numpy.diff, squared: the samples' noise */
+        dev[j] = (scratch[j + 1] - scratch[j]) * (scratch[j + 1] - scratch[j]);
+    if (level[1] <= DET_AIR_GAP_QUIET * sqrt(loc_mean(dev, a - 1) / 2.0)) {
+        out[0] = level[0];
+        out[1] = level[1];
+    }
 }
 
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
