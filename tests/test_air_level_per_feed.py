@@ -150,3 +150,21 @@ def test_a_gap_gives_the_air_level_only_where_it_does_not_ring(ring_n, taken):
         assert F_air == pytest.approx(3.0, abs=3 * 1.0 / np.sqrt(30)) and sd == pytest.approx(1.0, rel=0.4)
     else:
         assert math.isnan(F_air) and math.isnan(sd)
+
+
+# A rise behind a gap at a new feed (seed 30, foreign2 hole 56; tests/data/rise_gap_over_low_layer.csv,
+# up to past the first interface's fit): al 1.50 mm at 8.0 mm/min / gap 0.83 / ti 4.22 at 15.8
+# mm/min. The Al cuts at 28.4 N over +8.9 N of air at the approach; the gap, at the Ti's feed,
+# shows 15.5 N: a third of the Al's level over the approach's air, above air_run's test (half of
+# half of it), and the Al's push-out start was taken for the interface, -0.53 mm.
+RISE_PLAN = hole_plan([("al", 1.49482e-3, 0.224223e-3), ("ti", 4.22484e-3, 0.633726e-3),
+                       ("al", 3.86533e-3, 0.579800e-3), ("ti", 1.37811e-3, 0.206716e-3)],
+                      {"al": (1.33982e-4, 1473.11, 267.695), "ti": (2.64019e-4, 1677.71, 109.697)}, 1.109079e-3)
+RISE_GAP = (2.5255 * MM, 3.3519 * MM)
+
+
+@pytest.mark.parametrize("kernel", [None, "python"])
+def test_a_rise_s_gap_above_a_low_layer_s_air_test_is_found_below_its_floor(kernel):
+    out, det = run_recorded("foreign2_cfrp_ti.toml", RISE_PLAN, "rise_gap_over_low_layer", kernel)
+    assert out["fail"] == 0 and out["flag"] >= 2
+    assert RISE_GAP[0] <= out["x_interface1_loc"] <= RISE_GAP[1]             # measured 2.873 +- 0.49 mm

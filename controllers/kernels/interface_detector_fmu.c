@@ -391,9 +391,11 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
         engage.n_lengths = loc_engage_count(engage.lengths, LOC_N_ENGAGE,
                                             DET_ENTRY_RAMP_SLACK * (s->entry_engagement + s->exit_release[0] * step));
     }
-    /* an interface window cut short to a thin layer below may end in the gap (InterfaceDetector._fit;
-     * full: _full_loc_after) */
-    double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0 && d->loc_after[k - 1] < d->max_gap + d->push_out + d->locate_margin
+    /* an interface window cut short to a thin layer below may end in the gap, and a rise's gap may
+     * stand above a low upper layer's air test (InterfaceDetector._fit; full: _full_loc_after) */
+    double cut_floor = kind == LOC_INTERFACE && d->relative != 0.0
+                       && (d->loc_after[k - 1] < d->max_gap + d->push_out + d->locate_margin
+                           || d->level_plan[k] > d->level_plan[k - 1])
         ? detector_window_cut_floor(d, k) : NAN;
     double period = kind == LOC_EXIT ? s->exit_period : kind == LOC_ENTRY ? s->entry_period : 0.0;
     double if_ghost[2];
