@@ -882,8 +882,11 @@ class InterfaceDetector(KernelBlock, Block):
         r = np.array([0.5 * (1.0 - math.cos(math.pi * v)) for v in s.tolist()])
         f = (fa + r * (fb - fa)) / (na + r * (nb - na))
         x_feed = self.exit_feed_exponent
-        return ProcessChange(self.exit_shape, (f / fpr[k - 1]) ** x_feed,
-                             (self.exit_compliance + self.exit_release_compliance, x_feed))
+        # libm's pow too (a square root at 0.5, as numpy's **): numpy's vectorised pow is SVML's on
+        # AVX-512 machines, a last bit off libm's, and the exported FMU's C fit takes libm's
+        q = (f / fpr[k - 1]).tolist()
+        share = np.array([math.sqrt(v) for v in q] if x_feed == 0.5 else [math.pow(v, x_feed) for v in q])
+        return ProcessChange(self.exit_shape, share, (self.exit_compliance + self.exit_release_compliance, x_feed))
 
     def _exit_release(self) -> tuple[float, float] | None:
         """The exit's released push-out for event_locator.locate: (compliance [m/N], x_feed), None when off."""
