@@ -51,6 +51,15 @@ def last_value(arr):
     return float(arr[-1]) if arr.size else math.nan
 
 
+def first_finite(values, *others) -> tuple[float, ...]:
+    """The first finite entry of ``values`` and the entries of ``others`` at its index (NaN: none)."""
+    v = np.asarray(values, float)
+    i = np.flatnonzero(np.isfinite(v))
+    if not i.size:
+        return (math.nan,) * (1 + len(others))
+    return (float(v[i[0]]), *(float(np.asarray(o, float)[i[0]]) for o in others))
+
+
 def flag_before_entry(time, flag, t_entry_true):
     """True when the detector flag left 0 before the tool touched the stack."""
     time = np.asarray(time, float)
@@ -391,10 +400,9 @@ _DET = ("t_entry", "t_interface1", "t_interface2", "t_interface3", "t_exit", "t_
 _LOC = tuple(f"{q}_{ev}_loc" for ev in ("entry", "interface1", "interface2", "interface3", "exit")
              for q in ("t", "dx", "tknown"))
 
-# The friction-drift note: the detector's air level F_air [N] at the end of the hole (the mean
-# observed thrust in air at the last layer's feed: the approach's, or a gap's, the nearest feed
-# measured; InterfaceDetector._measure_air) is the drive's friction not explained by the
-# commissioned one at that speed -- the observer
+# The friction-drift note: the detector's first air level F_air [N] (the approach's mean observed
+# thrust in air, before any gap's at another feed: InterfaceDetector._measure_air) is the
+# drive's friction not explained by the commissioned one -- the observer
 # subtracts the commissioned friction, so with it the air level is zero up to the observer's
 # noise and ringing. A drift is reported where the detector takes the air level as an offset
 # (|F_air| > AIR_OFFSET_K x F_air_sd, the spread of the samples it is the mean of) and it
@@ -411,10 +419,13 @@ def friction_drift(result, detector="detector", floor_n=FRICTION_FLOOR_N) -> dic
     friction moved away from the commissioned one (wear, lubrication, temperature) shows the
     difference as an offset on the observed thrust in every layer; the detector takes its
     ratios against the air level, but the thrust record and any absolute threshold are off by
-    it, and the drive needs re-commissioning."""
-    F_air = last_value(result[f"{detector}.F_air"])
-    sd = last_value(result[f"{detector}.F_air_sd"])
-    out = {"air_level_N": F_air, "air_level_sd_N": sd, "warnings": []}
+    it, and the drive needs re-commissioning. The approach's level: the bound was set on it, and a
+    gap at another feed shows the commissioned friction model's own error at that speed too
+    (up to 4.2 N on nominal foreign2 holes); ``air_level_end_N``: the level in force at the end
+    (the last layer's feed's, or the nearest feed measured)."""
+    F_air, sd = first_finite(result[f"{detector}.F_air"], result[f"{detector}.F_air_sd"])
+    out = {"air_level_N": F_air, "air_level_sd_N": sd,
+           "air_level_end_N": last_value(result[f"{detector}.F_air"]), "warnings": []}
     bound = max(AIR_OFFSET_K * sd, floor_n)
     if abs(F_air) > bound:      # False for NaN: no entry located, no air level
         out["warnings"].append(
