@@ -50,7 +50,7 @@ typedef struct {
     double localise, locate_margin, push_out, max_gap;
     double py_sum_comp, loc_after[DET_MAX_LAYERS - 1], exit_after;
     double loc_sd[3];           /* m, the fit model's share of dx: entry, interfaces, exit (LOC_MODEL_SD) */
-    double air_feed[DET_MAX_LAYERS];   /* m/s, the feed each layer's air level belongs to (interface_detector.py air_feed) */
+    double air_feed[DET_MAX_LAYERS];   /* m/s, the feed each layer's air level belongs to (air_feed) */
     double entry_P;             /* entry confirmation span [samples] (0: N_min, mean since the candidate) */
     double entry_gain;          /* the entry threshold's ramp_gain (its level test divides it out) */
     double entry_rs;            /* state: restarted after the entry before it was located */

@@ -312,16 +312,17 @@ static double detector_window_cut_floor(const Detector *d, int k)
 
 /* InterfaceDetector._gap_air: out[0] the air level [N] and out[1] its spread in the gap interface k's
  * window (x, F at the observer's times t: m samples) crosses (its air run, or its run below cut_floor
- * [N], NaN: none, in a shortened window), its faces' feet left out, on the
+ * [N], NaN: none) where the fit located the interface (x_loc [m]) in it, its faces' feet left out, on the
  * samples at layer k's feed (past the trigger and the adaptation's ramp); unchanged without
  * 2 LOC_MIN_SEGMENT of them, where they ring (rms beyond DET_AIR_GAP_QUIET times their noise) or
  * once the hole has failed */
 static void detector_gap_air(const DetectorFMU *s, int k, const double *x, const double *F, const double *t, long m,
-                             double air, double cut_floor, double *scratch, double *out)
+                             double air, double cut_floor, double x_loc, double *scratch, double *out)
 {
     long i0, i1, a = 0;
     if (s->d.fail != 0.0 || !(loc_air_run(x, F, m, air, scratch, &i0, &i1)
-                              || loc_floor_gap(F, m, cut_floor, scratch, &i0, &i1)))
+                              || loc_floor_gap(F, m, cut_floor, scratch, &i0, &i1))
+        || !(x[i0] <= x_loc && x_loc <= x[i1 - 1]))     /* located outside the run: no gap (a ringing trough) */
         return;
     long q = (long)(LOC_RUN_FEET * (double)(i1 - i0));
     for (long i = i0 + q; i < i1 - q; i++)
@@ -404,7 +405,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     const LocGrid *fall = kind == LOC_INTERFACE ? detector_process_change(s, k, tsel, m, &push, share, &fall_grid) : NULL;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, fall, &out[0], &out[2]);
     if (kind == LOC_INTERFACE && isfinite(out[0]))
-        detector_gap_air(s, k, xsel, Fsel, tsel, m, air, cut_floor, scratch, &out[3]);
+        detector_gap_air(s, k, xsel, Fsel, tsel, m, air, cut_floor, out[0], scratch, &out[3]);
     if (kind == LOC_ENTRY) {
         detector_entry_once(d, xsel, Fsel, m, hi, x_trig, air, period, &engage, &push, scratch, out);
         /* InterfaceDetector._entry_fit: again on the samples up to where the plan's first layer
