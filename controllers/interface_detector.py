@@ -1661,8 +1661,9 @@ class InterfaceDetector(KernelBlock, Block):
             idx = idx[t[idx] >= self.t_ev[k] + self.process[2]]
         if idx.size < 2 * MIN_SEGMENT:
             return NAN, NAN
-        F_air, sd = air_level(F[idx], None)
-        noise = float(np.sqrt(np.mean(np.diff(F[idx]) ** 2) / 2.0))
+        f = F[idx]
+        F_air, sd = air_level(f, None)
+        noise = float(np.sqrt(np.mean(np.diff(f) ** 2) / 2.0))
         return (F_air, sd) if sd <= AIR_GAP_QUIET * noise else (NAN, NAN)
 
     def _entry_fit(self, xf, Fw, hi: float, x_trig: float, air: float, period, x_loc: float, dx: float,

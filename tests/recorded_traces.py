@@ -13,19 +13,29 @@ STACKS = Path(__file__).resolve().parents[1] / "scenarios" / "stacks"
 DATA = Path(__file__).parent / "data"
 
 
+def _detector(scenario: str, plan: dict) -> InterfaceDetector:
+    """The detector ``scenario`` builds with the hole plan ``plan`` (gaps to 1 mm), at the 0.02 s step."""
+    settings = load_scenario(STACKS / scenario, overrides={**plan, "hole.gap_tolerance": 1e-3}
+                             ).raw["blocks"]["detector"]["settings"]
+    return InterfaceDetector(sample_period=0.02, **settings)
+
+
+def _recording(name: str):
+    """The recording ``name``: time [s], encoder [m], F_dc_hat [N]."""
+    return np.loadtxt(DATA / f"{name}.csv", delimiter=",", unpack=True)
+
+
 def run_recorded(scenario: str, plan: dict, name: str, kernel: str | None = None, patch=None):
     """The detector of ``scenario`` (a file of scenarios/stacks) with the hole plan ``plan``
     (hole.* overrides; gaps to 1 mm) on the recording ``name``: its last outputs by name and
     the block. ``kernel``: None (the C step where it builds) or "python"; ``patch(det)`` before
     the reset."""
-    settings = load_scenario(STACKS / scenario, overrides={**plan, "hole.gap_tolerance": 1e-3}
-                             ).raw["blocks"]["detector"]["settings"]
-    det = InterfaceDetector(sample_period=0.02, **settings)
+    det = _detector(scenario, plan)
     if kernel:
         det.kernel = kernel
     if patch:
         patch(det)
-    t, x, F = np.loadtxt(DATA / f"{name}.csv", delimiter=",", unpack=True)
+    t, x, F = _recording(name)
     det.reset(float(t[0]))
     for ti, xi, Fi in zip(t, x, F):
         y = det.step(float(ti), [float(Fi), float(xi)])
@@ -37,12 +47,10 @@ def python_and_exported(scenario: str, plan: dict, name: str):
     the detector ``scenario`` and ``plan`` build (as :func:`run_recorded`): (output names,
     the Python step's outputs at every sample, the exported step's)."""
     from exported_c import exported_step
-    settings = load_scenario(STACKS / scenario, overrides={**plan, "hole.gap_tolerance": 1e-3}
-                             ).raw["blocks"]["detector"]["settings"]
-    t, x, F = np.loadtxt(DATA / f"{name}.csv", delimiter=",", unpack=True)
+    t, x, F = _recording(name)
     runs = []
     for exported in (False, True):
-        det = InterfaceDetector(sample_period=0.02, **settings)
+        det = _detector(scenario, plan)
         if not exported:
             det.kernel = "python"
         det.reset(float(t[0]))

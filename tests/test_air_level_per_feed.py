@@ -61,17 +61,18 @@ def test_the_exported_step_measures_the_gaps_as_the_python_step():
     assert exported[-1][names.index("F_air")] == pytest.approx(AIR_FAST, abs=1.0)
 
 
-def _detector(feeds_mm_min):
-    n = len(feeds_mm_min)
+def _detector(n: int = 2, feeds_mm_min=None):
+    """A bare n-layer detector (Python step); ``feeds_mm_min``: the plan's feed of each layer (None: one feed)."""
+    feeds = None if feeds_mm_min is None else [f / 6e4 for f in feeds_mm_min]
     det = InterfaceDetector(surface=1e-3, thicknesses=[3e-3] * n, kc=[1e9] * n, feed_per_rev=[5e-6] * n,
-                            layer_feed_rate=[f / 6e4 for f in feeds_mm_min])
+                            layer_feed_rate=feeds)
     det.kernel = "python"
     det.reset(0.0)
     return det
 
 
 def test_each_layer_takes_the_air_measured_at_the_nearest_feed():
-    det = _detector([8.0, 21.0, 8.0, 20.0])
+    det = _detector(4, [8.0, 21.0, 8.0, 20.0])
     det.flag = 1
     det._measure_air(0, -2.5, 1.0)                    # the approach, at 8 mm/min: the only level
     assert (det.F_air, det.F_air_sd) == (-2.5, 1.0)
@@ -90,9 +91,7 @@ def test_each_layer_takes_the_air_measured_at_the_nearest_feed():
 
 
 def test_one_feed_for_every_layer_takes_the_latest_level():
-    det = InterfaceDetector(surface=1e-3, thicknesses=[3e-3, 3e-3], kc=[1e9, 1e9], feed_per_rev=[5e-6, 5e-6])
-    det.kernel = "python"
-    det.reset(0.0)
+    det = _detector()
     det.flag = 1
     det._measure_air(0, 1.0, 0.5)
     det.flag = 2
@@ -142,9 +141,7 @@ def test_a_gap_gives_the_air_level_only_where_it_does_not_ring(ring_n, taken):
     gap = 3.0 + rng.normal(0.0, 1.0, j.size) + ring_n * np.exp(-j / 60.0) * np.sin(2 * np.pi * j / 40.0)
     F = np.concatenate([100.0 + rng.normal(0.0, 1.0, 60), gap, 100.0 + rng.normal(0.0, 1.0, 60)])
     x = np.arange(F.size) * 5e-6
-    det = InterfaceDetector(surface=1e-3, thicknesses=[3e-3, 3e-3], kc=[1e9, 1e9], feed_per_rev=[5e-6, 5e-6])
-    det.kernel = "python"
-    det.reset(0.0)
+    det = _detector()
     F_air, sd = det._gap_air(1, x, F, x / 1e-4, 0.0, None, float(x[90]))   # located mid-gap
     if taken:
         assert F_air == pytest.approx(3.0, abs=3 * 1.0 / np.sqrt(30)) and sd == pytest.approx(1.0, rel=0.4)
