@@ -508,6 +508,10 @@ class InterfaceDetector(KernelBlock, Block):
         then fits its upper layer's push-out under the new process (with ``exit_shape`` and the
         drive's compliance), a rise its lower onset before it (event_locator.ProcessChange);
         None (default): free laws, the process as it was.
+    air_passes [m, m, m/s], air_pass_period [s]: the approach's passes in air at the plan's other
+        feeds (FeedTrajectory pass_z, pass_feed): [x_from, x_to, feed] each, the encoder travel
+        whose thrust is the air level at that feed (:meth:`_pass_air`, measured over whole periods
+        of air_pass_period, the first layer's orbit, when given); every layer of that feed takes it.
     loc_model_sd: the fit model's share of each located position's uncertainty (outputs
         ``dx_<event>_loc``, added in quadrature to the fit's own interval): (floor [m], share of
         the layer's feed per orbit) for the entry, the interfaces and the exit; default
@@ -584,6 +588,7 @@ class InterfaceDetector(KernelBlock, Block):
         interface_orbit_arm: Sequence[float] | None = None,
         exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0, exit_shape: str = "any",
         layer_feed_rate: Sequence[float] | None = None, process_ramp: float = 0.0, loc_model_sd=LOC_MODEL_SD,
+        air_passes: Sequence[Sequence[float]] = (), air_pass_period: float = 0.0,
     ):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
@@ -618,6 +623,7 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_interface_arm(interface_orbit_arm)
         self._set_process(layer_feed_rate, process_ramp, feed_per_rev)
         self._set_loc_model(loc_model_sd)
+        self._set_passes(air_passes, air_pass_period)
         self.windows = self._windows()
         self.reset(0.0)
 
@@ -840,6 +846,27 @@ class InterfaceDetector(KernelBlock, Block):
         self.air_feed = list(feed)
         self._set_entry_lag()
 
+    def _set_passes(self, air_passes, air_pass_period) -> None:
+        """The air passes (x_from [m], x_to [m], feed [m/s]), checked: ascending, each at one of the
+        layers' feeds (``air_feed``), at most one per layer; the orbit they are measured over
+        [samples] (0: none)."""
+        passes = [tuple(float(v) for v in p) for p in air_passes]
+        if len(passes) > self.n or any(len(p) != 3 for p in passes):
+            raise ValueError(f"InterfaceDetector: air_passes takes at most one [x_from, x_to, feed] per layer "
+                             f"({self.n}), got {list(air_passes)!r}")
+        ends = [v for p in passes for v in p[:2]]
+        if not all(math.isfinite(v) for v in ends) or any(b <= a for a, b in zip(ends, ends[1:])):
+            raise ValueError(f"InterfaceDetector: air_passes must be ascending encoder positions [m], "
+                             f"x_from < x_to, got {passes!r}")
+        for p in passes:
+            if p[2] not in self.air_feed:
+                raise ValueError(f"InterfaceDetector: air_passes feed {p[2]!r} m/s is no layer's feed "
+                                 f"(layer_feed_rate {self.air_feed!r})")
+        if not (math.isfinite(air_pass_period) and air_pass_period >= 0.0):
+            raise ValueError(f"InterfaceDetector: air_pass_period must be a number >= 0 s, got {air_pass_period!r}")
+        self.passes = passes
+        self.pass_P = float(air_pass_period) / self.sample_period
+
     def _set_loc_model(self, loc_model_sd) -> None:
         """The model's share of each located event's uncertainty [m] (``loc_sd``: entry,
         interfaces, exit; LOC_MODEL_SD) from its (floor [m], share of the feed per orbit) and the
@@ -1032,6 +1059,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.lcand = None           # entry level candidate (t, x, history index, samples written) (_entry_level)
         self.h_armed = 0            # samples written when the tests last armed
         self.x_air = 0.0            # encoder travel [m] with the thrust below the layer's floor since the last event
+        self.pass_next = 0          # air passes measured so far (_pass_air)
         self.armed = False
         self.fail = 0
         self.fail_code = 0
@@ -1099,6 +1127,35 @@ class InterfaceDetector(KernelBlock, Block):
             if self.air_feed[i] == self.air_feed[j]:
                 self.air_F[i], self.air_S[i] = F, sd
         self._refresh_air()
+
+    def _pass_air(self) -> None:
+        """The air level of the next air pass: its samples (x_from <= x < x_to: the ones before the
+        latest), the last whole orbits of them (pass_P), their mean [N] and spread [N] (the rms, or
+        less where it rings at the orbit: the noise, from successive differences, plus the most a
+        sinusoid of the rest's amplitude moves a mean over them, as :func:`air_level`); kept for
+        every layer of the pass's feed (``air_F``, ``air_S``), taken at the events
+        (:meth:`_refresh_air`). Fewer than N_min samples: not measured."""
+        lo, _hi, feed = self.passes[self.pass_next]
+        self.pass_next += 1
+        j1 = j0 = self.h_n - 1
+        while j0 > max(self.h_n - HISTORY // 2, 0) and self.h_x[(j0 - 1) % HISTORY] >= lo:
+            j0 -= 1
+        if self.pass_P >= 1.0 and j1 - j0 >= self.pass_P:
+            j0 = j1 - int(math.floor((j1 - j0) / self.pass_P) * self.pass_P + 0.5)
+        n = j1 - j0
+        if n < self.N_min:
+            return
+        F = self._hist_mean(j0, j1)
+        var = self._hist_var(j0, j1, F)
+        d = np.diff(self.h_F[np.arange(j0, j1) % HISTORY])
+        noise = math.sqrt(sum((d * d).tolist()) / (2.0 * (n - 1)))
+        sd = math.sqrt(var)
+        if self.pass_P >= 1.0:
+            ring = math.sqrt(2.0 * max(var - noise * noise, 0.0)) * min(1.0, self.pass_P / (math.pi * n))
+            sd = min(sd, noise + ring)
+        for i in range(self.n):
+            if self.air_feed[i] == feed:
+                self.air_F[i], self.air_S[i] = F, sd
 
     def _refresh_air(self) -> None:
         """F_air, F_air_sd: the air level measured at the current layer's feed, else at the
@@ -1328,6 +1385,8 @@ class InterfaceDetector(KernelBlock, Block):
         i = self.h_n % HISTORY
         self.h_t[i], self.h_x[i], self.h_F[i] = t, x, F
         self.h_n += 1
+        if self.flag == 0 and self.pass_next < len(self.passes) and x >= self.passes[self.pass_next][1]:
+            self._pass_air()
         if self.relative and 2 <= self.flag <= self.n and math.isnan(self.levels[self.flag - 1]) \
                 and self._above_air(F) < self.floor[self.flag - 1]:
             # travel in air since the interface, a gap above the layer: where it may push out is further on
@@ -2070,6 +2129,9 @@ class InterfaceDetector(KernelBlock, Block):
         "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
         "loc_sd": ("m", "the fit model's share of the located positions' uncertainty: entry, interfaces, exit"),
         "air_feed": ("m/s", "feed each layer's air level is measured at and taken for (layers of one feed share it)"),
+        "n_pass": ("1", "air passes in use"), "pass_lo": ("m", "encoder position each air pass is measured from"),
+        "pass_hi": ("m", "encoder position each air pass is measured to"), "pass_feed": ("m/s", "feed of each air pass"),
+        "pass_P": ("1", "orbit the air passes are measured over whole periods of, in samples (0: none)"),
     }
 
     @property
@@ -2111,6 +2173,9 @@ class InterfaceDetector(KernelBlock, Block):
         c.loc_after[:n - 1] = self.loc_after
         c.loc_sd[:] = self.loc_sd
         c.air_feed[:n] = self.air_feed
+        m = len(self.passes)
+        fill(c, n_pass=m, pass_P=self.pass_P)
+        c.pass_lo[:m], c.pass_hi[:m], c.pass_feed[:m] = ([p[i] for p in self.passes] for i in range(3))
         if self.windows is not None:
             c.win_lo[:n + 1] = [float(w[0]) for w in self.windows]
             c.win_hi[:n + 1] = [float(w[1]) for w in self.windows]
@@ -2170,7 +2235,8 @@ class InterfaceDetector(KernelBlock, Block):
 
 
 # the C step's state readable as the Python step's attributes (InterfaceDetector.__getattr__)
-_C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n fail fail_code h_event h_armed".split()},
+_C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n fail fail_code h_event h_armed "
+                                        "pass_next".split()},
               **{name: bool for name in "armed drop exit_armed trim entry_rs gap_cut".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last x_level "
                                          "F_pred F_err F_level thd F_air F_air_sd mismatch orb_ref exit_cand_t "

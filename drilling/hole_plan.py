@@ -26,6 +26,8 @@ and the key.
 from __future__ import annotations
 
 import copy
+import itertools
+import math
 
 MATERIALS = {"cfrp": 1, "ti": 2, "al": 3}          # contract material codes (docs/signal_contract.md)
 NOMINAL_KC = {"cfrp": 2.0e7, "ti": 6.5e7, "al": 2.5e6}   # N/(m/rev), new tool (docs/plants.md presets)
@@ -39,12 +41,21 @@ DETECTOR_TOLERANCE = 0.5e-3    # m, the detector's window half-width (InterfaceD
 # above the surface: slow feeds, and 1 Hz orbits with a worn tool)
 OBSERVER_SETTLE_S = 3.0
 OBSERVER_SETTLE_ORBITS = 6.0
+# Air passes (hole.air_passes): before the first layer's feed, the approach runs once in air at
+# every other feed the plan commands, so that the detector measures the air level at each
+# (friction drifted since commissioning moves it with the speed: docs/stacks.md, "The air level
+# moves with the feed"). A pass settles after its change of speed (the first after the approach's
+# deceleration, which rings longer), then is measured over whole orbits of the first layer's
+# process, at least AIR_PASS_MEASURE_S
+AIR_PASS_SETTLE_S = 0.5
+AIR_PASS_FIRST_SETTLE_S = 2.0
+AIR_PASS_MEASURE_S = 1.0
 
 HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "approach", "breakthrough",
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
              "match_tolerance", "locate_margin", "push_out", "orbital_harmonics", "exit_orbit_mean", "engagement",
              "entry_shape", "exit_shape", "exit_compliance", "exit_release_compliance", "feed_exponent",
-             "entry_ripple"}
+             "entry_ripple", "air_passes"}
 # Localisation (controllers/event_locator.py): travel on either side of an event that holds its
 # change and a stretch of level (engagement up to ~0.35 mm on the drives measured, and the
 # trigger up to ~0.1 mm into it: with 0.3 mm, Ti entries with a 0.22 mm engagement were
@@ -133,6 +144,7 @@ class HolePlan:
         # entry_ripple, docs/stacks.md "Localisation"): on by default; off where the drive's
         # ramp fills the entry's window (foreign2's plans, seventeenth round)
         self.entry_ripple = self._flag(hole, "entry_ripple", True)
+        self.air_passes = self._flag(hole, "air_passes", True)
         self.fail_action = hole.get("fail_action", "hold")
         if self.fail_action not in FAIL_ACTIONS:
             raise error("hole.fail_action", f"expected one of {FAIL_ACTIONS}, got {self.fail_action!r}")
@@ -314,22 +326,41 @@ class HolePlan:
         return (self.surface + sum(L["thickness"] + L["tolerance"] for L in self.layers)
                 + (len(self.layers) - 1) * self.gap_tolerance)
 
+    def passes(self) -> list[tuple[float, float, float]]:
+        """The air passes (``hole.air_passes``): (settle [m], measured travel [m], feed [m/s]) for
+        each feed the plan commands other than the first layer's, in the layers' order; none
+        when the plan turns them off."""
+        if not self.air_passes:
+            return []
+        first = self.layer_process(0)["feed_rate"]
+        feeds = list(dict.fromkeys(self.layer_process(k)["feed_rate"] for k in range(1, len(self.layers))))
+        period = self.orbit_period(0)
+        measure = math.ceil(AIR_PASS_MEASURE_S / period - 1e-9) * period
+        out = []
+        for f in (f for f in feeds if f != first):
+            settle = AIR_PASS_SETTLE_S if out else AIR_PASS_FIRST_SETTLE_S
+            out.append((settle * f, measure * f, f))
+        return out
+
     def trajectory(self, base: dict) -> dict:
         z_start = float(base.get("z_start", 0.0))
         approach, wait = self.approach, 0.0
         first = self.layer_process(0)
+        passes = self.passes()
         # the entry window opens only once the observer has settled
         settle = max(OBSERVER_SETTLE_S, OBSERVER_SETTLE_ORBITS * 60.0 / first["orbital_speed"])
         if approach is None:
             approach = DETECTOR_TOLERANCE + settle * first["feed_rate"]
-            if approach > self.surface - z_start:     # not that much room: feed from the start,
-                approach = self.surface - z_start     # after a wait for the rest of the time
+            if approach > self.surface - z_start and not passes:   # not that much room: feed from the start,
+                approach = self.surface - z_start                  # after a wait for the rest of the time
                 wait = settle - (approach - DETECTOR_TOLERANCE) / first["feed_rate"]
         else:   # a plan's own approach waits the same: fed at once from 1 mm, a 0.8 Hz aluminium
             # entry of the wide draw (project hole 116) met the observer's start-up ringing and was missed
             wait = max(0.0, settle - (approach - DETECTOR_TOLERANCE) / first["feed_rate"])
-        z_app = self.surface - approach
-        if z_app < z_start:
+        # the air passes come before it; where there is no room for them the trajectory lifts
+        # above its start first (FeedTrajectory), and feeds down from rest
+        z_app = self.surface - approach - sum(a + b for a, b, _ in passes)
+        if z_app < z_start and self.approach is not None and not passes:
             raise self.error("hole.approach", f"the feed would start at {z_app:g} m, before the trajectory's "
                                               f"z_start {z_start:g} m")
         # past the end of the exit window (detector tolerance), so that a missing exit is a
@@ -339,8 +370,20 @@ class HolePlan:
         extra = self.half_orbit_travel() if self.exit_orbit_mean else self.ring_travel()
         out = {"z_approach_end": z_app, "feed_rate": first["feed_rate"],
                "z_end": self.bottom() + DETECTOR_TOLERANCE + self.breakthrough + extra}
+        if passes:
+            ends = itertools.accumulate((a + b for a, b, _ in passes), initial=z_app)
+            out.update(pass_z=list(ends)[1:], pass_feed=[f for _, _, f in passes])
         if wait > 0:
             out["t_start"] = float(base.get("t_start", 0.0)) + wait
+        return out
+
+    def pass_windows(self, z_app: float) -> list[list[float]]:
+        """The encoder positions [m] the detector measures each air pass's level over (its
+        travel past the settle) and the pass's feed [m/s]: [x_from, x_to, feed] each."""
+        out, z = [], z_app
+        for settle, measure, f in self.passes():
+            out.append([z + settle, z + settle + measure, f])
+            z += settle + measure
         return out
 
     def _exit_orbit_mean(self) -> dict:
@@ -380,7 +423,7 @@ class HolePlan:
         at its speed, plus the margin: the hole is over by then, whatever happens."""
         slowest = min(self.conservative()["feed_rate"], *(p["feed_rate"] for p in self.process.values()))
         z_start = float(traj.get("z_start", 0.0))
-        t_approach = (traj["z_approach_end"] - z_start) / float(traj.get("v_approach", 5e-3))
+        t_approach = abs(traj["z_approach_end"] - z_start) / float(traj.get("v_approach", 5e-3))
         t_feed = (traj["z_end"] - traj["z_approach_end"]) / slowest
         return float(traj.get("t_start", 0.0)) + t_approach + t_feed + self.stop_margin
 
@@ -529,7 +572,10 @@ def expand(raw: dict, error, origin: str = "[hole]") -> dict:
     traj = plan.trajectory(tset)
     for k, v in traj.items():
         _derive(raw, f"blocks.{tname}.settings.{k}", v, error, origin)
-    for k, v in plan.detector(window_s, _adapt_ramp(raw, blocks, aname, error, origin)).items():
+    dset = plan.detector(window_s, _adapt_ramp(raw, blocks, aname, error, origin))
+    if plan.passes():
+        dset.update(air_passes=plan.pass_windows(traj["z_approach_end"]), air_pass_period=plan.orbit_period(0))
+    for k, v in dset.items():
         _derive(raw, f"blocks.{dname}.settings.{k}", v, error, origin)
     forgetting = _observer_forgetting(blocks.get(plan.names["observer"]))
     if forgetting is not None:

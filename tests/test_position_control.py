@@ -74,6 +74,44 @@ def test_trajectory_feed_rate_command_is_ramped():
     assert np.all(np.abs(np.diff(v)) <= 0.05 * 1e-4 + 1e-15)
 
 
+def test_trajectory_air_passes_feed_each_feed_then_the_command():
+    """Below each pass's end the pass's feed, whatever the command; past them the command."""
+    cmd = lambda t: 1e-3   # noqa: E731
+    tr = _traj(z_approach_end=4e-4, z_end=5e-3, pass_z=(6e-4, 8e-4), pass_feed=(2e-4, 4e-4))
+    t, r = _run_traj(tr, 3.0, cmd)
+    z, v, a, ph = r.T
+    feed = ph == 2
+    # settled at each pass's feed (the change ramps at a_max: 0.2 mm/s in 4 ms, 0.08 um)
+    for lo, hi, f in ((4.1e-4, 5.9e-4, 2e-4), (6.1e-4, 7.9e-4, 4e-4), (8.5e-4, 4e-3, 1e-3)):
+        sel = feed & (z > lo) & (z < hi)
+        assert sel.sum() > 100 and np.allclose(v[sel], f, rtol=1e-9), (lo, f)
+    assert np.all(np.abs(a) <= 0.05 + 1e-12)
+    # the approach slows for the first pass's feed, not for the command's 1 mm/s (the
+    # sample that crosses z_approach_end is within a few samples of braking of it)
+    k = np.argmax(feed)
+    assert v[k] < 0.4e-3
+
+
+def test_trajectory_lifts_when_the_feed_starts_above_the_start():
+    """z_approach_end above z_start (no room for the approach): up to it, stop, feed from rest."""
+    t, r = _run_traj(_traj(z_start=2e-4, z_approach_end=-3e-4, z_end=1e-3), 3.0)
+    z, v, a, ph = r.T
+    assert z.min() == pytest.approx(-3e-4, abs=1e-12)
+    assert np.all(np.abs(a) <= 0.05 + 1e-12)
+    k = np.argmax(ph == 2)
+    assert z[k] == pytest.approx(-3e-4, abs=1e-12) and v[k] == 0.0
+    assert np.allclose(v[(ph == 2) & (z > 0.0) & (z < 9e-4)], 5e-4, rtol=1e-9)
+
+
+def test_trajectory_rejects_bad_air_passes():
+    with pytest.raises(ValueError, match="pass_z and pass_feed"):
+        _traj(pass_z=(9e-4,), pass_feed=(1e-4, 2e-4))
+    with pytest.raises(ValueError, match="ascend"):
+        _traj(pass_z=(1e-3, 9e-4), pass_feed=(1e-4, 2e-4))
+    with pytest.raises(ValueError, match="pass_feed must be > 0"):
+        _traj(pass_z=(9e-4,), pass_feed=(0.0,))
+
+
 def _wiring(traj="traj", ctrl="pc"):
     return {traj: {}, ctrl: {"z_ref": f"{traj}.z_ref", "v_ref": f"{traj}.v_ref",
                              "a_ref": f"{traj}.a_ref", "z": "plant.z_enc"},

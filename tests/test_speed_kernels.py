@@ -139,6 +139,9 @@ def test_trajectory_kernel_matches_python_step():
             yield t, (2e-3 if t > 0.4 else 0.0, 1.0 if t > 0.7 else 0.0)
     _agree(lambda: FeedTrajectory(z_approach_end=0.5e-3, v_approach=5e-3, feed_rate=1e-3, z_end=4e-3,
                                   a_max=0.5, t_start=0.01), inputs)
+    # a lift above the start, then two air passes before the command takes over
+    _agree(lambda: FeedTrajectory(z_start=0.2e-3, z_approach_end=-0.1e-3, v_approach=5e-3, feed_rate=1e-3,
+                                  z_end=4e-3, a_max=0.5, pass_z=(0.0, 0.15e-3), pass_feed=(0.4e-3, 2.5e-3)), inputs)
 
 
 # a spring-type gravity compensator with a cubic term (controllers/position_force.py), so the

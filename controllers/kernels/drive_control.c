@@ -18,6 +18,7 @@
 #define MIN(a, b) ((b) < (a) ? (b) : (a))
 #define MAX(a, b) ((b) > (a) ? (b) : (a))
 #define MAX_RIPPLE 8
+#define MAX_PASSES 8      /* trajectory.py MAX_PASSES */
 
 /* ---------------------------------------------------------------- shared pieces */
 
@@ -151,13 +152,23 @@ enum { PHASE_WAIT, PHASE_APPROACH, PHASE_FEED, PHASE_RETRACT, PHASE_DONE };
 typedef struct {
     double z_start, z_approach_end, v_approach, feed_rate, z_end, v_retract, a_max, t_start, dt;
     double z, v, phase, has_t_prev, t_prev, cmd, retract;
+    double n_pass, pass_z[MAX_PASSES], pass_feed[MAX_PASSES];
 } Trajectory;
+
+/* trajectory.py FeedTrajectory._feed: an air pass's feed below its end, else the command or the setting */
+static double trajectory_feed(const Trajectory *s, double cmd, double z)
+{
+    for (int i = 0; i < (int)s->n_pass; i++)
+        if (z < s->pass_z[i])
+            return s->pass_feed[i];
+    return cmd > 0.0 ? cmd : s->feed_rate;
+}
 
 /* u: feed_rate_cmd, retract; y: z_ref, v_ref, a_ref, phase */
 void trajectory_step(Trajectory *s, double t, const double *u, double *y)
 {
-    double feed = s->cmd > 0.0 ? s->cmd : s->feed_rate;
-    int retract = s->retract != 0.0;
+    double cmd = s->cmd;
+    int retract = s->retract != 0.0, lift = s->z_approach_end < s->z_start;
     s->cmd = u[0];
     s->retract = u[1] > 0.5 ? 1.0 : 0.0;
     double dt = (s->has_t_prev == 0.0 || t <= s->t_prev) ? s->dt : t - s->t_prev;
@@ -167,7 +178,7 @@ void trajectory_step(Trajectory *s, double t, const double *u, double *y)
     int ph = (int)s->phase;
     if (ph == PHASE_WAIT && t >= s->t_start - 1e-12)
         ph = PHASE_APPROACH;
-    if (ph == PHASE_APPROACH && z >= s->z_approach_end)
+    if (ph == PHASE_APPROACH && (lift ? z <= s->z_approach_end && v == 0.0 : z >= s->z_approach_end))
         ph = PHASE_FEED;
     if (ph == PHASE_FEED && z >= s->z_end)
         ph = PHASE_RETRACT;
@@ -177,9 +188,10 @@ void trajectory_step(Trajectory *s, double t, const double *u, double *y)
         ph = PHASE_DONE;
     double z1, v1, a;
     if (ph == PHASE_APPROACH)
-        profile_step(z, v, s->z_approach_end, s->v_approach, s->a_max, dt, feed, &z1, &v1, &a);
+        profile_step(z, v, s->z_approach_end, s->v_approach, s->a_max, dt,
+                     lift ? 0.0 : trajectory_feed(s, cmd, s->z_approach_end), &z1, &v1, &a);
     else if (ph == PHASE_FEED)
-        profile_step(z, v, s->z_end, feed, s->a_max, dt, 0.0, &z1, &v1, &a);
+        profile_step(z, v, s->z_end, trajectory_feed(s, cmd, z), s->a_max, dt, 0.0, &z1, &v1, &a);
     else if (ph == PHASE_RETRACT)
         profile_step(z, v, s->z_start, s->v_retract, s->a_max, dt, 0.0, &z1, &v1, &a);
     else {

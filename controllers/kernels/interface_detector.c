@@ -34,6 +34,7 @@
 #define DET_AIR_GAP_QUIET 2.0                /* interface_detector.py AIR_GAP_QUIET */
 #define DET_LEVEL_BAND_K 2.5                 /* interface_detector.py LEVEL_BAND_K */
 #define DET_N_OUT 50
+#define DET_PI 3.141592653589793             /* math.pi */
 
 typedef double (*dot_fn)(long n, const double *x, long incx, const double *y, long incy);
 /* k, x_trig, lo, hi [m], samples written, air level [N] -> out: x_loc, t_loc, dx, F_air, F_air_sd */
@@ -51,6 +52,9 @@ typedef struct {
     double py_sum_comp, loc_after[DET_MAX_LAYERS - 1], exit_after;
     double loc_sd[3];           /* m, the fit model's share of dx: entry, interfaces, exit (LOC_MODEL_SD) */
     double air_feed[DET_MAX_LAYERS];   /* m/s, the feed each layer's air level belongs to (air_feed) */
+    double pass_lo[DET_MAX_LAYERS], pass_hi[DET_MAX_LAYERS], pass_feed[DET_MAX_LAYERS];   /* the air passes */
+    double n_pass, pass_P;      /* air passes in use; the orbit they are measured over [samples] (0: none) */
+    double pass_next;           /* state: air passes measured so far */
     double entry_P;             /* entry confirmation span [samples] (0: N_min, mean since the candidate) */
     double entry_gain;          /* the entry threshold's ramp_gain (its level test divides it out) */
     double entry_rs;            /* state: restarted after the entry before it was located */
@@ -164,6 +168,43 @@ static void measure_air(Detector *s, int j, double F, double sd)
     refresh_air(s);
 }
 
+static double hist_mean(const Detector *s, double j0, double j1);
+static double hist_var(const Detector *s, double j0, double j1, double mean);
+
+/* interface_detector.py _pass_air: the next air pass's level over its last whole orbits, for every
+ * layer of its feed (taken at the events) */
+static void pass_air(Detector *s)
+{
+    int p = (int)s->pass_next;
+    s->pass_next += 1.0;
+    long j1 = (long)s->h_n - 1, j0 = j1, stop = MAX((long)s->h_n - DET_HISTORY / 2, 0L);
+    while (j0 > stop && s->h_x[(j0 - 1) % DET_HISTORY] >= s->pass_lo[p])
+        j0--;
+    if (s->pass_P >= 1.0 && (double)(j1 - j0) >= s->pass_P)
+        j0 = j1 - (long)(floor((double)(j1 - j0) / s->pass_P) * s->pass_P + 0.5);
+    long n = j1 - j0;
+    if ((double)n < s->N_min)
+        return;
+    double F = hist_mean(s, (double)j0, (double)j1);
+    double var = hist_var(s, (double)j0, (double)j1, F);
+    double f = 0.0, c = 0.0;
+    for (long j = j0 + 1; j < j1; j++) {
+        double d = s->h_F[j % DET_HISTORY] - s->h_F[(j - 1) % DET_HISTORY];
+        py_sum_add(s, &f, &c, d * d);
+    }
+    double noise = sqrt(py_sum_end(f, c) / (2.0 * (double)(n - 1)));
+    double sd = sqrt(var);
+    if (s->pass_P >= 1.0) {
+        double ring = sqrt(2.0 * MAX(var - noise * noise, 0.0)) * MIN(1.0, s->pass_P / (DET_PI * (double)n));
+        sd = MIN(sd, noise + ring);
+    }
+    for (int i = 0; i < (int)s->n; i++)
+        if (s->air_feed[i] == s->pass_feed[p]) {
+            s->air_F[i] = F;
+            s->air_S[i] = sd;
+        }
+}
+
 /* interface_detector.py _above_air: F over the air offset */
 static double above_air(const Detector *s, double F)
 {
@@ -230,8 +271,6 @@ static int engaged(const Detector *s, double F_pred)
         return 1;
     return above_air(s, F_pred) >= (s->fail != 0.0 ? min_of(s->floor, flag - 1, n) : s->floor[flag - 1]);
 }
-
-static double hist_mean(const Detector *s, double j0, double j1);
 
 /* interface_detector.py _level_holds: the mean of the last N_min samples stands at F_level */
 static int level_holds(const Detector *s)
@@ -876,6 +915,8 @@ void interface_detector_step(Detector *s, double t, const double *u, double *y)
     s->h_x[i] = x;
     s->h_F[i] = F;
     s->h_n += 1.0;
+    if (s->flag == 0.0 && s->pass_next < s->n_pass && x >= s->pass_hi[(int)s->pass_next])
+        pass_air(s);
     int fl = (int)s->flag;
     if (s->relative != 0.0 && 2 <= fl && fl <= (int)s->n && isnan(s->levels[fl - 1])
             && above_air(s, F) < s->floor[fl - 1])

@@ -31,9 +31,13 @@ class Friction(ctypes.Structure):
         [("ripple", _D * (3 * MAX_RIPPLE))]
 
 
+MAX_PASSES = 8          # air passes of FeedTrajectory the C side holds (drive_control.c)
+
+
 class Trajectory(ctypes.Structure):
     _fields_ = _doubles("z_start z_approach_end v_approach feed_rate z_end v_retract a_max t_start dt "
-                        "z v phase has_t_prev t_prev cmd retract")
+                        "z v phase has_t_prev t_prev cmd retract n_pass") + \
+        [("pass_z", _D * MAX_PASSES), ("pass_feed", _D * MAX_PASSES)]
 
 
 class Position(ctypes.Structure):
@@ -132,6 +136,8 @@ class Detector(ctypes.Structure):
          ("level_plan", _D * DET_LAYERS), ("level_reach", _D * DET_LAYERS)] + \
         _doubles("localise locate_margin push_out max_gap py_sum_comp") + [("loc_after", _D * (DET_LAYERS - 1))] + \
         _doubles("exit_after") + [("loc_sd", _D * 3), ("air_feed", _D * DET_LAYERS)] + \
+        [("pass_lo", _D * DET_LAYERS), ("pass_hi", _D * DET_LAYERS), ("pass_feed", _D * DET_LAYERS)] + \
+        _doubles("n_pass pass_P pass_next") + \
         _doubles("entry_P entry_gain entry_rs x_level entry_lag entry_ripple lcand_t lcand_x lcand_i lcand_n h_armed x_air") + \
         _doubles("exit_P h_event orb_ref exit_cand_t exit_cand_x exit_cand_i exit_cand_M") + \
         [("x_arm", _D * DET_LAYERS), ("if_P", _D * (DET_LAYERS - 1)), ("if_ratio", _D * (DET_LAYERS - 1)),
