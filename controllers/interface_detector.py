@@ -585,11 +585,10 @@ class InterfaceDetector(KernelBlock, Block):
         interface_loc_after: Sequence[float] | None = None,
         exit_orbit_period: float = 0.0, exit_loc_after: float | None = None, exit_compliance: float = 0.0,
         exit_orbit_arm: float = 0.0, exit_release_compliance: float = 0.0, exit_feed_exponent: float = 0.75,
-        interface_orbit_arm: Sequence[float] | None = None,
+        interface_orbit_arm: Sequence[float] | None = None, air_passes: Sequence[Sequence[float]] = (),
         exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0, exit_shape: str = "any",
         layer_feed_rate: Sequence[float] | None = None, process_ramp: float = 0.0, loc_model_sd=LOC_MODEL_SD,
-        air_passes: Sequence[Sequence[float]] = (), air_pass_period: float = 0.0,
-    ):
+        air_pass_period: float = 0.0):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
         if self.sample_period <= 0:
@@ -605,10 +604,8 @@ class InterfaceDetector(KernelBlock, Block):
         self.thickness_tolerances = _per_layer("thickness_tolerances", thickness_tolerances, n)
         self.tolerance, self.exit_tolerance = float(tolerance), float(exit_tolerance)
         self.feed_rate, self.time_margin = float(feed_rate), float(time_margin)
-        self.fail_disarms = bool(fail_disarms)
+        self.fail_disarms, self.restart, self.entry_confirm = bool(fail_disarms), bool(restart), bool(entry_confirm)
         self._set_factors(mismatch_factor, thd_noise_factor)
-        self.restart = bool(restart)
-        self.entry_confirm = bool(entry_confirm)
         self.step_signs = _step_signs(step_signs, kc, n)
         self.relative = kc is not None
         self._set_thresholds(kc, feed_per_rev, feed_per_rev_min, entry_fraction, step_fraction,

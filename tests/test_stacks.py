@@ -86,15 +86,22 @@ def test_plan_derived_key_written_elsewhere_is_an_error():
 def test_a_plans_own_approach_waits_for_the_observer_to_settle(approach, wait):
     # fed at once from its approach, a wide-draw aluminium entry (project hole 116, 1 mm at
     # 0.8 Hz) met the observer's start-up ringing and was missed; the wait is the default's
-    sc = load_scenario(STACKS / "cfrp_ti_cfrp.toml", overrides={"hole.approach": approach})
+    sc = load_scenario(STACKS / "cfrp_ti_cfrp.toml", overrides={"hole.approach": approach, "hole.air_passes": False})
     traj = sc.raw["blocks"]["trajectory"]["settings"]
     assert traj["z_approach_end"] == pytest.approx(1e-3 - approach, abs=1e-12)
     assert traj["t_start"] == pytest.approx(wait)
+    # with the air pass at the Ti's feed (the default) it comes before the plan's approach:
+    # 2 s of settling and 2 orbits of 0.5 s at 0.15 mm/s, 0.45 mm
+    traj = load_scenario(STACKS / "cfrp_ti_cfrp.toml", overrides={"hole.approach": approach}
+                         ).raw["blocks"]["trajectory"]["settings"]
+    assert traj["z_approach_end"] == pytest.approx(1e-3 - approach - 0.45e-3, abs=1e-12)
+    assert traj["pass_z"] == pytest.approx([1e-3 - approach], abs=1e-12) and traj["pass_feed"] == [1.5e-4]
 
 
 def test_a_plans_approach_long_enough_does_not_wait():
     # 0.7 mm of air above the entry window at 0.2 mm/s: 3.5 s, more than the 3 s (6 orbits) it needs
-    sc = load_scenario(STACKS / "cfrp_ti_cfrp.toml", overrides={"hole.approach": 1.2e-3, "hole.surface": 2.0e-3})
+    sc = load_scenario(STACKS / "cfrp_ti_cfrp.toml", overrides={"hole.approach": 1.2e-3, "hole.surface": 2.0e-3,
+                                                                 "hole.air_passes": False})
     assert "t_start" not in sc.raw["blocks"]["trajectory"]["settings"]
 
 
@@ -106,18 +113,22 @@ def test_plan_derives_trajectory_detector_adaptation_stop_time():
     # window's 0.5 mm + 0.3 mm breakthrough (a missing exit is a fail before the feed ends)
     assert traj["z_end"] == pytest.approx(1e-3 + 3 * 3.35e-3 + 2 * 0.5e-3 + 0.5e-3 + 0.3e-3)
     # the entry window opens after the observer settled (3 s = 6 orbits at 120 rpm): the feed
-    # would start 0.5 mm (tolerance) + 3 s x 0.2 mm/s above the 1 mm surface, below the
-    # trajectory's start: it starts there (0) after a 0.5 s wait
-    assert traj["z_approach_end"] == pytest.approx(0.0) and traj["feed_rate"] == 2.0e-4
-    assert traj["t_start"] == pytest.approx(0.5)
+    # starts 0.5 mm (tolerance) + 3 s x 0.2 mm/s above the 1 mm surface, after an air pass at the
+    # Ti's 0.15 mm/s (2 s settling, 2 orbits of 0.5 s measured: 0.45 mm): 0.55 mm above the
+    # trajectory's start, which lifts there first (no wait)
+    assert traj["z_approach_end"] == pytest.approx(-0.55e-3) and traj["feed_rate"] == 2.0e-4
+    assert "t_start" not in traj
+    assert traj["pass_z"] == pytest.approx([-0.1e-3]) and traj["pass_feed"] == [1.5e-4]
+    assert len(det["air_passes"]) == 1 and det["air_pass_period"] == 0.5
+    assert det["air_passes"][0] == pytest.approx([-0.25e-3, -0.1e-3, 1.5e-4])
     assert det["thicknesses"] == [3e-3] * 3 and det["kc"] == [KC["cfrp"], KC["ti"], KC["cfrp"]]
     assert det["feed_per_rev"] == pytest.approx([6e-6, 9e-6, 6e-6])
     assert [s["flag"] for s in ad["stages"]] == [0, 2, 3]
     assert [s["name"] for s in ad["stages"]] == ["cfrp", "ti", "cfrp"]
     # fail-safe: CFRP's 6 um/rev at Ti's 1000 rpm = 6 mm/min, 60 rpm orbit: no material's set
     assert ad["fail_parameters"] == pytest.approx({"feed_rate": 1e-4, "spindle_speed": 1000.0, "orbital_speed": 60.0})
-    # stop: the wait + the whole travel at 6 mm/min + 5 s
-    assert sc.stop_time == pytest.approx(0.5 + (traj["z_end"] - 0.0) / 1e-4 + 5.0)
+    # stop: the lift at 2 mm/s + the whole travel at 6 mm/min + 5 s
+    assert sc.stop_time == pytest.approx(0.55e-3 / 2e-3 + (traj["z_end"] + 0.55e-3) / 1e-4 + 5.0)
     assert any(s[0] == "drillcosim.analysis.detector_scoring:score_stack" for s in sc.scores)
 
 
