@@ -1075,6 +1075,8 @@ class InterfaceDetector(KernelBlock, Block):
         self.F_air_sd = NAN         # its spread (air_level)
         self.air_F = [NAN] * self.n     # air level measured at each layer's feed (the approach's, a gap's) [N]
         self.air_S = [NAN] * self.n     # and its spread [N]
+        self.pass_F = [NAN] * self.n    # air level [N] the approach's air passes measured at each layer's feed
+        self.pass_S = [NAN] * self.n    # and its spread [N] (_pass_air, taken at the entry's localisation)
         self.levels = [NAN] * self.n   # observed level of each layer when its tests armed
         self.x_arm = [NAN] * self.n    # encoder position [m] where each layer's tests first armed
         self.mismatch = NAN         # last observed/plan level ratio between two layers
@@ -1130,8 +1132,8 @@ class InterfaceDetector(KernelBlock, Block):
         latest), the last whole orbits of them (pass_P), their mean [N] and spread [N] (the rms, or
         less where it rings at the orbit: the noise, from successive differences, plus the most a
         sinusoid of the rest's amplitude moves a mean over them, as :func:`air_level`); kept for
-        every layer of the pass's feed (``air_F``, ``air_S``), taken at the events
-        (:meth:`_refresh_air`). Fewer than N_min samples: not measured."""
+        every layer of the pass's feed (``pass_F``, ``pass_S``) until the entry is located
+        (:meth:`_take_passes`). Fewer than N_min samples: not measured."""
         lo, _hi, feed = self.passes[self.pass_next]
         self.pass_next += 1
         j1 = j0 = self.h_n - 1
@@ -1152,7 +1154,16 @@ class InterfaceDetector(KernelBlock, Block):
             sd = min(sd, noise + ring)
         for i in range(self.n):
             if self.air_feed[i] == feed:
-                self.air_F[i], self.air_S[i] = F, sd
+                self.pass_F[i], self.pass_S[i] = F, sd
+
+    def _take_passes(self) -> None:
+        """The air passes' levels (:meth:`_pass_air`) become the air levels of their feeds once the
+        entry is located (the first layer's own, the approach's, is measured there); before that
+        the detector runs as without them. A feed a gap has measured keeps the gap's."""
+        for i in range(self.n):
+            if math.isnan(self.air_F[i]) and math.isfinite(self.pass_F[i]):
+                self.air_F[i], self.air_S[i] = self.pass_F[i], self.pass_S[i]
+        self._refresh_air()
 
     def _refresh_air(self) -> None:
         """F_air, F_air_sd: the air level measured at the current layer's feed, else at the
@@ -1587,6 +1598,8 @@ class InterfaceDetector(KernelBlock, Block):
             lo = max(lo, self.x_arm[k - 1])
         air = self.F_air if math.isfinite(self.F_air) else 0.0
         x_loc, t_loc, dx, F_air, F_air_sd = self._fit(k, x_trig, lo, x_trig + after, self.h_n, air)
+        if k == 0:
+            self._take_passes()
         if k == 0 and math.isfinite(x_loc) or 0 < k < self.n and math.isfinite(F_air):
             self._measure_air(k, F_air, F_air_sd)
         name = LOC_EVENTS[0] if k == 0 else LOC_EVENTS[-1] if k == self.n else f"interface{k}"
@@ -2184,6 +2197,7 @@ class InterfaceDetector(KernelBlock, Block):
         c.t_ev[:n + 1], c.x_ev[:n + 1], c.levels[:n] = self.t_ev, self.x_ev, self.levels
         c.x_arm[:n] = self.x_arm
         c.air_F[:n], c.air_S[:n] = self.air_F, self.air_S
+        c.pass_F[:n], c.pass_S[:n] = self.pass_F, self.pass_S
         c.if_P[:n - 1], c.if_ratio[:n - 1] = self.if_P, self.if_ratio
         c.loc[:] = [v for ev in LOC_EVENTS for v in self.loc[ev]]
         fill(c, err_n=0, err_pos=0, cand=0, cand_n=0, cand_e_n=0, cand_e_pos=0, n_pending=0)
@@ -2238,5 +2252,5 @@ _C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last x_level "
                                          "F_pred F_err F_level thd F_air F_air_sd mismatch orb_ref exit_cand_t "
                                          "exit_cand_x exit_cand_i exit_cand_M if_ref x_air".split()}}
-_C_LISTS = ("t_ev", "x_ev", "levels", "x_arm", "air_F", "air_S", "loc", "pending", "cand", "lcand", "err_hist",
+_C_LISTS = ("t_ev", "x_ev", "levels", "x_arm", "air_F", "air_S", "pass_F", "pass_S", "loc", "pending", "cand", "lcand", "err_hist",
             "cand_F", "cand_e")

@@ -80,6 +80,7 @@ typedef struct {
     double n_pending, pend_k[DET_EVENTS], pend_x[DET_EVENTS], pend_i[DET_EVENTS];
     double F_air, F_air_sd, levels[DET_MAX_LAYERS], mismatch, trim, settled, steady, loc[4 * DET_EVENTS];
     double air_F[DET_MAX_LAYERS], air_S[DET_MAX_LAYERS];   /* air level [N] and spread measured at each layer's feed */
+    double pass_F[DET_MAX_LAYERS], pass_S[DET_MAX_LAYERS]; /* the air passes' levels, taken at the entry's locate */
     /* the block's arrays and functions */
     const double *W;            /* weights of every window length N_min..N, one after the other */
     double *buf, *h_t, *h_x, *h_F, *err;
@@ -200,9 +201,20 @@ static void pass_air(Detector *s)
     }
     for (int i = 0; i < (int)s->n; i++)
         if (s->air_feed[i] == s->pass_feed[p]) {
-            s->air_F[i] = F;
-            s->air_S[i] = sd;
+            s->pass_F[i] = F;
+            s->pass_S[i] = sd;
         }
+}
+
+/* interface_detector.py _take_passes: the passes' levels for the feeds no gap has measured */
+static void take_passes(Detector *s)
+{
+    for (int i = 0; i < (int)s->n; i++)
+        if (isnan(s->air_F[i]) && isfinite(s->pass_F[i])) {
+            s->air_F[i] = s->pass_F[i];
+            s->air_S[i] = s->pass_S[i];
+        }
+    refresh_air(s);
 }
 
 /* interface_detector.py _above_air: F over the air offset */
@@ -816,6 +828,8 @@ static void locate(Detector *s, int k, double x_trig, double before, double afte
     double sd = s->loc_sd[k == 0 ? 0 : k == n ? 2 : 1];
     s->loc[4 * name + 2] = sqrt(out[2] * out[2] + sd * sd);
     s->loc[4 * name + 3] = t_now;
+    if (k == 0)
+        take_passes(s);
     if ((k == 0 && isfinite(out[0])) || (k > 0 && k < n && isfinite(out[3])))
         measure_air(s, k, out[3], out[4]);
     if (!(k == 0 && s->entry_rs != 0.0))

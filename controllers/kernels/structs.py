@@ -151,5 +151,6 @@ class Detector(ctypes.Structure):
                  "thd h_n n_pending") + \
         [("pend_k", _D * DET_EVENTS), ("pend_x", _D * DET_EVENTS), ("pend_i", _D * DET_EVENTS), ("F_air", _D), ("F_air_sd", _D),
          ("levels", _D * DET_LAYERS), ("mismatch", _D), ("trim", _D), ("settled", _D), ("steady", _D),
-         ("loc", _D * (4 * DET_EVENTS)), ("air_F", _D * DET_LAYERS), ("air_S", _D * DET_LAYERS)] + \
+         ("loc", _D * (4 * DET_EVENTS)), ("air_F", _D * DET_LAYERS), ("air_S", _D * DET_LAYERS),
+         ("pass_F", _D * DET_LAYERS), ("pass_S", _D * DET_LAYERS)] + \
         [(n, ctypes.c_void_p) for n in "W buf h_t h_x h_F err dot locate".split()]
