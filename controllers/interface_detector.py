@@ -2231,7 +2231,7 @@ class InterfaceDetector(KernelBlock, Block):
             return _C_SCALARS[name](getattr(s, name))
         if name in ("t_ev", "x_ev"):
             return list(getattr(s, name)[:n + 1])
-        if name in ("levels", "x_arm", "air_F", "air_S"):
+        if name in ("levels", "x_arm", "air_F", "air_S", "pass_F", "pass_S"):
             return list(getattr(s, name)[:n])
         if name == "loc":
             return {ev: list(s.loc[4 * j:4 * j + 4]) for j, ev in enumerate(LOC_EVENTS)}

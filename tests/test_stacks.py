@@ -98,6 +98,15 @@ def test_a_plans_own_approach_waits_for_the_observer_to_settle(approach, wait):
     assert traj["pass_z"] == pytest.approx([1e-3 - approach], abs=1e-12) and traj["pass_feed"] == [1.5e-4]
 
 
+def test_air_passes_one_per_other_feed_and_named_when_bad():
+    # every layer at the CFRP's feed: nothing to measure before the contact
+    one = {"hole.process.ti.feed_rate": 2.0e-4}
+    traj = load_scenario(STACKS / "cfrp_ti_cfrp.toml", overrides=one).raw["blocks"]["trajectory"]["settings"]
+    assert "pass_z" not in traj
+    with pytest.raises(ScenarioError, match="hole.air_passes"):
+        load_scenario(STACKS / "cfrp_ti_cfrp.toml", overrides={"hole.air_passes": "yes"})
+
+
 def test_a_plans_approach_long_enough_does_not_wait():
     # 0.7 mm of air above the entry window at 0.2 mm/s: 3.5 s, more than the 3 s (6 orbits) it needs
     sc = load_scenario(STACKS / "cfrp_ti_cfrp.toml", overrides={"hole.approach": 1.2e-3, "hole.surface": 2.0e-3,
