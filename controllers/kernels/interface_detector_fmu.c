@@ -202,6 +202,21 @@ static const LocGrid *detector_process_change(const DetectorFMU *s, int k, const
     return fall;
 }
 
+/* InterfaceDetector._air_shift: the air level's step at interface k's change of feed (the lower
+ * feed's measured level less the upper's), taken out of the window's thrust F[0..m) at the times
+ * t [s] along the adaptation's raised cosine from the trigger; returns the step (0: none) */
+static double detector_air_shift(const DetectorFMU *s, int k, const double *t, long m, double *F)
+{
+    double t_ev = s->d.t_ev[k], delta = s->d.air_F[k] - s->d.air_F[k - 1], ramp = s->process_ramp;
+    if (s->process == 0.0 || s->d.fail != 0.0 || !isfinite(t_ev) || !isfinite(delta) || delta == 0.0)
+        return 0.0;
+    for (long j = 0; j < m; j++) {
+        double v = ramp > 0.0 ? loc_clip01((t[j] - t_ev) / ramp) : t[j] >= t_ev ? 1.0 : 0.0;
+        F[j] = F[j] - delta * (0.5 * (1.0 - cos(DET_PI * v)));
+    }
+    return delta;
+}
+
 /* InterfaceDetector._fit: out = x_loc [m], t_loc [s], dx [m], F_air [N], F_air_sd [N] */
 /* the samples (x, F, t) with x <= end [m], moved to the front in their order; returns their count */
 static long detector_keep_upto(double end, double *x, double *F, double *t, long m)
@@ -398,14 +413,20 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
                        && (d->loc_after[k - 1] < d->max_gap + d->push_out + d->locate_margin
                            || d->level_plan[k] > d->level_plan[k - 1])
         ? detector_window_cut_floor(d, k) : NAN;
+    /* an interface's window in the upper layer's feed's air throughout (InterfaceDetector._fit) */
+    double shift = kind == LOC_INTERFACE ? detector_air_shift(s, k, tsel, m, Fsel) : 0.0;
+    air -= shift;
+    cut_floor -= shift;
     double period = kind == LOC_EXIT ? s->exit_period : kind == LOC_ENTRY ? s->entry_period : 0.0;
     double if_ghost[2];
     const double *ghost = kind == LOC_EXIT ? s->exit_ghost : kind == LOC_INTERFACE ? interface_ghost(s, k, if_ghost) : NULL;
     LocGrid fall_grid;
     const LocGrid *fall = kind == LOC_INTERFACE ? detector_process_change(s, k, tsel, m, &push, share, &fall_grid) : NULL;
     event_locate(kind, xsel, Fsel, m, air, x_trig, cut_floor, period, ghost, &engage, &push, fall, &out[0], &out[2]);
-    if (kind == LOC_INTERFACE && isfinite(out[0]))
+    if (kind == LOC_INTERFACE && isfinite(out[0])) {
         detector_gap_air(s, k, xsel, Fsel, tsel, m, air, cut_floor, out[0], scratch, &out[3]);
+        out[3] += shift;
+    }
     if (kind == LOC_ENTRY) {
         detector_entry_once(d, xsel, Fsel, m, hi, x_trig, air, period, &engage, &push, scratch, out);
         /* InterfaceDetector._entry_fit: again on the samples up to where the plan's first layer
