@@ -917,8 +917,11 @@ class InterfaceDetector(KernelBlock, Block):
         """How far [N] the air level moves at interface k's change of feed, the lower layer's feed's
         measured level less the upper's, and that step at the force samples' times ``t`` [s]
         (blended by the adaptation's raised cosine from the trigger, as :meth:`_process_change`);
-        None where either level is unmeasured, they agree, or the plan gives no process (or the hole
-        has failed). The window's thrust less it is in the upper feed's air throughout. Why: the
+        None where either level is unmeasured, the step stands within AIR_OFFSET_K of their spreads
+        (as :meth:`_air_offset` takes an offset), or the plan gives no process (or the hole has
+        failed): a 2.4 N step within 1.6 spreads moved an Al/CFRP interface's gap from -0.003 to
+        -0.035 mm (the same draw's hole 16: the Al's push-out tail, 1-3 N over its air, was taken
+        for air). The window's thrust less it is in the upper feed's air throughout. Why: the
         air level moves with the feed (:meth:`_measure_air`), and an interface's window holds both:
         the upper layer's push-out before the trigger, the gap after it. Against the lower feed's
         air alone, 8.9 N above the upper's, a 25 N aluminium layer's push-out reached "air" 0.18 mm
@@ -927,7 +930,7 @@ class InterfaceDetector(KernelBlock, Block):
         if self.process is None or self.fail or not math.isfinite(self.t_ev[k]):
             return None
         delta = self.air_F[k] - self.air_F[k - 1]
-        if not math.isfinite(delta) or delta == 0.0:
+        if not (math.isfinite(delta) and abs(delta) > AIR_OFFSET_K * max(self.air_S[k], self.air_S[k - 1])):
             return None
         ramp = self.process[2]
         s = np.clip((t - self.t_ev[k]) / ramp, 0.0, 1.0) if ramp > 0.0 else (t >= self.t_ev[k]).astype(float)

@@ -203,13 +203,14 @@ static const LocGrid *detector_process_change(const DetectorFMU *s, int k, const
 }
 
 /* InterfaceDetector._air_shift: the air level's step at interface k's change of feed (the lower
- * feed's measured level less the upper's), taken out of the window's thrust F[0..m) at the times
+ * feed's measured level less the upper's, where it stands out of their spreads), taken out of the window's thrust F[0..m) at the times
  * t [s] along the adaptation's raised cosine from the trigger; returns the step (0: none) */
 static double detector_air_shift(const DetectorFMU *s, int k, const double *t, long m, double *F)
 {
     double t_ev = s->d.t_ev[k], delta = s->d.air_F[k] - s->d.air_F[k - 1], ramp = s->process_ramp;
-    if (s->process == 0.0 || s->d.fail != 0.0 || !isfinite(t_ev) || !isfinite(delta) || delta == 0.0)
-        return 0.0;
+    if (s->process == 0.0 || s->d.fail != 0.0 || !isfinite(t_ev)
+            || !(isfinite(delta) && fabs(delta) > DET_AIR_OFFSET_K * MAX(s->d.air_S[k], s->d.air_S[k - 1])))
+        return 0.0;     /* a step within AIR_OFFSET_K of the levels' spreads is none (_air_shift) */
     for (long j = 0; j < m; j++) {
         double v = ramp > 0.0 ? loc_clip01((t[j] - t_ev) / ramp) : t[j] >= t_ev ? 1.0 : 0.0;
         F[j] = F[j] - delta * (0.5 * (1.0 - cos(DET_PI * v)));
