@@ -104,7 +104,7 @@ def test_keio_observer_protocol():
 
 
 def _fang_run(T=14.0, h=1e-4, seed=0, F_dc=150.0, ripple=0.2, phase=0.6, f_orb=2.0, switch=None, t_on=1.0,
-              **obs_kw):
+              lift=0.0, **obs_kw):
     """Ball-screw stand-in: J +5 %, K_T -3 %, Coulomb 0.05 N m + viscous 0.01 N m s/rad,
     cogging 8 mN m at 6/rev, 10 mA current noise, 5 um scale and 2^17 motor encoder; the
     table feeds at 0.2 mm/s under a stiff PD + integral loop; thrust = F_dc (ramped in over
@@ -112,7 +112,8 @@ def _fang_run(T=14.0, h=1e-4, seed=0, F_dc=150.0, ripple=0.2, phase=0.6, f_orb=2
     [s], F_dc [N], f_orb [Hz]): a layer change, the thrust ramping to the new F_dc over the
     0.5 s before t_s (the tool's engagement) and the orbit switching at t_s (the detector's
     trigger, the adaptation's new process); the observer then reads the orbital speed [rpm]
-    as its input."""
+    as its input. ``lift`` [s]: the table first retreats at 2 mm/s for that long (a hole plan's
+    lift above its start), then feeds; the thrust's times are counted from the feed's start."""
     rng = np.random.default_rng(seed)
     J, KT, Kp, eta = 0.0003 * 1.05, 1.10 * 0.97, 0.637e-3, 0.95
     tc, D, cog = 0.05, 0.01, 0.008
@@ -123,11 +124,12 @@ def _fang_run(T=14.0, h=1e-4, seed=0, F_dc=150.0, ripple=0.2, phase=0.6, f_orb=2
     obs.reset(0.0)
     th = w = integ = 0.0
     res = 2 * math.pi / 131072
-    w_ref = 0.2e-3 / Kp
+    w_ref, w_lift = 0.2e-3 / Kp, -2e-3 / Kp
     rows = []
     phi = 0.0
     for k in range(int(T / h)):
-        t = k * h
+        t_abs = k * h
+        t = t_abs - lift                # the feed's time
         level, f = F_dc, f_orb
         if switch:
             level += (switch[1] - F_dc) * min(max((t - switch[0]) / 0.5 + 1.0, 0.0), 1.0)
@@ -136,12 +138,13 @@ def _fang_run(T=14.0, h=1e-4, seed=0, F_dc=150.0, ripple=0.2, phase=0.6, f_orb=2
         Fr = ripple * Fdc * math.sin(phi + phase)
         phi += 2 * math.pi * f * h
         thq = math.floor(th / res) * res
-        e = w_ref * t - thq
+        th_ref, w_now = (w_lift * t_abs, w_lift) if t < 0.0 else (w_lift * lift + w_ref * t, w_ref)
+        e = th_ref - thq
         integ += e * h
-        i = (0.0003 * (400.0 * 400.0 * e + 2 * 400.0 * (w_ref - w) + 400.0 ** 3 / 4 * integ)) / 1.10
+        i = (0.0003 * (400.0 * 400.0 * e + 2 * 400.0 * (w_now - w) + 400.0 ** 3 / 4 * integ)) / 1.10
         i_m = i + 0.01 * rng.standard_normal()
         x = math.floor(Kp * th / 5e-6) * 5e-6
-        out = obs.step(t, (i_m, x, thq, 60.0 * f) if switch else (i_m, x, thq))
+        out = obs.step(t_abs, (i_m, x, thq, 60.0 * f) if switch else (i_m, x, thq))
         rows.append((t, Fdc, Fr, *out))
         tau = KT * i - (Kp / eta) * (Fdc + Fr) - cog * math.sin(6 * th) - (tc * np.sign(w) + D * w)
         w += tau / J * h
@@ -166,6 +169,19 @@ def _dc_swing(r, t0, t1):
     detector's F~ sees; the K_T error's constant offset taken out)."""
     t, err = r[:, 0], r[:, 3] - r[:, 1]
     return float(np.ptp(err[(t > t0) & (t < t1)])) / 2.0
+
+
+def test_fang_observer_hold_in_air_outlasts_a_retreat():
+    """A hole plan with no room for its air passes lifts the tool above its start first (2 mm/s);
+    the retreat's thrust (the friction model's error in reverse) is no air level and no contact
+    comes while the tool moves away: theta stays held through it. Counted as motion, the swings
+    at the reversal released it in air and F_dc_hat rang at the orbit up to the contact (plant
+    options, seed 31, foreign2 hole 110: +-6 N at 0.6 Hz, a Ti entry -0.116 mm off). Measured
+    from 3 s of feed to the contact: +-4.6 N held through the retreat, +-10.2 N counted as
+    motion; bar 6 N (1.3x margin)."""
+    base = dict(T=12.5, ripple=0.1, f_orb=0.75, t_on=6.0, lift=1.5)
+    on = _fang_run(ripple_adapt_from=20.0, ripple_adapt_time=0.25, **base)
+    assert _dc_swing(on, 3.0, 6.0) < 6.0          # feed time: from 3 s of feed to the contact
 
 
 def test_fang_observer_reconverges_after_an_orbit_change():

@@ -182,7 +182,7 @@ static double ripple_scale(FangObserver *o)
 }
 
 /* 1 while theta is held (_ripple_held): until F_prev stays adapt_from above F_air for more
- * than n_adapt samples while the motor turns,
+ * than n_adapt samples while the motor feeds (turns forward), F_air held while it retreats,
  * F_dc_hat's mean while held (exponential over 1/lambda) */
 static int ripple_held(FangObserver *o)
 {
@@ -193,14 +193,15 @@ static int ripple_held(FangObserver *o)
         o->F_air = F;
     } else {
         double w = o->use_theta ? o->w_enc : o->x[1];
-        int moving = w > FANG_STILL_RAD_S || w < -FANG_STILL_RAD_S;
-        o->n_rise = moving && F - o->F_air > o->adapt_from ? o->n_rise + 1 : 0;
+        o->n_rise = w > FANG_STILL_RAD_S && F - o->F_air > o->adapt_from ? o->n_rise + 1 : 0;
         if (o->n_rise > o->n_adapt) {
             o->adapt = 1;
             return 0;
         }
-        double a = o->fdecay;
-        o->F_air = a * o->F_air + (1.0 - a) * F;
+        if (w >= -FANG_STILL_RAD_S) {    /* a retreat's thrust is no air level (_ripple_held) */
+            double a = o->fdecay;
+            o->F_air = a * o->F_air + (1.0 - a) * F;
+        }
     }
     o->n_held = o->n_held + 1;
     return 1;
