@@ -1207,16 +1207,23 @@ class InterfaceDetector(KernelBlock, Block):
         with the layer above's (the plan's materials, issue 23); a disagreement beyond
         mismatch_factor is a fail. A level below the plan's ratio (a gap's, or the
         engagement ramp's) is only final once the tool may have crossed a gap
-        (_past_gap): until then it is not taken, and a later settled level may be."""
+        (_past_gap): until then it is not taken, and a later settled level may be. Where the
+        layer above has no level (thin, never quiet), the ratio is taken against the nearest
+        layer above that has one, for that gate alone: taken unchecked, an Al layer's level of
+        3.9 N on its engagement ramp below a 0.63 mm gap (its plateau: 23 N) set its rise test's
+        threshold to 8 N, and the noise fired the interface 1 mm inside the Al (wide draw seed
+        29, foreign2 hole 199: al/cfrp/al/cfrp, the CFRP 1.17 mm; a false exit followed)."""
         k = self.flag - 1
-        if not (self.mismatch_factor > 0 and k >= 1 and self._above_air(self.levels[k - 1]) > 0):
+        j = next((i for i in range(k - 1, -1, -1) if self._above_air(self.levels[i]) > 0), None)
+        if not (self.mismatch_factor > 0 and j is not None):
             self.levels[k] = self.F_level
             return
-        ratio = (self._above_air(self.F_level) / self._above_air(self.levels[k - 1])) \
-            / (self.level_plan[k] / self.level_plan[k - 1])
+        ratio = (self._above_air(self.F_level) / self._above_air(self.levels[j])) / (self.level_plan[k] / self.level_plan[j])
         if ratio < 1.0 and not self._past_gap(x):
             return
         self.levels[k] = self.F_level
+        if j < k - 1:       # the layer above has no level: the gate only, the materials check is between neighbours
+            return
         self.mismatch = ratio
         if not 1.0 / self.mismatch_factor <= ratio <= self.mismatch_factor:
             self._set_fail(self.n + 2, t, x)

@@ -37,11 +37,47 @@ def test_a_soft_layer_s_test_arms_on_its_level_not_its_ramp(kernel):
     assert not det.levels[2] < 20.0                      # its level not taken on the ramp (none yet: NaN)
 
 
+def _half_threshold_only(det):
+    det._level_rises = lambda: (det.h_n >= 2 * det.N_min and det._hist_mean(det.h_n - det.N_min, det.h_n)
+                                - det._hist_mean(det.h_n - 2 * det.N_min, det.h_n - det.N_min)
+                                > 0.5 * det._layer_threshold(det.F_level))
+
+
 def test_without_the_level_s_share_it_armed_on_the_foot_and_fired():
-    def half_threshold_only(det):
-        det._level_rises = lambda: (det.h_n >= 2 * det.N_min and det._hist_mean(det.h_n - det.N_min, det.h_n)
-                                    - det._hist_mean(det.h_n - 2 * det.N_min, det.h_n - det.N_min)
-                                    > 0.5 * det._layer_threshold(det.F_level))
-    out, det = _run("python", half_threshold_only)
+    # the level's gate against the nearest layer with a level (round 25: the thin Ti has none)
+    # keeps the Al's level off its ramp too; without both, the rise test fired
+    def neither(det):
+        _half_threshold_only(det)
+        det.mismatch_factor = 0.0        # no gate at all: the first quiet level is taken
+    out, det = _run("python", neither)
     assert out["flag"] == 4 and out["x_interface3"] < 12.95 * MM     # the false interface
     assert det.levels[2] < 6.0 and not math.isnan(det.levels[2])
+    out, det = _run("python", _half_threshold_only)
+    assert out["flag"] == 3 and math.isnan(det.levels[2])           # the gate alone: no false event
+
+
+# Seed 29, foreign2 hole 199 (tests/data/level_after_thin_layer_gap.csv, the air passes included,
+# up to 50 s): al 3.50 mm / cfrp 1.17 / gap 0.63 / al 1.51 / gap 0.56 / cfrp (planned thicknesses),
+# Al at 18.3 mm/min, CFRP at 5.6. The thin CFRP never took a level; the Al below the gap took the
+# first quiet one, 3.9 N on its engagement ramp (its plateau: 23 N), and its rise test's threshold
+# with it (8 N): the noise fired the interface 1 mm inside the Al, at 10.78 mm.
+GATE_PLAN = hole_plan([("al", 3.495861e-3, 0.524379e-3), ("cfrp", 1.173388e-3, 0.176008e-3),
+                       ("al", 1.514730e-3, 0.227209e-3), ("cfrp", 2.083990e-3, 0.312599e-3)],
+                      {"al": (3.0569781e-4, 3707.428, 93.38336), "cfrp": (9.316827e-05, 549.1054, 280.5659)},
+                      4.132422e-3)
+AL3 = (10.08 * MM, 11.77 * MM)       # the lower Al's top and free face (encoder)
+
+
+@pytest.mark.parametrize("kernel", [None, "python"])
+def test_a_level_after_a_layer_without_one_is_gated_by_the_nearest_level(kernel):
+    out, det = run_recorded("foreign2_cfrp_ti.toml", {**GATE_PLAN, "hole.air_passes": True},
+                            "level_after_thin_layer_gap", kernel)
+    assert not out["x_interface3"] < AL3[1] - 0.1 * MM        # not inside the Al (measured 11.754 mm)
+    assert not det.levels[2] < 10.0                         # not on its ramp (NaN: none taken)
+
+
+def test_without_the_gate_the_ramp_s_level_fired_inside_the_al():
+    out, det = run_recorded("foreign2_cfrp_ti.toml", {**GATE_PLAN, "hole.air_passes": True},
+                            "level_after_thin_layer_gap", "python", lambda d: setattr(d, "mismatch_factor", 0.0))
+    assert AL3[0] < out["x_interface3"] < AL3[1] - 0.5 * MM   # measured 10.78 mm
+    assert det.levels[2] < 5.0

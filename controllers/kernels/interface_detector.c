@@ -346,16 +346,20 @@ static int past_gap(const Detector *s, double x)
 
 static void check_level(Detector *s, double t, double x)
 {
-    int k = (int)s->flag - 1;
-    if (!(s->mismatch_factor > 0.0 && k >= 1 && above_air(s, s->levels[k - 1]) > 0.0)) {
+    int k = (int)s->flag - 1, j = k - 1;
+    while (j >= 0 && !(above_air(s, s->levels[j]) > 0.0))    /* the nearest layer above with a level */
+        j--;
+    if (!(s->mismatch_factor > 0.0 && j >= 0)) {
         s->levels[k] = s->F_level;
         return;
     }
-    double ratio = (above_air(s, s->F_level) / above_air(s, s->levels[k - 1])) / (s->level_plan[k] / s->level_plan[k - 1]);
+    double ratio = (above_air(s, s->F_level) / above_air(s, s->levels[j])) / (s->level_plan[k] / s->level_plan[j]);
     /* interface_detector.py _past_gap: a level below the plan ratio may be a gap.s or a ramp.s: final past the gap */
     if (ratio < 1.0 && !past_gap(s, x))
         return;
     s->levels[k] = s->F_level;
+    if (j < k - 1)      /* the gate only: the materials check is between neighbours */
+        return;
     s->mismatch = ratio;
     if (!(1.0 / s->mismatch_factor <= ratio && ratio <= s->mismatch_factor))
         set_fail(s, (int)s->n + 2, t, x);
