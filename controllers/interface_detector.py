@@ -899,12 +899,10 @@ class InterfaceDetector(KernelBlock, Block):
         the hole has failed (the fail-safe's set is in force then)."""
         if self.process is None or self.fail or not math.isfinite(self.t_ev[k]):
             return None
-        feed, fpr, ramp = self.process
+        feed, fpr, _ramp = self.process
         fa, fb = feed[k - 1], feed[k]
         na, nb = fa / fpr[k - 1], fb / fpr[k]
-        s = np.clip((t - self.t_ev[k]) / ramp, 0.0, 1.0) if ramp > 0.0 else (t >= self.t_ev[k]).astype(float)
-        # libm's cosine, as the C twin's (numpy's vectorised one may differ in the last bit)
-        r = np.array([0.5 * (1.0 - math.cos(math.pi * v)) for v in s.tolist()])
+        r = self._blend(k, t)
         f = (fa + r * (fb - fa)) / (na + r * (nb - na))
         x_feed = self.exit_feed_exponent
         # libm's pow too (a square root at 0.5, as numpy's **): numpy's vectorised pow is SVML's on
@@ -932,9 +930,15 @@ class InterfaceDetector(KernelBlock, Block):
         delta = self.air_F[k] - self.air_F[k - 1]
         if not (math.isfinite(delta) and abs(delta) > AIR_OFFSET_K * max(self.air_S[k], self.air_S[k - 1])):
             return None
+        return delta, delta * self._blend(k, t)
+
+    def _blend(self, k: int, t) -> np.ndarray:
+        """The adaptation's raised-cosine blend (0 -> 1) from interface k's trigger over the
+        plan's ramp, at the force samples' times ``t`` [s] (CuttingParameterAdaptation's)."""
         ramp = self.process[2]
         s = np.clip((t - self.t_ev[k]) / ramp, 0.0, 1.0) if ramp > 0.0 else (t >= self.t_ev[k]).astype(float)
-        return delta, np.array([delta * (0.5 * (1.0 - math.cos(math.pi * v))) for v in s.tolist()])
+        # libm's cosine, as the C twin's (numpy's vectorised one may differ in the last bit)
+        return np.array([0.5 * (1.0 - math.cos(math.pi * v)) for v in s.tolist()])
 
     def _exit_release(self) -> tuple[float, float] | None:
         """The exit's released push-out for event_locator.locate: (compliance [m/N], x_feed), None when off."""

@@ -573,8 +573,9 @@ def expand(raw: dict, error, origin: str = "[hole]") -> dict:
     for k, v in traj.items():
         _derive(raw, f"blocks.{tname}.settings.{k}", v, error, origin)
     dset = plan.detector(window_s, _adapt_ramp(raw, blocks, aname, error, origin))
-    if plan.passes():
-        dset.update(air_passes=plan.pass_windows(traj["z_approach_end"]), air_pass_period=plan.orbit_period(0))
+    windows = plan.pass_windows(traj["z_approach_end"])
+    if windows:
+        dset.update(air_passes=windows, air_pass_period=plan.orbit_period(0))
     for k, v in dset.items():
         _derive(raw, f"blocks.{dname}.settings.{k}", v, error, origin)
     forgetting = _observer_forgetting(blocks.get(plan.names["observer"]))

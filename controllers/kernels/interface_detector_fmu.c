@@ -175,6 +175,14 @@ static const double *interface_ghost(const DetectorFMU *s, int k, double *ghost)
     return ghost[0] > 0.0 ? ghost : NULL;
 }
 
+/* InterfaceDetector._blend: the adaptation's raised-cosine blend (0 -> 1) at time t [s] from the
+ * trigger at t_ev [s] over ramp [s] (libm's cos, as the Python's math.cos) */
+static double detector_blend(double t, double t_ev, double ramp)
+{
+    double v = ramp > 0.0 ? loc_clip01((t - t_ev) / ramp) : t >= t_ev ? 1.0 : 0.0;
+    return 0.5 * (1.0 - cos(DET_PI * v));
+}
+
 /* InterfaceDetector._process_change: the adaptation's process change at interface k's trigger
  * -- the share (f(t) / f_{k-1})^x_feed of the feed per revolution commanded at the force samples'
  * times t[0..m) [s], feed rate and spindle speed each blended by the raised cosine (cos, pow:
@@ -190,8 +198,7 @@ static const LocGrid *detector_process_change(const DetectorFMU *s, int k, const
     double fa = s->layer_feed_rate[k - 1], fb = s->layer_feed_rate[k], f_up = s->layer_feed_per_rev[k - 1];
     double na = fa / f_up, nb = fb / s->layer_feed_per_rev[k], ramp = s->process_ramp, x_feed = s->exit_release[1];
     for (long j = 0; j < m; j++) {
-        double v = ramp > 0.0 ? loc_clip01((t[j] - t_ev) / ramp) : t[j] >= t_ev ? 1.0 : 0.0;
-        double r = 0.5 * (1.0 - cos(DET_PI * v));
+        double r = detector_blend(t[j], t_ev, ramp);
         double q = (fa + r * (fb - fa)) / (na + r * (nb - na)) / f_up;
         share[j] = x_feed == 0.5 ? sqrt(q) : pow(q, x_feed);    /* numpy's ** 0.5 is its sqrt (pow: a last bit apart) */
     }
@@ -211,10 +218,8 @@ static double detector_air_shift(const DetectorFMU *s, int k, const double *t, l
     if (s->process == 0.0 || s->d.fail != 0.0 || !isfinite(t_ev)
             || !(isfinite(delta) && fabs(delta) > DET_AIR_OFFSET_K * MAX(s->d.air_S[k], s->d.air_S[k - 1])))
         return 0.0;     /* a step within AIR_OFFSET_K of the levels' spreads is none (_air_shift) */
-    for (long j = 0; j < m; j++) {
-        double v = ramp > 0.0 ? loc_clip01((t[j] - t_ev) / ramp) : t[j] >= t_ev ? 1.0 : 0.0;
-        F[j] = F[j] - delta * (0.5 * (1.0 - cos(DET_PI * v)));
-    }
+    for (long j = 0; j < m; j++)
+        F[j] = F[j] - delta * detector_blend(t[j], t_ev, ramp);
     return delta;
 }
 
