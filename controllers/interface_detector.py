@@ -206,7 +206,12 @@ LOC_QUANTITIES = (("x", "m", "located encoder position"),
                   ("tknown", "s", "time the located position became known"))
 
 
-def without_gap_head(sel, F, floor: float):
+# the share of the last layer's level over air its thrust reaches where the exit window's
+# head leaves the layer's ramp (InterfaceDetector._exit_head_floor)
+EXIT_HEAD_SHARE = 0.8
+
+
+def without_gap_head(sel, F, floor: float, upto=None):
     """The window ``sel`` (a contiguous run of the history, bool) less its head where that lies in
     a gap: where the median thrust ``F`` [N] of its first 2 MIN_SEGMENT samples is below the
     layer's engagement ``floor`` [N], up to its first run of 2 MIN_SEGMENT samples at or above it
@@ -216,16 +221,21 @@ def without_gap_head(sel, F, floor: float):
     early on the upper layer's push-out that bound lies in the gap above the layer. The gap's end
     and the layer's onset were then the window's one change, and the fit took the onset for the
     interface below the layer (wide draw, foreign seed-23 hole 142: Al 0.89 mm between gaps of
-    0.29 and 0.94 mm, located at its top, -0.88 mm)."""
+    0.29 and 0.94 mm, located at its top, -0.88 mm). ``upto`` (bool, as ``sel``) or None: the
+    head ends at the window's last sample where it is True at the latest (the exit's: where the
+    layer's tests armed, on its plateau, whether a run reaches the floor or not)."""
     idx = np.flatnonzero(sel)
     m = 2 * MIN_SEGMENT
     if idx.size < 2 * m or not float(np.median(F[idx[:m]])) < floor:
         return sel
     runs = np.convolve((F[idx] >= floor).astype(int), np.ones(m, int), "valid") == m
-    if not runs.any():
+    head = int(np.argmax(runs)) if runs.any() else idx.size
+    if upto is not None:
+        head = min(head, int(np.count_nonzero(upto[idx])))
+    if head == 0 or head >= idx.size:
         return sel
     out = sel.copy()
-    out[idx[:int(np.argmax(runs))]] = False
+    out[idx[:head]] = False
     return out
 
 
@@ -1681,6 +1691,9 @@ class InterfaceDetector(KernelBlock, Block):
         kind = "entry" if k == 0 else "exit" if k == self.n else "interface"
         if kind == "interface" and self.relative:
             sel = without_gap_head(sel, hF, self._air_offset() + self.floor[k - 1])
+        if kind == "exit" and (head := self._exit_head_floor(air)) is not None:
+            arm = self.x_arm[k - 1]
+            sel = without_gap_head(sel, hF, head, upto=xs <= arm if math.isfinite(arm) else None)
         # a window shortened to a thin layer below may end in the gap; on a rise the gap's air, at
         # the lower layer's feed, may stand above a low upper layer's air test (_window_cut_floor)
         floor = self._window_cut_floor(k) if self.relative and kind == "interface" and \
@@ -1870,6 +1883,18 @@ class InterfaceDetector(KernelBlock, Block):
         """The entry's fit with the first layer's orbit sinusoid (event_locator.onset_face):
         its period [samples], None without one."""
         return self.entry_orbit_period / self.sample_period if self.entry_orbit_period > 0.0 else None
+
+    def _exit_head_floor(self, air: float) -> float | None:
+        """The thrust [N] under which the exit window's head is still on the last layer's
+        ramp: EXIT_HEAD_SHARE of its plateau level over the air level ``air`` [N] (F_ref, the
+        exit test's: the highest regression level since the layer's tests armed); None
+        without one above air. Why: the window reaches back a margin past the last
+        interface's trigger, and on a thin last layer that is on its ramp; the push-out's
+        fit (a level with a trend, then the fall) took the ramp for its plateau's trend and
+        stretched the fall to its longest length (plant-options draw, seed 30, foreign hole 20:
+        1.15 mm of Al, its quadratic push-out's end +0.119 mm late; from the ramp's top, +0.01)."""
+        level = self.F_ref - air
+        return air + EXIT_HEAD_SHARE * level if self.relative and level > 0.0 else None
 
     def _exit_period_samples(self) -> float | None:
         """The exit's fit on means over one orbit of the last layer (event_locator.free_face):

@@ -278,6 +278,22 @@ def test_the_c_locator_s_constants_are_event_locator_s():
         assert float(value) == pytest.approx(py, rel=1e-12), name
 
 
+def test_the_c_detector_s_constants_are_interface_detector_s():
+    """Every ``#define DET_<name> <value> /* interface_detector[.py][.]<NAME> */`` of the in-loop
+    and the exported kernels holds the Python module's value (one side changed alone would make
+    the C step, or the exported FMU, detect or locate differently from the Python reference)."""
+    import re
+    from drillcosim.controllers import interface_detector
+    kernels = Path(interface_detector.__file__).parent / "kernels"
+    found = []
+    for name in ("interface_detector.c", "interface_detector_fmu.c"):
+        src = (kernels / name).read_text()
+        found += re.findall(r"#define DET_\w+\s+([-+.\deE]+)\s+/\*\s*interface_detector(?:\.py)?[ .]([A-Z_]+)\b", src)
+    assert len(found) >= 12
+    for value, name in found:
+        assert float(value) == pytest.approx(getattr(interface_detector, name), rel=1e-12), name
+
+
 @pytest.mark.parametrize("name", ["interface_window_ti_cfrp_drop", "interface_window_ti_cfrp_drop_project"])
 def test_c_fit_of_a_narrow_drop_refits_its_onset_from_the_free_face(name):
     """Recorded windows (tests/data/<name>.json: wide draw, foreign2 seed-23 hole 176, Ti at

@@ -18,6 +18,7 @@
 #define DET_AIR_RING_ORBITS 2.0   /* interface_detector.AIR_RING_ORBITS */
 #define DET_ENTRY_RAMP_SLACK 1.5  /* interface_detector.ENTRY_RAMP_SLACK */
 #define DET_PI 3.141592653589793  /* math.pi */
+#define DET_EXIT_HEAD_SHARE 0.8   /* interface_detector.EXIT_HEAD_SHARE */
 #include "event_locator.c"
 #include "interface_detector.c"
 
@@ -297,10 +298,12 @@ static int detector_layer_end(const Detector *d, const double *xsel, const doubl
 
 /* interface_detector.without_gap_head: the window (m samples) less its head where that lies in a
  * gap (the median of its first 2 MIN_SEGMENT samples below the layer's floor), up to its first
- * run of 2 MIN_SEGMENT samples at or above the floor; the samples left */
-static long detector_gap_head(double *xsel, double *Fsel, double *tsel, long m, double floor, double *scratch)
+ * run of 2 MIN_SEGMENT samples at or above the floor, and at most its first upto samples (< 0:
+ * no bound); the samples left */
+static long detector_gap_head(double *xsel, double *Fsel, double *tsel, long m, double floor, long upto,
+                              double *scratch)
 {
-    long seg = 2 * LOC_MIN_SEGMENT, head = 0, run = 0;
+    long seg = 2 * LOC_MIN_SEGMENT, head = m, run = 0;
     if (m < 2 * seg || !(loc_median(Fsel, seg, scratch) < floor))
         return m;
     for (long i = 0; i < m; i++) {
@@ -310,7 +313,9 @@ static long detector_gap_head(double *xsel, double *Fsel, double *tsel, long m, 
             break;
         }
     }
-    if (head == 0)
+    if (upto >= 0 && upto < head)
+        head = upto;
+    if (head == 0 || head >= m)
         return m;
     memmove(xsel, xsel + head, (size_t)(m - head) * sizeof(double));
     memmove(Fsel, Fsel + head, (size_t)(m - head) * sizeof(double));
@@ -378,14 +383,19 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     int nl = (int)d->n, kind = k == 0 ? LOC_ENTRY : k == nl ? LOC_EXIT : LOC_INTERFACE;
     /* the entry's and the exit's fits in the cutting front's positions: the encoder less the drive's deflection */
     double comp = kind == LOC_EXIT || kind == LOC_ENTRY ? s->exit_compliance : 0.0;
+    long upto_arm = 0;      /* the window's samples up to where the last layer's tests armed */
     for (long j = 0; j < n; j++)
         if (xs[j] >= lo && xs[j] <= hi) {
+            upto_arm += kind == LOC_EXIT && xs[j] <= d->x_arm[k - 1];
             xsel[m] = comp > 0.0 ? xs[j] - comp * (F[j] - air) : xs[j];
             tsel[m] = t[j] - s->observer_delay;       /* when the observer saw the force (_process_change's t) */
             Fsel[m++] = F[j];
         }
     if (kind == LOC_INTERFACE && d->relative != 0.0)     /* InterfaceDetector._fit: not the gap above the layer */
-        m = detector_gap_head(xsel, Fsel, tsel, m, air_offset(d) + d->floor[k - 1], scratch);
+        m = detector_gap_head(xsel, Fsel, tsel, m, air_offset(d) + d->floor[k - 1], -1, scratch);
+    if (kind == LOC_EXIT && d->relative != 0.0 && d->F_ref - air > 0.0)   /* _exit_head_floor: not the layer's ramp */
+        m = detector_gap_head(xsel, Fsel, tsel, m, air + DET_EXIT_HEAD_SHARE * (d->F_ref - air),
+                              isfinite(d->x_arm[k - 1]) ? upto_arm : -1, scratch);
     if (kind == LOC_ENTRY) {
         /* InterfaceDetector._fit: a first layer pushed out inside the window ends it at its top */
         double end = event_pushed_out_end(xsel, Fsel, m, air, s->entry_period);
