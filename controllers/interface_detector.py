@@ -499,6 +499,11 @@ class InterfaceDetector(KernelBlock, Block):
         the exit's fit on the samples also fits the observer's ripple error
         (``event_locator.free_face`` ghost: the ripple estimate follows the fall with the
         forgetting, its ghost outlives the thrust); either 0 (default): off.
+    observer_lag [s]: the thrust observer's steady lag behind a ramp of thrust (the Fang
+        observer's ``ramp_lag``; the hole plan derives it): the exit's located time is when the
+        cutting front reached the located face, taken this much earlier than the observed
+        thrust shows it (:meth:`_exit_time`; less ``observer_delay``, which the fit's
+        positions take already); 0 (default): none.
     exit_shape: the last layer's push-out law the exit's fit takes: "linear", "quadratic",
         "bending" (the 1.5th power) or "any" (default: linear or quadratic, whichever fits
         better; event_locator.EXIT_SHAPES). An interface's gap before a rise fits the upper
@@ -598,7 +603,7 @@ class InterfaceDetector(KernelBlock, Block):
         interface_orbit_arm: Sequence[float] | None = None, air_passes: Sequence[Sequence[float]] = (),
         exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0, exit_shape: str = "any",
         layer_feed_rate: Sequence[float] | None = None, process_ramp: float = 0.0, loc_model_sd=LOC_MODEL_SD,
-        air_pass_period: float = 0.0):
+        air_pass_period: float = 0.0, observer_lag: float = 0.0):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
         if self.sample_period <= 0:
@@ -621,7 +626,7 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_thresholds(kc, feed_per_rev, feed_per_rev_min, entry_fraction, step_fraction,
                              engage_fraction, thd_min, rearm_level)
         self._set_entry_ramp(entry_ramp, entry_span, entry_orbit_period, entry_shape, entry_ripple)
-        self._set_localisation(localise, locate_margin, push_out, observer_delay)
+        self._set_localisation(localise, locate_margin, push_out, observer_delay, observer_lag)
         self._set_level_reach()
         self._set_loc_after(interface_loc_after)
         self._set_exit_loc(exit_orbit_period, exit_loc_after, exit_ripple_period, observer_forgetting,
@@ -708,8 +713,10 @@ class InterfaceDetector(KernelBlock, Block):
             self.thd_entry *= self.entry_gain
         self.entry_orbit_period = float(entry_orbit_period)
 
-    def _set_localisation(self, localise, locate_margin, push_out, observer_delay) -> None:
+    def _set_localisation(self, localise, locate_margin, push_out, observer_delay, observer_lag=0.0) -> None:
         """The localisation settings (``drillcosim.controllers.event_locator``), checked."""
+        _check_seconds("observer_lag", observer_lag, "the thrust observer's lag behind a ramp; 0: none")
+        self.observer_lag = float(observer_lag)
         self.localise = bool(localise)
         for name, v in (("locate_margin", locate_margin), ("push_out", push_out)):
             if not v > 0.0:
@@ -1732,7 +1739,23 @@ class InterfaceDetector(KernelBlock, Block):
             in_air = (xs >= lo_air) & (xs <= hi) & (xs < x_loc - 0.5 * self.locate_margin)
             if in_air.any():
                 F_air, F_air_sd = air_level(hF[in_air], self._entry_period_samples())
-        return x_loc, time_at(ht, hx, x_loc), dx, F_air, F_air_sd
+        t_loc = self._exit_time(ht[sel] - self.observer_delay, x_fit, F_fit, air, x_loc) if kind == "exit" else NAN
+        return x_loc, t_loc if math.isfinite(t_loc) else time_at(ht, hx, x_loc), dx, F_air, F_air_sd
+
+    def _exit_time(self, t, x_fit, F, air: float, x_loc: float) -> float:
+        """The time [s] the cutting front reached the exit's located face ``x_loc`` [m]: where
+        the fit's positions ``x_fit`` [m] (its samples', seen at times ``t`` [s]) less the
+        deflection the drive still stored (exit_release_compliance times the thrust ``F`` [N]
+        over ``air`` [N]) first reach it, less the observer's lag (observer_lag beyond
+        observer_delay); NaN where they never do. Why: the released push-out's face is the
+        front's position, and where the layer breaks off before the drive has released its
+        deflection the encoder passes the face a deflection before the front does. Timed on
+        the encoder, a Ti exit at 1190 N on the compliant frame (0.1 mm of deflection), broken
+        off 0.11 mm into its push-out, put the tool 0.115 mm early (plant-options draw, seed 32,
+        foreign2 hole 94); on the front alone, the observed thrust's lag put it after the tool's
+        snap forward, +0.143 mm; less the lag, -0.014 (docs/stacks.md, "Localisation")."""
+        front = x_fit - self.exit_release_compliance * np.maximum(F - air, 0.0)
+        return time_at(t, front, x_loc) - max(self.observer_lag - self.observer_delay, 0.0)
 
     def _window_cut_floor(self, k: int) -> float:
         """The level [N] below which interface k's window, shortened to a thin layer below, is in
@@ -2201,6 +2224,7 @@ class InterfaceDetector(KernelBlock, Block):
         "layer_feed_per_rev": ("m", "feed per revolution of each layer's process, m/rev (an interface's process change)"),
         "process_ramp": ("s", "the adaptation's raised-cosine ramp between two layers' processes from the trigger"),
         "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
+        "observer_lag": ("s", "the thrust observer's lag behind a ramp the exit's located time takes out"),
         "loc_sd": ("m", "the fit model's share of the located positions' uncertainty: entry, interfaces, exit"),
         "air_feed": ("m/s", "feed each layer's air level is measured at and taken for (layers of one feed share it)"),
         "n_pass": ("1", "air passes in use"), "pass_lo": ("m", "encoder position each air pass is measured from"),
@@ -2222,7 +2246,7 @@ class InterfaceDetector(KernelBlock, Block):
                                              self.entry_shape, self._exit_ghost() or (0.0, 0.0), self.exit_shape,
                                              self.exit_compliance, self._plan_ramp_at_rises(),
                                              (self.exit_release_compliance, self.exit_feed_exponent), self.process,
-                                             self._entry_engagement())
+                                             self._entry_engagement(), self.observer_lag)
 
     def _c_supports(self) -> bool:
         return (detector_kernel.blas_ddot() is not None and detector_kernel.sums_like_python()

@@ -34,6 +34,7 @@ typedef struct {
     double exit_compliance;                       /* m/N, encoder to cutting front (InterfaceDetector._front_positions) */
     double rise_ramp;                             /* 1: an interface's rise takes the plan's ramp (InterfaceDetector._plan_ramp_at_rises) */
     double entry_engagement;                      /* m, the plan's engagement at the entry (0: none; InterfaceDetector._entry_ramp_max) */
+    double observer_lag;                          /* s, the observer's lag behind a ramp (InterfaceDetector._exit_time) */
     double exit_release[2];                       /* the exit's released push-out: compliance [m/N] (0: off), x_feed
                                                      (InterfaceDetector._exit_release) */
     double process;                               /* 1: the plan gives each layer's process (InterfaceDetector.process),
@@ -366,6 +367,17 @@ static void detector_gap_air(const DetectorFMU *s, int k, const double *x, const
     }
 }
 
+/* InterfaceDetector._exit_time: the time [s] the cutting front reached the exit's face x_loc [m]: the fit's
+ * positions (x at times t: m samples) less the deflection still stored (the release's compliance times F over
+ * air) first reach it, less the observer's lag beyond observer_delay; NaN where they never do */
+static double detector_exit_time(const DetectorFMU *s, const double *t, const double *x, const double *F, long m,
+                                 double air, double x_loc, double *front)
+{
+    for (long i = 0; i < m; i++)
+        front[i] = x[i] - s->exit_release[0] * LOC_PYMAX(F[i] - air, 0.0);
+    return detector_time_at(t, front, m, x_loc) - LOC_PYMAX(s->observer_lag - s->observer_delay, 0.0);
+}
+
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
 {
@@ -468,7 +480,9 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
                 xsel[a++] = F[j];
         detector_air_level(xsel, a, s->entry_period, &out[3]);
     }
-    out[1] = detector_time_at(t, x, n, out[0]);
+    out[1] = kind == LOC_EXIT ? detector_exit_time(s, tsel, xsel, Fsel, m, air, out[0], scratch) : NAN;
+    if (isnan(out[1]))
+        out[1] = detector_time_at(t, x, n, out[0]);
     free(t);
 }
 

@@ -301,6 +301,15 @@ def _add_fmu(system: System, name: str, spec: dict, c: Checker, origins, file: s
         raise c.error(f"{key}.{e.key}" if e.key else key, e.detail) from None
 
 
+def _resolve_settings(key: str, spec, origins, file: str, base_dir) -> None:
+    """The block ``key``'s file settings made absolute: one path rule (paths.py)."""
+    if not isinstance(spec, dict) or not isinstance(spec.get("settings"), dict):
+        return
+    for k, v in spec["settings"].items():
+        if PATH_SETTING.search(k) and isinstance(v, str) and v:
+            spec["settings"][k] = str(resolve(v, _dir_of(origins, f"{key}.settings.{k}", file, base_dir)))
+
+
 def _add_block(system: System, name: str, spec: dict, c: Checker, origins, file: str, base_dir) -> None:
     key = f"blocks.{name}"
     try:
@@ -308,9 +317,7 @@ def _add_block(system: System, name: str, spec: dict, c: Checker, origins, file:
     except Exception as e:     # ImportError, AttributeError, an error raised by the module itself
         raise c.error(f"{key}.class", f"cannot import {spec['class']!r} (expected 'module:Class' "
                                       f"importable from the project): {type(e).__name__}: {e}") from None
-    for k, v in (spec.get("settings") or {}).items():   # file settings: one path rule
-        if PATH_SETTING.search(k) and isinstance(v, str) and v:
-            spec["settings"][k] = str(resolve(v, _dir_of(origins, f"{key}.settings.{k}", file, base_dir)))
+    _resolve_settings(key, spec, origins, file, base_dir)
     block = _construct_block(cls, name, spec, c)
     try:
         system.add_block(name, block)
@@ -413,6 +420,9 @@ def build(raw: dict, file: str = "<scenario>", base_dir: Path | None = None,
     of a merged scenario comes from, for error messages and for FMU paths relative to the
     file that wrote them.
     """
+    if isinstance(raw.get("blocks"), dict):         # before a plug-in's section reads them
+        for name, spec in raw["blocks"].items():
+            _resolve_settings(f"blocks.{name}", spec, origins, file, base_dir)
     raw = expand_sections(raw, Checker(file, origins))
     check_shape(raw, file, origins)
     c = Checker(file, origins)
