@@ -206,6 +206,9 @@ LOC_QUANTITIES = (("x", "m", "located encoder position"),
                   ("tknown", "s", "time the located position became known"))
 
 
+# rms spreads of the plateau's thrust about its orbit mean that a sample may stand below it (a
+# sinusoid's trough is sqrt(2) of them, noise the rest): InterfaceDetector._samples_thin
+WAVE_K = 4.0
 # the share of the last layer's level over air its thrust reaches where the exit window's
 # head leaves the layer's ramp (InterfaceDetector._exit_head_floor)
 EXIT_HEAD_SHARE = 0.8
@@ -1081,6 +1084,7 @@ class InterfaceDetector(KernelBlock, Block):
         self.exit_armed = False     # the last layer's (exit) tests have been armed once
         self.h_event = 0            # samples written when the last event fired
         self.orb_ref = NAN          # highest orbit mean since the exit's orbit test armed (NaN: not armed)
+        self.orb_sd = NAN           # the thrust's rms about it over that orbit
         # an exit candidate awaiting its decision (_exit_candidate): time, position, history index
         # and orbit mean there (NaN: none)
         self.exit_cand_t = self.exit_cand_x = self.exit_cand_i = self.exit_cand_M = NAN
@@ -1138,6 +1142,28 @@ class InterfaceDetector(KernelBlock, Block):
         if self.mismatch_factor > 0.0:
             floor = max(floor, self.floor[self.flag - 1] / self.mismatch_factor)
         return self._above_air(self.F_level) >= floor
+
+    def _samples_thin(self) -> bool:
+        """Whether the exit's thinning test may fire on a single sample: the plateau's troughs
+        (its highest orbit mean less WAVE_K times the thrust's rms about it over that orbit)
+        stay above the test's threshold; where they do not, only the test on orbit means
+        decides (:meth:`_exit_orbit`). Why: the observer rings at a slow orbit on a low
+        aluminium plateau (+-10 N at 0.64 Hz about 11 N over the air), and a trough fell below
+        the thinning ratio: a false exit 4.9 mm early, the true one missed (plant-options draw,
+        seed 30, project hole 121)."""
+        if math.isnan(self.orb_ref):
+            return True
+        return self._above_air(self.orb_ref) - WAVE_K * self.orb_sd > self.exit_ratio * self._above_air(self.F_ref)
+
+    def _air_known(self) -> bool:
+        """Whether the exit's thinning tests may take their ratio over the air level: it is
+        measured (from the entry's localisation on), or the thresholds are the paper's fixed
+        ones. Why: before the entry is located the air level reads 0, and a thin single Al
+        layer at 3.1 um/rev (15 N over a friction offset of -12 N in air) stood at 2.5 N over
+        0: its exit's thinning ratio (0.25 N) fired on the noise 1.2 mm into the layer, 0.5 s
+        before the entry was located (plant-options draw, seed 30, foreign hole 187: a false
+        exit, the true one missed, a false fail)."""
+        return not self.relative or math.isfinite(self.F_air)
 
     def _above_air(self, F: float) -> float:
         """F [N] over the air offset (:meth:`_air_offset`; 0 before the entry is located).
@@ -1934,7 +1960,8 @@ class InterfaceDetector(KernelBlock, Block):
                 self.t_paper, self.x_paper = t, x
                 if self.exit_criterion == "paper":
                     self._exit_candidate(t, x)
-        if math.isnan(self.t_thin) and self._above_air(F) < self.exit_ratio * self._above_air(self.F_ref):
+        if math.isnan(self.t_thin) and self._air_known() and self._samples_thin() and \
+                self._above_air(F) < self.exit_ratio * self._above_air(self.F_ref):
             self.t_thin, self.x_thin = t, x
             if self.exit_criterion == "thinning":
                 self._exit_candidate(t, x)
@@ -1961,8 +1988,9 @@ class InterfaceDetector(KernelBlock, Block):
         M = self._hist_mean(self.h_n - P, self.h_n)
         if math.isnan(self.orb_ref) and not self._orbit_arms(M, P, self.n - 1):
             return
-        self.orb_ref = M if math.isnan(self.orb_ref) else max(self.orb_ref, M)
-        if self._above_air(M) < self.exit_ratio * self._above_air(self.orb_ref):
+        if not M <= self.orb_ref:        # the first or a higher orbit mean: the plateau's orbit
+            self.orb_ref, self.orb_sd = M, math.sqrt(self._hist_var(self.h_n - P, self.h_n, M))
+        if self._air_known() and self._above_air(M) < self.exit_ratio * self._above_air(self.orb_ref):
             if math.isnan(self.t_thin):
                 self.t_thin, self.x_thin = t, x
             self._exit_candidate(t, x)
@@ -2338,7 +2366,7 @@ _C_SCALARS = {**{name: int for name in "n_buf flag quiet settled steady need h_n
                                         "pass_next".split()},
               **{name: bool for name in "armed drop exit_armed trim entry_rs gap_cut".split()},
               **{name: float for name in "t_paper x_paper t_thin x_thin F_ref t_fail x_fail t_last x_last x_level "
-                                         "F_pred F_err F_level thd F_air F_air_sd mismatch orb_ref exit_cand_t "
+                                         "F_pred F_err F_level thd F_air F_air_sd mismatch orb_ref orb_sd exit_cand_t "
                                          "exit_cand_x exit_cand_i exit_cand_M if_ref x_air".split()}}
 _C_LISTS = ("t_ev", "x_ev", "levels", "x_arm", "air_F", "air_S", "pass_F", "pass_S", "loc", "pending", "cand", "lcand", "err_hist",
             "cand_F", "cand_e")

@@ -33,6 +33,7 @@
 #define DET_AIR_OFFSET_K 2.0                 /* interface_detector.py AIR_OFFSET_K */
 #define DET_AIR_GAP_QUIET 2.0                /* interface_detector.py AIR_GAP_QUIET */
 #define DET_LEVEL_BAND_K 2.5                 /* interface_detector.py LEVEL_BAND_K */
+#define DET_WAVE_K 4.0                       /* interface_detector.py WAVE_K */
 #define DET_N_OUT 50
 #define DET_PI 3.141592653589793             /* math.pi */
 
@@ -66,6 +67,7 @@ typedef struct {
     double x_air;               /* state: encoder travel [m] below the layer's floor since the last event */
     double exit_P;              /* the exit's orbit test: the last layer's orbit [samples] (0: off) */
     double h_event, orb_ref;    /* state: samples written at the last event; its highest orbit mean */
+    double orb_sd;              /* state: the thrust's rms about that orbit mean over its orbit */
     double exit_cand_t, exit_cand_x, exit_cand_i, exit_cand_M;   /* state: the exit candidate (t NaN: none) */
     double x_arm[DET_MAX_LAYERS];   /* state: encoder position where each layer's tests first armed */
     double if_P[DET_MAX_LAYERS - 1], if_ratio[DET_MAX_LAYERS - 1];   /* the interfaces' orbit tests (0: off) */
@@ -500,6 +502,21 @@ static void entry_confirm(Detector *s, double t, double x, double F, double F_pr
 
 static void exit_candidate(Detector *s, double t, double x);
 
+/* interface_detector.py _samples_thin: the thinning test may fire on one sample where the plateau's
+ * troughs (its highest orbit mean less WAVE_K rms about it) stay above the test's threshold */
+static int samples_thin(const Detector *s)
+{
+    if (isnan(s->orb_ref))
+        return 1;
+    return above_air(s, s->orb_ref) - DET_WAVE_K * s->orb_sd > s->exit_ratio * above_air(s, s->F_ref);
+}
+
+/* interface_detector.py _air_known: the thinning tests' ratio over the air level needs the air measured */
+static int air_known(const Detector *s)
+{
+    return s->relative == 0.0 || isfinite(s->F_air);
+}
+
 static void exit_tests(Detector *s, double t, double x, double F, double F_pred, double e)
 {
     if (s->drop == 0.0) {
@@ -512,7 +529,7 @@ static void exit_tests(Detector *s, double t, double x, double F, double F_pred,
                 exit_candidate(s, t, x);
         }
     }
-    if (isnan(s->t_thin) && above_air(s, F) < s->exit_ratio * above_air(s, s->F_ref)) {
+    if (isnan(s->t_thin) && air_known(s) && samples_thin(s) && above_air(s, F) < s->exit_ratio * above_air(s, s->F_ref)) {
         s->t_thin = t;
         s->x_thin = x;
         if (s->exit_thinning != 0.0)
@@ -591,8 +608,11 @@ static void exit_orbit(Detector *s, double t, double x)
     M = hist_mean(s, s->h_n - P, s->h_n);
     if (isnan(s->orb_ref) && !orbit_arms(s, M, P, (int)s->n - 1))
         return;
-    s->orb_ref = isnan(s->orb_ref) ? M : MAX(s->orb_ref, M);
-    if (above_air(s, M) < s->exit_ratio * above_air(s, s->orb_ref)) {
+    if (!(M <= s->orb_ref)) {       /* the first or a higher orbit mean: the plateau's orbit */
+        s->orb_ref = M;
+        s->orb_sd = sqrt(hist_var(s, s->h_n - P, s->h_n, M));
+    }
+    if (air_known(s) && above_air(s, M) < s->exit_ratio * above_air(s, s->orb_ref)) {
         if (isnan(s->t_thin)) {
             s->t_thin = t;
             s->x_thin = x;

@@ -139,7 +139,7 @@ class Detector(ctypes.Structure):
         [("pass_lo", _D * DET_LAYERS), ("pass_hi", _D * DET_LAYERS), ("pass_feed", _D * DET_LAYERS)] + \
         _doubles("n_pass pass_P pass_next") + \
         _doubles("entry_P entry_gain entry_rs x_level entry_lag entry_ripple lcand_t lcand_x lcand_i lcand_n h_armed x_air") + \
-        _doubles("exit_P h_event orb_ref exit_cand_t exit_cand_x exit_cand_i exit_cand_M") + \
+        _doubles("exit_P h_event orb_ref orb_sd exit_cand_t exit_cand_x exit_cand_i exit_cand_M") + \
         [("x_arm", _D * DET_LAYERS), ("if_P", _D * (DET_LAYERS - 1)), ("if_ratio", _D * (DET_LAYERS - 1)),
          ("if_ref", _D), ("gap_cut", _D)] + \
         _doubles("n_buf flag") + \
