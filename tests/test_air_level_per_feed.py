@@ -50,7 +50,11 @@ def test_the_exit_of_a_light_last_layer_is_tested_against_its_feed_s_air(kernel)
 
 
 def test_with_the_approach_s_air_alone_the_exit_fired_in_the_aluminium(monkeypatch):
+    """Since round 26 the exit's single-sample test also stands aside under this layer's ringing
+    (InterfaceDetector._samples_thin; the orbit means alone then decide): without the gaps' air
+    the exit is +0.087 mm. With neither, the false exit of round 24."""
     monkeypatch.setattr(InterfaceDetector, "_gap_air", lambda self, *args: (math.nan, math.nan))
+    monkeypatch.setattr(InterfaceDetector, "_samples_thin", lambda self: True)
     out, _det = run_recorded("foreign_cfrp_ti.toml", PLAN, NAME, "python")
     assert out["x_exit_loc"] < EXIT - 3.0 * MM                         # measured -3.3 mm
 
