@@ -1734,13 +1734,14 @@ class InterfaceDetector(KernelBlock, Block):
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_fit = self._front_positions(xs[sel], hF[sel], air) if kind in ("exit", "entry") else xs[sel]
         F_fit = hF[sel]
-        shift = self._air_shift(k, ht[sel] - self.observer_delay) if kind == "interface" else None
+        t_fit = ht[sel] - self.observer_delay       # when the observer saw each force sample
+        shift = self._air_shift(k, t_fit) if kind == "interface" else None
         if shift is not None:       # the window in the upper layer's feed's air (_air_shift)
             F_fit, air = F_fit - shift[1], air - shift[0]
             floor = None if floor is None else floor - shift[0]
         if k == 0 and (end := pushed_out_end(x_fit, F_fit, air, period)) is not None:
             keep = x_fit <= end
-            x_fit, F_fit, hi = x_fit[keep], F_fit[keep], min(hi, end)
+            x_fit, F_fit, t_fit, hi = x_fit[keep], F_fit[keep], t_fit[keep], min(hi, end)
         plan_ramp = kind != "interface" or self._plan_ramp_at_rises()
         ramp_max = self._entry_ramp_max(x_fit, F_fit, air) if k == 0 else None
         x_loc, dx = locate(kind, x_fit, F_fit, air=air, x_trig=x_trig, cut_floor=floor, period=period,
@@ -1748,13 +1749,13 @@ class InterfaceDetector(KernelBlock, Block):
                            ghost=self._exit_ghost() if kind == "exit" else self._interface_ghost(k) if k else None,
                            exit_shape=self.exit_shape,
                            exit_release=self._exit_release() if kind == "exit" else None,
-                           process_change=self._process_change(k, ht[sel] - self.observer_delay)
+                           process_change=self._process_change(k, t_fit)
                            if kind == "interface" else None, ramp_max=ramp_max)
         if k == 0:
             x_loc, dx = self._entry_fit(x_fit, F_fit, hi, x_trig, air, period, x_loc, dx, ramp_max)
         F_air = F_air_sd = NAN
         if kind == "interface" and math.isfinite(x_loc):
-            F_air, F_air_sd = self._gap_air(k, x_fit, F_fit, ht[sel] - self.observer_delay, air, floor, x_loc)
+            F_air, F_air_sd = self._gap_air(k, x_fit, F_fit, t_fit, air, floor, x_loc)
             F_air += shift[0] if shift is not None else 0.0
         if k == 0 and math.isfinite(x_loc):
             # with a span the window is around the confirmation, which may leave only a few
@@ -1765,7 +1766,7 @@ class InterfaceDetector(KernelBlock, Block):
             in_air = (xs >= lo_air) & (xs <= hi) & (xs < x_loc - 0.5 * self.locate_margin)
             if in_air.any():
                 F_air, F_air_sd = air_level(hF[in_air], self._entry_period_samples())
-        t_loc = self._exit_time(ht[sel] - self.observer_delay, x_fit, F_fit, air, x_loc) if kind == "exit" else NAN
+        t_loc = self._exit_time(t_fit, x_fit, F_fit, air, x_loc) if kind == "exit" else NAN
         return x_loc, t_loc if math.isfinite(t_loc) else time_at(ht, hx, x_loc), dx, F_air, F_air_sd
 
     def _exit_time(self, t, x_fit, F, air: float, x_loc: float) -> float:
