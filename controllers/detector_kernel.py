@@ -170,7 +170,7 @@ def export_state_type(detector_type, n_data: int):
     of arrays: the Detector's fields, then the fit's constants, then the arrays."""
     fields = list(detector_type._fields_) + [("observer_delay", _D), ("exit_period", _D), ("entry_period", _D), ("entry_shape", _D),
                                               ("exit_ghost", _D * 2), ("exit_shape", _D), ("exit_compliance", _D), ("rise_ramp", _D),
-                                              ("entry_engagement", _D), ("observer_lag", _D),
+                                              ("entry_engagement", _D), ("observer_lag", _D), ("observer_step_lag", _D),
                                               ("exit_release", _D * 2), ("process", _D), ("layer_feed_rate", _D * DET_LAYERS),
                                               ("layer_feed_per_rev", _D * DET_LAYERS), ("process_ramp", _D),
                                               ("engage_lengths", _D * _C_TABLES["ENGAGE_LENGTHS"]),
@@ -184,7 +184,7 @@ def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
                  entry_period: float = 0.0, entry_shape: str = "any", exit_ghost=(0.0, 0.0),
                  exit_shape: str = "any", exit_compliance: float = 0.0, rise_ramp: bool = True,
                  exit_release=(0.0, 0.75), process=None, entry_engagement: float = 0.0,
-                 observer_lag: float = 0.0) -> ctypes.Structure:
+                 observer_lags=(0.0, 0.0)) -> ctypes.Structure:
     """The exported FMU's state: the in-process C state ``state`` (a Detector) with its
     pointers cleared (the FMU sets them from its own memory at every step), the delay [s],
     the exit fit's orbit [samples, 0: none], the entry fit's [samples, 0: none], the
@@ -196,8 +196,8 @@ def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
     (compliance [m/N], x_feed; compliance 0: off), the plan's process (InterfaceDetector.process:
     each layer's feed rate [m/s] and feed per revolution [m/rev], the adaptation's ramp [s]; None:
     none, an interface's drop fits free laws), the plan's engagement at the entry [m] (0: none;
-    InterfaceDetector._entry_ramp_max), the observer's lag the exit's time takes out [s]
-    (InterfaceDetector._exit_time), the fit's tables and ``arrays`` (weights, window,
+    InterfaceDetector._entry_ramp_max), the observer's lags behind a ramp and a step the exit's and
+    a break-off's times take out [s] (InterfaceDetector._exit_time, _interface_time), the fit's tables and ``arrays`` (weights, window,
     |F~| ring, history t, x, F) copied in."""
     data = np.concatenate([np.asarray(a, dtype=float) for a in arrays])
     T = export_state_type(type(state), data.size)
@@ -214,7 +214,7 @@ def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
     out.exit_compliance = float(exit_compliance)
     out.rise_ramp = 1.0 if rise_ramp else 0.0
     out.entry_engagement = float(entry_engagement)
-    out.observer_lag = float(observer_lag)
+    out.observer_lag, out.observer_step_lag = (float(v) for v in observer_lags)
     out.exit_release[:] = [float(v) for v in exit_release]
     if process is not None:
         feed, fpr, ramp = process
@@ -248,9 +248,9 @@ def export_kernel(state, observer_delay: float, arrays, exit_period: float = 0.0
                   entry_period: float = 0.0, entry_shape: str = "any", exit_ghost=(0.0, 0.0),
                   exit_shape: str = "any", exit_compliance: float = 0.0, rise_ramp: bool = True,
                   exit_release=(0.0, 0.75), process=None, entry_engagement: float = 0.0,
-                  observer_lag: float = 0.0) -> ExportKernel:
+                  observer_lags=(0.0, 0.0)) -> ExportKernel:
     """The exported FMU's C step started from the in-process C ``state`` (see export_state)."""
     s = export_state(state, observer_delay, arrays, exit_period, entry_period, entry_shape, exit_ghost, exit_shape,
-                     exit_compliance, rise_ramp, exit_release, process, entry_engagement, observer_lag)
+                     exit_compliance, rise_ramp, exit_release, process, entry_engagement, observer_lags)
     return ExportKernel(_source(EXPORT_NAME + ".c"), "interface_detector_fmu_step", s,
                         tuple(_source(n) for n in EXPORT_SOURCES[1:]), type(s).data.size)

@@ -259,7 +259,10 @@ def _best_face(lo, hi, sse_of, lengths, shapes, n: int):
     ratio = lengths[1] / lengths[0]
     fine = np.arange(max(lo, coarse[i] - 2 * COARSE_STEP), min(hi, coarse[i] + 2 * COARSE_STEP) + 0.5 * GRID_STEP,
                      GRID_STEP)
-    bf, _ = best_on(fine, Lc[i] * np.geomspace(1.0 / ratio, ratio, 9))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # no coarse fit at all (an onset that must rise and nowhere does): its length is 0 and
+        # the fine pass's residuals NaN, as the C twin's; the result is the same, the warning noise
+        bf, _ = best_on(fine, Lc[i] * np.geomspace(1.0 / ratio, ratio, 9))
     xf = float(fine[int(np.argmin(bf))])
     var = bf.min() / max(n - 4, 1)
     ok = np.concatenate((coarse[bc <= bf.min() + var], fine[bf <= bf.min() + var]))
@@ -765,8 +768,9 @@ def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH
     up, down = x <= mid, x >= mid
     if up.sum() < 2 * MIN_SEGMENT or down.sum() < 2 * MIN_SEGMENT:
         return NAN, NAN
-    start, lo_onset = _onset_from(x, F, gap, mid)
-    down = x >= start
+    first_down, lo_onset = _onset_from(x, F, gap, mid)
+    start = float(x[first_down])
+    down = _from_sample(x.size, first_down)
     engage, push_out = _rise_laws(x, F, laws)
     # an open end's run may stop a few samples short of the window's end, on the lower layer's
     # first rise: its own last sample bounds the part of the gap seen (the window's last one put a
@@ -791,7 +795,7 @@ def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH
         # kept only where earlier (the tail taken out): on a light lower layer's long rise, a
         # 13 um cfrp/al gap onto 20-40 N of aluminium, the samples from the free face on fitted a
         # later ramp (foreign2 seed-24 hole 42: +0.149 mm, project seed-24 86: +0.031)
-        down = x >= lo
+        down = _from_sample(x.size, _first_at(x, lo))
         hi2, dhi2 = _drop_onset(x[down], F[down], lo, engage, laws[0])
         if hi2 < hi:
             hi, dhi = hi2, dhi2
@@ -948,9 +952,10 @@ def _drop_onset(x, F, lo: float, engage, plan_ramp) -> tuple[float, float]:
     return hi, dhi
 
 
-def _onset_from(x, F, gap, mid: float) -> tuple[float, float]:
-    """First position [m] of the samples the lower layer's onset is fitted on (its level and
-    trend before the ramp) and the first position [m] its onset is searched at (the run's
+def _onset_from(x, F, gap, mid: float) -> tuple[int, float]:
+    """The first sample (index) of those the lower layer's onset is fitted on (its level and
+    trend before the ramp; it and every later one, :func:`_from_sample`) and the first position [m]
+    its onset is searched at (the run's
     middle unless said otherwise): the air run's start when the lower layer cuts higher than the
     upper one (the last fifth's median above the first's), else the run's middle. A soft
     upper layer (Al, 10-40 N) leaves the run with its push-out's tail below AIR_SHARE and no
@@ -970,10 +975,60 @@ def _onset_from(x, F, gap, mid: float) -> tuple[float, float]:
     window's end is a gap the window does not close (no lower level to fit there)."""
     first, last = end_levels(x, F)
     if last > first:
-        return float(x[gap[0]]), mid
+        return gap[0], mid
     if _closed_drop(x, F, gap):
-        return float(x[gap[0]]), float(x[gap[0]])
-    return mid, mid
+        return gap[0], float(x[gap[0]])
+    return _first_at(x, mid), mid
+
+
+def _first_at(x, pos: float) -> int:
+    """The first sample (index) whose position ``x`` [m] reaches ``pos`` [m] (x.size: none)."""
+    reached = np.flatnonzero(x >= pos)
+    return int(reached[0]) if reached.size else x.size
+
+
+def _from_sample(n: int, first: int) -> np.ndarray:
+    """The samples from ``first`` on, in time, of a window of n: a layer's samples follow its
+    start in time, not in position. Where the tool snaps forward as a hard upper layer breaks off
+    and its frame rings, the encoder steps back (0.5 um after a Ti layer at 1133 N broke off onto
+    Al, plant options seed 30, foreign2 hole 47): selected by position, the upper layer's last
+    sample (752 N, half-way down its fall, 0.5 um past the run's first sample) was the lower onset's
+    first; its level and trend held it, and the onset went 0.8 mm into the Al (+0.383 mm)."""
+    return np.arange(n) >= first
+
+
+# an interface's fall is a break-off where the observed thrust falls by this share of its step over
+# the air in two samples (break_off): the observer shows a step within one 20 ms sample to 0.85-0.92
+# of it on the three drives, a push-out its law resolves over ten samples or more 0.2 at most
+BREAK_OFF_SHARE = 0.6
+
+# the observed thrust has reached the gap once it is within this share of the step over the air
+BREAK_OFF_SETTLED = 0.1
+
+
+def break_off(t, x, F, air: float, compliance: float) -> tuple[float, float] | None:
+    """Where an interface's upper layer broke off: (the time [s] the observed thrust ``F`` [N] at
+    the times ``t`` [s] first fell through the middle of its step over ``air`` [N], interpolated
+    between the two samples around it; the time [s] of the first sample from there within
+    BREAK_OFF_SETTLED of the step over the air), or None where the fall is none: its step (the
+    window's first cut level, :func:`end_levels` on the encoder positions ``x`` [m], over the
+    air) stores no more deflection at the drive's ``compliance`` [m/N] than a sample's travel,
+    or the thrust fell by less than BREAK_OFF_SHARE of the step over the two samples up to the
+    first below the middle. Why: such a layer is not pushed out along its law but broken off,
+    the stored deflection released in a few ms, faster than the observer's estimate follows; when
+    it fell is then what the samples tell, where the front was is not."""
+    first, _ = end_levels(x, F)
+    step = first - air
+    if not (x.size > 2 and step > 0.0 and compliance * step > float(np.median(np.diff(x)))):
+        return None
+    mid = air + 0.5 * step
+    below = np.flatnonzero(F < mid)
+    if below.size == 0 or below[0] < 2 or not F[below[0] - 2] - F[below[0]] >= BREAK_OFF_SHARE * step:
+        return None
+    j = int(below[0])
+    t_mid = float(t[j - 1] + (t[j] - t[j - 1]) * (F[j - 1] - mid) / (F[j - 1] - F[j]))
+    settled = np.flatnonzero(F[j:] <= air + BREAK_OFF_SETTLED * step)
+    return t_mid, float(t[j + int(settled[0])]) if settled.size else float(t[-1])
 
 
 def time_at(t, x, x_loc: float) -> float:

@@ -109,7 +109,7 @@ import numpy as np
 from drillcosim.controllers import detector_kernel
 from drillcosim.controllers.event_locator import (AIR_SHARE, ENTRY_LAYER_FALL, ENTRY_SETTLING, ENTRY_SHAPES,
                                                    EXIT_SHAPES, MIN_SEGMENT, ProcessChange, RUN_FEET, air_run,
-                                                   end_levels, floor_gap, locate, onset_length, orbit_fell,
+                                                   break_off, end_levels, floor_gap, locate, onset_length, orbit_fell,
                                                    pushed_out_end, settling_fall, time_at)
 from drillcosim.controllers.kernels import KernelBlock
 from drillcosim.controllers.kernels.structs import Detector as _DetectorState
@@ -507,6 +507,10 @@ class InterfaceDetector(KernelBlock, Block):
         cutting front reached the located face, taken this much earlier than the observed
         thrust shows it (:meth:`_exit_time`; less ``observer_delay``, which the fit's
         positions take already); 0 (default): none.
+    observer_step_lag [s]: the thrust observer's lag behind a step of thrust, when it shows half
+        of it (the Fang observer's ``step_lag``; the hole plan derives it): where a hard layer
+        breaks off at an interface, its located time is when the observed thrust fell half-way,
+        this much earlier (:meth:`_interface_time`; less ``observer_delay``); 0 (default): none.
     exit_shape: the last layer's push-out law the exit's fit takes: "linear", "quadratic",
         "bending" (the 1.5th power) or "any" (default: linear or quadratic, whichever fits
         better; event_locator.EXIT_SHAPES). An interface's gap before a rise fits the upper
@@ -606,7 +610,7 @@ class InterfaceDetector(KernelBlock, Block):
         interface_orbit_arm: Sequence[float] | None = None, air_passes: Sequence[Sequence[float]] = (),
         exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0, exit_shape: str = "any",
         layer_feed_rate: Sequence[float] | None = None, process_ramp: float = 0.0, loc_model_sd=LOC_MODEL_SD,
-        air_pass_period: float = 0.0, observer_lag: float = 0.0):
+        air_pass_period: float = 0.0, observer_lag: float = 0.0, observer_step_lag: float = 0.0):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
         if self.sample_period <= 0:
@@ -629,7 +633,7 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_thresholds(kc, feed_per_rev, feed_per_rev_min, entry_fraction, step_fraction,
                              engage_fraction, thd_min, rearm_level)
         self._set_entry_ramp(entry_ramp, entry_span, entry_orbit_period, entry_shape, entry_ripple)
-        self._set_localisation(localise, locate_margin, push_out, observer_delay, observer_lag)
+        self._set_localisation(localise, locate_margin, push_out, observer_delay, (observer_lag, observer_step_lag))
         self._set_level_reach()
         self._set_loc_after(interface_loc_after)
         self._set_exit_loc(exit_orbit_period, exit_loc_after, exit_ripple_period, observer_forgetting,
@@ -716,10 +720,12 @@ class InterfaceDetector(KernelBlock, Block):
             self.thd_entry *= self.entry_gain
         self.entry_orbit_period = float(entry_orbit_period)
 
-    def _set_localisation(self, localise, locate_margin, push_out, observer_delay, observer_lag=0.0) -> None:
-        """The localisation settings (``drillcosim.controllers.event_locator``), checked."""
-        _check_seconds("observer_lag", observer_lag, "the thrust observer's lag behind a ramp; 0: none")
-        self.observer_lag = float(observer_lag)
+    def _set_localisation(self, localise, locate_margin, push_out, observer_delay, lags=(0.0, 0.0)) -> None:
+        """The localisation settings (``drillcosim.controllers.event_locator``), checked; ``lags``: the
+        observer's (observer_lag, observer_step_lag) [s]."""
+        _check_seconds("observer_lag", lags[0], "the thrust observer's lag behind a ramp; 0: none")
+        _check_seconds("observer_step_lag", lags[1], "the thrust observer's lag behind a step; 0: none")
+        self.observer_lag, self.observer_step_lag = float(lags[0]), float(lags[1])
         self.localise = bool(localise)
         for name, v in (("locate_margin", locate_margin), ("push_out", push_out)):
             if not v > 0.0:
@@ -1766,7 +1772,12 @@ class InterfaceDetector(KernelBlock, Block):
             in_air = (xs >= lo_air) & (xs <= hi) & (xs < x_loc - 0.5 * self.locate_margin)
             if in_air.any():
                 F_air, F_air_sd = air_level(hF[in_air], self._entry_period_samples())
-        t_loc = self._exit_time(t_fit, x_fit, F_fit, air, x_loc) if kind == "exit" else NAN
+        if kind == "exit":
+            t_loc = self._exit_time(t_fit, x_fit, F_fit, air, x_loc)
+        elif kind == "interface":
+            t_loc = self._interface_time(t_fit, x_fit, F_fit, air, time_at(ht, hx, x_loc) - self.observer_delay)
+        else:
+            t_loc = NAN
         return x_loc, t_loc if math.isfinite(t_loc) else time_at(ht, hx, x_loc), dx, F_air, F_air_sd
 
     def _exit_time(self, t, x_fit, F, air: float, x_loc: float) -> float:
@@ -1783,6 +1794,23 @@ class InterfaceDetector(KernelBlock, Block):
         snap forward, +0.143 mm; less the lag, -0.014 (docs/stacks.md, "Localisation")."""
         front = x_fit - self.exit_release_compliance * np.maximum(F - air, 0.0)
         return time_at(t, front, x_loc) - max(self.observer_lag - self.observer_delay, 0.0)
+
+    def _interface_time(self, t, x, F, air: float, t_enc: float) -> float:
+        """An interface's located time [s]: where the upper layer broke off (event_locator.break_off:
+        its observed thrust ``F`` [N] at the times ``t`` [s] and encoder positions ``x`` [m] fell
+        through half its step over ``air`` [N] within two samples, on a drive whose compliance
+        stored more deflection than a sample's travel) and the encoder reached the located
+        position (at ``t_enc`` [s], the observer's times) before the thrust had reached the gap,
+        when it fell half-way less the observer's step lag beyond observer_delay; else NaN (the
+        encoder's time). Why: the broken-off layer releases the drive's stored deflection and
+        the tool snaps through a narrow gap in a few ms, while the encoder barely moves; timed
+        on the encoder a Ti layer at 1133 N broken off onto Al across 21 um put the tool
+        at the top of its ring past the gap (plant options seed 30, foreign2 hole 47: +0.095 mm;
+        docs/stacks.md, "Localisation")."""
+        fall = break_off(t, x, F, air, self.exit_release_compliance) if self.exit_release_compliance > 0.0 else None
+        if fall is None or not t_enc <= fall[1]:
+            return NAN
+        return fall[0] - max(self.observer_step_lag - self.observer_delay, 0.0)
 
     def _window_cut_floor(self, k: int) -> float:
         """The level [N] below which interface k's window, shortened to a thin layer below, is in
@@ -2254,6 +2282,7 @@ class InterfaceDetector(KernelBlock, Block):
         "process_ramp": ("s", "the adaptation's raised-cosine ramp between two layers' processes from the trigger"),
         "observer_delay": ("s", "lag of the thrust estimate behind the encoder (localisation)"),
         "observer_lag": ("s", "the thrust observer's lag behind a ramp the exit's located time takes out"),
+        "observer_step_lag": ("s", "the thrust observer's lag behind a step a break-off's located time takes out"),
         "loc_sd": ("m", "the fit model's share of the located positions' uncertainty: entry, interfaces, exit"),
         "air_feed": ("m/s", "feed each layer's air level is measured at and taken for (layers of one feed share it)"),
         "n_pass": ("1", "air passes in use"), "pass_lo": ("m", "encoder position each air pass is measured from"),
@@ -2275,7 +2304,7 @@ class InterfaceDetector(KernelBlock, Block):
                                              self.entry_shape, self._exit_ghost() or (0.0, 0.0), self.exit_shape,
                                              self.exit_compliance, self._plan_ramp_at_rises(),
                                              (self.exit_release_compliance, self.exit_feed_exponent), self.process,
-                                             self._entry_engagement(), self.observer_lag)
+                                             self._entry_engagement(), (self.observer_lag, self.observer_step_lag))
 
     def _c_supports(self) -> bool:
         return (detector_kernel.blas_ddot() is not None and detector_kernel.sums_like_python()

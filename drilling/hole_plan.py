@@ -551,27 +551,32 @@ def _observer_forgetting(block) -> float | None:
     return (block.get("settings") or {}).get("forgetting")
 
 
-def _observer_lag(block) -> float | None:
-    """The plan's thrust observer's lag behind a ramp of thrust [s], where the observer block's
-    class offers one (a ``ramp_lag`` property: the Fang observer's, from its nominal model and
-    Kalman tuning); the detector's located exit time takes it out. None where the block does
-    not offer it or its settings do not build it (the builder reports those itself)."""
+def _observer_lags(block) -> dict:
+    """The plan's thrust observer's lags [s] the detector's located times take out, where the
+    observer block's class offers them (properties: ``ramp_lag``, behind a ramp of thrust, the
+    exit's; ``step_lag``, behind a step, a hard layer's break-off at an interface; the Fang
+    observer's, from its nominal model and Kalman tuning), as the detector's settings
+    ``observer_lag`` and ``observer_step_lag``; empty where the block offers none or its
+    settings do not build it (the builder reports those itself)."""
     from drillcosim.cosim.scenario.build import import_object      # the builder's one way to a block's class
     if not isinstance(block, dict) or not isinstance(block.get("class"), str):
-        return None
+        return {}
     try:
         cls = import_object(block["class"])
     except Exception:      # noqa: BLE001 -- the builder names the class's error when it builds the block
-        return None
-    if not isinstance(getattr(cls, "ramp_lag", None), property):
-        return None
+        return {}
+    offered = {k: name for k, name in (("observer_lag", "ramp_lag"), ("observer_step_lag", "step_lag"))
+               if isinstance(getattr(cls, name, None), property)}
+    if not offered:
+        return {}
     settings = dict(block.get("settings") or {})
     if "sample_period" in block:
         settings["sample_period"] = block["sample_period"]
     try:
-        return float(cls(**settings).ramp_lag)
+        observer = cls(**settings)
+        return {k: float(getattr(observer, name)) for k, name in offered.items()}
     except Exception:      # noqa: BLE001 -- as above: bad settings are the builder's error to name
-        return None
+        return {}
 
 
 def expand(raw: dict, error, origin: str = "[hole]") -> dict:
@@ -604,9 +609,8 @@ def expand(raw: dict, error, origin: str = "[hole]") -> dict:
     forgetting = _observer_forgetting(blocks.get(plan.names["observer"]))
     if forgetting is not None:
         _derive(raw, f"blocks.{dname}.settings.observer_forgetting", forgetting, error, origin)
-    lag = _observer_lag(blocks.get(plan.names["observer"]))
-    if lag is not None:
-        _derive(raw, f"blocks.{dname}.settings.observer_lag", lag, error, origin)
+    for k, lag in _observer_lags(blocks.get(plan.names["observer"])).items():
+        _derive(raw, f"blocks.{dname}.settings.{k}", lag, error, origin)
     for k, v in plan.adaptation().items():
         _derive(raw, f"blocks.{aname}.settings.{k}", v, error, origin)
     if plan.names["orbit_delay"] in blocks:      # the delayed orbit command starts where the adaptation does

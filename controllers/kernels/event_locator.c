@@ -39,6 +39,8 @@
 #define LOC_ENTRY_LAYER_FALL 0.9 /* event_locator.ENTRY_LAYER_FALL */
 #define LOC_RUN_FEET 0.25        /* event_locator.RUN_FEET */
 #define LOC_RISE_SEEN 5.0         /* event_locator.RISE_SEEN */
+#define LOC_BREAK_OFF_SHARE 0.6   /* event_locator.BREAK_OFF_SHARE */
+#define LOC_BREAK_OFF_SETTLED 0.1 /* event_locator.BREAK_OFF_SETTLED */
 #define LOC_MAX_COLS 9             /* onset: level, trend, ramp, the orbit's sine and cosine, both times i / n and
                                       both times the ramp;
                                       push-out: fall, its trend, air and four ghost or ringing columns */
@@ -628,6 +630,27 @@ static long loc_select(const double *x, const double *F, long n, double lo, doub
     return m;
 }
 
+/* event_locator._first_at: the first sample whose x reaches pos (n: none) */
+static long loc_first_at(const double *x, long n, double pos)
+{
+    long i = 0;
+    while (i < n && !(x[i] >= pos))
+        i++;
+    return i;
+}
+
+/* event_locator._from_sample: the samples from ``first`` on, in time (a layer's samples follow its
+ * start in time; the encoder steps back as a broken-off layer's frame rings) */
+static long loc_from(const double *x, const double *F, long n, long first, double *xo, double *Fo)
+{
+    long m = 0;
+    for (long i = first; i < n; i++) {
+        xo[m] = x[i];
+        Fo[m++] = F[i];
+    }
+    return m;
+}
+
 /* event_locator._ghost_drop: an interface's window drops onto a lower cut level at an orbit
  * (ghost[0] samples) of at least LOC_IF_GHOST_ORBIT within the window, decay ghost[1] in [0, 1) */
 static int loc_ghost_drop(const double *x, const double *F, long n, const double *ghost, double *scratch)
@@ -659,6 +682,42 @@ static void loc_release_of(LocFit *f)
         f->release_p = 1.0 / f->grid->release[1];
     }
     free(scratch);
+}
+
+/* event_locator.break_off: where an interface's upper layer broke off, out[0] the time the thrust
+ * (F at times t, positions x: n samples) first fell through the middle of its step over air
+ * (the first fifth's level less air, storing more deflection at ``compliance`` than the median
+ * travel per sample), out[1] the first sample's time from there within LOC_BREAK_OFF_SETTLED of
+ * the step; 0 (out unset) where the fall is none: no such step, or the thrust fell by less than
+ * LOC_BREAK_OFF_SHARE of it over the two samples up to the first below the middle */
+static int loc_break_off(const double *t, const double *x, const double *F, long n, double air, double compliance,
+                         double *out)
+{
+    if (n <= 2)
+        return 0;
+    double *scratch = malloc((size_t)(2 * n) * sizeof(double));
+    if (scratch == NULL)
+        return 0;
+    double first, last, *dx = scratch + n;
+    loc_end_levels(x, F, n, scratch, &first, &last);
+    for (long i = 0; i + 1 < n; i++)
+        dx[i] = x[i + 1] - x[i];
+    double step = first - air, travel = loc_median(dx, n - 1, scratch);
+    free(scratch);
+    if (!(step > 0.0 && compliance * step > travel))
+        return 0;
+    double mid = air + 0.5 * step;
+    long j = 0;
+    while (j < n && !(F[j] < mid))
+        j++;
+    if (j == n || j < 2 || !(F[j - 2] - F[j] >= LOC_BREAK_OFF_SHARE * step))
+        return 0;
+    out[0] = t[j - 1] + (t[j] - t[j - 1]) * (F[j - 1] - mid) / (F[j - 1] - F[j]);
+    long i = j;
+    while (i < n && !(F[i] <= air + LOC_BREAK_OFF_SETTLED * step))
+        i++;
+    out[1] = t[i < n ? i : n - 1];
+    return 1;
 }
 
 /* event_locator._drop_fall: the grid of the upper layer's free face on the window's samples
@@ -797,8 +856,8 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
         double first, last;
         loc_end_levels(x, F, n, scratch, &first, &last);
         int closed_drop = last < first && g1 <= n - 2 * LOC_MIN_SEGMENT;
-        double start = last > first || closed_drop ? x[g0] : mid;
-        n_down = loc_select(x, F, n, start, INFINITY, xd, Fd);
+        long first_down = last > first || closed_drop ? g0 : loc_first_at(x, n, mid);
+        n_down = loc_from(x, F, n, first_down, xd, Fd);
         double lo_onset = closed_drop ? x[g0] : mid;
         /* before a rise the plan's ramp and push-out law (event_locator._rise_laws); a drop's
            free ramps, the plan's on the onset's bound (_drop_onset) */
@@ -814,7 +873,7 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
         } else {
             loc_drop_onset(&down, &ramp, &plan_ramp, free_ramps, lo_onset, &hi, &dhi);
             if (change != NULL) {            /* the share of the down samples, Python's change.share[down] */
-                loc_select(x, change->share, n, start, INFINITY, xu, share_down);
+                loc_from(x, change->share, n, first_down, xu, share_down);
                 loc_rise_before_change(&down, share_down, F + g0, g1 - g0, &ramp, &plan_ramp, free_ramps, lo_onset,
                                        scratch, &hi, &dhi);
             }
@@ -831,7 +890,7 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
                again from the free face on, kept only where earlier: the tail taken out, never
                a later ramp (event_locator._gap_faces) */
             double hi2, dhi2;
-            down.n = loc_select(x, F, n, lo, INFINITY, xd, Fd);
+            down.n = loc_from(x, F, n, loc_first_at(x, n, lo), xd, Fd);
             loc_drop_onset(&down, &ramp, &plan_ramp, free_ramps, lo, &hi2, &dhi2);
             if (hi2 < hi) {
                 hi = hi2;

@@ -35,6 +35,7 @@ typedef struct {
     double rise_ramp;                             /* 1: an interface's rise takes the plan's ramp (InterfaceDetector._plan_ramp_at_rises) */
     double entry_engagement;                      /* m, the plan's engagement at the entry (0: none; InterfaceDetector._entry_ramp_max) */
     double observer_lag;                          /* s, the observer's lag behind a ramp (InterfaceDetector._exit_time) */
+    double observer_step_lag;                     /* s, its lag behind a step (InterfaceDetector._interface_time) */
     double exit_release[2];                       /* the exit's released push-out: compliance [m/N] (0: off), x_feed
                                                      (InterfaceDetector._exit_release) */
     double process;                               /* 1: the plan gives each layer's process (InterfaceDetector.process),
@@ -378,6 +379,19 @@ static double detector_exit_time(const DetectorFMU *s, const double *t, const do
     return detector_time_at(t, front, m, x_loc) - LOC_PYMAX(s->observer_lag - s->observer_delay, 0.0);
 }
 
+/* InterfaceDetector._interface_time: an interface's located time [s] where its upper layer broke off
+ * (loc_break_off on the fit's samples: x, F at the observer's times t, m of them) and the encoder
+ * reached the located position (at t_enc, the observer's times) before the thrust reached the gap:
+ * when the thrust fell half-way, less the observer's step lag beyond observer_delay; else NaN */
+static double detector_interface_time(const DetectorFMU *s, const double *t, const double *x, const double *F,
+                                      long m, double air, double t_enc)
+{
+    double fall[2];
+    if (!(s->exit_release[0] > 0.0) || !loc_break_off(t, x, F, m, air, s->exit_release[0], fall) || !(t_enc <= fall[1]))
+        return NAN;
+    return fall[0] - LOC_PYMAX(s->observer_step_lag - s->observer_delay, 0.0);
+}
+
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
 {
@@ -480,7 +494,11 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
                 xsel[a++] = F[j];
         detector_air_level(xsel, a, s->entry_period, &out[3]);
     }
-    out[1] = kind == LOC_EXIT ? detector_exit_time(s, tsel, xsel, Fsel, m, air, out[0], scratch) : NAN;
+    if (kind == LOC_EXIT)
+        out[1] = detector_exit_time(s, tsel, xsel, Fsel, m, air, out[0], scratch);
+    else if (kind == LOC_INTERFACE)
+        out[1] = detector_interface_time(s, tsel, xsel, Fsel, m, air,
+                                         detector_time_at(t, x, n, out[0]) - s->observer_delay);
     if (isnan(out[1]))
         out[1] = detector_time_at(t, x, n, out[0]);
     free(t);
