@@ -291,7 +291,7 @@ def _ringing(n: int, period: float) -> list[np.ndarray]:
 
 def onset_face(x, F, lo: float, hi: float, period: float | None = None,
                shapes=ENGAGE_SHAPES, rise: bool = False, cut_ripple: bool = False,
-               lengths=ENGAGE_LENGTHS) -> tuple[float, float]:
+               lengths=ENGAGE_LENGTHS, decay: float | None = None) -> tuple[float, float]:
     """Position [m] in [lo, hi] where the thrust leaves a level (with a trend) for a ramp
     of fitted length and one of ``shapes`` (ENGAGE_SHAPES or a leading part of it), and its
     uncertainty [m]. ``rise``: only a rising ramp is a fit (an entry: the tool goes from air
@@ -302,9 +302,11 @@ def onset_face(x, F, lo: float, hi: float, period: float | None = None,
     observer's DC estimate rings at the orbit frequency in air (+-5..20 N), which otherwise
     bends the level and the trend and pushes the onset onto its search bound (docs/stacks.md,
     "Localisation"). ``cut_ripple``: with a period, the cut's own orbital ripple too, the ramp
-    times the orbit's sine and cosine (:func:`_onset_sse`). ``lengths``: the ramp lengths [m]
-    tried (:func:`engage_lengths`)."""
-    return _best_face(lo, hi, _onset_sse(x, F, period, rise, cut_ripple), lengths, shapes, x.size)
+    times the orbit's sine and cosine (:func:`_onset_sse`), or with ``decay`` [per sample, in
+    [0, 1)] the ghost of it the observer's ripple estimate leaves (the ramp less its first-order
+    lag, :func:`_lagged`, times them). ``lengths``: the ramp lengths [m] tried
+    (:func:`engage_lengths`)."""
+    return _best_face(lo, hi, _onset_sse(x, F, period, rise, cut_ripple, decay), lengths, shapes, x.size)
 
 
 def engage_lengths(ramp_max: float | None = None) -> np.ndarray:
@@ -315,8 +317,9 @@ def engage_lengths(ramp_max: float | None = None) -> np.ndarray:
     return ENGAGE_LENGTHS[:max(1, int(np.count_nonzero(ENGAGE_LENGTHS <= ramp_max)))]
 
 
-def _onset_sse(x, F, period: float | None, rise: bool, cut_ripple: bool = False):
-    """onset_face's residual of a batch of onsets (G, 1) [m] for one ramp length [m] and shape."""
+def _onset_sse(x, F, period: float | None, rise: bool, cut_ripple: bool = False, decay: float | None = None):
+    """onset_face's residual of a batch of onsets (G, 1) [m] for one ramp length [m] and shape;
+    ``decay`` [per sample]: the cut ripple's columns are the observer's ghost of it (onset_face)."""
     orbit = _ringing(x.size, period) if period else []
     cut = orbit[:2] if cut_ripple else ()      # the ringing's own sine and cosine (_ringing)
 
@@ -330,9 +333,15 @@ def _onset_sse(x, F, period: float | None, rise: bool, cut_ripple: bool = False)
         # tool (the ramp times a sinusoid): without it a ripple of a quarter of an aluminium
         # level at a 0.85 Hz orbit bent the ramp's top and put the onset 0.09 mm early (project
         # seed-24 hole 175), a titanium entry's 0.08 mm (foreign seed-23 hole 169; seventeenth
-        # round)
+        # round). What the observed DC thrust holds of that ripple is what the observer's ripple
+        # estimate has not yet followed (with a decay: s - lag(s), the exit's ghost,
+        # _ghost_columns): the ramp times the sinusoid fitted a soft smoothstep's foot as the
+        # ripple's onset (foreign seed-32 hole 15, an Al entry +0.124 mm; with the ghost +0.090;
+        # 120 replayed entries of the project's and the foreign drive's: the bias of each
+        # material within +0.009 mm against +0.011; twenty-seventh round)
+        ripple = s if decay is None or not cut else s - _lagged(s, decay)
         return _lstsq_batch([np.ones_like(d), d, s, *(np.broadcast_to(c, d.shape) for c in orbit),
-                             *(s * c for c in cut)], F, 2 if rise else None)
+                             *(ripple * c for c in cut)], F, 2 if rise else None)
     return sse
 
 
@@ -651,16 +660,16 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     exit's fit on the samples takes out the observer's ripple error (:func:`free_face`; None,
     a window shorter than one orbit, or one that shows no ghost, :func:`_ghost_visible`:
     none, and at an orbit of EXIT_RING_ORBIT samples or more its ringing instead); an
-    interface's: the lower layer's orbit and the same decay (:func:`_ghost_drop`; None: none);
-    ``exit_shape``: the exit's push-out law, one of EXIT_SHAPES; ``exit_release`` (the drive's
-    compliance between the scale and the cutting front [m/N], the cutting law's feed exponent
+    interface's: the lower layer's orbit and the same decay (:func:`_ghost_drop`; None: none); an
+    entry's cut ripple is the ghost the decay leaves (:func:`onset_face`); ``exit_shape``: the exit's
+    push-out law, one of EXIT_SHAPES; ``exit_release`` (the drive's compliance between the scale
+    and the cutting front [m/N], the cutting law's feed exponent
     x_feed in (0, 1]) or None: the exit's fall releases the deflection stored at its plateau
     (:func:`_release_of`); ``process_change`` (:class:`ProcessChange`) or None: an interface's drop
     fits its upper layer's push-out under the adaptation's process change, a rise its lower onset
     before it (None: free laws, the process as it was); ``cut_ripple``: the entry's fit with the
-    cut's own orbital ripple on its ramp too (:func:`onset_face`); ``ramp_max`` [m] or None: the
-    entry's longest ramp (:func:`engage_lengths`). An entry's ramp rises; an
-    interface's may have either sign. (NaN, NaN) when there are too few samples."""
+    cut's own orbital ripple on its ramp too (:func:`onset_face`); ``ramp_max`` [m] or None: the entry's
+    longest ramp (:func:`engage_lengths`). An entry's ramp rises; an interface's either. (NaN, NaN): too few samples."""
     if kind not in (ENTRY, INTERFACE, EXIT):
         raise ValueError(f"event_locator.locate: kind must be entry, interface or exit, got {kind!r}")
     if entry_shape not in ENTRY_SHAPES:
@@ -686,7 +695,7 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
         # the cut level sagging) the fit took the sag for a ramp down at its search bound, +0.61 mm
         return onset_face(x, F, x0, min(xt, x1), period if period is not None and 1.0 < period <= x.size else None,
                           ENTRY_SHAPES[entry_shape], rise=True, cut_ripple=cut_ripple,
-                          lengths=engage_lengths(ramp_max))
+                          lengths=engage_lengths(ramp_max), decay=_ghost_decay(ghost) if cut_ripple else None)
     if kind == EXIT:
         if period is not None and not (period > 1.0 and x.size >= period + 10 * MIN_SEGMENT):
             period = None
@@ -710,6 +719,11 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
         return _gap_faces(x, F, gap, None, open_end=x.size - gap[1] < 2 * MIN_SEGMENT, laws=laws,
                           change=process_change)
     return _gap_faces(x, F, gap, air, laws=laws, change=process_change)
+
+
+def _ghost_decay(ghost: tuple[float, float] | None) -> float | None:
+    """The decay per sample of a valid ``ghost`` (orbit > 1 sample, decay in [0, 1)), else None."""
+    return ghost[1] if ghost is not None and ghost[0] > 1.0 and 0.0 <= ghost[1] < 1.0 else None
 
 
 def _checked_change(change: ProcessChange | None, ok) -> ProcessChange | None:

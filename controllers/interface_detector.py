@@ -1887,7 +1887,8 @@ class InterfaceDetector(KernelBlock, Block):
         """The entry's onset [m] and uncertainty [m] after the first fit (x_loc, dx): refitted
         where the drive settles after the rise (:meth:`_entry_refit`), else fitted again with the
         cut's own orbital ripple on the ramp (event_locator.locate's ``cut_ripple``; the first
-        fit's where that locates nothing). Why in this order: the ripple columns took part of a
+        fit's where that locates nothing; the ripple as the observer's ghost of it, with the
+        decay of its ripple estimate, :meth:`_exit_ghost`'s, where there is one). Why in this order: the ripple columns took part of a
         settling fall into the ramp (foreign seed-24 hole 136, a worn tool's CFRP entry overshooting
         to 430 N: -0.005 mm refitted, -0.141 with the ripple), and the settling is judged on the
         first fit's ramp, as before the ripple was fitted. ``ramp_max``: the longest ramp [m]
@@ -1896,7 +1897,7 @@ class InterfaceDetector(KernelBlock, Block):
         if refit is not None or not math.isfinite(x_loc) or period is None or not self.entry_ripple:
             return refit or (x_loc, dx)
         x2, dx2 = locate("entry", xf, Fw, air=air, x_trig=x_trig, period=period, entry_shape=self.entry_shape,
-                         cut_ripple=True, ramp_max=ramp_max)
+                         cut_ripple=True, ramp_max=ramp_max, ghost=self._exit_ghost())
         return (x2, dx2) if math.isfinite(x2) else (x_loc, dx)
 
     def _layer_end(self, xf, Fw, x_loc: float, air: float, period):

@@ -80,7 +80,8 @@ typedef struct {
     double orbit;                  /* samples: the ringing's sinusoid of this period (0: none; onset_face's period,
                                       free_face's ring) */
     double ghost_orbit, ghost_decay;   /* the push-out's ghost columns: orbit [samples] (0: none), decay per
-                                          sample (free_face's ghost) */
+                                          sample (free_face's ghost); an onset's: its cut ripple the ghost
+                                          of it (onset_face's decay; orbit > 0: on) */
     int rise;                      /* onset: only a rising ramp is a fit (onset_face's rise: the entry) */
     double release_delta, release_p;   /* the push-out releases delta [m] stored at the plateau, 1 / x_feed
                                           (event_locator._release_of; delta 0: the law itself) */
@@ -242,6 +243,19 @@ static int loc_columns(const LocFit *f, double face, double L, int shape, long i
     return loc_ring_columns(f, i, c, 3);
 }
 
+/* event_locator._onset_sse's cut ripple as the observer's ghost of it: the last two columns k - 2,
+ * k - 1 (the ramp s = c[2] times the orbit's sine and cosine c[3], c[4]) become (s - lag(s)) times
+ * them; *y the lag's state (s at i = 0, the samples visited in order; event_locator._lagged) */
+static void loc_onset_ghost(const LocFit *f, long i, double *c, int k, double *y)
+{
+    double s = c[2];
+    if (i == 0)
+        *y = s;
+    *y += (1.0 - f->ghost_decay) * (s - *y);
+    c[k - 2] = (s - *y) * c[3];
+    c[k - 1] = (s - *y) * c[4];
+}
+
 /* event_locator._release_step: the implicit Euler step of the released push-out, phi >= 0
  * with phi + a (phi/s)^p = prev + a, by RELEASE_NEWTON Newton steps from above the root */
 static double loc_release_step(double prev, double s, double a, double p)
@@ -396,6 +410,8 @@ static double loc_sse(const LocFit *f, double face, double L, int shape, double 
             k = loc_push_columns(f, face, L, shape, i, c, &phi);
             if (f->push_out && f->ghost_orbit > 0.0)
                 k = loc_ghost_columns(f, i, c, k, &lagged);
+            else if (!f->push_out && f->ghost_orbit > 0.0 && f->orbit > 0.0 && f->grid->cut_ripple)
+                loc_onset_ghost(f, i, c, k, &lagged);
             for (int a = 0; a < k; a++) {
                 r[a] += c[a] * Fi;
                 for (int b = 0; b < k; b++)
@@ -961,6 +977,10 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
     if (kind == LOC_ENTRY && period > 1.0 && period <= (double)n)
         onset.orbit = period;       /* event_locator.locate: the entry's window holds one orbit */
     onset.rise = kind == LOC_ENTRY;     /* event_locator.locate: an entry's ramp rises */
+    if (kind == LOC_ENTRY && engage->cut_ripple && ghost != NULL && ghost[0] > 1.0 && ghost[1] >= 0.0 && ghost[1] < 1.0) {
+        onset.ghost_orbit = ghost[0];   /* event_locator.locate: the entry's cut ripple as the observer's ghost */
+        onset.ghost_decay = ghost[1];
+    }
     if (kind == LOC_EXIT && ghost != NULL && ghost[0] > 1.0 && ghost[0] <= (double)n && ghost[1] >= 0.0 &&
         ghost[1] < 1.0) {                 /* event_locator.locate: the exit's window holds one orbit */
         if (loc_ghost_visible(F, n, scratch)) {   /* ... and shows a ghost */

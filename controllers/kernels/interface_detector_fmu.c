@@ -269,8 +269,10 @@ static void detector_entry_once(const Detector *d, const double *xsel, const dou
     } else if (isfinite(out[0]) && period > 0.0 && d->entry_ripple != 0.0) {
         /* _entry_fit_once: where the drive does not settle, again with the cut's orbital ripple on the ramp */
         double x2, dx2;
+        const DetectorFMU *s = (const DetectorFMU *)d;    /* its ripple as the observer's ghost: the exit's decay */
         engage->cut_ripple = 1;
-        event_locate(LOC_ENTRY, xsel, Fsel, m, air, x_trig, NAN, period, NULL, engage, push, NULL, &x2, &dx2);
+        event_locate(LOC_ENTRY, xsel, Fsel, m, air, x_trig, NAN, period, s->exit_ghost[0] > 0.0 ? s->exit_ghost : NULL,
+                     engage, push, NULL, &x2, &dx2);
         engage->cut_ripple = 0;
         if (isfinite(x2)) {
             out[0] = x2;
