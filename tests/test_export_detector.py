@@ -263,6 +263,26 @@ def test_c_fit_of_a_drop_at_a_slow_orbit():
     assert x_old > hi + 0.1 * MM        # the gap's two faces in the ringing, as before
 
 
+def test_c_fit_of_a_gap_shorter_than_an_orbit_at_a_slow_orbit(monkeypatch):
+    """A recorded window (tests/data/interface_window_gap_short_of_orbit.json: plant options seed
+    30, project drive, hole 85, Ti at 500 N onto CFRP at 290 N across 0.145 mm, the CFRP's orbit 87
+    samples): its gap at the air level lasts 80 samples. The observer's ringing stays below the
+    run's level (under its mean) for less than half an orbit, so a run of OUTLAST_SHARE of one is
+    a gap (event_locator._outlasts_orbit): located in it, in Python and in C. Asked for a whole
+    orbit, the window was taken for a ringing drop and its free face fitted over it with the
+    ghost, 0.05 mm before the Ti ran out (the hole's -0.046 mm)."""
+    from drillcosim.controllers import event_locator
+    d = json.loads((ROOT / "tests" / "data" / "interface_window_gap_short_of_orbit.json").read_text())
+    x, F = np.array(d["x_um"]) * 1e-6, np.array(d["F_N"])
+    lo, hi = (v * 1e-6 for v in d["faces_um"])
+    x_loc, _ = assert_same_fit("interface", x, F, d["air_N"], d["trigger_um"] * 1e-6, ghost=tuple(d["ghost"]))
+    assert lo <= x_loc <= hi
+    monkeypatch.setattr(event_locator, "OUTLAST_SHARE", 1.0)
+    x_orbit, _ = event_locator.locate("interface", x, F, air=d["air_N"], x_trig=d["trigger_um"] * 1e-6,
+                                      ghost=tuple(d["ghost"]))
+    assert x_orbit < lo - 0.04 * MM
+
+
 def test_the_c_locator_s_constants_are_event_locator_s():
     """Every ``#define LOC_<name> <value> /* event_locator.<NAME> */`` of kernels/event_locator.c
     holds the Python module's value, or its length for a table (a constant changed on one side would make the

@@ -40,6 +40,7 @@
 #define LOC_RUN_FEET 0.25        /* event_locator.RUN_FEET */
 #define LOC_RISE_SEEN 5.0         /* event_locator.RISE_SEEN */
 #define LOC_BREAK_OFF_SHARE 0.6   /* event_locator.BREAK_OFF_SHARE */
+#define LOC_OUTLAST_SHARE 0.6     /* event_locator.OUTLAST_SHARE */
 #define LOC_BREAK_OFF_SETTLED 0.1 /* event_locator.BREAK_OFF_SETTLED */
 #define LOC_MAX_COLS 9             /* onset: level, trend, ramp, the orbit's sine and cosine, both times i / n and
                                       both times the ramp;
@@ -996,7 +997,7 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
         floor_gap = !air_gap && loc_floor_gap(F, n, cut_floor, scratch, &g0, &g1);
     }
     /* event_locator._outlasts_orbit: a run at the air level an orbit long is a gap, not the ringing's trough */
-    int outlasts = (air_gap || floor_gap) && ghost != NULL && (double)(g1 - g0) >= ghost[0];
+    int outlasts = (air_gap || floor_gap) && ghost != NULL && (double)(g1 - g0) >= LOC_OUTLAST_SHARE * ghost[0];
     if (kind == LOC_INTERFACE && ghost != NULL && !outlasts && loc_ghost_drop(x, F, n, ghost, scratch)) {
         exit_.ghost_orbit = ghost[0];   /* the upper layer's free face with the observer's ghost */
         exit_.ghost_decay = ghost[1];
