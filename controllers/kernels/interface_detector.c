@@ -953,7 +953,10 @@ void interface_detector_step(Detector *s, double t, const double *u, double *y)
     s->h_x[i] = x;
     s->h_F[i] = F;
     s->h_n += 1.0;
-    if (s->flag == 0.0 && s->pass_next < s->n_pass && x >= s->pass_hi[(int)s->pass_next])
+    /* a pass is measured where the tool crosses its end on the way down (InterfaceDetector.step) */
+    if (s->flag == 0.0 && s->pass_next < s->n_pass && s->h_n >= 2.0
+            && s->h_x[((long)s->h_n - 2) % DET_HISTORY] < s->pass_hi[(int)s->pass_next]
+            && x >= s->pass_hi[(int)s->pass_next])
         pass_air(s);
     int fl = (int)s->flag;
     if (s->relative != 0.0 && 2 <= fl && fl <= (int)s->n && isnan(s->levels[fl - 1])
