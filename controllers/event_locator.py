@@ -555,9 +555,16 @@ def _release_of(x, F, release) -> tuple[float, float] | None:
         return None
     first, last = end_levels(x, F)
     delta = release[0] * max(first - last, 0.0)
-    if not delta > float(np.median(np.diff(x))):
+    if not _beyond_a_sample(x, delta):
         return None
     return delta, 1.0 / release[1]
+
+
+def _beyond_a_sample(x, delta: float) -> bool:
+    """Whether a deflection ``delta`` [m] the drive stores is more than the window's median travel
+    per sample (positions ``x`` [m]): released, it moves the front faster than the table does
+    (:func:`_release_of`'s released push-out, :func:`break_off`'s break-off)."""
+    return delta > float(np.median(np.diff(x)))
 
 
 def free_face(x, F, lo: float, hi: float, air: float | None, period: float | None = None,
@@ -1043,7 +1050,7 @@ def break_off(t, x, F, air: float, compliance: float) -> tuple[float, float] | N
     it fell is then what the samples tell, where the front was is not."""
     first, _ = end_levels(x, F)
     step = first - air
-    if not (x.size > 2 and step > 0.0 and compliance * step > float(np.median(np.diff(x)))):
+    if not (x.size > 2 and step > 0.0 and _beyond_a_sample(x, compliance * step)):
         return None
     mid = air + 0.5 * step
     below = np.flatnonzero(F < mid)

@@ -1785,13 +1785,14 @@ class InterfaceDetector(KernelBlock, Block):
             in_air = (xs >= lo_air) & (xs <= hi) & (xs < x_loc - 0.5 * self.locate_margin)
             if in_air.any():
                 F_air, F_air_sd = air_level(hF[in_air], self._entry_period_samples())
+        t_enc = time_at(ht, hx, x_loc)          # when the encoder passed it, the time unless a rule below has one
         if kind == "exit":
             t_loc = self._exit_time(t_fit, x_fit, F_fit, air, x_loc)
         elif kind == "interface":
-            t_loc = self._interface_time(t_fit, x_fit, F_fit, air, time_at(ht, hx, x_loc) - self.observer_delay)
+            t_loc = self._interface_time(t_fit, x_fit, F_fit, air, t_enc - self.observer_delay)
         else:
             t_loc = NAN
-        return x_loc, t_loc if math.isfinite(t_loc) else time_at(ht, hx, x_loc), dx, F_air, F_air_sd
+        return x_loc, t_loc if math.isfinite(t_loc) else t_enc, dx, F_air, F_air_sd
 
     def _exit_time(self, t, x_fit, F, air: float, x_loc: float) -> float:
         """The time [s] the cutting front reached the exit's located face ``x_loc`` [m]: where

@@ -681,6 +681,15 @@ static int loc_ghost_drop(const double *x, const double *F, long n, const double
 /* event_locator._release_of: a push-out (the exit's, a drop's upper fall) releases delta =
  * compliance times the window's fall between its end levels when delta is above the median
  * travel per sample */
+/* event_locator._beyond_a_sample's median travel per sample of x (n samples; scratch: 2 n doubles) */
+static double loc_median_travel(const double *x, long n, double *scratch)
+{
+    double *dx = scratch + n;
+    for (long i = 0; i + 1 < n; i++)
+        dx[i] = x[i + 1] - x[i];
+    return loc_median(dx, n - 1, scratch);
+}
+
 static void loc_release_of(LocFit *f)
 {
     f->release_delta = 0.0;
@@ -689,12 +698,10 @@ static void loc_release_of(LocFit *f)
     double *scratch = malloc((size_t)(2 * f->n) * sizeof(double));
     if (scratch == NULL)
         return;
-    double first, last, *dx = scratch + f->n;
+    double first, last;
     loc_end_levels(f->x, f->F, f->n, scratch, &first, &last);
     double delta = f->grid->release[0] * LOC_PYMAX(first - last, 0.0);
-    for (long i = 0; i + 1 < f->n; i++)
-        dx[i] = f->x[i + 1] - f->x[i];
-    if (delta > loc_median(dx, f->n - 1, scratch)) {
+    if (delta > loc_median_travel(f->x, f->n, scratch)) {
         f->release_delta = delta;
         f->release_p = 1.0 / f->grid->release[1];
     }
@@ -715,11 +722,9 @@ static int loc_break_off(const double *t, const double *x, const double *F, long
     double *scratch = malloc((size_t)(2 * n) * sizeof(double));
     if (scratch == NULL)
         return 0;
-    double first, last, *dx = scratch + n;
+    double first, last;
     loc_end_levels(x, F, n, scratch, &first, &last);
-    for (long i = 0; i + 1 < n; i++)
-        dx[i] = x[i + 1] - x[i];
-    double step = first - air, travel = loc_median(dx, n - 1, scratch);
+    double step = first - air, travel = loc_median_travel(x, n, scratch);
     free(scratch);
     if (!(step > 0.0 && compliance * step > travel))
         return 0;

@@ -496,13 +496,13 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
                 xsel[a++] = F[j];
         detector_air_level(xsel, a, s->entry_period, &out[3]);
     }
+    double t_enc = detector_time_at(t, x, n, out[0]);     /* the encoder's, unless a rule below has one */
     if (kind == LOC_EXIT)
         out[1] = detector_exit_time(s, tsel, xsel, Fsel, m, air, out[0], scratch);
     else if (kind == LOC_INTERFACE)
-        out[1] = detector_interface_time(s, tsel, xsel, Fsel, m, air,
-                                         detector_time_at(t, x, n, out[0]) - s->observer_delay);
+        out[1] = detector_interface_time(s, tsel, xsel, Fsel, m, air, t_enc - s->observer_delay);
     if (isnan(out[1]))
-        out[1] = detector_time_at(t, x, n, out[0]);
+        out[1] = t_enc;
     free(t);
 }
 
