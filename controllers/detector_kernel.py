@@ -171,7 +171,7 @@ def export_state_type(detector_type, n_data: int):
     fields = list(detector_type._fields_) + [("observer_delay", _D), ("exit_period", _D), ("entry_period", _D), ("entry_shape", _D),
                                               ("exit_ghost", _D * 2), ("exit_shape", _D), ("exit_compliance", _D), ("rise_ramp", _D),
                                               ("entry_engagement", _D), ("observer_lag", _D), ("observer_step_lag", _D),
-                                              ("exit_release", _D * 2), ("process", _D), ("layer_feed_rate", _D * DET_LAYERS),
+                                              ("exit_release", _D * 3), ("process", _D), ("layer_feed_rate", _D * DET_LAYERS),
                                               ("layer_feed_per_rev", _D * DET_LAYERS), ("process_ramp", _D),
                                               ("engage_lengths", _D * _C_TABLES["ENGAGE_LENGTHS"]),
                                               ("engage_fine", _D * FINE_LENGTHS),
@@ -183,7 +183,7 @@ def export_state_type(detector_type, n_data: int):
 def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
                  entry_period: float = 0.0, entry_shape: str = "any", exit_ghost=(0.0, 0.0),
                  exit_shape: str = "any", exit_compliance: float = 0.0, rise_ramp: bool = True,
-                 exit_release=(0.0, 0.75), process=None, entry_engagement: float = 0.0,
+                 exit_release=(0.0, 0.75, 0.0), process=None, entry_engagement: float = 0.0,
                  observer_lags=(0.0, 0.0)) -> ctypes.Structure:
     """The exported FMU's state: the in-process C state ``state`` (a Detector) with its
     pointers cleared (the FMU sets them from its own memory at every step), the delay [s],
@@ -193,7 +193,8 @@ def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
     (event_locator.EXIT_SHAPES: code 0 any, 1 linear, 2 quadratic, 3 bending), the exit fit's
     compliance [m/N] (InterfaceDetector exit_compliance), whether an interface's rise takes
     the plan's ramp (InterfaceDetector._plan_ramp_at_rises), the exit's released push-out
-    (compliance [m/N], x_feed; compliance 0: off), the plan's process (InterfaceDetector.process:
+    (compliance [m/N], x_feed, its share up to the tool tip [m/N] the exit's time takes out;
+    compliance 0: off), the plan's process (InterfaceDetector.process:
     each layer's feed rate [m/s] and feed per revolution [m/rev], the adaptation's ramp [s]; None:
     none, an interface's drop fits free laws), the plan's engagement at the entry [m] (0: none;
     InterfaceDetector._entry_ramp_max), the observer's lags behind a ramp and a step the exit's and
@@ -247,7 +248,7 @@ class ExportKernel:
 def export_kernel(state, observer_delay: float, arrays, exit_period: float = 0.0,
                   entry_period: float = 0.0, entry_shape: str = "any", exit_ghost=(0.0, 0.0),
                   exit_shape: str = "any", exit_compliance: float = 0.0, rise_ramp: bool = True,
-                  exit_release=(0.0, 0.75), process=None, entry_engagement: float = 0.0,
+                  exit_release=(0.0, 0.75, 0.0), process=None, entry_engagement: float = 0.0,
                   observer_lags=(0.0, 0.0)) -> ExportKernel:
     """The exported FMU's C step started from the in-process C ``state`` (see export_state)."""
     s = export_state(state, observer_delay, arrays, exit_period, entry_period, entry_shape, exit_ghost, exit_shape,

@@ -524,6 +524,11 @@ class InterfaceDetector(KernelBlock, Block):
         feed per revolution^x_feed, in (0, 1]; default 0.75): the exit's fit takes the push-out
         as releasing the deflection stored at the plateau (event_locator._released) instead of
         shifting the positions; not with exit_compliance. 0 (default): the law itself.
+    exit_tool_compliance [m/N]: the share of exit_release_compliance between the encoder and
+        the tool tip (the drive's frame; the rest is the tool/workpiece contact): the exit's
+        located time is when the tool tip reached the located face (:meth:`_exit_time`); in
+        [0, exit_release_compliance]; None (default): exit_release_compliance, the cutting
+        front's time, which is late by the contact's deflection.
     layer_feed_rate [m/s], process_ramp [s]: the feed rate the plan commands in each layer (with
         ``feed_per_rev``: the spindle speed is their ratio) and the adaptation's raised-cosine
         ramp between two layers' processes, which starts at each trigger: an interface's drop
@@ -607,6 +612,7 @@ class InterfaceDetector(KernelBlock, Block):
         interface_loc_after: Sequence[float] | None = None,
         exit_orbit_period: float = 0.0, exit_loc_after: float | None = None, exit_compliance: float = 0.0,
         exit_orbit_arm: float = 0.0, exit_release_compliance: float = 0.0, exit_feed_exponent: float = 0.75,
+        exit_tool_compliance: float | None = None,
         interface_orbit_arm: Sequence[float] | None = None, air_passes: Sequence[Sequence[float]] = (),
         exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0, exit_shape: str = "any",
         layer_feed_rate: Sequence[float] | None = None, process_ramp: float = 0.0, loc_model_sd=LOC_MODEL_SD,
@@ -637,7 +643,8 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_level_reach()
         self._set_loc_after(interface_loc_after)
         self._set_exit_loc(exit_orbit_period, exit_loc_after, exit_ripple_period, observer_forgetting,
-                           exit_shape, exit_compliance, (exit_release_compliance, exit_feed_exponent))
+                           exit_shape, exit_compliance,
+                           (exit_release_compliance, exit_feed_exponent, exit_tool_compliance))
         self._set_exit_arm(exit_orbit_arm)
         self._set_interface_arm(interface_orbit_arm)
         self._set_process(layer_feed_rate, process_ramp, feed_per_rev)
@@ -822,10 +829,11 @@ class InterfaceDetector(KernelBlock, Block):
             raise ValueError(f"InterfaceDetector: exit_compliance must be a number >= 0 m/N (0: rigid), got {compliance!r}")
         self.exit_compliance = float(compliance)
 
-    def _set_exit_release(self, compliance, feed_exponent) -> None:
+    def _set_exit_release(self, compliance, feed_exponent, tool_compliance=None) -> None:
         """The exit's released push-out (event_locator._release_of): the compliance [m/N] >= 0
-        (0: off) and the feed exponent in (0, 1], checked; with exit_compliance the deflection
-        would be taken out twice."""
+        (0: off), the feed exponent in (0, 1] and the compliance's share up to the tool tip
+        [m/N] (None: all of it), checked; with exit_compliance the deflection would be taken
+        out twice."""
         if not (isinstance(compliance, (int, float)) and math.isfinite(compliance) and compliance >= 0.0):
             raise ValueError(f"InterfaceDetector: exit_release_compliance must be a number >= 0 m/N (0: off), "
                              f"got {compliance!r}")
@@ -836,6 +844,13 @@ class InterfaceDetector(KernelBlock, Block):
             raise ValueError("InterfaceDetector: exit_release_compliance and exit_compliance are both > 0: the "
                              "drive's deflection would be taken out of the exit twice; set one")
         self.exit_release_compliance, self.exit_feed_exponent = float(compliance), float(feed_exponent)
+        if tool_compliance is None:
+            tool_compliance = self.exit_release_compliance
+        if not (isinstance(tool_compliance, (int, float)) and 0.0 <= tool_compliance <= compliance):
+            raise ValueError(f"InterfaceDetector: exit_tool_compliance must be a number in [0, "
+                             f"exit_release_compliance = {compliance:g}] m/N (the frame's share of the compliance "
+                             f"between the scale and the cutting front), got {tool_compliance!r}")
+        self.exit_tool_compliance = float(tool_compliance)
 
     def _set_level_reach(self) -> None:
         """Travel [m] past each layer's event up to which its level may be taken for the
@@ -1795,19 +1810,22 @@ class InterfaceDetector(KernelBlock, Block):
         return x_loc, t_loc if math.isfinite(t_loc) else t_enc, dx, F_air, F_air_sd
 
     def _exit_time(self, t, x_fit, F, air: float, x_loc: float) -> float:
-        """The time [s] the cutting front reached the exit's located face ``x_loc`` [m]: where
-        the fit's positions ``x_fit`` [m] (its samples', seen at times ``t`` [s]) less the
-        deflection the drive still stored (exit_release_compliance times the thrust ``F`` [N]
-        over ``air`` [N]) first reach it, less the observer's lag (observer_lag beyond
+        """The time [s] the tool tip reached the exit's located face ``x_loc`` [m]: where the
+        fit's positions ``x_fit`` [m] (its samples', seen at times ``t`` [s]) less the
+        deflection the frame still stored (exit_tool_compliance times the thrust ``F`` [N] over
+        ``air`` [N]) first reach it, less the observer's lag (observer_lag beyond
         observer_delay); NaN where they never do. Why: the released push-out's face is the
-        front's position, and where the layer breaks off before the drive has released its
-        deflection the encoder passes the face a deflection before the front does. Timed on
+        cutting front's position, and where the layer breaks off before the drive has released
+        its deflection the encoder passes the face a deflection before the tool does. Timed on
         the encoder, a Ti exit at 1190 N on the compliant frame (0.1 mm of deflection), broken
         off 0.11 mm into its push-out, put the tool 0.115 mm early (plant-options draw, seed 32,
         foreign2 hole 94); on the front alone, the observed thrust's lag put it after the tool's
-        snap forward, +0.143 mm; less the lag, -0.014 (docs/stacks.md, "Localisation")."""
-        front = x_fit - self.exit_release_compliance * np.maximum(F - air, 0.0)
-        return time_at(t, front, x_loc) - max(self.observer_lag - self.observer_delay, 0.0)
+        snap forward, +0.143 mm; less the lag, -0.014. The front trails the tool by the
+        contact's deflection: a Ti exit at 862 N on a 15.5 N/um contact, timed on the front, put
+        the tool at the top of its snap, +0.106 mm; on the tool, +0.019 (seed 31, hole 68;
+        docs/stacks.md, "Localisation")."""
+        tool = x_fit - self.exit_tool_compliance * np.maximum(F - air, 0.0)
+        return time_at(t, tool, x_loc) - max(self.observer_lag - self.observer_delay, 0.0)
 
     def _interface_time(self, t, x, F, air: float, t_enc: float) -> float:
         """An interface's located time [s]: where the upper layer broke off (event_locator.break_off:
@@ -2289,7 +2307,8 @@ class InterfaceDetector(KernelBlock, Block):
         "exit_shape": ("1", "the exit fit's push-out law: 0 linear or quadratic, 1 linear, 2 quadratic, 3 bending (r^1.5)"),
         "exit_compliance": ("m/N", "compliance between encoder and cutting front the exit's and entry's fits take out (0: rigid)"),
         "exit_release": ("1", "the exit's released push-out: compliance between encoder and cutting front [m/N] "
-                              "(0: off), the cutting law's feed exponent"),
+                              "(0: off), the cutting law's feed exponent, the compliance's share between encoder and "
+                              "tool tip [m/N] (the exit's located time)"),
         "max_gap": ("m", "widest gap between two layers"),
         "process": ("1", "1: an interface's fit takes the plan's process change (0: free laws)"),
         "layer_feed_rate": ("m/s", "feed rate the plan commands in each layer (an interface's process change)"),
@@ -2318,7 +2337,8 @@ class InterfaceDetector(KernelBlock, Block):
                                              self._exit_period_samples() or 0.0, self._entry_period_samples() or 0.0,
                                              self.entry_shape, self._exit_ghost() or (0.0, 0.0), self.exit_shape,
                                              self.exit_compliance, self._plan_ramp_at_rises(),
-                                             (self.exit_release_compliance, self.exit_feed_exponent), self.process,
+                                             (self.exit_release_compliance, self.exit_feed_exponent,
+                                              self.exit_tool_compliance), self.process,
                                              self._entry_engagement(), (self.observer_lag, self.observer_step_lag))
 
     def _c_supports(self) -> bool:

@@ -124,3 +124,27 @@ def test_the_plan_states_the_drives_compliance_and_feed_exponent():
         InterfaceDetector(exit_compliance=5e-8, exit_release_compliance=1e-7)
     with pytest.raises(ValueError, match="exit_feed_exponent must be a number in"):
         InterfaceDetector(exit_feed_exponent=0.0)
+
+
+def test_the_plan_states_the_frames_share_the_exit_is_timed_on():
+    """hole.exit_tool_compliance: the share of the release compliance up to the tool tip, in
+    [0, exit_release_compliance]; unset, the detector times the exit on the whole of it (the
+    cutting front)."""
+    hole = {"surface": 1e-3, "layers": [{"material": "ti", "thickness": 4e-3, "tolerance": 0.5e-3}],
+            "process": {"ti": {"feed_rate": 2e-4, "spindle_speed": 1000.0, "orbital_speed": 60.0}}}
+
+    def error(key, msg):
+        return ValueError(f"{key}: {msg}")
+
+    settings = HolePlan({**hole, "exit_release_compliance": 1e-7, "exit_tool_compliance": 6e-8}, error).detector(1.0)
+    assert settings["exit_tool_compliance"] == 6e-8
+    assert InterfaceDetector(**{k: settings[k] for k in ("exit_release_compliance", "exit_tool_compliance")}
+                             ).exit_tool_compliance == 6e-8
+    assert HolePlan({**hole, "exit_release_compliance": 1e-7}, error).detector(1.0)["exit_tool_compliance"] == 1e-7
+    assert InterfaceDetector(exit_release_compliance=1e-7).exit_tool_compliance == 1e-7
+    with pytest.raises(ValueError, match=r"hole.exit_tool_compliance: expected a number in \[0, hole.exit_release"):
+        HolePlan({**hole, "exit_release_compliance": 1e-7, "exit_tool_compliance": 2e-7}, error)
+    with pytest.raises(ValueError, match="hole.exit_tool_compliance: expected a number >= 0"):
+        HolePlan({**hole, "exit_release_compliance": 1e-7, "exit_tool_compliance": -1e-8}, error)
+    with pytest.raises(ValueError, match="exit_tool_compliance must be a number in"):
+        InterfaceDetector(exit_release_compliance=1e-7, exit_tool_compliance=float("nan"))

@@ -36,8 +36,9 @@ typedef struct {
     double entry_engagement;                      /* m, the plan's engagement at the entry (0: none; InterfaceDetector._entry_ramp_max) */
     double observer_lag;                          /* s, the observer's lag behind a ramp (InterfaceDetector._exit_time) */
     double observer_step_lag;                     /* s, its lag behind a step (InterfaceDetector._interface_time) */
-    double exit_release[2];                       /* the exit's released push-out: compliance [m/N] (0: off), x_feed
-                                                     (InterfaceDetector._exit_release) */
+    double exit_release[3];                       /* the exit's released push-out: compliance [m/N] (0: off), x_feed
+                                                     (InterfaceDetector._exit_release), its share up to the tool
+                                                     tip [m/N] (InterfaceDetector._exit_time) */
     double process;                               /* 1: the plan gives each layer's process (InterfaceDetector.process),
                                                      0: none (an interface's drop fits free laws) */
     double layer_feed_rate[DET_MAX_LAYERS];       /* m/s, the feed rate commanded in each layer */
@@ -370,15 +371,16 @@ static void detector_gap_air(const DetectorFMU *s, int k, const double *x, const
     }
 }
 
-/* InterfaceDetector._exit_time: the time [s] the cutting front reached the exit's face x_loc [m]: the fit's
- * positions (x at times t: m samples) less the deflection still stored (the release's compliance times F over
- * air) first reach it, less the observer's lag beyond observer_delay; NaN where they never do */
+/* InterfaceDetector._exit_time: the time [s] the tool tip reached the exit's face x_loc [m]: the fit's
+ * positions (x at times t: m samples) less the deflection the frame still stored (the release's share up to
+ * the tool tip times F over air) first reach it, less the observer's lag beyond observer_delay; NaN where
+ * they never do */
 static double detector_exit_time(const DetectorFMU *s, const double *t, const double *x, const double *F, long m,
-                                 double air, double x_loc, double *front)
+                                 double air, double x_loc, double *tool)
 {
     for (long i = 0; i < m; i++)
-        front[i] = x[i] - s->exit_release[0] * LOC_PYMAX(F[i] - air, 0.0);
-    return detector_time_at(t, front, m, x_loc) - LOC_PYMAX(s->observer_lag - s->observer_delay, 0.0);
+        tool[i] = x[i] - s->exit_release[2] * LOC_PYMAX(F[i] - air, 0.0);
+    return detector_time_at(t, tool, m, x_loc) - LOC_PYMAX(s->observer_lag - s->observer_delay, 0.0);
 }
 
 /* InterfaceDetector._interface_time: an interface's located time [s] where its upper layer broke off
