@@ -1044,28 +1044,19 @@ def break_off(t, x, F, air: float, compliance: float) -> tuple[float, float] | N
     BREAK_OFF_SETTLED of the step over the air), or None where the fall is none: its step (the
     window's first cut level, :func:`end_levels` on the encoder positions ``x`` [m], over the
     air) stores no more deflection at the drive's ``compliance`` [m/N] than a sample's travel,
-    or the thrust fell by less than BREAK_OFF_SHARE of the step over either span of two samples
-    across the middle (up to the first sample below it, or from the one before it to the one
-    after). Why: such a layer is not pushed out along its law but broken off, the stored
-    deflection released in a few ms, faster than the observer's estimate follows; when it fell
-    is then what the samples tell, where the front was is not. Both spans: the samples fall
-    where they fall about the break, and a Ti layer pushed out through half its step before
-    the last 800 N broke off across a 30 um gap fell 0.34 of its step up to the first sample
-    below the middle, 0.74 from the one before it (plant-options seed 31, foreign2 hole 141)."""
+    or the thrust fell by less than BREAK_OFF_SHARE of the step over the two samples up to the
+    first below the middle. Why: such a layer is not pushed out along its law but broken off,
+    the stored deflection released in a few ms, faster than the observer's estimate follows; when
+    it fell is then what the samples tell, where the front was is not."""
     first, _ = end_levels(x, F)
     step = first - air
     if not (x.size > 2 and step > 0.0 and _beyond_a_sample(x, compliance * step)):
         return None
     mid = air + 0.5 * step
     below = np.flatnonzero(F < mid)
-    if below.size == 0 or below[0] < 2:
+    if below.size == 0 or below[0] < 2 or not F[below[0] - 2] - F[below[0]] >= BREAK_OFF_SHARE * step:
         return None
     j = int(below[0])
-    fell = F[j - 2] - F[j]
-    if j + 1 < F.size and F[j - 1] - F[j + 1] > fell:
-        fell = F[j - 1] - F[j + 1]
-    if not fell >= BREAK_OFF_SHARE * step:
-        return None
     t_mid = float(t[j - 1] + (t[j] - t[j - 1]) * (F[j - 1] - mid) / (F[j - 1] - F[j]))
     settled = np.flatnonzero(F[j:] <= air + BREAK_OFF_SETTLED * step)
     return t_mid, float(t[j + int(settled[0])]) if settled.size else float(t[-1])

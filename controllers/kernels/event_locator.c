@@ -713,8 +713,7 @@ static void loc_release_of(LocFit *f)
  * (the first fifth's level less air, storing more deflection at ``compliance`` than the median
  * travel per sample), out[1] the first sample's time from there within LOC_BREAK_OFF_SETTLED of
  * the step; 0 (out unset) where the fall is none: no such step, or the thrust fell by less than
- * LOC_BREAK_OFF_SHARE of it over either span of two samples across the middle (up to the first
- * below it, or from the one before it to the one after) */
+ * LOC_BREAK_OFF_SHARE of it over the two samples up to the first below the middle */
 static int loc_break_off(const double *t, const double *x, const double *F, long n, double air, double compliance,
                          double *out)
 {
@@ -733,12 +732,7 @@ static int loc_break_off(const double *t, const double *x, const double *F, long
     long j = 0;
     while (j < n && !(F[j] < mid))
         j++;
-    if (j == n || j < 2)
-        return 0;
-    double fell = F[j - 2] - F[j];
-    if (j + 1 < n && F[j - 1] - F[j + 1] > fell)
-        fell = F[j - 1] - F[j + 1];
-    if (!(fell >= LOC_BREAK_OFF_SHARE * step))
+    if (j == n || j < 2 || !(F[j - 2] - F[j] >= LOC_BREAK_OFF_SHARE * step))
         return 0;
     out[0] = t[j - 1] + (t[j] - t[j - 1]) * (F[j - 1] - mid) / (F[j - 1] - F[j]);
     long i = j;
