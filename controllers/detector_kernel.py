@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from drillcosim.controllers.air_ripple import MAX_PITCHES as MAX_RIPPLE_PITCHES
 from drillcosim.controllers.event_locator import ENTRY_SHAPES, EXIT_SHAPES
 from drillcosim.controllers.kernels import HERE, build, library
 from drillcosim.controllers.kernels.structs import DET_LAYERS
@@ -173,6 +174,7 @@ def export_state_type(detector_type, n_data: int):
                                               ("entry_engagement", _D), ("observer_lag", _D), ("observer_step_lag", _D),
                                               ("exit_release", _D * 3), ("process", _D), ("layer_feed_rate", _D * DET_LAYERS),
                                               ("layer_feed_per_rev", _D * DET_LAYERS), ("process_ramp", _D),
+                                              ("n_ripple", _D), ("ripple_pitches", _D * MAX_RIPPLE_PITCHES),
                                               ("engage_lengths", _D * _C_TABLES["ENGAGE_LENGTHS"]),
                                               ("engage_fine", _D * FINE_LENGTHS),
                                               ("push_out_lengths", _D * _C_TABLES["PUSH_OUT_LENGTHS"]), ("push_out_fine", _D * FINE_LENGTHS),
@@ -184,7 +186,7 @@ def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
                  entry_period: float = 0.0, entry_shape: str = "any", exit_ghost=(0.0, 0.0),
                  exit_shape: str = "any", exit_compliance: float = 0.0, rise_ramp: bool = True,
                  exit_release=(0.0, 0.75, 0.0), process=None, entry_engagement: float = 0.0,
-                 observer_lags=(0.0, 0.0)) -> ctypes.Structure:
+                 observer_lags=(0.0, 0.0), ripple_pitches=()) -> ctypes.Structure:
     """The exported FMU's state: the in-process C state ``state`` (a Detector) with its
     pointers cleared (the FMU sets them from its own memory at every step), the delay [s],
     the exit fit's orbit [samples, 0: none], the entry fit's [samples, 0: none], the
@@ -198,7 +200,9 @@ def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
     each layer's feed rate [m/s] and feed per revolution [m/rev], the adaptation's ramp [s]; None:
     none, an interface's drop fits free laws), the plan's engagement at the entry [m] (0: none;
     InterfaceDetector._entry_ramp_max), the observer's lags behind a ramp and a step the exit's and
-    a break-off's times take out [s] (InterfaceDetector._exit_time, _interface_time), the fit's tables and ``arrays`` (weights, window,
+    a break-off's times take out [s] (InterfaceDetector._exit_time, _interface_time), the drive
+    ripple's pitches [m] the entry takes out (InterfaceDetector._entry_ripple, at most
+    MAX_RIPPLE_PITCHES), the fit's tables and ``arrays`` (weights, window,
     |F~| ring, history t, x, F) copied in."""
     data = np.concatenate([np.asarray(a, dtype=float) for a in arrays])
     T = export_state_type(type(state), data.size)
@@ -217,6 +221,8 @@ def export_state(state, observer_delay: float, arrays, exit_period: float = 0.0,
     out.entry_engagement = float(entry_engagement)
     out.observer_lag, out.observer_step_lag = (float(v) for v in observer_lags)
     out.exit_release[:] = [float(v) for v in exit_release]
+    out.n_ripple = float(len(ripple_pitches))
+    out.ripple_pitches[:len(ripple_pitches)] = [float(v) for v in ripple_pitches]
     if process is not None:
         feed, fpr, ramp = process
         out.process, out.process_ramp = 1.0, float(ramp)
@@ -249,9 +255,10 @@ def export_kernel(state, observer_delay: float, arrays, exit_period: float = 0.0
                   entry_period: float = 0.0, entry_shape: str = "any", exit_ghost=(0.0, 0.0),
                   exit_shape: str = "any", exit_compliance: float = 0.0, rise_ramp: bool = True,
                   exit_release=(0.0, 0.75, 0.0), process=None, entry_engagement: float = 0.0,
-                  observer_lags=(0.0, 0.0)) -> ExportKernel:
+                  observer_lags=(0.0, 0.0), ripple_pitches=()) -> ExportKernel:
     """The exported FMU's C step started from the in-process C ``state`` (see export_state)."""
     s = export_state(state, observer_delay, arrays, exit_period, entry_period, entry_shape, exit_ghost, exit_shape,
-                     exit_compliance, rise_ramp, exit_release, process, entry_engagement, observer_lags)
+                     exit_compliance, rise_ramp, exit_release, process, entry_engagement, observer_lags,
+                     ripple_pitches)
     return ExportKernel(_source(EXPORT_NAME + ".c"), "interface_detector_fmu_step", s,
                         tuple(_source(n) for n in EXPORT_SOURCES[1:]), type(s).data.size)

@@ -325,6 +325,16 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         return float(-np.linalg.inv(self.A_K)[2, 2])
 
     @property
+    def ripple_pitches(self) -> tuple[float, ...]:
+        """The table travel [m] of one period of each position-periodic ripple the commissioned
+        friction subtracts (cogging, ball-screw torque ripple: k per motor revolution of the
+        screw's lead, 2 pi K_pitch / k; or k [rad/m] along the table, 2 pi / k). The detector
+        measures what this observer leaves of them in air before the entry
+        (InterfaceDetector air_ripple_pitches)."""
+        per_unit = self.nominal.K_pitch if self.friction.position_unit == "rad" else 1.0
+        return tuple(2.0 * math.pi * per_unit / abs(float(k)) for k, *_ in self.friction.ripple if k)
+
+    @property
     def step_lag(self) -> float:
         """The DC estimate's lag [s] behind a step of thrust: when it has shown half of it, the
         disturbance state's error [expm(A_K t)]_33 of the step fallen to 0.5 (16-17 ms on the

@@ -106,7 +106,7 @@ from typing import Sequence
 
 import numpy as np
 
-from drillcosim.controllers import detector_kernel
+from drillcosim.controllers import air_ripple, detector_kernel
 from drillcosim.controllers.event_locator import (AIR_SHARE, ENTRY_LAYER_FALL, ENTRY_SETTLING, ENTRY_SHAPES,
                                                    EXIT_SHAPES, MIN_SEGMENT, ProcessChange, RUN_FEET, air_run,
                                                    break_off, end_levels, floor_gap, locate, onset_length, orbit_fell,
@@ -524,6 +524,12 @@ class InterfaceDetector(KernelBlock, Block):
         feed per revolution^x_feed, in (0, 1]; default 0.75): the exit's fit takes the push-out
         as releasing the deflection stored at the plateau (event_locator._released) instead of
         shifting the positions; not with exit_compliance. 0 (default): the law itself.
+    air_ripple_pitches [m]: the drive's position-periodic ripple along the table (cogging,
+        ball-screw torque ripple: the thrust observer's commissioned ``ripple_pitches``; the hole
+        plan derives them), at most four (air_ripple.MAX_PITCHES): what the observer leaves of it in air
+        is measured on the approach before the entry's window and taken out of the window's
+        thrust before the entry is fitted (:meth:`_entry_ripple`, controllers/air_ripple.py);
+        empty (default): none.
     exit_tool_compliance [m/N]: the share of exit_release_compliance between the encoder and
         the tool tip (the drive's frame; the rest is the tool/workpiece contact): the exit's
         located time is when the tool tip reached the located face (:meth:`_exit_time`); in
@@ -576,13 +582,9 @@ class InterfaceDetector(KernelBlock, Block):
         sample_period: float = 0.02,
         N: int = 150,
         N_min: int = 25,
-        thd1: float = 50.0,
-        thd2: float = 50.0,
-        thd3: float = -30.0,
-        exit_criterion: str = "paper",
-        exit_ratio: float = 0.1,
-        rearm_level: float | None = None,
-        rearm_samples: int | None = None,
+        thd1: float = 50.0, thd2: float = 50.0, thd3: float = -30.0,
+        exit_criterion: str = "paper", exit_ratio: float = 0.1,
+        rearm_level: float | None = None, rearm_samples: int | None = None,
         surface: float | None = None,
         thicknesses: Sequence[float] = (0.005, 0.0045),
         max_gap: float = 0.0,
@@ -616,7 +618,8 @@ class InterfaceDetector(KernelBlock, Block):
         interface_orbit_arm: Sequence[float] | None = None, air_passes: Sequence[Sequence[float]] = (),
         exit_ripple_period: float = 0.0, observer_forgetting: float = 0.0, exit_shape: str = "any",
         layer_feed_rate: Sequence[float] | None = None, process_ramp: float = 0.0, loc_model_sd=LOC_MODEL_SD,
-        air_pass_period: float = 0.0, observer_lag: float = 0.0, observer_step_lag: float = 0.0):
+        air_pass_period: float = 0.0, observer_lag: float = 0.0, observer_step_lag: float = 0.0,
+        air_ripple_pitches: Sequence[float] = ()):
         """Settings (SI units): see the class docstring."""
         super().__init__(sample_period)
         if self.sample_period <= 0:
@@ -650,6 +653,7 @@ class InterfaceDetector(KernelBlock, Block):
         self._set_process(layer_feed_rate, process_ramp, feed_per_rev)
         self._set_loc_model(loc_model_sd)
         self._set_passes(air_passes, air_pass_period)
+        self._set_air_ripple(air_ripple_pitches)
         self.windows = self._windows()
         self.reset(0.0)
 
@@ -883,6 +887,35 @@ class InterfaceDetector(KernelBlock, Block):
         self.process = (feed, fpr, float(process_ramp))
         self.air_feed = list(feed)
         self._set_entry_lag()
+
+    def _set_air_ripple(self, pitches) -> None:
+        """The drive's ripple pitches [m] the entry's fit measures and takes out, checked."""
+        pitches = tuple(pitches or ())
+        if len(pitches) > air_ripple.MAX_PITCHES or not all(
+                isinstance(p, (int, float)) and math.isfinite(p) and p > 0.0 for p in pitches):
+            raise ValueError(f"InterfaceDetector: air_ripple_pitches must be at most {air_ripple.MAX_PITCHES} "
+                             f"positive lengths [m] (the drive's ripple along the table), got {pitches!r}")
+        self.air_ripple_pitches = tuple(float(p) for p in pitches)
+
+    def _entry_ripple(self, ht, xs, hF, sel) -> np.ndarray | None:
+        """What the observer left of the drive's ripple (air_ripple_pitches) in the thrust at
+        the entry window's samples ``sel`` of the history (times ``ht`` [s], positions ``xs`` [m]
+        where the observer saw each force ``hF`` [N]) [N], measured on the approach in air before
+        the window at its feed (air_ripple.approach_samples, measure); None where there is no
+        pitch or too little approach. Why: a soft layer's entry (a 9 N aluminium step) under
+        +-2.4 N of it at the project drive's 0.667 mm pitch was fitted on one of its rises,
+        -0.215 mm; with it taken out +0.031 (plant-options seed 32, project hole 46; over the
+        draw's 59 other entries on that drive the rms 0.011 -> 0.008 mm on aluminium, the same
+        on CFRP and Ti; docs/stacks.md, "Localisation")."""
+        if not self.air_ripple_pitches or not sel.any():
+            return None
+        first = int(np.argmax(sel))
+        span = air_ripple.approach_samples(ht, xs, first, max(self.air_ripple_pitches))
+        if span is None:
+            return None
+        a, b = span
+        coef = air_ripple.measure(ht[a:b], xs[a:b], hF[a:b], self.air_ripple_pitches)
+        return None if coef is None else air_ripple.ripple_at(xs[sel], self.air_ripple_pitches, coef)
 
     def _set_passes(self, air_passes, air_pass_period) -> None:
         """The air passes (x_from [m], x_to [m], feed [m/s]), checked: ascending, each at one of the
@@ -1768,6 +1801,8 @@ class InterfaceDetector(KernelBlock, Block):
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_fit = self._front_positions(xs[sel], hF[sel], air) if kind in ("exit", "entry") else xs[sel]
         F_fit = hF[sel]
+        if k == 0 and (ripple := self._entry_ripple(ht, xs, hF, sel)) is not None:
+            F_fit = F_fit - ripple
         t_fit = ht[sel] - self.observer_delay       # when the observer saw each force sample
         shift = self._air_shift(k, t_fit) if kind == "interface" else None
         if shift is not None:       # the window in the upper layer's feed's air (_air_shift)
@@ -2309,6 +2344,8 @@ class InterfaceDetector(KernelBlock, Block):
         "exit_release": ("1", "the exit's released push-out: compliance between encoder and cutting front [m/N] "
                               "(0: off), the cutting law's feed exponent, the compliance's share between encoder and "
                               "tool tip [m/N] (the exit's located time)"),
+        "n_ripple": ("1", "the drive ripple's pitches the entry takes out of its window"),
+        "ripple_pitches": ("m", "each drive ripple's travel along the table (the entry's fit)"),
         "max_gap": ("m", "widest gap between two layers"),
         "process": ("1", "1: an interface's fit takes the plan's process change (0: free laws)"),
         "layer_feed_rate": ("m/s", "feed rate the plan commands in each layer (an interface's process change)"),
@@ -2339,7 +2376,8 @@ class InterfaceDetector(KernelBlock, Block):
                                              self.exit_compliance, self._plan_ramp_at_rises(),
                                              (self.exit_release_compliance, self.exit_feed_exponent,
                                               self.exit_tool_compliance), self.process,
-                                             self._entry_engagement(), (self.observer_lag, self.observer_step_lag))
+                                             self._entry_engagement(), (self.observer_lag, self.observer_step_lag),
+                                             self.air_ripple_pitches)
 
     def _c_supports(self) -> bool:
         return (detector_kernel.blas_ddot() is not None and detector_kernel.sums_like_python()

@@ -56,7 +56,7 @@ HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "ap
              "match_tolerance", "locate_margin", "push_out", "orbital_harmonics", "exit_orbit_mean", "engagement",
              "entry_shape", "exit_shape", "exit_compliance", "exit_release_compliance", "exit_tool_compliance",
              "feed_exponent",
-             "entry_ripple", "air_passes"}
+             "entry_ripple", "air_passes", "air_ripple"}
 # Localisation (controllers/event_locator.py): travel on either side of an event that holds its
 # change and a stretch of level (engagement up to ~0.35 mm on the drives measured, and the
 # trigger up to ~0.1 mm into it: with 0.3 mm, Ti entries with a 0.22 mm engagement were
@@ -147,6 +147,9 @@ class HolePlan:
         # ramp fills the entry's window (foreign2's plans, seventeenth round)
         self.entry_ripple = self._flag(hole, "entry_ripple", True)
         self.air_passes = self._flag(hole, "air_passes", True)
+        # the drive's ripple left in the observed thrust in air taken out of the entry's window
+        # (InterfaceDetector air_ripple_pitches, the observer's commissioned pitches): on by default
+        self.air_ripple = self._flag(hole, "air_ripple", True)
         self.fail_action = hole.get("fail_action", "hold")
         if self.fail_action not in FAIL_ACTIONS:
             raise error("hole.fail_action", f"expected one of {FAIL_ACTIONS}, got {self.fail_action!r}")
@@ -570,13 +573,15 @@ def _observer_forgetting(block) -> float | None:
     return (block.get("settings") or {}).get("forgetting")
 
 
-def _observer_lags(block) -> dict:
-    """The plan's thrust observer's lags [s] the detector's located times take out, where the
-    observer block's class offers them (properties: ``ramp_lag``, behind a ramp of thrust, the
-    exit's; ``step_lag``, behind a step, a hard layer's break-off at an interface; the Fang
-    observer's, from its nominal model and Kalman tuning), as the detector's settings
-    ``observer_lag`` and ``observer_step_lag``; empty where the block offers none or its
-    settings do not build it (the builder reports those itself)."""
+def _from_observer(block, air_ripple: bool = True) -> dict:
+    """What the detector takes from the plan's thrust observer, where the observer block's
+    class offers it: its lags [s] the located times take out (properties: ``ramp_lag``,
+    behind a ramp of thrust, the exit's; ``step_lag``, behind a step, a hard layer's break-off
+    at an interface; the Fang observer's, from its nominal model and Kalman tuning) as the
+    settings ``observer_lag`` and ``observer_step_lag``, and with ``air_ripple`` the drive's
+    ripple pitches [m] its commissioned friction subtracts (``ripple_pitches``) as
+    ``air_ripple_pitches``; empty where the block offers none or its settings do not build it
+    (the builder reports those itself)."""
     from drillcosim.cosim.scenario.build import import_object      # the builder's one way to a block's class
     if not isinstance(block, dict) or not isinstance(block.get("class"), str):
         return {}
@@ -584,8 +589,9 @@ def _observer_lags(block) -> dict:
         cls = import_object(block["class"])
     except Exception:      # noqa: BLE001 -- the builder names the class's error when it builds the block
         return {}
-    offered = {k: name for k, name in (("observer_lag", "ramp_lag"), ("observer_step_lag", "step_lag"))
-               if isinstance(getattr(cls, name, None), property)}
+    wanted = (("observer_lag", "ramp_lag"), ("observer_step_lag", "step_lag"),
+              *((("air_ripple_pitches", "ripple_pitches"),) if air_ripple else ()))
+    offered = {k: name for k, name in wanted if isinstance(getattr(cls, name, None), property)}
     if not offered:
         return {}
     settings = dict(block.get("settings") or {})
@@ -593,7 +599,8 @@ def _observer_lags(block) -> dict:
         settings["sample_period"] = block["sample_period"]
     try:
         observer = cls(**settings)
-        return {k: float(getattr(observer, name)) for k, name in offered.items()}
+        values = {k: getattr(observer, name) for k, name in offered.items()}
+        return {k: [float(p) for p in v] if isinstance(v, (tuple, list)) else float(v) for k, v in values.items()}
     except Exception:      # noqa: BLE001 -- as above: bad settings are the builder's error to name
         return {}
 
@@ -628,8 +635,8 @@ def expand(raw: dict, error, origin: str = "[hole]") -> dict:
     forgetting = _observer_forgetting(blocks.get(plan.names["observer"]))
     if forgetting is not None:
         _derive(raw, f"blocks.{dname}.settings.observer_forgetting", forgetting, error, origin)
-    for k, lag in _observer_lags(blocks.get(plan.names["observer"])).items():
-        _derive(raw, f"blocks.{dname}.settings.{k}", lag, error, origin)
+    for k, v in _from_observer(blocks.get(plan.names["observer"]), plan.air_ripple).items():
+        _derive(raw, f"blocks.{dname}.settings.{k}", v, error, origin)
     for k, v in plan.adaptation().items():
         _derive(raw, f"blocks.{aname}.settings.{k}", v, error, origin)
     if plan.names["orbit_delay"] in blocks:      # the delayed orbit command starts where the adaptation does

@@ -19,6 +19,11 @@
 #define DET_ENTRY_RAMP_SLACK 1.5  /* interface_detector.ENTRY_RAMP_SLACK */
 #define DET_PI 3.141592653589793  /* math.pi */
 #define DET_EXIT_HEAD_SHARE 0.8   /* interface_detector.EXIT_HEAD_SHARE */
+#define DET_MAX_RIPPLE 4          /* air_ripple.MAX_PITCHES */
+#define DET_RIPPLE_SPEED_SAMPLES 50     /* air_ripple.SPEED_SAMPLES */
+#define DET_RIPPLE_SPEED_SHARE 0.1      /* air_ripple.SPEED_SHARE */
+#define DET_RIPPLE_SPAN_S 8.0           /* air_ripple.SPAN_S */
+#define DET_RIPPLE_MIN_SAMPLES 100      /* air_ripple.MIN_SAMPLES */
 #include "event_locator.c"
 #include "interface_detector.c"
 
@@ -44,6 +49,8 @@ typedef struct {
     double layer_feed_rate[DET_MAX_LAYERS];       /* m/s, the feed rate commanded in each layer */
     double layer_feed_per_rev[DET_MAX_LAYERS];    /* m/rev, each layer's feed per revolution */
     double process_ramp;                          /* s, the adaptation's raised cosine from each trigger (0: a step) */
+    double n_ripple;                              /* the drive ripple's pitches in use (InterfaceDetector.air_ripple_pitches) */
+    double ripple_pitches[DET_MAX_RIPPLE];        /* m, each one's travel along the table */
     double engage_lengths[LOC_N_ENGAGE];          /* m, event_locator.ENGAGE_LENGTHS */
     double engage_fine[LOC_N_FINE];               /* around the best engage length */
     double push_out_lengths[LOC_N_PUSH_OUT];      /* m, event_locator.PUSH_OUT_LENGTHS */
@@ -396,6 +403,83 @@ static double detector_interface_time(const DetectorFMU *s, const double *t, con
     return fall[0] - LOC_PYMAX(s->observer_step_lag - s->observer_delay, 0.0);
 }
 
+/* air_ripple.approach_samples: the approach's samples [*start, first) before the window's first sample at the
+ * speed it had just before it (t, x: the history's times and positions); 0 where too few or too short */
+static int detector_approach(const double *t, const double *x, long first, double travel, long *start)
+{
+    const long B = DET_RIPPLE_SPEED_SAMPLES;
+    long last = first - 1;
+    if (last - B < 0 || !(t[last] > t[last - B]))
+        return 0;
+    double v_ref = (x[last] - x[last - B]) / (t[last] - t[last - B]);
+    if (!(v_ref > 0.0))
+        return 0;
+    long a = last;
+    while (a - 1 - B >= 0 && t[first - 1] - t[a - 1] <= DET_RIPPLE_SPAN_S) {
+        long j = a - 1;
+        double v = (x[j] - x[j - B]) / (t[j] - t[j - B]);
+        if (!(fabs(v - v_ref) <= DET_RIPPLE_SPEED_SHARE * v_ref))
+            break;
+        a = j;
+    }
+    *start = a;
+    return first - a >= DET_RIPPLE_MIN_SAMPLES && x[first - 1] - x[a] >= travel;
+}
+
+/* air_ripple.ripple_columns: column c (0: the first pitch's sine, 1: its cosine, ...) at position x */
+static double detector_ripple_column(const DetectorFMU *s, int c, double x)
+{
+    double phase = (2.0 * DET_PI / s->ripple_pitches[c / 2]) * x;
+    return c % 2 == 0 ? sin(phase) : cos(phase);
+}
+
+/* InterfaceDetector._entry_ripple: the drive ripple's coefficients (coef: a sine and a cosine per pitch) measured on
+ * the approach before the entry's window [lo, hi] of the history (t, xs, F: n samples) -- air_ripple.measure's
+ * level, trend and ripple by the normal equations; 0 where there is no pitch or too little approach */
+static int detector_air_ripple(const DetectorFMU *s, const double *t, const double *xs, const double *F, long n,
+                               double lo, double hi, double *coef)
+{
+    int P = (int)s->n_ripple, k = 2 + 2 * P;
+    long first = 0, a;
+    if (P <= 0)
+        return 0;
+    while (first < n && !(xs[first] >= lo && xs[first] <= hi))
+        first++;
+    double longest = 0.0;
+    for (int c = 0; c < P; c++)
+        longest = LOC_PYMAX(longest, s->ripple_pitches[c]);
+    if (first == n || !detector_approach(t, xs, first, longest, &a))
+        return 0;
+    double M[LOC_MAX_COLS][LOC_MAX_COLS] = {{0.0}}, r[LOC_MAX_COLS] = {0.0}, col[LOC_MAX_COLS];
+    for (long j = a; j < first; j++) {
+        col[0] = 1.0;
+        col[1] = t[j] - t[a];
+        for (int c = 0; c < 2 * P; c++)
+            col[2 + c] = detector_ripple_column(s, c, xs[j]);
+        for (int i = 0; i < k; i++) {
+            for (int c = 0; c < k; c++)
+                M[i][c] += col[i] * col[c];
+            r[i] += col[i] * F[j];
+        }
+    }
+    loc_solve(M, r, k);
+    for (int c = 0; c < 2 * P; c++) {
+        if (!isfinite(r[2 + c]))
+            return 0;
+        coef[c] = r[2 + c];
+    }
+    return 1;
+}
+
+/* air_ripple.ripple_at: the measured ripple [N] at position x */
+static double detector_ripple_at(const DetectorFMU *s, const double *coef, double x)
+{
+    double out = 0.0;
+    for (int c = 0; c < 2 * (int)s->n_ripple; c++)
+        out += coef[c] * detector_ripple_column(s, c, x);
+    return out;
+}
+
 static void detector_locate(const Detector *d, int k, double x_trig, double lo, double hi, double h_n, double air,
                             double *out)
 {
@@ -414,12 +498,14 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     /* the entry's and the exit's fits in the cutting front's positions: the encoder less the drive's deflection */
     double comp = kind == LOC_EXIT || kind == LOC_ENTRY ? s->exit_compliance : 0.0;
     long upto_arm = 0;      /* the window's samples up to where the last layer's tests armed */
+    double ripple[2 * DET_MAX_RIPPLE];      /* the entry's: the drive's ripple left in air (_entry_ripple) */
+    int rippled = kind == LOC_ENTRY && detector_air_ripple(s, t, xs, F, n, lo, hi, ripple);
     for (long j = 0; j < n; j++)
         if (xs[j] >= lo && xs[j] <= hi) {
             upto_arm += kind == LOC_EXIT && xs[j] <= d->x_arm[k - 1];
             xsel[m] = comp > 0.0 ? xs[j] - comp * (F[j] - air) : xs[j];
             tsel[m] = t[j] - s->observer_delay;       /* when the observer saw the force (_process_change's t) */
-            Fsel[m++] = F[j];
+            Fsel[m++] = rippled ? F[j] - detector_ripple_at(s, ripple, xs[j]) : F[j];
         }
     if (kind == LOC_INTERFACE && d->relative != 0.0)     /* InterfaceDetector._fit: not the gap above the layer */
         m = detector_gap_head(xsel, Fsel, tsel, m, air_offset(d) + d->floor[k - 1], -1, scratch);
