@@ -898,11 +898,12 @@ class InterfaceDetector(KernelBlock, Block):
         self.air_ripple_pitches = tuple(float(p) for p in pitches)
 
     def _entry_ripple(self, ht, xs, hF, sel) -> np.ndarray | None:
-        """What the observer left of the drive's ripple (air_ripple_pitches) in the thrust at
-        the entry window's samples ``sel`` of the history (times ``ht`` [s], positions ``xs`` [m]
-        where the observer saw each force ``hF`` [N]) [N], measured on the approach in air before
-        the window at its feed (air_ripple.approach_samples, measure); None where there is no
-        pitch or too little approach. Why: a soft layer's entry (a 9 N aluminium step) under
+        """What the observer left of the drive's ripple (air_ripple_pitches) in the thrust
+        before the entry window's samples ``sel`` of the history (times ``ht`` [s], positions
+        ``xs`` [m] where the observer saw each force ``hF`` [N]): its coefficients [N]
+        (air_ripple.ripple_at), measured on the approach in air before the window at its feed
+        (air_ripple.approach_samples, measure); None where there is no pitch or too little
+        approach. The window's thrust and its air level are taken without it. Why: a soft layer's entry (a 9 N aluminium step) under
         +-2.4 N of it at the project drive's 0.667 mm pitch was fitted on one of its rises,
         -0.215 mm; with it taken out +0.031 (plant-options seed 32, project hole 46; over the
         draw's 59 other entries on that drive the rms 0.011 -> 0.008 mm on aluminium, the same
@@ -914,8 +915,7 @@ class InterfaceDetector(KernelBlock, Block):
         if span is None:
             return None
         a, b = span
-        coef = air_ripple.measure(ht[a:b], xs[a:b], hF[a:b], self.air_ripple_pitches)
-        return None if coef is None else air_ripple.ripple_at(xs[sel], self.air_ripple_pitches, coef)
+        return air_ripple.measure(ht[a:b], xs[a:b], hF[a:b], self.air_ripple_pitches)
 
     def _set_passes(self, air_passes, air_pass_period) -> None:
         """The air passes (x_from [m], x_to [m], feed [m/s]), checked: ascending, each at one of the
@@ -1801,8 +1801,9 @@ class InterfaceDetector(KernelBlock, Block):
         period = self._exit_period_samples() if kind == "exit" else self._entry_period_samples() if k == 0 else None
         x_fit = self._front_positions(xs[sel], hF[sel], air) if kind in ("exit", "entry") else xs[sel]
         F_fit = hF[sel]
-        if k == 0 and (ripple := self._entry_ripple(ht, xs, hF, sel)) is not None:
-            F_fit = F_fit - ripple
+        ripple = self._entry_ripple(ht, xs, hF, sel) if k == 0 else None
+        if ripple is not None:
+            F_fit = F_fit - air_ripple.ripple_at(xs[sel], self.air_ripple_pitches, ripple)
         t_fit = ht[sel] - self.observer_delay       # when the observer saw each force sample
         shift = self._air_shift(k, t_fit) if kind == "interface" else None
         if shift is not None:       # the window in the upper layer's feed's air (_air_shift)
@@ -1834,7 +1835,9 @@ class InterfaceDetector(KernelBlock, Block):
             lo_air = min(lo, x_loc - 1.5 * self.locate_margin) if self.entry_P else lo
             in_air = (xs >= lo_air) & (xs <= hi) & (xs < x_loc - 0.5 * self.locate_margin)
             if in_air.any():
-                F_air, F_air_sd = air_level(hF[in_air], self._entry_period_samples())
+                f = hF[in_air] if ripple is None else \
+                    hF[in_air] - air_ripple.ripple_at(xs[in_air], self.air_ripple_pitches, ripple)
+                F_air, F_air_sd = air_level(f, self._entry_period_samples())
         t_enc = time_at(ht, hx, x_loc)          # when the encoder passed it, the time unless a rule below has one
         if kind == "exit":
             t_loc = self._exit_time(t_fit, x_fit, F_fit, air, x_loc)

@@ -148,8 +148,10 @@ class HolePlan:
         self.entry_ripple = self._flag(hole, "entry_ripple", True)
         self.air_passes = self._flag(hole, "air_passes", True)
         # the drive's ripple left in the observed thrust in air taken out of the entry's window
-        # (InterfaceDetector air_ripple_pitches, the observer's commissioned pitches): on by default
-        self.air_ripple = self._flag(hole, "air_ripple", True)
+        # (InterfaceDetector air_ripple_pitches, the observer's commissioned pitches): off by
+        # default, its closed-loop draw failed a hole the entry's replays did not show
+        # (docs/stacks.md, "Localisation")
+        self.air_ripple = self._flag(hole, "air_ripple", False)
         self.fail_action = hole.get("fail_action", "hold")
         if self.fail_action not in FAIL_ACTIONS:
             raise error("hole.fail_action", f"expected one of {FAIL_ACTIONS}, got {self.fail_action!r}")

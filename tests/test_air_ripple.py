@@ -23,7 +23,8 @@ from drillcosim.cosim.scenario.loader import load_scenario
 PLAN = {**hole_plan([("al", 7.4496115e-3, 1.1174417e-3), ("ti", 3.6314923e-3, 5.447239e-4),
                      ("al", 7.5066743e-3, 1.1260012e-3), ("cfrp", 4.3312440e-3, 6.496866e-4)],
                     {"al": (2.3270530e-4, 3451.7051, 40.316233), "ti": (3.4415204e-4, 1896.9949, 44.434117),
-                     "cfrp": (3.1099400e-4, 3236.0343, 64.027234)}, 1.6677492e-3), "hole.air_passes": True}
+                     "cfrp": (3.1099400e-4, 3236.0343, 64.027234)}, 1.6677492e-3),
+        "hole.air_passes": True, "hole.air_ripple": True}
 NAME = "al_entry_drive_ripple"
 SURFACE = 1.6677e-3      # m, where the tool reached the aluminium
 PITCH = 2 * math.pi * 0.637e-3 / 6      # m: 6 per revolution, the commissioned pitch 0.637 mm/rad
@@ -83,11 +84,14 @@ def test_the_exported_step_takes_the_ripple_out_as_the_python_step():
 
 def test_the_plan_takes_the_pitches_from_the_observer_and_checks_them():
     stacks = Path(__file__).resolve().parents[1] / "scenarios" / "stacks"
-    pitches = {n: load_scenario(stacks / f"{n}.toml").raw["blocks"]["detector"]["settings"]["air_ripple_pitches"]
-               for n in ("cfrp_ti", "foreign_cfrp_ti", "foreign2_cfrp_ti")}
+    on = {"hole.air_ripple": True}
+    pitches = {n: load_scenario(stacks / f"{n}.toml", overrides=on).raw["blocks"]["detector"]["settings"]
+               ["air_ripple_pitches"] for n in ("cfrp_ti", "foreign_cfrp_ti", "foreign2_cfrp_ti")}
     # k per revolution of each drive's commissioned lead: 6; 4 and 9; 3, 7 and 14
     assert [len(v) for v in pitches.values()] == [1, 2, 3]
     assert pitches["cfrp_ti"][0] == pytest.approx(PITCH, rel=1e-4)
+    # off by default (hole.air_ripple): the shipped plans take none
+    assert "air_ripple_pitches" not in load_scenario(stacks / "cfrp_ti.toml").raw["blocks"]["detector"]["settings"]
     with pytest.raises(ValueError, match="air_ripple_pitches must be at most 4 positive lengths"):
         InterfaceDetector(air_ripple_pitches=[1e-3, -1e-3])
     with pytest.raises(ValueError, match="air_ripple_pitches must be at most 4"):

@@ -581,7 +581,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
         double lo_air = d->entry_P != 0.0 ? LOC_PYMIN(lo, out[0] - 1.5 * d->locate_margin) : lo;
         for (long j = 0; j < n; j++)
             if (xs[j] >= lo_air && xs[j] <= hi && xs[j] < out[0] - 0.5 * d->locate_margin)
-                xsel[a++] = F[j];
+                xsel[a++] = rippled ? F[j] - detector_ripple_at(s, ripple, xs[j]) : F[j];
         detector_air_level(xsel, a, s->entry_period, &out[3]);
     }
     double t_enc = detector_time_at(t, x, n, out[0]);     /* the encoder's, unless a rule below has one */
