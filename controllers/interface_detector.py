@@ -526,7 +526,7 @@ class InterfaceDetector(KernelBlock, Block):
         shifting the positions; not with exit_compliance. 0 (default): the law itself.
     air_ripple_pitches [m]: the drive's position-periodic ripple along the table (cogging,
         ball-screw torque ripple: the thrust observer's commissioned ``ripple_pitches``; the hole
-        plan derives them), at most four (air_ripple.MAX_PITCHES): what the observer leaves of it in air
+        plan derives them where it has ``air_ripple``, off by default), at most four (air_ripple.MAX_PITCHES): what the observer leaves of it in air
         is measured on the approach before the entry's window and taken out of the window's
         thrust before the entry is fitted (:meth:`_entry_ripple`, controllers/air_ripple.py);
         empty (default): none.

@@ -5,7 +5,8 @@ tests/data/al_entry_drive_ripple.csv: time [s], encoder [m], F_dc_hat [N] at eve
 sample, to 24 s): an aluminium first layer whose thrust steps 9 N at 14 mm/min, under a wander
 of the observed thrust in air of +-2.4 N at the drive's 0.667 mm pitch (6 per revolution of its
 4 mm lead: the cogging its commissioned friction subtracts, not all of it). The tool reached the
-aluminium at 1.6677 mm.
+aluminium at 1.6677 mm. The correction is the plan's choice (hole.air_ripple, off by default:
+docs/stacks.md, "Localisation").
 """
 from __future__ import annotations
 
