@@ -526,10 +526,10 @@ class InterfaceDetector(KernelBlock, Block):
         shifting the positions; not with exit_compliance. 0 (default): the law itself.
     air_ripple_pitches [m]: the drive's position-periodic ripple along the table (cogging,
         ball-screw torque ripple: the thrust observer's commissioned ``ripple_pitches``; the hole
-        plan derives them where it has ``air_ripple``, off by default), at most four (air_ripple.MAX_PITCHES): what the observer leaves of it in air
-        is measured on the approach before the entry's window and taken out of the window's
-        thrust before the entry is fitted (:meth:`_entry_ripple`, controllers/air_ripple.py);
-        empty (default): none.
+        plan derives them where it has ``air_ripple``, off by default), at most four
+        (air_ripple.MAX_PITCHES): what the observer leaves of it in air is measured on the
+        approach before the entry's window and taken out of the window's thrust before the entry
+        is fitted (:meth:`_entry_ripple`, controllers/air_ripple.py); empty (default): none.
     exit_tool_compliance [m/N]: the share of exit_release_compliance between the encoder and
         the tool tip (the drive's frame; the rest is the tool/workpiece contact): the exit's
         located time is when the tool tip reached the located face (:meth:`_exit_time`); in
@@ -903,11 +903,13 @@ class InterfaceDetector(KernelBlock, Block):
         ``xs`` [m] where the observer saw each force ``hF`` [N]): its coefficients [N]
         (air_ripple.ripple_at), measured on the approach in air before the window at its feed
         (air_ripple.approach_samples, measure); None where there is no pitch or too little
-        approach. The window's thrust and its air level are taken without it. Why: a soft layer's entry (a 9 N aluminium step) under
-        +-2.4 N of it at the project drive's 0.667 mm pitch was fitted on one of its rises,
-        -0.215 mm; with it taken out +0.031 (plant-options seed 32, project hole 46; over the
-        draw's 59 other entries on that drive the rms 0.011 -> 0.008 mm on aluminium, the same
-        on CFRP and Ti; docs/stacks.md, "Localisation")."""
+        approach. The window's thrust and its air level are taken without it. Why: a soft
+        layer's entry (a 9 N aluminium step) under +-2.4 N of it at the project drive's 0.667 mm
+        pitch was fitted on one of its rises, -0.215 mm; with it taken out +0.031 (plant-options
+        seed 32, project hole 46; over the draw's 59 other entries on that drive the rms 0.011 ->
+        0.008 mm on aluminium, the same on CFRP and Ti). The other layers' tests still see it:
+        under 9 N of it and a 40 N friction offset a hole's exit was then missed (seed 30,
+        project 121), hence off by default (docs/stacks.md, "Localisation")."""
         if not self.air_ripple_pitches or not sel.any():
             return None
         first = int(np.argmax(sel))
