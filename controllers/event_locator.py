@@ -711,7 +711,7 @@ def locate(kind: str, x, F, *, air: float = 0.0, x_trig: float | None = None, cu
     if kind == EXIT:
         if period is not None and not (period > 1.0 and x.size >= period + 10 * MIN_SEGMENT):
             period = None
-        if ghost is not None and not (1.0 < ghost[0] <= x.size and 0.0 <= ghost[1] < 1.0):
+        if _ghost_decay(ghost) is None or ghost[0] > x.size:
             ghost = None
         ring = ghost[0] if ghost is not None and ghost[0] >= EXIT_RING_ORBIT else None
         if ghost is not None and not _ghost_visible(F):

@@ -1960,10 +1960,11 @@ class InterfaceDetector(KernelBlock, Block):
         where the drive settles after the rise (:meth:`_entry_refit`), else fitted again with the
         cut's own orbital ripple on the ramp (event_locator.locate's ``cut_ripple``; the first
         fit's where that locates nothing; the ripple as the observer's ghost of it, with the
-        decay of its ripple estimate, :meth:`_exit_ghost`'s, where there is one). Why in this order: the ripple columns took part of a
-        settling fall into the ramp (foreign seed-24 hole 136, a worn tool's CFRP entry overshooting
-        to 430 N: -0.005 mm refitted, -0.141 with the ripple), and the settling is judged on the
-        first fit's ramp, as before the ripple was fitted. ``ramp_max``: the longest ramp [m]
+        decay of its ripple estimate, :meth:`_exit_ghost`'s, where there is one). Why in this
+        order: the ripple columns took part of a settling fall into the ramp (foreign seed-24
+        hole 136, a worn tool's CFRP entry overshooting to 430 N: -0.005 mm refitted, -0.141
+        with the ripple), and the settling is judged on the first fit's ramp, as before the
+        ripple was fitted. ``ramp_max``: the longest ramp [m]
         (:meth:`_entry_ramp_max`), of every fit."""
         refit = self._entry_refit(xf, Fw, hi, x_trig, air, period, x_loc, dx, ramp_max)
         if refit is not None or not math.isfinite(x_loc) or period is None or not self.entry_ripple:

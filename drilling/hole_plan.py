@@ -55,8 +55,7 @@ HOLE_KEYS = {"surface", "layers", "gap_tolerance", "process", "fail_action", "ap
              "stop_margin", "detector", "adapt", "trajectory", "orbit_delay", "plant", "observer", "score",
              "match_tolerance", "locate_margin", "push_out", "orbital_harmonics", "exit_orbit_mean", "engagement",
              "entry_shape", "exit_shape", "exit_compliance", "exit_release_compliance", "exit_tool_compliance",
-             "feed_exponent",
-             "entry_ripple", "air_passes", "air_ripple"}
+             "feed_exponent", "entry_ripple", "air_passes", "air_ripple"}
 # Localisation (controllers/event_locator.py): travel on either side of an event that holds its
 # change and a stretch of level (engagement up to ~0.35 mm on the drives measured, and the
 # trigger up to ~0.1 mm into it: with 0.3 mm, Ti entries with a 0.22 mm engagement were
@@ -191,11 +190,11 @@ class HolePlan:
             raise self.error(f"{where}.{key}", f"expected a number >= {minimum}, got {v!r}")
         return float(v)
 
-    def _tool_compliance(self, hole) -> float | None:
+    def _tool_compliance(self, hole) -> float:
         """``exit_tool_compliance`` [m/N]: the share of exit_release_compliance between the scale
         and the tool tip (the frame's; the rest is the tool/workpiece contact), where the exit's
-        located time takes the tool (InterfaceDetector._exit_time); None when the plan does not
-        say (the cutting front's time). Why: the front trails the tool by the contact's
+        located time takes the tool (InterfaceDetector._exit_time); all of it where the plan does
+        not say (the cutting front's time). Why: the front trails the tool by the contact's
         deflection, and a Ti exit at 862 N on a 15.5 N/um contact, timed on the front, put the
         tool 0.106 mm past the face (docs/stacks.md, "Localisation")."""
         v = self._number(hole, "exit_tool_compliance", None, minimum=0.0)
@@ -204,7 +203,7 @@ class HolePlan:
                              f"expected a number in [0, hole.exit_release_compliance = {self.exit_release_compliance:g}] "
                              f"m/N (the frame's share of the compliance between the scale and the cutting front), "
                              f"got {v!r}")
-        return v
+        return self.exit_release_compliance if v is None else v
 
     def _harmonics(self, hole) -> int | None:
         """``orbital_harmonics``: how many harmonics of the orbit the observer models (Fang
@@ -492,8 +491,7 @@ class HolePlan:
             "exit_shape": self.exit_shape,
             "exit_compliance": self.exit_compliance,
             "exit_release_compliance": self.exit_release_compliance,
-            "exit_tool_compliance": (self.exit_release_compliance if self.exit_tool_compliance is None
-                                     else self.exit_tool_compliance),
+            "exit_tool_compliance": self.exit_tool_compliance,
             "exit_feed_exponent": self.feed_exponent,
             # the exit's thinning test also runs on means over one orbit of the last layer: a
             # thin last layer under the observer's ringing after a Ti -> Al drop has no quiet

@@ -678,9 +678,6 @@ static int loc_ghost_drop(const double *x, const double *F, long n, const double
            last < first;
 }
 
-/* event_locator._release_of: a push-out (the exit's, a drop's upper fall) releases delta =
- * compliance times the window's fall between its end levels when delta is above the median
- * travel per sample */
 /* event_locator._beyond_a_sample's median travel per sample of x (n samples; scratch: 2 n doubles) */
 static double loc_median_travel(const double *x, long n, double *scratch)
 {
@@ -690,6 +687,9 @@ static double loc_median_travel(const double *x, long n, double *scratch)
     return loc_median(dx, n - 1, scratch);
 }
 
+/* event_locator._release_of: a push-out (the exit's, a drop's upper fall) releases delta =
+ * compliance times the window's fall between its end levels when delta is above the median
+ * travel per sample */
 static void loc_release_of(LocFit *f)
 {
     f->release_delta = 0.0;
@@ -945,6 +945,13 @@ static void loc_exit(LocFit *f, double period, double x0, double x1, double *x_l
     free(Fs);
 }
 
+/* event_locator._ghost_decay: a ghost given (non-NULL) with an orbit of more than one sample and a
+ * decay per sample in [0, 1) */
+static int loc_ghost_valid(const double *ghost)
+{
+    return ghost != NULL && ghost[0] > 1.0 && ghost[1] >= 0.0 && ghost[1] < 1.0;
+}
+
 /* event_locator.locate: position [m] and uncertainty [m] of an event of ``kind`` from
  * samples x [m] (increasing), F [N]; NaN when there are too few. cut_floor [N]: NaN, or an
  * interface window cut short to a thin layer below (event_locator.floor_gap); period
@@ -983,12 +990,11 @@ void event_locate(int kind, const double *x_in, const double *F_in, long n_in, d
     if (kind == LOC_ENTRY && period > 1.0 && period <= (double)n)
         onset.orbit = period;       /* event_locator.locate: the entry's window holds one orbit */
     onset.rise = kind == LOC_ENTRY;     /* event_locator.locate: an entry's ramp rises */
-    if (kind == LOC_ENTRY && engage->cut_ripple && ghost != NULL && ghost[0] > 1.0 && ghost[1] >= 0.0 && ghost[1] < 1.0) {
+    if (kind == LOC_ENTRY && engage->cut_ripple && loc_ghost_valid(ghost)) {
         onset.ghost_orbit = ghost[0];   /* event_locator.locate: the entry's cut ripple as the observer's ghost */
         onset.ghost_decay = ghost[1];
     }
-    if (kind == LOC_EXIT && ghost != NULL && ghost[0] > 1.0 && ghost[0] <= (double)n && ghost[1] >= 0.0 &&
-        ghost[1] < 1.0) {                 /* event_locator.locate: the exit's window holds one orbit */
+    if (kind == LOC_EXIT && loc_ghost_valid(ghost) && ghost[0] <= (double)n) {   /* locate: the exit's window holds one orbit */
         if (loc_ghost_visible(F, n, scratch)) {   /* ... and shows a ghost */
             exit_.ghost_orbit = ghost[0];
             exit_.ghost_decay = ghost[1];
