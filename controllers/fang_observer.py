@@ -146,6 +146,15 @@ MAX_HARMONICS = 4         # orbital harmonics the observer models at most (FANG_
 # FANG_STILL_RAD_S): a third of the slowest plan feed (0.1 mm/s on a 0.637 mm/rad drive is
 # 0.16 rad/s), 20x the low-passed encoder's one-count step
 STILL_RAD_S = 0.05
+# the motion's start (_ripple_held; FANG_START_S, FANG_START_TAU_S): for this long after the motor
+# starts feeding, the air level follows F_dc_hat through a lag of START_TAU_S and no rise counts.
+# At rest F_dc_hat holds no friction; at the feed, the friction the model misses (plant options:
+# Coulomb drawn to 0.073 N m, 25-37 N of thrust): measured from the rest, it stood 20 N above
+# the air level for 0.5-1.1 s of air and released theta there, which then took up part of the
+# entry's rise (project seed-34 62 and 78, Ti entries +0.076, +0.059 mm). 0.5 s: the start's
+# swings of 0.1-0.5 s (measured, project drive); 0.05 s: ten lags within it
+START_S = 0.5
+START_TAU_S = 0.05
 _NH = 2 * MAX_HARMONICS
 
 
@@ -172,7 +181,9 @@ class _KernelState(ctypes.Structure):
                 # theta held until F_dc_hat first rises adapt_from [N] above its air level F_air
                 # for more than n_adapt samples in a row (n_rise so far)
                 ("adapt", ctypes.c_int), ("n_held", ctypes.c_int), ("adapt_from", _D), ("F_air", _D),
-                ("n_rise", ctypes.c_int), ("n_adapt", ctypes.c_int)]
+                ("n_rise", ctypes.c_int), ("n_adapt", ctypes.c_int),
+                # the motion's start: samples feeding in a row, how many of them are the start, its lag
+                ("n_feed", ctypes.c_int), ("n_start", ctypes.c_int), ("fstart", _D)]
 
 
 # steps per ramp lag the step lag is found on (AdaptiveThrustObserver.step_lag: 0.08 ms on the drives)
@@ -407,12 +418,15 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._avel = math.exp(-self.g_fric_vel * Ts)
         self._n_switch = max(1, round(1.0 / (lam * Ts)))    # samples of contact before the share
         self._n_adapt = round(self.ripple_adapt_time / Ts)   # samples above the air level before theta adapts
+        self._n_start = round(START_S / Ts)                  # samples of the motion's start (_ripple_held)
+        self._fstart = math.exp(-Ts / START_TAU_S)
         self.bandwidth = float(np.max(np.abs(np.linalg.eigvals(AK))))
         k = getattr(self, "_k", None)
         if k is not None:
             k.Phi[:], k.Bu[:], k.By[:], k.Bg[:] = self._Phi, self._Bu, self._By, self._Bg
             k.fdecay, k.fgain, k.avel, k.Ts = self._fdecay, self._fgain, self._avel, Ts
             k.n_switch, k.n_adapt = self._n_switch, self._n_adapt
+            k.n_start, k.fstart = self._n_start, self._fstart
 
     def reset(self, t0: float) -> None:
         self.ensure_discretised()
@@ -432,6 +446,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._adapt = self.ripple_adapt_from <= 0.0   # theta adapting yet (_ripple_held)
         self._n_held, self._F_air = 0, 0.0     # samples held so far; F_dc_hat's mean while held [N]
         self._n_rise = 0                       # samples in a row ripple_adapt_from above F_air
+        self._n_feed = 0                       # samples in a row the motor has turned forward
         n = 2 * self.harmonics
         self._th_h = [0.0] * n
         self._Y_h = [0.0] * (3 * n)            # row-major 3 x 2H
@@ -440,7 +455,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         if k is not None:
             k.first, k.t0, k.phase, k.th_prev, k.w_enc, k.f_gain = 1, t0, 0.0, 0.0, 0.0, 0.0
             k.F_prev, k.switched, k.n_above, k.adapt = 0.0, 0, 0, self._adapt
-            k.n_held, k.F_air, k.n_rise = 0, 0.0, 0
+            k.n_held, k.F_air, k.n_rise, k.n_feed = 0, 0.0, 0, 0
             k.x[:], k.Y[:], k.th[:], k.Si[:] = self._x, self._Y, self._th, self._Si
             k.th_h[:n], k.Y_h[:3 * n], k.Si_h[:n * n] = self._th_h, self._Y_h, self._Si_h
 
@@ -600,7 +615,9 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         15-25 N lasting 0.1-0.5 s in air (measured, project drive), which a first crossing
         took for the contact. Only while the motor turns forward, feeding (``STILL_RAD_S``): at
         rest before the feed starts F_dc_hat swung 36 N for 0.5 s (project hole 27), and no
-        contact comes without a feed; nor while the tool retreats, whose thrust is no air level
+        contact comes without a feed; and not over the motion's start (``START_S``), where the
+        air level follows F_dc_hat to the feed's own level (the friction the model misses,
+        which rest does not show); nor while the tool retreats, whose thrust is no air level
         either (the air mean is held then): a hole plan's lift above the start for its air
         passes (4 mm at 2 mm/s) swung F_dc_hat by -50..+20 N, released theta in air, and the
         estimate then rang at the 0.6 Hz orbit by +-6 N for 15 s, up to the entry (plant
@@ -620,13 +637,19 @@ class AdaptiveThrustObserver(DiscretisedBlock):
             self._F_air = F
         else:
             w = self._w_enc if self._use_theta else self._x[1]
-            self._n_rise = self._n_rise + 1 if w > STILL_RAD_S and F - self._F_air > self.ripple_adapt_from else 0
-            if self._n_rise > self._n_adapt:
-                self._adapt = True
-                return False
-            if w >= -STILL_RAD_S:
-                a = self._fdecay
+            self._n_feed = self._n_feed + 1 if w > STILL_RAD_S else 0
+            if 0 < self._n_feed <= self._n_start:
+                a = self._fstart
                 self._F_air = a * self._F_air + (1.0 - a) * F
+                self._n_rise = 0
+            else:
+                self._n_rise = self._n_rise + 1 if w > STILL_RAD_S and F - self._F_air > self.ripple_adapt_from else 0
+                if self._n_rise > self._n_adapt:
+                    self._adapt = True
+                    return False
+                if w >= -STILL_RAD_S:
+                    a = self._fdecay
+                    self._F_air = a * self._F_air + (1.0 - a) * F
         self._n_held += 1
         return True
 

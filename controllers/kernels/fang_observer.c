@@ -44,6 +44,10 @@ typedef struct {
     int adapt, n_held;
     double adapt_from, F_air;
     int n_rise, n_adapt;
+    /* the motion's start (START_S): samples feeding in a row, how many of them are the start,
+     * the air level's lag over it per sample */
+    int n_feed, n_start;
+    double fstart;
 } FangObserver;
 
 static double friction(const FangObserver *o, double v)
@@ -182,7 +186,8 @@ static double ripple_scale(FangObserver *o)
 }
 
 /* 1 while theta is held (_ripple_held): until F_prev stays adapt_from above F_air for more
- * than n_adapt samples while the motor feeds (turns forward), F_air held while it retreats,
+ * than n_adapt samples while the motor feeds (turns forward) past its start (n_start samples,
+ * over which F_air follows F_prev through fstart), F_air held while it retreats,
  * F_dc_hat's mean while held (exponential over 1/lambda) */
 static int ripple_held(FangObserver *o)
 {
@@ -193,14 +198,21 @@ static int ripple_held(FangObserver *o)
         o->F_air = F;
     } else {
         double w = o->use_theta ? o->w_enc : o->x[1];
-        o->n_rise = w > FANG_STILL_RAD_S && F - o->F_air > o->adapt_from ? o->n_rise + 1 : 0;
-        if (o->n_rise > o->n_adapt) {
-            o->adapt = 1;
-            return 0;
-        }
-        if (w >= -FANG_STILL_RAD_S) {    /* a retreat's thrust is no air level (_ripple_held) */
-            double a = o->fdecay;
+        o->n_feed = w > FANG_STILL_RAD_S ? o->n_feed + 1 : 0;
+        if (o->n_feed > 0 && o->n_feed <= o->n_start) {   /* the motion's start: the feed's air level */
+            double a = o->fstart;
             o->F_air = a * o->F_air + (1.0 - a) * F;
+            o->n_rise = 0;
+        } else {
+            o->n_rise = w > FANG_STILL_RAD_S && F - o->F_air > o->adapt_from ? o->n_rise + 1 : 0;
+            if (o->n_rise > o->n_adapt) {
+                o->adapt = 1;
+                return 0;
+            }
+            if (w >= -FANG_STILL_RAD_S) {    /* a retreat's thrust is no air level (_ripple_held) */
+                double a = o->fdecay;
+                o->F_air = a * o->F_air + (1.0 - a) * F;
+            }
         }
     }
     o->n_held = o->n_held + 1;
