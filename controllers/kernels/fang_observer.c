@@ -69,6 +69,12 @@ static double position_ripple(const FangObserver *o, double p)
     return f;
 }
 
+/* the identified cogging torque [N m] at motor angle theta, fed into the model (_cogging) */
+static double cogging(const FangObserver *o, double theta)
+{
+    return o->use_theta ? position_ripple(o, theta) : 0.0;
+}
+
 /* Gamma^-1 (one harmonic's and H harmonics') times q (_scale_gain_inverse) */
 static void scale_gain_inverse(FangObserver *o, double q)
 {
@@ -126,7 +132,7 @@ static void sample(FangObserver *o, double t, const double *u, double *i_m_, dou
 
 /* the outputs at t (_outputs) from the updated state and the ripple torque tau_r */
 static void outputs(FangObserver *o, double xn1, double xn2, double theta, double th0, double th1,
-                    double tau_r, double rs, double *out)
+                    double tau_r, double rs, double cog, double *out)
 {
     double kf = o->kf, w_f, Ts = o->Ts;
     if (o->use_theta) {
@@ -138,14 +144,12 @@ static void outputs(FangObserver *o, double xn1, double xn2, double theta, doubl
         w_f = xn1;
     }
     double tau_f = friction(o, w_f) + o->offset;
-    if (o->use_theta)
-        tau_f += position_ripple(o, theta);
     double F_dc = kf * (xn2 - tau_f);
     o->F_prev = F_dc;
     double F_r = kf * tau_r;
     out[0] = F_dc;
     out[1] = F_r;
-    out[2] = xn2 + tau_r;
+    out[2] = xn2 + cog + tau_r;
     out[3] = F_dc + F_r;
     out[4] = kf * rs * hypot(th0, th1);
     out[5] = atan2(th1, th0);
@@ -169,12 +173,12 @@ static void to_share(FangObserver *o, double rs)
 }
 
 /* the factor on the ripple regressor (_ripple_scale): 1, or after 1/lambda above 3 floors
- * max(F_prev, floor) / floor */
+ * max(F_prev - F_air, floor) / floor */
 static double ripple_scale(FangObserver *o)
 {
     if (!o->scale_thrust)
         return 1.0;
-    double fl = o->scale_floor, F = o->F_prev;
+    double fl = o->scale_floor, F = o->F_prev - o->F_air;   /* the cut's thrust: less the air level */
     double rs = (F > fl ? F : fl) / fl;
     if (o->switched)
         return rs;
@@ -275,9 +279,11 @@ static void step_harmonics(FangObserver *o, double i_m, double y, double theta, 
     for (int r = 0; r < 3; r++)
         for (int j = 0; j < n; j++)
             Yn[r * n + j] = P[3 * r] * Y[j] + P[3 * r + 1] * Y[n + j] + P[3 * r + 2] * Y[2 * n + j] + G[r] * reg[j];
+    double cog = cogging(o, theta);
     double tr = 0.0;
     for (int j = 0; j < n; j++)
         tr += o->th_h[j] * reg[j];
+    tr += cog;
     for (int r = 0; r < 3; r++) {
         double v = P[3 * r] * x0 + P[3 * r + 1] * x1 + P[3 * r + 2] * x2 + U[r] * i_m + B[r] * y + G[r] * tr;
         for (int j = 0; j < n; j++)
@@ -298,7 +304,7 @@ static void step_harmonics(FangObserver *o, double i_m, double y, double theta, 
     double tau_r = 0.0;
     for (int j = 0; j < n; j++)
         tau_r += o->th_h[j] * reg[j];
-    outputs(o, xn[1], xn[2], theta, o->th_h[0], o->th_h[1], rs * tau_r, rs, out);
+    outputs(o, xn[1], xn[2], theta, o->th_h[0], o->th_h[1], rs * tau_r, rs, cog, out);
 }
 
 /* u: the block's inputs in port order (i_m, x[, theta][, orbital_speed]);
@@ -338,7 +344,8 @@ void fang_observer_step(FangObserver *o, double t, const double *u, double *out)
     double n3 = P[3] * Y[1] + P[4] * Y[3] + P[5] * Y[5] + G[1] * cm;
     double n4 = P[6] * Y[0] + P[7] * Y[2] + P[8] * Y[4] + G[2] * sm;
     double n5 = P[6] * Y[1] + P[7] * Y[3] + P[8] * Y[5] + G[2] * cm;
-    double tr = th0 * sm + th1 * cm;
+    double cog = cogging(o, theta);
+    double tr = th0 * sm + th1 * cm + cog;   /* ripple and cogging torque (_cogging) */
     double xn0 = P[0] * x0 + P[1] * x1 + P[2] * x2 + U[0] * i_m + B[0] * y + G[0] * tr + n0 * d0 + n1 * d1;
     double xn1 = P[3] * x0 + P[4] * x1 + P[5] * x2 + U[1] * i_m + B[1] * y + G[1] * tr + n2 * d0 + n3 * d1;
     double xn2 = P[6] * x0 + P[7] * x1 + P[8] * x2 + U[2] * i_m + B[2] * y + G[2] * tr + n4 * d0 + n5 * d1;
@@ -353,5 +360,5 @@ void fang_observer_step(FangObserver *o, double t, const double *u, double *out)
     o->Si[2] = a * s11 + b * n1 * n1;
 
     double s = sin(phi), c = cos(phi);
-    outputs(o, xn1, xn2, theta, th0, th1, rs * (th0 * s + th1 * c), rs, out);
+    outputs(o, xn1, xn2, theta, th0, th1, rs * (th0 * s + th1 * c), rs, cog, out);
 }
