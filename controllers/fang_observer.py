@@ -55,10 +55,13 @@ Implementation choices (the paper leaves them open)
   deviation 6.7 / 4.5 % with ``"x"`` against 3.4 / 4.0 % with ``"theta"``). The friction is
   evaluated on the motor-encoder speed (encoder difference low-passed at ``g_fric_vel``)
   whenever ``theta`` is connected, and the identified position-periodic drive torque
-  (cogging / ball-screw ripple, harmonics of the motor angle, see friction.py) is
-  subtracted together with the friction: that part of "friction" of eq. 6 depends on the
-  motor angle, and at 12 mm/min its 0.3 Hz period would otherwise pass into the DC thrust
-  (an 8 mN m cogging torque is 12 N of thrust; measured without it: CFRP 7.9 %).
+  (cogging / ball-screw ripple, harmonics of the motor angle, see friction.py) is fed into
+  the model as a known disturbance torque beside the orbital ripple's (``_cogging``): that
+  part of "friction" of eq. 6 depends on the motor angle, and at 12 mm/min its 0.3 Hz period
+  would otherwise pass into the DC thrust (an 8 mN m cogging torque is 12 N of thrust;
+  measured without it: CFRP 7.9 %). Subtracted from the estimate afterwards, as the friction
+  is, the Kalman state and theta had to take it up first, and near an orbit of about its
+  frequency theta did (docs/observers_and_controllers.md, "Cogging identification").
 * **Sample period**: default 1e-4 s, every current sample: at a longer period the observer
   sees only one current sample in N, and with a 130 rad/s bandwidth the 10 mA current noise
   is averaged over fewer samples (measured CFRP / Ti deviation: 1e-4 s 3.4 / 4.0 %,

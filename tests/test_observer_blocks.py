@@ -294,3 +294,34 @@ def test_fang_observer_hold_starts_at_the_feeds_air_level(monkeypatch):
     assert abs(_half_rise(_fang_run(**offset), 1000.0, 6.0, 8.0) - plain) < 2e-3
     monkeypatch.setattr(fang_observer, "START_S", 0.0)           # the air level from the rest
     assert _half_rise(_fang_run(**offset), 1000.0, 6.0, 8.0) - plain > 8e-3
+
+
+def test_fang_observer_cogging_near_the_orbit_stays_out_of_the_estimate():
+    """The identified cogging is fed into the observer's model as a known torque (_cogging). The
+    stand-in's 6/rev cogging (8 mN m, 12 N at the table) comes at 0.30 Hz at its 0.2 mm/s feed;
+    with the orbit at 0.33 Hz, next to it, the cogging subtracted only from the estimate was taken
+    up by the orbital ripple estimate and the DC estimate swung +-13.9 N over 30-40 s under a 50 N
+    cut (+-5.0 at a 0.6 Hz orbit, +-3.5 at 2 Hz: the current noise's share). Fed in: +-3.6, +-3.4,
+    +-3.3 N (measured; the closed loop's seed-30 project 121 rang +-8.5 N and missed its Al exit).
+    Bar 5 N: 1.4x the measured, a third of the old swing."""
+    for f_orb in (0.33, 2.0):
+        r = _fang_run(T=40.0, F_dc=50.0, ripple=0.1, f_orb=f_orb, t_on=2.0)
+        assert _dc_swing(r, 30.0, 40.0) < 5.0
+
+
+def test_fang_observer_ripple_share_is_of_the_cut_not_of_the_friction_offset():
+    """With ``ripple_scaling = "thrust"`` the ripple regressor is scaled by the cut's thrust:
+    F_dc_hat less the air level the hold in air measured (the friction the model misses has no
+    orbital ripple). 1 s at rest, 150 N with 20 % ripple at a 0.75 Hz orbit, then a drop to air at
+    12 s. Scaled by F_dc_hat itself, a 31 N friction offset kept the regressor at 31/181 of its
+    scale after the drop and the DC estimate swung +-7.6 N over 0.5-3 s after it (+-6.9 over
+    3-8 s); less the air level +-4.3 and +-4.7 N, the same to 0.01 N as without the offset
+    (measured). Bars: 6 N (1.3x the measured) and 0.3 N."""
+    KT, tc = 1.10 * 0.97, 0.05
+    base = dict(T=20.0, F_dc=150.0, ripple=0.2, f_orb=0.75, t_on=3.0, rest=1.0, switch=(12.0, 0.0, 0.75),
+                ripple_adapt_from=20.0, ripple_adapt_time=0.25, ripple_scaling="thrust")
+    plain = _fang_run(**base)
+    offset = _fang_run(**base, tau_coulomb=(tc - 0.02) * 1.1 / KT)     # 31 N at the table
+    for t0, t1 in ((12.5, 15.0), (15.0, 20.0)):
+        assert _dc_swing(offset, t0, t1) < 6.0
+        assert _dc_swing(offset, t0, t1) == pytest.approx(_dc_swing(plain, t0, t1), abs=0.3)

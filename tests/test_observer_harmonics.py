@@ -64,6 +64,15 @@ def test_c_step_is_the_python_step_with_ripple_held_in_air(harmonics):
     assert c.c_kernel.state.adapt == 1 and c.c_kernel.state.n_held > 100 and c.c_kernel.state.n_adapt == 100
 
 
+@pytest.mark.parametrize("harmonics", [1, 2])
+def test_c_step_is_the_python_step_with_the_share_above_the_air_level(harmonics):
+    """ripple_scaling = "thrust" with the hold in air: the regressor's scale is F_dc_hat less the
+    air level the hold measured, in C as in Python."""
+    c = _assert_c_step_is_python_step(harmonics=harmonics, ripple_scaling="thrust", forgetting=20.0,
+                                      ripple_adapt_from=10.0, ripple_adapt_time=0.01, step_at=0.3)
+    assert c.c_kernel.state.adapt == 1 and c.c_kernel.state.F_air != 0.0
+
+
 def _assert_c_step_is_python_step(step_at=None, **settings):
     kw = dict(orbital_speed_input=True, tau_coulomb=0.05, D_viscous=0.01, tau_ripple=[[6, 0.008, 0.0]],
               **settings)
