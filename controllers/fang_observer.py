@@ -44,15 +44,15 @@ Implementation choices (the paper leaves them open)
   tracked within ~30 ms while the adaptive part (Y, Gamma, theta) carries the ripple. Read
   in millimetres the bandwidth is ~13 rad/s, right on the orbital frequency, and the DC
   estimate lags the layer changes; in metres it is ~1.4 rad/s. Measured on the plant FMU
-  (fang_orbital_cfrp_ti, DC deviation CFRP / Ti): um 3.4 / 4.0 %, mm 5.0 / 5.4 %,
-  m 24 / 22 %.
+  (fang_orbital_cfrp_ti, DC deviation CFRP / Ti, twenty-ninth round): um 1.3 / 2.3 %,
+  mm 3.9 / 4.0 %, m 24 / 22 %.
   Gamma(0) = 100 only sets the start of the Gamma transient: with forgetting, Gamma
   converges to ``lambda <(CY)^2>^-1`` whatever the unit, theta with time constant 1/lambda.
 * **Measurement**: ``measurement = "theta"`` (default) uses the motor encoder mapped to the
   table, ``y = K_pitch theta`` (131072 counts/rev: 0.03 um at the table). ``"x"`` uses the
   5 um table scale as the paper's eq. 12 writes it; at 12 mm/min that scale ticks only every
   25 ms, and its quantisation noise dominates the velocity estimate (measured: CFRP / Ti
-  deviation 6.7 / 4.5 % with ``"x"`` against 3.4 / 4.0 % with ``"theta"``). The friction is
+  deviation 5.9 / 3.0 % with ``"x"`` against 1.3 / 2.3 % with ``"theta"``). The friction is
   evaluated on the motor-encoder speed (encoder difference low-passed at ``g_fric_vel``)
   whenever ``theta`` is connected, and the identified position-periodic drive torque
   (cogging / ball-screw ripple, harmonics of the motor angle, see friction.py) is fed into
@@ -64,8 +64,8 @@ Implementation choices (the paper leaves them open)
   frequency theta did (docs/observers_and_controllers.md, "Cogging identification").
 * **Sample period**: default 1e-4 s, every current sample: at a longer period the observer
   sees only one current sample in N, and with a 130 rad/s bandwidth the 10 mA current noise
-  is averaged over fewer samples (measured CFRP / Ti deviation: 1e-4 s 3.4 / 4.0 %,
-  5e-4 s 4.1 / 4.1 %, 1e-3 s 4.9 / 4.3 %). About 5 us per sample.
+  is averaged over fewer samples (measured CFRP / Ti deviation: 1e-4 s 1.3 / 2.3 %,
+  5e-4 s 2.1 / 2.4 %, 1e-3 s 2.9 / 2.5 %). About 5 us per sample.
 * The orbital frequency is a setting (``orbital_speed_rpm``) or, with
   ``orbital_speed_input = true`` (or ``orbital_speed_rpm`` None / 0), an input
   ``orbital_speed`` [rpm] whose phase is integrated sample by sample, as the plant does
