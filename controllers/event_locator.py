@@ -1028,10 +1028,15 @@ def _from_sample(n: int, first: int) -> np.ndarray:
     return np.arange(n) >= first
 
 
-# an interface's fall is a break-off where the observed thrust falls by this share of its step over
-# the air in two samples (break_off): the observer shows a step within one 20 ms sample to 0.85-0.92
-# of it on the three drives, a push-out its law resolves over ten samples or more 0.2 at most
+# an interface's fall is a break-off where the observed thrust falls by this share of the level it
+# starts from (over the air) in two samples (break_off): the observer shows a step within one 20 ms
+# sample to 0.85-0.92 of it on the three drives, a push-out its law resolves over ten samples or
+# more 0.2 of the step at most
 BREAK_OFF_SHARE = 0.6
+# ... from a level at least this share of the step (the window's first cut level over the air):
+# 0.6 of it is 0.3 of the step, beyond a push-out's two samples, whose last samples' fall to the
+# air is a large share of what is left of its level
+BREAK_OFF_FROM = 0.5
 
 # the observed thrust has reached the gap once it is within this share of the step over the air
 BREAK_OFF_SETTLED = 0.1
@@ -1039,27 +1044,34 @@ BREAK_OFF_SETTLED = 0.1
 
 def break_off(t, x, F, air: float, compliance: float) -> tuple[float, float] | None:
     """Where an interface's upper layer broke off: (the time [s] the observed thrust ``F`` [N] at
-    the times ``t`` [s] first fell through the middle of its step over ``air`` [N], interpolated
-    between the two samples around it; the time [s] of the first sample from there within
-    BREAK_OFF_SETTLED of the step over the air), or None where the fall is none: its step (the
+    the times ``t`` [s] fell through the middle of the level it broke from, interpolated between
+    the two samples around it; the time [s] of the first sample from there within
+    BREAK_OFF_SETTLED of the step over ``air`` [N]), or None where the fall is none: the step (the
     window's first cut level, :func:`end_levels` on the encoder positions ``x`` [m], over the
     air) stores no more deflection at the drive's ``compliance`` [m/N] than a sample's travel,
-    or the thrust fell by less than BREAK_OFF_SHARE of the step over the two samples up to the
-    first below the middle. Why: such a layer is not pushed out along its law but broken off,
+    or no two samples fall by BREAK_OFF_SHARE of the level they start from, that level at least
+    BREAK_OFF_FROM of the step. Why: such a layer is not pushed out along its law but broken off,
     the stored deflection released in a few ms, faster than the observer's estimate follows; when
-    it fell is then what the samples tell, where the front was is not."""
+    it fell is then what the samples tell, where the front was is not. The level it broke from,
+    not the first: a Ti layer pushed out along its law from 1178 to 674 N before the rest broke
+    off (observed 805 -> 560 -> -43 N) fell by 0.31 of its first level over the two samples up to
+    the first below that level's middle, and was timed on the encoder, after the tool's snap
+    (plant options, foreign2 seed-31 hole 141: +0.054 mm; twenty-ninth round)."""
     first, _ = end_levels(x, F)
     step = first - air
     if not (x.size > 2 and step > 0.0 and _beyond_a_sample(x, compliance * step)):
         return None
-    mid = air + 0.5 * step
-    below = np.flatnonzero(F < mid)
-    if below.size == 0 or below[0] < 2 or not F[below[0] - 2] - F[below[0]] >= BREAK_OFF_SHARE * step:
+    for j in range(2, F.size):
+        level = F[j - 2] - air
+        if level >= BREAK_OFF_FROM * step and F[j - 2] - F[j] >= BREAK_OFF_SHARE * level:
+            break
+    else:
         return None
-    j = int(below[0])
-    t_mid = float(t[j - 1] + (t[j] - t[j - 1]) * (F[j - 1] - mid) / (F[j - 1] - F[j]))
-    settled = np.flatnonzero(F[j:] <= air + BREAK_OFF_SETTLED * step)
-    return t_mid, float(t[j + int(settled[0])]) if settled.size else float(t[-1])
+    mid = air + 0.5 * level
+    k = j - 1 if F[j - 1] < mid else j
+    t_mid = float(t[k - 1] + (t[k] - t[k - 1]) * (F[k - 1] - mid) / (F[k - 1] - F[k]))
+    settled = np.flatnonzero(F[k:] <= air + BREAK_OFF_SETTLED * step)
+    return t_mid, float(t[k + int(settled[0])]) if settled.size else float(t[-1])
 
 
 def time_at(t, x, x_loc: float) -> float:

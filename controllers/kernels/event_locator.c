@@ -40,6 +40,7 @@
 #define LOC_RUN_FEET 0.25        /* event_locator.RUN_FEET */
 #define LOC_RISE_SEEN 5.0         /* event_locator.RISE_SEEN */
 #define LOC_BREAK_OFF_SHARE 0.6   /* event_locator.BREAK_OFF_SHARE */
+#define LOC_BREAK_OFF_FROM 0.5    /* event_locator.BREAK_OFF_FROM */
 #define LOC_OUTLAST_SHARE 0.6     /* event_locator.OUTLAST_SHARE */
 #define LOC_BREAK_OFF_SETTLED 0.1 /* event_locator.BREAK_OFF_SETTLED */
 #define LOC_MAX_COLS 9             /* onset: level, trend, ramp, the orbit's sine and cosine, both times i / n and
@@ -709,11 +710,12 @@ static void loc_release_of(LocFit *f)
 }
 
 /* event_locator.break_off: where an interface's upper layer broke off, out[0] the time the thrust
- * (F at times t, positions x: n samples) first fell through the middle of its step over air
- * (the first fifth's level less air, storing more deflection at ``compliance`` than the median
- * travel per sample), out[1] the first sample's time from there within LOC_BREAK_OFF_SETTLED of
- * the step; 0 (out unset) where the fall is none: no such step, or the thrust fell by less than
- * LOC_BREAK_OFF_SHARE of it over the two samples up to the first below the middle */
+ * (F at times t, positions x: n samples) fell through the middle of the level it broke from (over
+ * air), out[1] the first sample's time from there within LOC_BREAK_OFF_SETTLED of the step (the
+ * first fifth's level less air, storing more deflection at ``compliance`` than the median travel
+ * per sample); 0 (out unset) where the fall is none: no such step, or no two samples fall by
+ * LOC_BREAK_OFF_SHARE of the level they start from, that level at least LOC_BREAK_OFF_FROM of
+ * the step */
 static int loc_break_off(const double *t, const double *x, const double *F, long n, double air, double compliance,
                          double *out)
 {
@@ -728,14 +730,19 @@ static int loc_break_off(const double *t, const double *x, const double *F, long
     free(scratch);
     if (!(step > 0.0 && compliance * step > travel))
         return 0;
-    double mid = air + 0.5 * step;
-    long j = 0;
-    while (j < n && !(F[j] < mid))
-        j++;
-    if (j == n || j < 2 || !(F[j - 2] - F[j] >= LOC_BREAK_OFF_SHARE * step))
+    long j = 2;
+    double level = 0.0;
+    for (; j < n; j++) {
+        level = F[j - 2] - air;
+        if (level >= LOC_BREAK_OFF_FROM * step && F[j - 2] - F[j] >= LOC_BREAK_OFF_SHARE * level)
+            break;
+    }
+    if (j >= n)
         return 0;
-    out[0] = t[j - 1] + (t[j] - t[j - 1]) * (F[j - 1] - mid) / (F[j - 1] - F[j]);
-    long i = j;
+    double mid = air + 0.5 * level;
+    long k = F[j - 1] < mid ? j - 1 : j;
+    out[0] = t[k - 1] + (t[k] - t[k - 1]) * (F[k - 1] - mid) / (F[k - 1] - F[k]);
+    long i = k;
     while (i < n && !(F[i] <= air + LOC_BREAK_OFF_SETTLED * step))
         i++;
     out[1] = t[i < n ? i : n - 1];
