@@ -643,13 +643,14 @@ class AdaptiveThrustObserver(DiscretisedBlock):
             self._F_air = F
         else:
             w = self._w_enc if self._use_theta else self._x[1]
-            self._n_feed = self._n_feed + 1 if w > STILL_RAD_S else 0
+            feeding = w > STILL_RAD_S
+            self._n_feed = self._n_feed + 1 if feeding else 0
             if 0 < self._n_feed <= self._n_start:
                 a = self._fstart
                 self._F_air = a * self._F_air + (1.0 - a) * F
                 self._n_rise = 0
             else:
-                self._n_rise = self._n_rise + 1 if w > STILL_RAD_S and F - self._F_air > self.ripple_adapt_from else 0
+                self._n_rise = self._n_rise + 1 if feeding and F - self._F_air > self.ripple_adapt_from else 0
                 if self._n_rise > self._n_adapt:
                     self._adapt = True
                     return False
@@ -713,7 +714,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         the cogging up first, and where the orbit comes near a cogging harmonic's frequency
         (the 6/rev cogging at 23 mm/min is 0.57 Hz, beside a 0.64 Hz orbit) theta took it up
         over 20 s and the DC estimate rang by +-8.5 N, in the cut and on in air (plant options,
-        seed-30 project 121: an Al exit of 12 N missed; fed in, 0.2 N and the exit -0.005 mm;
+        seed-30 project 121: an Al exit of 12 N missed; fed in, 0.2 N and the exit -0.006 mm;
         twenty-ninth round)."""
         return self.friction.position_ripple(theta) if self._use_theta else 0.0
 

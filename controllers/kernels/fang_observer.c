@@ -202,13 +202,14 @@ static int ripple_held(FangObserver *o)
         o->F_air = F;
     } else {
         double w = o->use_theta ? o->w_enc : o->x[1];
-        o->n_feed = w > FANG_STILL_RAD_S ? o->n_feed + 1 : 0;
+        int feeding = w > FANG_STILL_RAD_S;
+        o->n_feed = feeding ? o->n_feed + 1 : 0;
         if (o->n_feed > 0 && o->n_feed <= o->n_start) {   /* the motion's start: the feed's air level */
             double a = o->fstart;
             o->F_air = a * o->F_air + (1.0 - a) * F;
             o->n_rise = 0;
         } else {
-            o->n_rise = w > FANG_STILL_RAD_S && F - o->F_air > o->adapt_from ? o->n_rise + 1 : 0;
+            o->n_rise = feeding && F - o->F_air > o->adapt_from ? o->n_rise + 1 : 0;
             if (o->n_rise > o->n_adapt) {
                 o->adapt = 1;
                 return 0;
