@@ -96,9 +96,9 @@ Implementation choices (the paper leaves them open)
   ``F_ripple_hat`` and ``tau_d_hat`` hold every harmonic; ``ripple_amplitude_hat`` and
   ``ripple_phase_hat`` the first.
 * **Ripple as a share of the thrust** (issue 23, off by default): ``ripple_scaling = "thrust"``
-  scales the ripple regressor by max(F_dc_hat[k-1], ``ripple_scale_floor``) / floor (floor
-  default 10 N, above the air noise of F_dc_hat, below aluminium plateaus), from 1/lambda after
-  F_dc_hat has passed 3 floors on; theta then holds the ripple's share, which a thrust drop
+  scales the ripple regressor by max(F, ``ripple_scale_floor``) / floor, F the cut's thrust
+  (F_dc_hat[k-1] less the air level, through a 0.05 s lag; floor default 10 N, above the air
+  noise of F_dc_hat, below aluminium plateaus), from 1/lambda after F has passed 3 floors on; theta then holds the ripple's share, which a thrust drop
   carries along instead of theta re-adapting for seconds while F_dc_hat rings at the orbit
   (:meth:`_ripple_scale`). Measured on a 500 -> 20 N drop at 0.75 Hz: +-42.9 -> +-11.1 N.
 * **Ripple held in air** (issue 23, off by default): ``ripple_adapt_from`` [N] > 0 holds theta
@@ -158,6 +158,13 @@ STILL_RAD_S = 0.05
 # swings of 0.1-0.5 s (measured, project drive); 0.05 s: ten lags within it
 START_S = 0.5
 START_TAU_S = 0.05
+# the lag [s] on the cut's thrust the ripple regressor is scaled by (_ripple_scale): F_dc_hat
+# carries the measurement's noise, +-5 N at 10 kHz, which on a 15 N aluminium cut moved the
+# scale by +-30 % from one sample to the next, and theta fed on it
+# (foreign2 seed-30 13: ripple estimate spikes of -15 N against a +-1.5 N ripple, DC to 28 N,
+# the Al exit missed). 0.05 s: 500 samples' mean, 5x under the quickest thrust step (0.1 mm of
+# engagement at 24 mm/min, 0.25 s)
+SCALE_TAU_S = 0.05
 _NH = 2 * MAX_HARMONICS
 
 
@@ -181,6 +188,8 @@ class _KernelState(ctypes.Structure):
                 # ripple regressor scaled by the previous sample's DC thrust (ripple_scaling = "thrust")
                 ("scale_thrust", ctypes.c_int), ("n_switch", ctypes.c_int), ("switched", ctypes.c_int),
                 ("n_above", ctypes.c_int), ("scale_floor", _D), ("F_prev", _D),
+                # the cut's thrust, low-passed, and its lag per sample
+                ("F_level", _D), ("fscale", _D),
                 # theta held until F_dc_hat first rises adapt_from [N] above its air level F_air
                 # for more than n_adapt samples in a row (n_rise so far)
                 ("adapt", ctypes.c_int), ("n_held", ctypes.c_int), ("adapt_from", _D), ("F_air", _D),
@@ -423,13 +432,14 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._n_adapt = round(self.ripple_adapt_time / Ts)   # samples above the air level before theta adapts
         self._n_start = round(START_S / Ts)                  # samples of the motion's start (_ripple_held)
         self._fstart = math.exp(-Ts / START_TAU_S)
+        self._fscale = math.exp(-Ts / SCALE_TAU_S)
         self.bandwidth = float(np.max(np.abs(np.linalg.eigvals(AK))))
         k = getattr(self, "_k", None)
         if k is not None:
             k.Phi[:], k.Bu[:], k.By[:], k.Bg[:] = self._Phi, self._Bu, self._By, self._Bg
             k.fdecay, k.fgain, k.avel, k.Ts = self._fdecay, self._fgain, self._avel, Ts
             k.n_switch, k.n_adapt = self._n_switch, self._n_adapt
-            k.n_start, k.fstart = self._n_start, self._fstart
+            k.n_start, k.fstart, k.fscale = self._n_start, self._fstart, self._fscale
 
     def reset(self, t0: float) -> None:
         self.ensure_discretised()
@@ -445,6 +455,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._w_enc = 0.0
         self._f_gain = 0.0           # orbital frequency [Hz] Gamma was last rescaled for (0: none yet)
         self._F_prev = 0.0           # the previous sample's F_dc_hat [N] (ripple_scaling = "thrust")
+        self._F_level = 0.0          # the cut's thrust F_prev - F_air, low-passed (_ripple_scale) [N]
         self._switched, self._n_above = False, 0    # on the share yet; samples above 3 floors
         self._adapt = self.ripple_adapt_from <= 0.0   # theta adapting yet (_ripple_held)
         self._n_held, self._F_air = 0, 0.0     # samples held so far; F_dc_hat's mean while held [N]
@@ -457,7 +468,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         k = getattr(self, "_k", None)
         if k is not None:
             k.first, k.t0, k.phase, k.th_prev, k.w_enc, k.f_gain = 1, t0, 0.0, 0.0, 0.0, 0.0
-            k.F_prev, k.switched, k.n_above, k.adapt = 0.0, 0, 0, self._adapt
+            k.F_prev, k.F_level, k.switched, k.n_above, k.adapt = 0.0, 0.0, 0, 0, self._adapt
             k.n_held, k.F_air, k.n_rise, k.n_feed = 0, 0.0, 0, 0
             k.x[:], k.Y[:], k.th[:], k.Si[:] = self._x, self._Y, self._th, self._Si
             k.th_h[:n], k.Y_h[:3 * n], k.Si_h[:n * n] = self._th_h, self._Y_h, self._Si_h
@@ -664,7 +675,9 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         """The factor on the ripple regressor: 1 (Fang eq. 8), or with ``ripple_scaling =
         "thrust"``, once the cut's thrust has stayed above 3 floors for 1/lambda, max(the cut's
         thrust, floor) / floor; the cut's thrust: F_dc_hat of the previous sample less the air
-        level the hold in air measured (:meth:`_ripple_held`; 0 without the hold).
+        level the hold in air measured (:meth:`_ripple_held`; 0 without the hold), through a
+        lag of ``SCALE_TAU_S`` (F_dc_hat's noise moved the scale sample by sample, and theta
+        fed on it).
 
         The air level is the friction the model misses, which has no orbital ripple: counted as
         thrust, a drawn Coulomb friction of 40 N switched to the share in air and scaled the
@@ -686,7 +699,8 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         if self.ripple_scaling == "none":
             return 1.0
         fl = self.ripple_scale_floor
-        F = self._F_prev - self._F_air
+        a = self._fscale
+        F = self._F_level = a * self._F_level + (1.0 - a) * (self._F_prev - self._F_air)
         rs = (F if F > fl else fl) / fl
         if self._switched:
             return rs

@@ -35,9 +35,10 @@ typedef struct {
     double gain_restart, f_gain;
     /* ripple regressor scaled by the previous sample's F_dc_hat [N] (_ripple_scale): on,
      * samples above 3 floors before the switch, switched, samples above so far, floor [N],
-     * the previous F_dc_hat [N] */
+     * the previous F_dc_hat [N]; the cut's thrust F_prev - F_air low-passed [N], its lag per
+     * sample (fang_observer.py SCALE_TAU_S) */
     int scale_thrust, n_switch, switched, n_above;
-    double scale_floor, F_prev;
+    double scale_floor, F_prev, F_level, fscale;
     /* theta held until F_dc_hat first rises adapt_from [N] above its air level F_air [N]
      * for more than n_adapt samples in a row (_ripple_held): adapting yet, samples held so
      * far, samples in a row above so far */
@@ -173,12 +174,14 @@ static void to_share(FangObserver *o, double rs)
 }
 
 /* the factor on the ripple regressor (_ripple_scale): 1, or after 1/lambda above 3 floors
- * max(F_prev - F_air, floor) / floor */
+ * max(F_level, floor) / floor, F_level: F_prev - F_air through a lag */
 static double ripple_scale(FangObserver *o)
 {
     if (!o->scale_thrust)
         return 1.0;
-    double fl = o->scale_floor, F = o->F_prev - o->F_air;   /* the cut's thrust: less the air level */
+    double fl = o->scale_floor, a = o->fscale;
+    /* the cut's thrust: less the air level, low-passed (F_dc_hat's noise moved the scale) */
+    double F = o->F_level = a * o->F_level + (1.0 - a) * (o->F_prev - o->F_air);
     double rs = (F > fl ? F : fl) / fl;
     if (o->switched)
         return rs;
