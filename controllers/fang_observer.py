@@ -59,7 +59,7 @@ Implementation choices (the paper leaves them open)
   the model as a known disturbance torque beside the orbital ripple's (``_cogging``): that
   part of "friction" of eq. 6 depends on the motor angle, and at 12 mm/min its 0.3 Hz period
   would otherwise pass into the DC thrust (an 8 mN m cogging torque is 12 N of thrust;
-  measured without it: CFRP 7.9 %). Subtracted from the estimate afterwards, as the friction
+  measured without it: CFRP / Ti 7.2 / 3.4 %). Subtracted from the estimate afterwards, as the friction
   is, the Kalman state and theta had to take it up first, and near an orbit of about its
   frequency theta did (docs/observers_and_controllers.md, "Cogging identification").
 * **Sample period**: default 1e-4 s, every current sample: at a longer period the observer
@@ -115,7 +115,7 @@ Implementation choices (the paper leaves them open)
 * Friction and drive ripple: ``friction_file`` (friction.json of the air-cut
   identification, N m / rad/s / rad) or the settings ``tau_coulomb`` [N m], ``D_viscous``
   [N m s/rad], ``tau_offset`` [N m], ``tau_ripple`` (rows [harmonic per rev, a_sin, a_cos]
-  in N m). A file, when given, replaces those settings.
+  in N m). A file, when given, replaces those settings (given beside it, they are refused at load).
 * ``commissioning_file`` (commissioning.json of ``drillcosim commission``): its nominal set
   (inertia, calibrated force constant, pitch, eta) replaces ``J_en``, ``K_Tn``, ``K_pitch``,
   ``eta`` and its friction model the friction settings and ``friction_file`` -- the same set
@@ -204,6 +204,9 @@ STEP_LAG_RESOLUTION = 200
 
 class AdaptiveThrustObserver(DiscretisedBlock):
     direct_feedthrough = True
+    _FRICTION = frozenset({"tau_coulomb", "D_viscous", "tau_offset", "tau_ripple"})
+    replaced_settings = {"commissioning_file": _FRICTION | {"J_en", "K_Tn", "K_pitch", "eta", "friction_file"},
+                         "friction_file": _FRICTION}
     c_kernel = None             # the C step (set by _kernel), run alone or in a group by the master
 
     def __init__(self, J_en: float = FangNominal.J_en, K_Tn: float = FangNominal.K_Tn,

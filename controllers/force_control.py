@@ -176,6 +176,9 @@ class ThrustForceController(KernelBlock, Block):
         Port("saturated_any", "1", "1 once the current reference has been clipped at i_max"),
     )
     direct_feedthrough = True
+    replaced_settings = {"commissioning_file": frozenset({"mass_nominal", "force_constant_nominal", "F_bias",
+                                                          "position_force", "calibration_file"}),
+                         "calibration_file": frozenset({"force_constant_nominal"})}
 
     def __init__(self, Kp: float = 25.0, Kv: float = 100.0, Kf: float | None = None,
                  mass_nominal: float = 3.95, force_constant_nominal: float = 24.0,

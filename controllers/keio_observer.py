@@ -85,6 +85,10 @@ class CuttingForceObserver(KernelBlock, DiscretisedBlock):
                Port("F_ref", "N", "force reference, eq. 2 (no inertia term)"),
                Port("v_hat", "m/s", "velocity estimate (encoder difference low-passed by g)"))
     direct_feedthrough = False
+    _FRICTION = frozenset({"F_coulomb", "b_viscous", "F_stribeck", "v_stribeck", "F_ripple"})
+    replaced_settings = {"commissioning_file": _FRICTION | {"M_n", "Kt_n", "F_grav_comp", "friction_file",
+                                                            "calibration_file", "position_force"},
+                         "calibration_file": frozenset({"Kt_n"})}
 
     def __init__(self, M_n: float = KeioNominal.M_n, Kt_n: float = KeioNominal.Kt_n,
                  g_thrust: float | None = None, F_grav_comp: float | None = None,

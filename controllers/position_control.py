@@ -208,6 +208,8 @@ class PositionController(KernelBlock, Block):
     inputs = (*TRAJECTORY_PORTS, ENCODER_PORT)
     outputs = tuple(CORE_PORTS[n] for n in ("i_ref", "v_hat", "F_dis_hat", "a_cmd", "saturated"))
     direct_feedthrough = True
+    replaced_settings = {"commissioning_file": frozenset({"mass_nominal", "force_constant_nominal", "F_bias",
+                                                          "position_force"})}
 
     def __init__(self, Kp: float = 25.0, Kv: float = 100.0, mass_nominal: float = 3.95,
                  force_constant_nominal: float = 24.0, g_dob: float = 1200.0,
@@ -284,12 +286,18 @@ class BallScrewPositionController(PositionController):
     observer reads); ``accept_unverified`` as for :class:`PositionController`.
     """
 
+    replaced_settings = {"commissioning_file": frozenset({"J_en", "K_Tn", "K_pitch", "eta"})}
+
     def __init__(self, J_en: float = 0.0003, K_Tn: float = 1.10, K_pitch: float = 0.637e-3,
                  eta: float = 0.95, commissioning_file: str | None = None, accept_unverified=(), **kw):
         if commissioning_file:
             from drillcosim.controllers.calibration import load_commissioning
             nom = load_commissioning(commissioning_file, "ball_screw", accept_unverified)["nominal"]
             J_en, K_Tn, K_pitch, eta = (nom[k] for k in ("inertia", "force_constant", "pitch", "eta"))
+        for k in ("mass_nominal", "force_constant_nominal"):
+            if k in kw:
+                raise ValueError(f"BallScrewPositionController: {k} comes from J_en, K_Tn and K_pitch "
+                                 f"(or the commissioning file); give those instead")
         kw["mass_nominal"], kw["force_constant_nominal"] = ball_screw_linear(J_en, K_Tn, K_pitch)
         super().__init__(**kw)
         self.eta = float(eta)

@@ -158,3 +158,19 @@ def test_fuzz_raw_bytes(base_text, tmp_path_factory, data):
         _load_text(tmp_path_factory.mktemp("fuzzb"), text[:at] + junk + text[at + cut:])
     except ScenarioError:
         pass
+
+
+@pytest.mark.parametrize("scenario, key", [
+    # the commissioning file brings the drive's friction and cogging: tau_ripple = [] took none out
+    ("fang_orbital_cfrp_ti", "blocks.observer.settings.tau_ripple"),
+    ("fang_orbital_cfrp_ti", "blocks.controller.settings.J_en"),
+    ("keio_fig7_aluminium_force_control", "blocks.observer.settings.M_n"),
+])
+def test_a_setting_its_file_replaces_is_refused_not_ignored(scenario, key):
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[1] / "scenarios" / f"{scenario}.toml"
+    value = [] if key.endswith("tau_ripple") else 1.0
+    with pytest.raises(ScenarioError, match="commissioning_file") as e:
+        load_scenario(path, {key: value})
+    assert e.value.key == key and e.value.file.endswith(f"{scenario}.toml"), str(e.value)
+    assert "would be ignored" in str(e.value)

@@ -37,6 +37,9 @@ Rules the master relies on
   whose ``step`` is the block's ``step`` (a C function over a struct of its state); the master
   then runs it, with the other such blocks due at the same steps, in one C call
   (:mod:`drillcosim.cosim.loop.kernel_group`). A plain block needs none of this.
+* Optional: ``replaced_settings`` maps a setting (a file, say) to the settings it replaces
+  when given; a scenario that gives both is refused at load, naming the one that would be
+  ignored (:mod:`drillcosim.cosim.scenario.build`).
 """
 from __future__ import annotations
 
@@ -60,6 +63,7 @@ class Block:
     inputs: tuple[Port, ...] = ()
     outputs: tuple[Port, ...] = ()
     direct_feedthrough: bool = True
+    replaced_settings: dict[str, frozenset[str]] = {}
 
     def __init__(self, sample_period: float = 0.0):
         if sample_period < 0:

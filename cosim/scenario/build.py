@@ -96,6 +96,7 @@ def _construct_block(cls, name: str, spec: dict, c: Checker):
             raise c.error(f"{key}.sample_period", f"{cls.__name__}() takes no sample_period argument")
         settings["sample_period"] = float(spec["sample_period"])
     _check_setting_types(cls, key, settings, c)
+    _check_replaced_settings(cls, key, settings, c)
     try:
         return cls(**settings)
     except TypeError as e:
@@ -107,6 +108,19 @@ def _construct_block(cls, name: str, spec: dict, c: Checker):
     except Exception as e:     # an assertion of the block's own checks, ...: still the settings' fault
         raise c.error(f"{key}.settings", f"{cls.__name__}(**settings) failed: {type(e).__name__}: "
                                          f"{e}") from None
+
+
+def _check_replaced_settings(cls, key: str, settings: dict, c: Checker) -> None:
+    """A setting that another given setting replaces (``Block.replaced_settings``) would be
+    ignored without a word: ``--set blocks.observer.settings.tau_ripple=[]`` beside a
+    commissioning file that brings the drive's cogging changed nothing. Refused, naming both."""
+    for owner, replaced in getattr(cls, "replaced_settings", {}).items():
+        if settings.get(owner) in (None, "", False):
+            continue
+        for name in sorted(replaced & set(settings)):
+            raise c.error(f"{key}.settings.{name}",
+                          f"{cls.__name__} takes {name} from {owner} ({settings[owner]}) when that is "
+                          f"given, so this setting would be ignored; drop it, or drop {owner}")
 
 
 def _check_setting_types(cls, key: str, settings: dict, c: Checker) -> None:
