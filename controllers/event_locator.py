@@ -830,7 +830,52 @@ def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH
         hi2, dhi2 = _drop_onset(x[down], F[down], lo, engage, laws[0])
         if hi2 < hi:
             hi, dhi = hi2, dhi2
+    if not open_end and _onset_on_the_fall(x, F, gap, lo, hi):
+        lo, dlo, hi, dhi = _past_the_fall(x, F, gap, air, (engage, push_out), laws[0], change, (lo, dlo, hi, dhi))
     return 0.5 * (lo + hi), 0.5 * abs(hi - lo) + max(dlo, dhi)
+
+
+def _rise_threshold(F, gap) -> float:
+    """The thrust [N] a rise out of the gap stands above: the level of the air run's second half
+    (the lower face's side) plus RISE_SEEN noise spreads of the run (:func:`noise_spread`)."""
+    run = F[gap[0]:gap[1]]
+    return float(np.median(run[run.size // 2:])) + RISE_SEEN * noise_spread(run)
+
+
+def _onset_on_the_fall(x, F, gap, lo: float, hi: float) -> bool:
+    """Whether the lower onset ``hi`` [m] lies on the upper layer's fall, not at a rise: the
+    free face ``lo`` [m] pinned at it (its search's bound, within two GRID_STEP), and the mean of
+    the 2 MIN_SEGMENT samples after it below the mean of those before by two standard errors of
+    such a mean's difference (the run's noise spread). A rise's onset has the thrust rising after
+    it. On a drop by a few per cent (thin CFRP at 220 N onto Ti at 200 N after the adaptation's
+    slower feed, across 30 um), the window's last fifth still on the lower layer's ramp, the closed
+    drop's onset, searched from the run's start, took the upper push-out's tail for a trend and
+    the V's end for its ramp, and the upper face, fitted up to it, ended there: plant options,
+    seed 30, hole 154, -0.094 mm (foreign2, bending push-out) and -0.033 mm (foreign, quadratic)."""
+    i, n = _first_at(x, hi), 2 * MIN_SEGMENT
+    if not lo >= hi - 2.0 * GRID_STEP or i < n or i + n > x.size:
+        return False
+    se = noise_spread(F[gap[0]:gap[1]]) * math.sqrt(2.0 / n)
+    return float(np.mean(F[i:i + n])) < float(np.mean(F[i - n:i])) - 2.0 * se
+
+
+def _past_the_fall(x, F, gap, air, laws, plan_ramp, change, fit):
+    """The two faces (lo, dlo, hi, dhi) [m] of a gap whose onset lay on the upper fall
+    (:func:`_onset_on_the_fall`): the upper layer's free face fitted up to where the thrust rises
+    out of the gap (the first of 2 MIN_SEGMENT samples in a row above :func:`_rise_threshold`,
+    past the pinned face), then the lower onset from that face on; ``fit`` where no rise is seen
+    or the new faces do not follow one another. ``laws``: (engage, push_out), :func:`_rise_laws`."""
+    n = 2 * MIN_SEGMENT
+    held = np.convolve(F > _rise_threshold(F, gap), np.ones(n, int), "valid") == n
+    held[:_first_at(x, fit[0])] = False
+    if not held.any():
+        return fit
+    xb = float(x[int(np.argmax(held))])
+    up = x <= xb
+    lo, dlo = _upper_face(x[up], F[up], float(x[0]), xb, air, laws[1], _drop_fall(x, F, change, up, float(x[gap[0]])))
+    down = _from_sample(x.size, _first_at(x, lo))
+    hi, dhi = _drop_onset(x[down], F[down], lo, laws[0], plan_ramp)
+    return (lo, dlo, hi, dhi) if fit[0] < lo <= hi else fit
 
 
 def _rise_before_change(x, F, lo: float, engage, plan_ramp, share, air_run, fit):
@@ -873,8 +918,7 @@ def _foot_bound(x, F, gap, mid: float, fit) -> tuple[float, float]:
     first, last = end_levels(x, F)
     if not last > first:
         return fit
-    run = F[gap[0]:gap[1]]
-    seen = F > float(np.median(run[run.size // 2:])) + RISE_SEEN * noise_spread(run)
+    seen = F > _rise_threshold(F, gap)
     n = 2 * MIN_SEGMENT
     held = np.convolve(seen, np.ones(n, int), "valid") == n       # held[j]: seen[j:j + n] all
     start = _foot_from(x, F, seen, mid, fit[0])
@@ -1042,11 +1086,12 @@ BREAK_OFF_FROM = 0.5
 BREAK_OFF_SETTLED = 0.1
 
 
-def break_off(t, x, F, air: float, compliance: float) -> tuple[float, float] | None:
+def break_off(t, x, F, air: float, compliance: float) -> tuple[float, float, float, float] | None:
     """Where an interface's upper layer broke off: (the time [s] the observed thrust ``F`` [N] at
     the times ``t`` [s] fell through the middle of the level it broke from, interpolated between
     the two samples around it; the time [s] of the first sample from there within
-    BREAK_OFF_SETTLED of the step over ``air`` [N]), or None where the fall is none: the step (the
+    BREAK_OFF_SETTLED of the step over ``air`` [N]; that sample's position [m]; the level [N] over
+    the air it broke from), or None where the fall is none: the step (the
     window's first cut level, :func:`end_levels` on the encoder positions ``x`` [m], over the
     air) stores no more deflection at the drive's ``compliance`` [m/N] than a sample's travel,
     or no two samples fall by BREAK_OFF_SHARE of the level they start from, that level at least
@@ -1071,7 +1116,8 @@ def break_off(t, x, F, air: float, compliance: float) -> tuple[float, float] | N
     k = j - 1 if F[j - 1] < mid else j
     t_mid = float(t[k - 1] + (t[k] - t[k - 1]) * (F[k - 1] - mid) / (F[k - 1] - F[k]))
     settled = np.flatnonzero(F[k:] <= air + BREAK_OFF_SETTLED * step)
-    return t_mid, float(t[k + int(settled[0])]) if settled.size else float(t[-1])
+    i = k + int(settled[0]) if settled.size else F.size - 1
+    return t_mid, float(t[i]), float(x[i]), float(level)
 
 
 def time_at(t, x, x_loc: float) -> float:

@@ -1844,7 +1844,7 @@ class InterfaceDetector(KernelBlock, Block):
         if kind == "exit":
             t_loc = self._exit_time(t_fit, x_fit, F_fit, air, x_loc)
         elif kind == "interface":
-            t_loc = self._interface_time(t_fit, x_fit, F_fit, air, t_enc - self.observer_delay)
+            t_loc = self._interface_time(t_fit, x_fit, F_fit, air, t_enc - self.observer_delay, x_loc)
         else:
             t_loc = NAN
         return x_loc, t_loc if math.isfinite(t_loc) else t_enc, dx, F_air, F_air_sd
@@ -1867,20 +1867,25 @@ class InterfaceDetector(KernelBlock, Block):
         tool = x_fit - self.exit_tool_compliance * np.maximum(F - air, 0.0)
         return time_at(t, tool, x_loc) - max(self.observer_lag - self.observer_delay, 0.0)
 
-    def _interface_time(self, t, x, F, air: float, t_enc: float) -> float:
+    def _interface_time(self, t, x, F, air: float, t_enc: float, x_loc: float) -> float:
         """An interface's located time [s]: where the upper layer broke off (event_locator.break_off:
         its observed thrust ``F`` [N] at the times ``t`` [s] and encoder positions ``x`` [m] fell
         through half its step over ``air`` [N] within two samples, on a drive whose compliance
-        stored more deflection than a sample's travel) and the encoder reached the located
-        position (at ``t_enc`` [s], the observer's times) before the thrust had reached the gap,
-        when it fell half-way less the observer's step lag beyond observer_delay; else NaN (the
-        encoder's time). Why: the broken-off layer releases the drive's stored deflection and
-        the tool snaps through a narrow gap in a few ms, while the encoder barely moves; timed
-        on the encoder a Ti layer at 1133 N broken off onto Al across 21 um put the tool
-        at the top of its ring past the gap (plant options seed 30, foreign2 hole 47: +0.095 mm;
-        docs/stacks.md, "Localisation")."""
+        stored more deflection than a sample's travel) and the tool's snap reached the located
+        position ``x_loc`` [m]: the encoder reached it (at ``t_enc`` [s], the observer's times)
+        before the thrust had reached the gap, or it lies within the tool's share of the released
+        deflection (``exit_tool_compliance`` times the level it broke from) past the encoder's
+        position there; then when the thrust fell half-way less the observer's step lag beyond
+        observer_delay; else NaN (the encoder's time). Why: the broken-off layer releases the
+        drive's stored deflection and the tool snaps through a narrow gap in a few ms, while the
+        encoder barely moves; timed on the encoder a Ti layer at 1133 N broken off onto Al across
+        21 um put the tool at the top of its ring past the gap (plant options seed 30, foreign2
+        hole 47: +0.095 mm; docs/stacks.md, "Localisation"). The snap's reach: the samples after a
+        break hold the observer's step response (-46..+36 N about a 15 N Al level for 0.1 s), and
+        a fit that located the face 19 um past the encoder's settled position, inside the tool's
+        56 um ring, kept the encoder's time (seed 31, hole 141: +0.051 mm)."""
         fall = break_off(t, x, F, air, self.exit_release_compliance) if self.exit_release_compliance > 0.0 else None
-        if fall is None or not t_enc <= fall[1]:
+        if fall is None or not (t_enc <= fall[1] or x_loc <= fall[2] + self.exit_tool_compliance * fall[3]):
             return NAN
         return fall[0] - max(self.observer_step_lag - self.observer_delay, 0.0)
 

@@ -713,7 +713,7 @@ static void loc_release_of(LocFit *f)
  * (F at times t, positions x: n samples) fell through the middle of the level it broke from (over
  * air), out[1] the first sample's time from there within LOC_BREAK_OFF_SETTLED of the step (the
  * first fifth's level less air, storing more deflection at ``compliance`` than the median travel
- * per sample); 0 (out unset) where the fall is none: no such step, or no two samples fall by
+ * per sample), out[2] that sample's position, out[3] the level it broke from; 0 (out unset) where the fall is none: no such step, or no two samples fall by
  * LOC_BREAK_OFF_SHARE of the level they start from, that level at least LOC_BREAK_OFF_FROM of
  * the step */
 static int loc_break_off(const double *t, const double *x, const double *F, long n, double air, double compliance,
@@ -745,7 +745,10 @@ static int loc_break_off(const double *t, const double *x, const double *F, long
     long i = k;
     while (i < n && !(F[i] <= air + LOC_BREAK_OFF_SETTLED * step))
         i++;
-    out[1] = t[i < n ? i : n - 1];
+    i = i < n ? i : n - 1;
+    out[1] = t[i];
+    out[2] = x[i];
+    out[3] = level;
     return 1;
 }
 
@@ -830,14 +833,49 @@ static void loc_rise_before_change(const LocFit *down, const double *share, cons
  * gap's level) from which 2 MIN_SEGMENT samples in a row stand LOC_RISE_SEEN noise spreads (the run
  * F[g0..g1)'s) above the median of the run's second half: a rise cannot start after its thrust
  * stands out of the gap (scratch: n doubles) */
+/* event_locator._rise_threshold: the gap's second half's level plus LOC_RISE_SEEN noise spreads of
+ * the run F[g0..g1) */
+static double loc_rise_threshold(const double *F, long g0, long g1, double *scratch)
+{
+    long half = (g1 - g0) / 2;
+    double level = loc_median(F + g0 + half, g1 - g0 - half, scratch);
+    return level + LOC_RISE_SEEN * loc_noise_spread(F + g0, g1 - g0, scratch);
+}
+
+/* event_locator._onset_on_the_fall: the free face lo pinned at the onset hi (within two grid steps)
+ * and the 2 MIN_SEGMENT samples' mean after hi below the one before by two standard errors of the
+ * run's noise */
+static int loc_onset_on_the_fall(const double *x, const double *F, long n, long g0, long g1, double lo,
+                                 double hi, double *scratch)
+{
+    long i = loc_first_at(x, n, hi), m = 2 * LOC_MIN_SEGMENT;
+    if (!(lo >= hi - 2.0 * LOC_GRID_STEP) || i < m || i + m > n)
+        return 0;
+    double se = loc_noise_spread(F + g0, g1 - g0, scratch) * sqrt(2.0 / (double)m);
+    return loc_mean(F + i, m) < loc_mean(F + i - m, m) - 2.0 * se;
+}
+
+/* event_locator._past_the_fall's bound: the first of 2 MIN_SEGMENT samples in a row above the rise
+ * threshold from the free face lo on; -1: none */
+static long loc_rise_out(const double *x, const double *F, long n, long g0, long g1, double lo, double *scratch)
+{
+    long m = 2 * LOC_MIN_SEGMENT, held = 0;
+    double thr = loc_rise_threshold(F, g0, g1, scratch);
+    for (long i = loc_first_at(x, n, lo); i < n; i++) {
+        held = F[i] > thr ? held + 1 : 0;
+        if (held == m)
+            return i - m + 1;
+    }
+    return -1;
+}
+
 static void loc_foot_bound(const double *x, const double *F, long n, long g0, long g1, double mid, int rising,
                            double *scratch, double *hi, double *dhi)
 {
     if (!rising)
         return;
-    long half = (g1 - g0) / 2, m = 2 * LOC_MIN_SEGMENT, held = 0;
-    double level = loc_median(F + g0 + half, g1 - g0 - half, scratch);
-    double thr = level + LOC_RISE_SEEN * loc_noise_spread(F + g0, g1 - g0, scratch);
+    long m = 2 * LOC_MIN_SEGMENT, held = 0;
+    double thr = loc_rise_threshold(F, g0, g1, scratch);
     long i = 0, end = 0;
     while (i < n && x[i] < mid)          /* numpy.searchsorted(x, mid) */
         i++;
@@ -863,6 +901,19 @@ static void loc_foot_bound(const double *x, const double *F, long n, long g0, lo
         return;
     *hi = x[j];
     *dhi = LOC_PYMAX(*dhi, x[j] - x[j - 1]);
+}
+
+/* event_locator._upper_face: the upper layer's free face in [x[0], bound] on the samples x <= bound,
+ * under the grid loc_upper_grid gives (``law``, or on a drop the process's ``change``), released */
+static void loc_upper_face(const double *x, const double *F, long n, double air, const LocGrid *law,
+                           const LocGrid *change, int drop, double bound, double run_start, double *xu, double *Fu,
+                           double *share_up, double *lo, double *dlo)
+{
+    long n_up = loc_select(x, F, n, -INFINITY, bound, xu, Fu);
+    LocGrid upper = loc_upper_grid(law, change, drop, x, n, bound, run_start, share_up);
+    LocFit up = {xu, Fu, n_up, 1, air, &upper};
+    loc_release_of(&up);                 /* the fall's release on the up samples (_upper_face); else none */
+    loc_best_face(&up, x[0], bound, lo, dlo);
 }
 
 /* a gap: the upper layer's free face and the lower one's onset around the air run; ``change``
@@ -909,11 +960,7 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
             loc_foot_bound(x, F, n, g0, g1, mid, last > first, scratch, &hi, &dhi);
         }
         /* the upper layer's fall up to the lower layer's onset (event_locator._gap_faces) */
-        n_up = loc_select(x, F, n, -INFINITY, hi, xu, Fu);
-        LocGrid upper = loc_upper_grid(&law, change, last < first, x, n, hi, x[g0], share_up);
-        LocFit up = {xu, Fu, n_up, 1, air, &upper};
-        loc_release_of(&up);                 /* the fall's release on the up samples (_upper_face); else none */
-        loc_best_face(&up, x[0], hi, &lo, &dlo);
+        loc_upper_face(x, F, n, air, &law, change, last < first, hi, x[g0], xu, Fu, share_up, &lo, &dlo);
         if (!open_end && closed_drop && lo > x[g0]) {
             /* the onset's level from the run's start held the upper fall's tail: the onset
                again from the free face on, kept only where earlier: the tail taken out, never
@@ -924,6 +971,23 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
             if (hi2 < hi) {
                 hi = hi2;
                 dhi = dhi2;
+            }
+        }
+        if (!open_end && loc_onset_on_the_fall(x, F, n, g0, g1, lo, hi, scratch)) {
+            /* the onset lay on the upper fall: the free face up to the rise out of the gap, the onset
+               from there (event_locator._past_the_fall) */
+            long b = loc_rise_out(x, F, n, g0, g1, lo, scratch);
+            if (b >= 0) {
+                double lo2, dlo2, hi2, dhi2;
+                loc_upper_face(x, F, n, air, &law, change, last < first, x[b], x[g0], xu, Fu, share_up, &lo2, &dlo2);
+                down.n = loc_from(x, F, n, loc_first_at(x, n, lo2), xd, Fd);
+                loc_drop_onset(&down, &ramp, &plan_ramp, free_ramps, lo2, &hi2, &dhi2);
+                if (lo < lo2 && lo2 <= hi2) {
+                    lo = lo2;
+                    dlo = dlo2;
+                    hi = hi2;
+                    dhi = dhi2;
+                }
             }
         }
         *x_loc = 0.5 * (lo + hi);

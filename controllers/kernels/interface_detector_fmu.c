@@ -391,14 +391,17 @@ static double detector_exit_time(const DetectorFMU *s, const double *t, const do
 }
 
 /* InterfaceDetector._interface_time: an interface's located time [s] where its upper layer broke off
- * (loc_break_off on the fit's samples: x, F at the observer's times t, m of them) and the encoder
- * reached the located position (at t_enc, the observer's times) before the thrust reached the gap:
- * when the thrust fell half-way, less the observer's step lag beyond observer_delay; else NaN */
+ * (loc_break_off on the fit's samples: x, F at the observer's times t, m of them) and the tool's
+ * snap reached the located position x_loc: the encoder reached it (at t_enc, the observer's times)
+ * before the thrust reached the gap, or it lies within the tool's share of the released deflection
+ * past the encoder there; then when the thrust fell half-way, less the observer's step lag beyond
+ * observer_delay; else NaN */
 static double detector_interface_time(const DetectorFMU *s, const double *t, const double *x, const double *F,
-                                      long m, double air, double t_enc)
+                                      long m, double air, double t_enc, double x_loc)
 {
-    double fall[2];
-    if (!(s->exit_release[0] > 0.0) || !loc_break_off(t, x, F, m, air, s->exit_release[0], fall) || !(t_enc <= fall[1]))
+    double fall[4];
+    if (!(s->exit_release[0] > 0.0) || !loc_break_off(t, x, F, m, air, s->exit_release[0], fall)
+        || !(t_enc <= fall[1] || x_loc <= fall[2] + s->exit_release[2] * fall[3]))
         return NAN;
     return fall[0] - LOC_PYMAX(s->observer_step_lag - s->observer_delay, 0.0);
 }
@@ -588,7 +591,7 @@ static void detector_locate(const Detector *d, int k, double x_trig, double lo, 
     if (kind == LOC_EXIT)
         out[1] = detector_exit_time(s, tsel, xsel, Fsel, m, air, out[0], scratch);
     else if (kind == LOC_INTERFACE)
-        out[1] = detector_interface_time(s, tsel, xsel, Fsel, m, air, t_enc - s->observer_delay);
+        out[1] = detector_interface_time(s, tsel, xsel, Fsel, m, air, t_enc - s->observer_delay, out[0]);
     if (isnan(out[1]))
         out[1] = t_enc;
     free(t);
