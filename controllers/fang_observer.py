@@ -165,6 +165,14 @@ START_TAU_S = 0.05
 # the Al exit missed). 0.05 s: 500 samples' mean, 5x under the quickest thrust step (0.1 mm of
 # engagement at 24 mm/min, 0.25 s)
 SCALE_TAU_S = 0.05
+# the relative change of that scale beyond which Gamma^-1 is resized to it (_ripple_scale), as an
+# orbit-speed change resizes it (_restart_gain): Gamma^-1 holds <(C Y)^2> / lambda, and the
+# scaled regressor is the scale times eq. 8's, so after a drop from 1150 N of Ti to 110 N of CFRP
+# the share's gain was 100x too small until Gamma^-1 had forgotten the Ti (ln 100 / lambda = 9 s):
+# the CFRP's new ripple share and phase came that slowly and F_dc_hat rang +-25-30 N at the 0.81 Hz
+# orbit, which the next rise test took for the Al (plant options seed-31 project 111: two false
+# events, a false fail). 0.25: a step, not the orbit's leakage into F_dc_hat (+-10 %)
+SCALE_RESTART = 0.25
 _NH = 2 * MAX_HARMONICS
 
 
@@ -189,7 +197,7 @@ class _KernelState(ctypes.Structure):
                 ("scale_thrust", ctypes.c_int), ("n_switch", ctypes.c_int), ("switched", ctypes.c_int),
                 ("n_above", ctypes.c_int), ("scale_floor", _D), ("F_prev", _D),
                 # the cut's thrust, low-passed, and its lag per sample
-                ("F_level", _D), ("fscale", _D),
+                ("F_level", _D), ("fscale", _D), ("rs_gain", _D),
                 # theta held until F_dc_hat first rises adapt_from [N] above its air level F_air
                 # for more than n_adapt samples in a row (n_rise so far)
                 ("adapt", ctypes.c_int), ("n_held", ctypes.c_int), ("adapt_from", _D), ("F_air", _D),
@@ -459,6 +467,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._f_gain = 0.0           # orbital frequency [Hz] Gamma was last rescaled for (0: none yet)
         self._F_prev = 0.0           # the previous sample's F_dc_hat [N] (ripple_scaling = "thrust")
         self._F_level = 0.0          # the cut's thrust F_prev - F_air, low-passed (_ripple_scale) [N]
+        self._rs_gain = 1.0          # the scale Gamma^-1 was last sized for (_ripple_scale)
         self._switched, self._n_above = False, 0    # on the share yet; samples above 3 floors
         self._adapt = self.ripple_adapt_from <= 0.0   # theta adapting yet (_ripple_held)
         self._n_held, self._F_air = 0, 0.0     # samples held so far; F_dc_hat's mean while held [N]
@@ -471,7 +480,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         k = getattr(self, "_k", None)
         if k is not None:
             k.first, k.t0, k.phase, k.th_prev, k.w_enc, k.f_gain = 1, t0, 0.0, 0.0, 0.0, 0.0
-            k.F_prev, k.F_level, k.switched, k.n_above, k.adapt = 0.0, 0.0, 0, 0, self._adapt
+            k.F_prev, k.F_level, k.rs_gain, k.switched, k.n_above, k.adapt = 0.0, 0.0, 1.0, 0, 0, self._adapt
             k.n_held, k.F_air, k.n_rise, k.n_feed = 0, 0.0, 0, 0
             k.x[:], k.Y[:], k.th[:], k.Si[:] = self._x, self._Y, self._th, self._Si
             k.th_h[:n], k.Y_h[:3 * n], k.Si_h[:n * n] = self._th_h, self._Y_h, self._Si_h
@@ -698,7 +707,9 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         s(t) sin(phi) is not orthogonal to the DC: theta took up the rise and entries were
         located up to 0.29 mm late (measured, three drives). So the contact is eq. 8's, and at
         the switch (:meth:`_to_share`) theta, Y and Gamma^-1 change variables. The floor keeps
-        the regressor, and so Gamma^-1, from vanishing in air after an exit."""
+        the regressor, and so Gamma^-1, from vanishing in air after an exit. Once on the share,
+        a change of the scale by more than ``SCALE_RESTART`` resizes Gamma^-1 to it (times the
+        square of the change): the gain the new level converges to, at once."""
         if self.ripple_scaling == "none":
             return 1.0
         fl = self.ripple_scale_floor
@@ -706,6 +717,10 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         F = self._F_level = a * self._F_level + (1.0 - a) * (self._F_prev - self._F_air)
         rs = (F if F > fl else fl) / fl
         if self._switched:
+            if abs(rs - self._rs_gain) > SCALE_RESTART * self._rs_gain:
+                q = rs / self._rs_gain
+                self._scale_gain_inverse(q * q)
+                self._rs_gain = rs
             return rs
         self._n_above = self._n_above + 1 if F > 3.0 * fl else 0
         if self._n_above < self._n_switch:
@@ -717,6 +732,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         """eq. 8's ripple parameters -> the share at scale ``rs``: theta / rs, its sensitivity Y
         times rs and Gamma^-1 times rs^2 (the same ripple, the same adaptation gain)."""
         self._switched = True
+        self._rs_gain = rs
         self._th = [v / rs for v in self._th]
         self._th_h = [v / rs for v in self._th_h]
         self._Y = [v * rs for v in self._Y]

@@ -14,6 +14,7 @@
 #define TWO_PI 6.283185307179586
 #define PI 3.141592653589793
 #define FANG_STILL_RAD_S 0.05                /* fang_observer.py STILL_RAD_S */
+#define FANG_SCALE_RESTART 0.25              /* fang_observer.py SCALE_RESTART */
 
 typedef struct {
     /* constants: discretised observer (row-major Phi), forgetting, friction */
@@ -39,6 +40,7 @@ typedef struct {
      * sample (fang_observer.py SCALE_TAU_S) */
     int scale_thrust, n_switch, switched, n_above;
     double scale_floor, F_prev, F_level, fscale;
+    double rs_gain;                       /* the scale Gamma^-1 was last sized for (_ripple_scale) */
     /* theta held until F_dc_hat first rises adapt_from [N] above its air level F_air [N]
      * for more than n_adapt samples in a row (_ripple_held): adapting yet, samples held so
      * far, samples in a row above so far */
@@ -162,6 +164,7 @@ static void to_share(FangObserver *o, double rs)
 {
     int n = 2 * o->harmonics;
     o->switched = 1;
+    o->rs_gain = rs;
     for (int i = 0; i < 2; i++)
         o->th[i] = o->th[i] / rs;
     for (int i = 0; i < n; i++)
@@ -183,8 +186,14 @@ static double ripple_scale(FangObserver *o)
     /* the cut's thrust: less the air level, low-passed (F_dc_hat's noise moved the scale) */
     double F = o->F_level = a * o->F_level + (1.0 - a) * (o->F_prev - o->F_air);
     double rs = (F > fl ? F : fl) / fl;
-    if (o->switched)
+    if (o->switched) {
+        if (fabs(rs - o->rs_gain) > FANG_SCALE_RESTART * o->rs_gain) {
+            double q = rs / o->rs_gain;
+            scale_gain_inverse(o, q * q);
+            o->rs_gain = rs;
+        }
         return rs;
+    }
     o->n_above = F > 3.0 * fl ? o->n_above + 1 : 0;
     if (o->n_above < o->n_switch)
         return 1.0;
