@@ -98,9 +98,11 @@ Implementation choices (the paper leaves them open)
 * **Ripple as a share of the thrust** (issue 23, off by default): ``ripple_scaling = "thrust"``
   scales the ripple regressor by max(F, ``ripple_scale_floor``) / floor, F the cut's thrust
   (F_dc_hat[k-1] less the air level, through a 0.05 s lag; floor default 10 N, above the air
-  noise of F_dc_hat, below aluminium plateaus), from 1/lambda after F has passed 3 floors on; theta then holds the ripple's share, which a thrust drop
-  carries along instead of theta re-adapting for seconds while F_dc_hat rings at the orbit
-  (:meth:`_ripple_scale`). Measured on a 500 -> 20 N drop at 0.75 Hz: +-42.9 -> +-11.1 N.
+  noise of F_dc_hat, below aluminium plateaus), from 1/lambda after F has passed 3 floors on;
+  theta then holds the ripple's share, which a thrust drop carries along instead of theta
+  re-adapting for seconds while F_dc_hat rings at the orbit, and a change of the scale by a
+  quarter resizes Gamma^-1 to the new level (:meth:`_ripple_scale`). Measured on a
+  500 -> 20 N drop at 0.75 Hz: +-43.1 -> +-10.7 N.
 * **Ripple held in air** (issue 23, off by default): ``ripple_adapt_from`` [N] > 0 holds theta
   (its update zeroed; Y and Gamma^-1 run on) until F_dc_hat has stayed that far above its own
   air mean for more than ``ripple_adapt_time`` [s] (:meth:`_ripple_held`). In air there is no
