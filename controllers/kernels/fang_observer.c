@@ -40,7 +40,7 @@ typedef struct {
      * sample (fang_observer.py SCALE_TAU_S) */
     int scale_thrust, n_switch, switched, n_above;
     double scale_floor, F_prev, F_level, fscale;
-    double rs_gain;                       /* the scale Gamma^-1 was last sized for (_ripple_scale) */
+    double rs_gain;                       /* the highest scale since Gamma^-1 was last resized (_ripple_scale) */
     /* theta held until F_dc_hat first rises adapt_from [N] above its air level F_air [N]
      * for more than n_adapt samples in a row (_ripple_held): adapting yet, samples held so
      * far, samples in a row above so far */
@@ -187,9 +187,11 @@ static double ripple_scale(FangObserver *o)
     double F = o->F_level = a * o->F_level + (1.0 - a) * (o->F_prev - o->F_air);
     double rs = (F > fl ? F : fl) / fl;
     if (o->switched) {
-        if (fabs(rs - o->rs_gain) > FANG_SCALE_RESTART * o->rs_gain) {
+        if (rs < (1.0 - FANG_SCALE_RESTART) * o->rs_gain) {
             double q = rs / o->rs_gain;
             scale_gain_inverse(o, q * q);
+            o->rs_gain = rs;
+        } else if (rs > o->rs_gain) {
             o->rs_gain = rs;
         }
         return rs;
