@@ -240,7 +240,7 @@ def test_fang_observer_thrust_scaled_ripple_rings_less_after_a_thrust_drop():
     the thrust (as the plants'). Fang eq. 8's theta must shrink from 50 to 2 N of ripple with
     1/lambda = 2 s and the DC estimate rings at the orbit meanwhile: measured +-43.1 N over
     the 1.5 s after the drop, +-14.7 N over the next 1.5 s. With ``ripple_scaling = "thrust"``
-    theta holds the share of the thrust, which the drop does not change: +-10.7 and +-4.5 N
+    theta holds the share of the thrust, which the drop does not change: +-12.2 and +-4.6 N
     (the rest: the drop's own Kalman transient and the 10 mA current noise, +-4 N before the
     drop too). The contact is eq. 8's own (the switch to the share comes 1/lambda after it;
     scaled from the start it was +-180 against +-75 N, and the closed loop's entries were
@@ -258,7 +258,7 @@ def test_fang_observer_share_gain_is_resized_after_a_thrust_drop(monkeypatch):
     the Ti's level, 100x the CFRP's <(C Y)^2>, so the share's gain stood 100x too small until it
     had forgotten the Ti (ln 100 / lambda = 9 s), and the DC estimate rang at the orbit meanwhile:
     measured +-49.7 / 37.4 / 35.6 N over 0-1 / 1-2.5 / 2.5-5 s after the drop. Resized with the
-    scale (fang_observer.SCALE_RESTART): +-39.2 / 21.3 / 12.3 N, the C kernel the same. Bars
+    scale on its fall (fang_observer.SCALE_RESTART): +-39.5 / 20.7 / 8.8 N, the C kernel the same. Bars
     ~1.3x the measured."""
     base = dict(T=11.0, F_dc=1100.0, ripple=0.1, f_orb=0.63, switch=(6.0, 110.0, 0.81, 0.2, 2.0),
                 ripple_scaling="thrust")
@@ -267,7 +267,7 @@ def test_fang_observer_share_gain_is_resized_after_a_thrust_drop(monkeypatch):
     monkeypatch.setattr(fang_observer, "SCALE_RESTART", math.inf)
     stale = _fang_run(kernel="python", **base)
     assert _dc_swing(c, 7.0, 8.5) < 28.0 < _dc_swing(stale, 7.0, 8.5)
-    assert _dc_swing(c, 8.5, 11.0) < 16.0 < 0.5 * _dc_swing(stale, 8.5, 11.0)
+    assert _dc_swing(c, 8.5, 11.0) < 12.0 < 0.5 * _dc_swing(stale, 8.5, 11.0)
 
 
 def test_fang_observer_ripple_held_in_air_does_not_ring():
@@ -336,12 +336,12 @@ def test_fang_observer_ripple_share_is_of_the_cut_not_of_the_friction_offset():
     orbital ripple). 1 s at rest, 150 N with 20 % ripple at a 0.75 Hz orbit, then a drop to air at
     12 s. Scaled by F_dc_hat itself, a 31 N friction offset kept the regressor at 31/181 of its
     scale after the drop and the DC estimate swung +-7.6 N over 0.5-3 s after it (+-6.9 over
-    3-8 s); less the air level +-4.7 and +-4.5 N, the same to 0.01 N as without the offset
-    (measured, thirtieth round's observer). Bars: 6 N (1.3x the measured) and 0.3 N."""
+    3-8 s); less the air level +-5.4 and +-4.7 N, the same to 0.01 N as without the offset
+    (measured, thirtieth round's observer). Bars: 7 N (1.3x the measured) and 0.3 N."""
     base = dict(T=20.0, F_dc=150.0, ripple=0.2, f_orb=0.75, t_on=3.0, rest=1.0, switch=(12.0, 0.0, 0.75),
                 ripple_adapt_from=20.0, ripple_adapt_time=0.25, ripple_scaling="thrust")
     plain = _fang_run(**base)
     offset = _fang_run(**base, coulomb_miss=0.02)     # 31 N at the table
     for t0, t1 in ((12.5, 15.0), (15.0, 20.0)):
-        assert _dc_swing(offset, t0, t1) < 6.0
+        assert _dc_swing(offset, t0, t1) < 7.0
         assert _dc_swing(offset, t0, t1) == pytest.approx(_dc_swing(plain, t0, t1), abs=0.3)
