@@ -792,7 +792,6 @@ def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH
     taken when the lower layer cuts higher (:func:`_rise_laws`; a drop's ramp: :func:`_drop_onset`).
     ``change``: the adaptation's process change at the trigger (:class:`ProcessChange`): a drop's upper
     fall under it, a rise's lower onset before it."""
-    x0 = float(x[0])
     # the upper layer runs out at its free face, the lower one's rise leaves the air level
     # at its face: the middle of the two is inside the gap whatever its width
     mid = 0.5 * (x[gap[0]] + x[gap[1] - 1])
@@ -816,8 +815,7 @@ def _gap_faces(x, F, gap, air, open_end: bool = False, laws=(ENGAGE_SHAPES, PUSH
     # middle: the run below AIR_SHARE of a soft upper layer (Al, 10-30 N) holds the tail of its
     # push-out, and a free face bounded by the middle ended the fall early (wide draw, foreign
     # holes 8, 73, 133, 172, 184, 199: 0.055-0.10 mm early; replayed: within 0.016 mm)
-    up = x <= hi
-    lo, dlo = _upper_face(x[up], F[up], x0, hi, air, push_out, _drop_fall(x, F, change, up, float(x[gap[0]])))
+    lo, dlo = _upper_face_to(x, F, hi, gap, air, push_out, change)
     if not open_end and lo > start and _closed_drop(x, F, gap):
         # the onset's level was fitted from the run's start, which holds the tail of the upper
         # layer's fall: its trend carried the fall on and the ramp started late, on the
@@ -840,6 +838,15 @@ def _rise_threshold(F, gap) -> float:
     (the lower face's side) plus RISE_SEEN noise spreads of the run (:func:`noise_spread`)."""
     run = F[gap[0]:gap[1]]
     return float(np.median(run[run.size // 2:])) + RISE_SEEN * noise_spread(run)
+
+
+def _first_run(seen, start: int) -> int | None:
+    """The first sample, from ``start`` on, of 2 MIN_SEGMENT in a row that are ``seen`` (above
+    :func:`_rise_threshold`: where the thrust rises out of the gap), or None."""
+    n = 2 * MIN_SEGMENT
+    held = np.convolve(seen, np.ones(n, int), "valid") == n       # held[j]: seen[j:j + n] all
+    held[:start] = False
+    return int(np.argmax(held)) if held.any() else None
 
 
 def _onset_on_the_fall(x, F, gap, lo: float, hi: float) -> bool:
@@ -865,14 +872,10 @@ def _past_the_fall(x, F, gap, air, laws, plan_ramp, change, fit):
     out of the gap (the first of 2 MIN_SEGMENT samples in a row above :func:`_rise_threshold`,
     past the pinned face), then the lower onset from that face on; ``fit`` where no rise is seen
     or the new faces do not follow one another. ``laws``: (engage, push_out), :func:`_rise_laws`."""
-    n = 2 * MIN_SEGMENT
-    held = np.convolve(F > _rise_threshold(F, gap), np.ones(n, int), "valid") == n
-    held[:_first_at(x, fit[0])] = False
-    if not held.any():
+    j = _first_run(F > _rise_threshold(F, gap), _first_at(x, fit[0]))
+    if j is None:
         return fit
-    xb = float(x[int(np.argmax(held))])
-    up = x <= xb
-    lo, dlo = _upper_face(x[up], F[up], float(x[0]), xb, air, laws[1], _drop_fall(x, F, change, up, float(x[gap[0]])))
+    lo, dlo = _upper_face_to(x, F, float(x[j]), gap, air, laws[1], change)
     down = _from_sample(x.size, _first_at(x, lo))
     hi, dhi = _drop_onset(x[down], F[down], lo, laws[0], plan_ramp)
     return (lo, dlo, hi, dhi) if fit[0] < lo <= hi else fit
@@ -919,14 +922,11 @@ def _foot_bound(x, F, gap, mid: float, fit) -> tuple[float, float]:
     if not last > first:
         return fit
     seen = F > _rise_threshold(F, gap)
-    n = 2 * MIN_SEGMENT
-    held = np.convolve(seen, np.ones(n, int), "valid") == n       # held[j]: seen[j:j + n] all
     start = _foot_from(x, F, seen, mid, fit[0])
     if start is None:
         return fit
-    held[:start] = False
-    j = int(np.argmax(held))
-    if not held[j] or not float(x[j]) < fit[0]:
+    j = _first_run(seen, start)
+    if j is None or not float(x[j]) < fit[0]:
         return fit
     return float(x[j]), max(fit[1], float(x[j] - x[j - 1]))
 
@@ -960,6 +960,13 @@ def _drop_fall(x, F, fall: ProcessChange | None, up, run_start: float) -> Proces
     above = fall.share[x < run_start]
     changed = above.size > 0 and above.min() < above.max()
     return ProcessChange(fall.shape, fall.share[up], fall.release) if last < first or changed else None
+
+
+def _upper_face_to(x, F, hi: float, gap, air, push_out, change: ProcessChange | None):
+    """:func:`_upper_face` on the window's samples up to ``hi`` [m], under the process ``change``
+    where :func:`_drop_fall` takes it (the gap's run starting at ``gap[0]``)."""
+    up = x <= hi
+    return _upper_face(x[up], F[up], float(x[0]), hi, air, push_out, _drop_fall(x, F, change, up, float(x[gap[0]])))
 
 
 def _upper_face(x, F, x0: float, hi: float, air, push_out, fall: ProcessChange | None):

@@ -473,7 +473,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         self._f_gain = 0.0           # orbital frequency [Hz] Gamma was last rescaled for (0: none yet)
         self._F_prev = 0.0           # the previous sample's F_dc_hat [N] (ripple_scaling = "thrust")
         self._F_level = 0.0          # the cut's thrust F_prev - F_air, low-passed (_ripple_scale) [N]
-        self._rs_gain = 1.0          # the scale Gamma^-1 was last sized for (_ripple_scale)
+        self._rs_gain = 1.0          # the highest scale since Gamma^-1 was last resized (_ripple_scale)
         self._switched, self._n_above = False, 0    # on the share yet; samples above 3 floors
         self._adapt = self.ripple_adapt_from <= 0.0   # theta adapting yet (_ripple_held)
         self._n_held, self._F_air = 0, 0.0     # samples held so far; F_dc_hat's mean while held [N]

@@ -828,11 +828,6 @@ static void loc_rise_before_change(const LocFit *down, const double *share, cons
     }
 }
 
-/* event_locator._foot_bound: on a rise (rising), *hi no later than the first sample from the
- * lowest one between the run's middle ``mid`` and *hi (_foot_from; none where it stands above the
- * gap's level) from which 2 MIN_SEGMENT samples in a row stand LOC_RISE_SEEN noise spreads (the run
- * F[g0..g1)'s) above the median of the run's second half: a rise cannot start after its thrust
- * stands out of the gap (scratch: n doubles) */
 /* event_locator._rise_threshold: the gap's second half's level plus LOC_RISE_SEEN noise spreads of
  * the run F[g0..g1) */
 static double loc_rise_threshold(const double *F, long g0, long g1, double *scratch)
@@ -855,13 +850,12 @@ static int loc_onset_on_the_fall(const double *x, const double *F, long n, long 
     return loc_mean(F + i, m) < loc_mean(F + i - m, m) - 2.0 * se;
 }
 
-/* event_locator._past_the_fall's bound: the first of 2 MIN_SEGMENT samples in a row above the rise
- * threshold from the free face lo on; -1: none */
-static long loc_rise_out(const double *x, const double *F, long n, long g0, long g1, double lo, double *scratch)
+/* event_locator._first_run: the first sample, from ``start`` on, of 2 MIN_SEGMENT in a row above
+ * ``thr`` (the rise threshold: where the thrust rises out of the gap); -1: none */
+static long loc_first_run(const double *F, long n, double thr, long start)
 {
     long m = 2 * LOC_MIN_SEGMENT, held = 0;
-    double thr = loc_rise_threshold(F, g0, g1, scratch);
-    for (long i = loc_first_at(x, n, lo); i < n; i++) {
+    for (long i = start; i < n; i++) {
         held = F[i] > thr ? held + 1 : 0;
         if (held == m)
             return i - m + 1;
@@ -869,12 +863,16 @@ static long loc_rise_out(const double *x, const double *F, long n, long g0, long
     return -1;
 }
 
+/* event_locator._foot_bound: on a rise (rising), *hi no later than the first sample from the
+ * lowest one between the run's middle ``mid`` and *hi (_foot_from; none where it stands above the
+ * gap's level) from which 2 MIN_SEGMENT samples in a row stand LOC_RISE_SEEN noise spreads (the run
+ * F[g0..g1)'s) above the median of the run's second half: a rise cannot start after its thrust
+ * stands out of the gap (scratch: n doubles) */
 static void loc_foot_bound(const double *x, const double *F, long n, long g0, long g1, double mid, int rising,
                            double *scratch, double *hi, double *dhi)
 {
     if (!rising)
         return;
-    long m = 2 * LOC_MIN_SEGMENT, held = 0;
     double thr = loc_rise_threshold(F, g0, g1, scratch);
     long i = 0, end = 0;
     while (i < n && x[i] < mid)          /* numpy.searchsorted(x, mid) */
@@ -889,15 +887,8 @@ static void loc_foot_bound(const double *x, const double *F, long n, long g0, lo
             low = k;
     if (F[low] > thr)                    /* above the gap's level: no foot to bound */
         return;
-    for (i = low; i < n; i++) {
-        held = F[i] > thr ? held + 1 : 0;
-        if (held == m)
-            break;
-    }
-    if (held < m)
-        return;
-    long j = i - m + 1;
-    if (!(x[j] < *hi))
+    long j = loc_first_run(F, n, thr, low);
+    if (j < 0 || !(x[j] < *hi))
         return;
     *hi = x[j];
     *dhi = LOC_PYMAX(*dhi, x[j] - x[j - 1]);
@@ -976,7 +967,7 @@ static void loc_gap(const double *x, const double *F, long n, double air, long g
         if (!open_end && loc_onset_on_the_fall(x, F, n, g0, g1, lo, hi, scratch)) {
             /* the onset lay on the upper fall: the free face up to the rise out of the gap, the onset
                from there (event_locator._past_the_fall) */
-            long b = loc_rise_out(x, F, n, g0, g1, lo, scratch);
+            long b = loc_first_run(F, n, loc_rise_threshold(F, g0, g1, scratch), loc_first_at(x, n, lo));
             if (b >= 0) {
                 double lo2, dlo2, hi2, dhi2;
                 loc_upper_face(x, F, n, air, &law, change, last < first, x[b], x[g0], xu, Fu, share_up, &lo2, &dlo2);
