@@ -18,7 +18,7 @@
 
 #define LOC_MIN_SEGMENT 3          /* event_locator.MIN_SEGMENT */
 #define LOC_AIR_SHARE 0.5          /* event_locator.AIR_SHARE */
-#define LOC_V_DIP_SHARE 0.1        /* event_locator.V_DIP_SHARE */
+#define LOC_V_DIP_SHARE 0.35       /* event_locator.V_DIP_SHARE */
 #define LOC_LEVEL_SNR 3.0          /* event_locator.LEVEL_SNR */
 #define LOC_NORMAL_MAD 0.6744897501960817   /* event_locator.NORMAL_MAD */
 #define LOC_COARSE_STEP 10e-6      /* m, event_locator.COARSE_STEP */
