@@ -922,18 +922,45 @@ def _foot_bound(x, F, gap, mid: float, fit) -> tuple[float, float]:
     where the steep part's line meets the gap level (foreign2 seed-25 hole 161: Al -> Ti across
     0.2 mm onto 760 N, the thrust 18 N above the gap 5 um past its face, the onset 0.065 mm
     late). The search starts at the lowest sample between the middle and the fitted onset
-    (:func:`_foot_from`). A drop's lower onset is left to its own rules (:func:`_onset_from`)."""
+    (:func:`_foot_from`), or where the run holds the lower ramp, at the run's lowest sample and
+    over its level (:func:`_v_foot`). A drop's lower onset is left to its own rules
+    (:func:`_onset_from`)."""
     first, last = end_levels(x, F)
     if not last > first:
         return fit
-    seen = F > _rise_threshold(F, gap)
-    start = _foot_from(x, F, seen, mid, fit[0])
+    v = _v_foot(x, F, gap, fit[0])
+    if v is None:
+        seen = F > _rise_threshold(F, gap)
+        start = _foot_from(x, F, seen, mid, fit[0])
+    else:
+        start, seen = v[0], F > v[1]
     if start is None:
         return fit
     j = _first_run(seen, start)
     if j is None or not float(x[j]) < fit[0]:
         return fit
     return float(x[j]), max(fit[1], float(x[j] - x[j - 1]))
+
+
+def _v_foot(x, F, gap, onset: float) -> tuple[int, float] | None:
+    """Where :func:`_foot_bound` starts and the thrust [N] the foot stands above, when the air run
+    holds the lower layer's ramp (a V): the run's lowest sample before the fitted ``onset`` [m] (the
+    first such) and the median of the 2 MIN_SEGMENT samples about it plus RISE_SEEN noise spreads of
+    the run, where the run's second half stands above that threshold; else None (the gap's level
+    is its second half's, :func:`_rise_threshold`). A rise whose ramp reaches half the upper layer's
+    level late holds that much of it in the run: project seed-30 hole 198 (CFRP at 362 N pushed out
+    onto Ti across 22 um, the Ti steep to 50 N in 15 um, bent for 0.1 mm as the adaptation raised the
+    feed on the CFRP's push-out, then steep): the run's middle lay 0.05 mm past the face and its
+    second half at 70-100 N, no foot stood out of that, and the onset was the bent ramp's (+0.055 mm)."""
+    i0, i1 = gap
+    j = min(i1, int(np.searchsorted(x, onset)))
+    if j <= i0:
+        return None
+    low = i0 + int(np.argmin(F[i0:j]))
+    thr = float(np.median(F[max(i0, low - MIN_SEGMENT):low + MIN_SEGMENT])) + RISE_SEEN * noise_spread(F[i0:i1])
+    if not float(np.median(F[i0 + (i1 - i0) // 2:i1])) > thr:
+        return None
+    return low, thr
 
 
 def _foot_from(x, F, seen, mid: float, onset: float) -> int | None:

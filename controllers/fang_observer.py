@@ -179,6 +179,12 @@ SCALE_TAU_S = 0.05
 # 25x scale (foreign seed-30 112, CFRP at 250 N after a 1 mm gap: ripple estimate -650 N, two false
 # events)
 SCALE_RESTART = 0.25
+# ... and by more than this many floors (ripple_scale_floor): at a cut of 1-2 floors (an Al layer
+# at 15 N over a 10 N floor) the lagged level's own noise moves the scale by a quarter time and
+# again, and each fall resized Gamma^-1 while a rise let it grow back only with the forgetting --
+# a ratchet on the gain (plant options seed-34 foreign hole 161: the ripple estimate spiked to
+# -8 N over the Al, its exit +0.260 mm). A layer change moves it by many floors (Ti -> CFRP: 100)
+SCALE_RESTART_FLOORS = 2.0
 _NH = 2 * MAX_HARMONICS
 
 
@@ -715,8 +721,8 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         the switch (:meth:`_to_share`) theta, Y and Gamma^-1 change variables. The floor keeps
         the regressor, and so Gamma^-1, from vanishing in air after an exit. Once on the share,
         a fall of the scale by more than ``SCALE_RESTART`` below the highest since Gamma^-1 was
-        last resized resizes it (times the square of the change): the gain the new level
-        converges to, at once."""
+        last resized, and by more than ``SCALE_RESTART_FLOORS``, resizes it (times the square of
+        the change): the gain the new level converges to, at once."""
         if self.ripple_scaling == "none":
             return 1.0
         fl = self.ripple_scale_floor
@@ -724,7 +730,7 @@ class AdaptiveThrustObserver(DiscretisedBlock):
         F = self._F_level = a * self._F_level + (1.0 - a) * (self._F_prev - self._F_air)
         rs = (F if F > fl else fl) / fl
         if self._switched:
-            if rs < (1.0 - SCALE_RESTART) * self._rs_gain:
+            if rs < (1.0 - SCALE_RESTART) * self._rs_gain and self._rs_gain - rs > SCALE_RESTART_FLOORS:
                 q = rs / self._rs_gain
                 self._scale_gain_inverse(q * q)
                 self._rs_gain = rs

@@ -208,6 +208,17 @@ def test_the_rise_s_foot_is_sought_from_the_gap_s_lowest_sample(monkeypatch):
                                 first_at_gap_level)
 
 
+def test_a_rise_s_foot_inside_the_run_is_sought_from_its_bottom(monkeypatch):
+    """Thirty-first round. Project seed-30 hole 198 (al/cfrp/ti), interface 2: CFRP at 362 N pushed
+    out onto Ti across 22 um; the Ti is steep to 50 N in 15 um, bent for 0.1 mm (the adaptation
+    raised the feed on the CFRP's push-out), then steep. The run below half the CFRP's level holds
+    the bent ramp: its middle lay 0.05 mm past the face, its second half at 70-100 N, so no foot stood
+    out of it and the onset was the bent ramp's, +0.055 mm. Sought from the run's lowest sample over
+    that sample's level (event_locator._v_foot): located in the gap."""
+    _in_its_gap_and_not_without("interface_window_cfrp_ti_v_ramp_in_run", monkeypatch, "_v_foot",
+                                lambda *a: None)
+
+
 def test_a_rise_whose_trigger_came_on_the_upper_fall_fits_that_fall_under_the_change(monkeypatch):
     """Seed 28, foreign hole 27 (ti/cfrp), interface 1: the plan's process has the CFRP (15 um/rev)
     cut higher than the Ti's push-out (3.4 um/rev), so the window rises; the trigger came on the

@@ -863,6 +863,34 @@ static long loc_first_run(const double *F, long n, double thr, long start)
     return -1;
 }
 
+/* event_locator._v_foot: where the run F[g0..g1) holds the lower ramp (a V), 1 with *low its lowest
+ * sample before ``onset`` (the first such) and *thr the median of the 2 MIN_SEGMENT samples about it
+ * plus LOC_RISE_SEEN noise spreads of the run, which the run's second half's median stands above;
+ * else 0 (scratch: n doubles) */
+static int loc_v_foot(const double *x, const double *F, long n, long g0, long g1, double onset, double *scratch,
+                      long *low, double *thr)
+{
+    long j = 0;
+    while (j < n && x[j] < onset)        /* numpy.searchsorted(x, onset) */
+        j++;
+    if (j > g1)
+        j = g1;
+    if (j <= g0)
+        return 0;
+    long b = g0;
+    for (long k = g0 + 1; k < j; k++)
+        if (F[k] < F[b])
+            b = k;
+    long a = LOC_PYMAX(g0, b - LOC_MIN_SEGMENT), e = LOC_PYMIN(n, b + LOC_MIN_SEGMENT);
+    double t = loc_median(F + a, e - a, scratch) + LOC_RISE_SEEN * loc_noise_spread(F + g0, g1 - g0, scratch);
+    long half = (g1 - g0) / 2;
+    if (!(loc_median(F + g0 + half, g1 - g0 - half, scratch) > t))
+        return 0;
+    *low = b;
+    *thr = t;
+    return 1;
+}
+
 /* event_locator._foot_bound: on a rise (rising), *hi no later than the first sample from the
  * lowest one between the run's middle ``mid`` and *hi (_foot_from; none where it stands above the
  * gap's level) from which 2 MIN_SEGMENT samples in a row stand LOC_RISE_SEEN noise spreads (the run
@@ -873,20 +901,24 @@ static void loc_foot_bound(const double *x, const double *F, long n, long g0, lo
 {
     if (!rising)
         return;
-    double thr = loc_rise_threshold(F, g0, g1, scratch);
-    long i = 0, end = 0;
-    while (i < n && x[i] < mid)          /* numpy.searchsorted(x, mid) */
-        i++;
-    while (end < n && x[end] < *hi)      /* numpy.searchsorted(x, onset) */
-        end++;
-    if (end <= i)
-        return;
-    long low = i;                        /* _foot_from: the lowest sample before the onset (the first) */
-    for (long k = i + 1; k < end; k++)
-        if (F[k] < F[low])
-            low = k;
-    if (F[low] > thr)                    /* above the gap's level: no foot to bound */
-        return;
+    double thr;
+    long low;
+    if (!loc_v_foot(x, F, n, g0, g1, *hi, scratch, &low, &thr)) {
+        thr = loc_rise_threshold(F, g0, g1, scratch);
+        long i = 0, end = 0;
+        while (i < n && x[i] < mid)          /* numpy.searchsorted(x, mid) */
+            i++;
+        while (end < n && x[end] < *hi)      /* numpy.searchsorted(x, onset) */
+            end++;
+        if (end <= i)
+            return;
+        low = i;                             /* _foot_from: the lowest sample before the onset (the first) */
+        for (long k = i + 1; k < end; k++)
+            if (F[k] < F[low])
+                low = k;
+        if (F[low] > thr)                    /* above the gap's level: no foot to bound */
+            return;
+    }
     long j = loc_first_run(F, n, thr, low);
     if (j < 0 || !(x[j] < *hi))
         return;

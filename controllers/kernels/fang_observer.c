@@ -15,6 +15,7 @@
 #define PI 3.141592653589793
 #define FANG_STILL_RAD_S 0.05                /* fang_observer.py STILL_RAD_S */
 #define FANG_SCALE_RESTART 0.25              /* fang_observer.py SCALE_RESTART */
+#define FANG_SCALE_RESTART_FLOORS 2.0        /* fang_observer.py SCALE_RESTART_FLOORS */
 
 typedef struct {
     /* constants: discretised observer (row-major Phi), forgetting, friction */
@@ -187,7 +188,7 @@ static double ripple_scale(FangObserver *o)
     double F = o->F_level = a * o->F_level + (1.0 - a) * (o->F_prev - o->F_air);
     double rs = (F > fl ? F : fl) / fl;
     if (o->switched) {
-        if (rs < (1.0 - FANG_SCALE_RESTART) * o->rs_gain) {
+        if (rs < (1.0 - FANG_SCALE_RESTART) * o->rs_gain && o->rs_gain - rs > FANG_SCALE_RESTART_FLOORS) {
             double q = rs / o->rs_gain;
             scale_gain_inverse(o, q * q);
             o->rs_gain = rs;
