@@ -134,9 +134,7 @@ def air_run(x, F, air: float) -> tuple[int, int] | None:
     low = AIR_SHARE * min(first - air, last - air)
     if not low > 0 or last - air < LEVEL_SNR * noise_spread(F[-_fifths(x)[1]:]):
         return None
-    below = np.concatenate(([False], F - air < low, [False]))
-    edges = np.flatnonzero(np.diff(below.astype(int)))
-    starts, ends = edges[0::2], edges[1::2]
+    starts, ends = _inner_runs(F - air < low)
     if starts.size == 0:
         return None
     j = int(np.argmax(ends - starts))
@@ -147,6 +145,17 @@ def air_run(x, F, air: float) -> tuple[int, int] | None:
                                          float(np.min(F[i0:i1])) - air < V_DIP_SHARE * low):
         return None
     return i0, i1
+
+
+def _inner_runs(below) -> tuple[np.ndarray, np.ndarray]:
+    """The (first, last + 1) samples of the runs of ``below`` (bool, per sample) that do not start
+    at the window's first sample: such a run has no cut level before it, the window starting on the
+    upper layer's own ramp or in the gap above it (wide draw with plant options, project seed-30
+    hole 15: an Al/Ti window starting 0.09 mm into the Al's ramp after a 0.57 mm gap, its first 30
+    samples below :func:`air_run`'s threshold and, at V_DIP_SHARE 0.35, taken for the gap: -1.18 mm)."""
+    edges = np.flatnonzero(np.diff(np.concatenate(([False], below, [False])).astype(int)))
+    starts, ends = edges[0::2], edges[1::2]
+    return starts[starts > 0], ends[starts > 0]
 
 
 # ---------------------------------------------------------------- ramp templates

@@ -571,7 +571,7 @@ static int loc_air_run(const double *x, const double *F, long n, double air, dou
         if (below && start < 0)
             start = i;
         if (!below && start >= 0) {
-            if (i - start > best) {
+            if (start > 0 && i - start > best) {   /* from the first sample: no cut level before it */
                 best = i - start;
                 *i0 = start;
                 *i1 = i;
