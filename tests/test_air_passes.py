@@ -19,6 +19,7 @@ import pytest
 from exported_c import assert_agree
 from recorded_traces import hole_plan, python_and_exported, run_recorded
 
+from drillcosim.controllers import event_locator
 from drillcosim.controllers.interface_detector import InterfaceDetector
 
 MM = 1e-3
@@ -44,10 +45,20 @@ def test_a_drop_into_a_gap_at_a_new_feed_is_found_with_the_pass_s_air(kernel):
     assert det.pass_S[1] < 3.0
 
 
-def test_without_the_pass_the_interface_was_early_and_the_exit_missed():
+def test_without_the_pass_the_interface_was_early_and_the_exit_missed(monkeypatch):
+    """Without the pass, on the locator's V test of before the thirty-first round (a V's bottom
+    within 0.1 of the air threshold). With the V test at 0.35 (event_locator.V_DIP_SHARE) the
+    gap's run passes for a gap even against the approach's air: without the pass the interface is
+    then in its gap (measured +0.146 mm past its upper face) and the exit found (-0.001 mm), so
+    the pass is no longer this hole's only rescue."""
+    monkeypatch.setattr(event_locator, "V_DIP_SHARE", 0.1)
     out, _det = run_recorded("foreign_cfrp_ti.toml", {**PLAN, "hole.air_passes": False}, NAME, "python")
     assert out["flag"] == 2                                          # the exit never fired
     assert out["x_interface1_loc"] < GAP[0] - 0.1 * MM               # measured -0.14 mm
+    monkeypatch.undo()
+    out, _det = run_recorded("foreign_cfrp_ti.toml", {**PLAN, "hole.air_passes": False}, NAME, "python")
+    assert out["flag"] == 3 and GAP[0] <= out["x_interface1_loc"] <= GAP[1]
+    assert abs(out["x_exit_loc"] - EXIT) <= 0.1 * MM
 
 
 def test_the_entry_is_the_same_with_and_without_the_pass():

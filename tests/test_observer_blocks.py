@@ -244,16 +244,19 @@ def test_fang_observer_thrust_scaled_ripple_rings_less_after_a_thrust_drop():
     the thrust (as the plants'). Fang eq. 8's theta must shrink from 50 to 2 N of ripple with
     1/lambda = 2 s and the DC estimate rings at the orbit meanwhile: measured +-43.1 N over
     the 1.5 s after the drop, +-14.7 N over the next 1.5 s. With ``ripple_scaling = "thrust"``
-    theta holds the share of the thrust, which the drop does not change: +-12.2 and +-4.6 N
+    theta holds the share of the thrust, which the drop does not change: +-12.1 and +-5.9 N
     (the rest: the drop's own Kalman transient and the 10 mA current noise, +-4 N before the
-    drop too). The contact is eq. 8's own (the switch to the share comes 1/lambda after it;
+    drop too). The second was +-4.6 N before the thirty-first round: Gamma^-1 is now resized on
+    the scale's fall only by steps of more than 2 floors (fang_observer.SCALE_RESTART_FLOORS, the
+    gain's ratchet at a low cut), so the drop's last step, 4 -> 2 floors, is left to the
+    forgetting. The contact is eq. 8's own (the switch to the share comes 1/lambda after it;
     scaled from the start it was +-180 against +-75 N, and the closed loop's entries were
     located late). Bars with ~1.3x margin."""
     base = dict(T=11.0, F_dc=500.0, ripple=0.1, f_orb=0.75, switch=(8.0, 20.0, 0.75))
     off, on = _fang_run(**base), _fang_run(ripple_scaling="thrust", **base)
     assert _dc_swing(on, 1.0, 2.5) == _dc_swing(off, 1.0, 2.5)
     assert _dc_swing(on, 8.0, 9.5) < 15.0 < 0.4 * _dc_swing(off, 8.0, 9.5)
-    assert _dc_swing(on, 9.5, 11.0) < 5.8 < 0.4 * _dc_swing(off, 9.5, 11.0)
+    assert _dc_swing(on, 9.5, 11.0) < 7.7 < 0.55 * _dc_swing(off, 9.5, 11.0)
 
 
 def test_fang_observer_share_gain_is_resized_after_a_thrust_drop(monkeypatch):
