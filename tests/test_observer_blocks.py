@@ -284,12 +284,12 @@ def test_fang_observer_share_gain_does_not_ratchet_at_a_low_level(monkeypatch):
     the share's gain ratcheted up (30 resizes against 7) and the ripple estimate's error was
     4.35 N rms over 2-6 s after the drop, the DC swing +-6.8 N (plant options seed-34 foreign 161: an
     Al exit +0.260 mm). A fall resizes Gamma^-1 only where it is also more than
-    fang_observer.SCALE_RESTART_FLOORS floors: 1.46 N rms, +-3.75 N (the C kernel, measured equal to
-    Python's to 1e-14; a second Python run, 15 s, is not spent on asserting it).
+    fang_observer.SCALE_RESTART_FLOORS floors: 1.46 N rms, +-3.75 N, the C kernel the same.
     Bars ~1.3x the measured."""
     base = dict(T=12.0, F_dc=120.0, ripple=0.1, f_orb=0.8, switch=(6.0, 15.0, 0.54, 0.1, 2.0),
                 ripple_scaling="thrust", wander=(0.3, 1.3))
     c = _fang_run(**base)
+    np.testing.assert_allclose(c, _fang_run(kernel="python", **base), rtol=1e-12, atol=1e-9)
     monkeypatch.setattr(fang_observer, "SCALE_RESTART_FLOORS", 0.0)
     stale = _fang_run(kernel="python", **base)
 
