@@ -153,9 +153,14 @@ def _inner_runs(below) -> tuple[np.ndarray, np.ndarray]:
     upper layer's own ramp or in the gap above it (wide draw with plant options, project seed-30
     hole 15: an Al/Ti window starting 0.09 mm into the Al's ramp after a 0.57 mm gap, its first 30
     samples below :func:`air_run`'s threshold and, at V_DIP_SHARE 0.35, taken for the gap: -1.18 mm)."""
-    edges = np.flatnonzero(np.diff(np.concatenate(([False], below, [False])).astype(int)))
-    starts, ends = edges[0::2], edges[1::2]
+    starts, ends = _runs(below)
     return starts[starts > 0], ends[starts > 0]
+
+
+def _runs(below) -> tuple[np.ndarray, np.ndarray]:
+    """The (first, last + 1) samples of every run of True in ``below`` (bool, per sample)."""
+    edges = np.flatnonzero(np.diff(np.concatenate(([False], below, [False])).astype(int)))
+    return edges[0::2], edges[1::2]
 
 
 # ---------------------------------------------------------------- ramp templates
@@ -642,9 +647,7 @@ def floor_gap(F, cut_floor: float | None) -> tuple[int, int] | None:
     k = max(MIN_SEGMENT, F.size // 5)
     if not float(np.median(F[:k])) > cut_floor:
         return None
-    below = np.concatenate(([False], _bridged(F < cut_floor), [False]))
-    edges = np.flatnonzero(np.diff(below.astype(int)))
-    starts, ends = edges[0::2], edges[1::2]
+    starts, ends = _runs(_bridged(F < cut_floor))
     if starts.size == 0:
         return None
     j = int(np.argmax(ends - starts))
@@ -657,9 +660,7 @@ def _bridged(below):
     """``below`` (bool, per sample) with every run of fewer than 2 MIN_SEGMENT False samples
     between two True ones set True."""
     below = below.copy()
-    above = np.concatenate(([False], ~below, [False]))
-    edges = np.flatnonzero(np.diff(above.astype(int)))
-    for i0, i1 in zip(edges[0::2], edges[1::2]):
+    for i0, i1 in zip(*_runs(~below)):
         if i0 > 0 and i1 < below.size and i1 - i0 < 2 * MIN_SEGMENT:
             below[i0:i1] = True
     return below

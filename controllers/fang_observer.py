@@ -101,7 +101,7 @@ Implementation choices (the paper leaves them open)
   noise of F_dc_hat, below aluminium plateaus), from 1/lambda after F has passed 3 floors on;
   theta then holds the ripple's share, which a thrust drop carries along instead of theta
   re-adapting for seconds while F_dc_hat rings at the orbit, and a fall of the scale by a
-  quarter resizes Gamma^-1 to the new level (:meth:`_ripple_scale`). Measured on a
+  quarter and by more than 2 floors resizes Gamma^-1 to the new level (:meth:`_ripple_scale`). Measured on a
   500 -> 20 N drop at 0.75 Hz: +-43.1 -> +-12.2 N.
 * **Ripple held in air** (issue 23, off by default): ``ripple_adapt_from`` [N] > 0 holds theta
   (its update zeroed; Y and Gamma^-1 run on) until F_dc_hat has stayed that far above its own

@@ -272,11 +272,5 @@ def test_a_run_from_the_window_s_first_sample_is_no_gap(monkeypatch):
     air_run's threshold and, with a V's dip at 0.35 of it, were taken for the gap: -1.18 mm. A run
     from the window's first sample has no cut level before it (event_locator._inner_runs): the
     engagement floors' run takes the window, located in the Al/Ti gap."""
-    _in_its_gap_and_not_without("interface_window_al_ti_starts_on_ramp", monkeypatch, "_inner_runs", _all_runs,
-                                worse_mm=1.0)
-
-
-def _all_runs(below):
-    """Every run of ``below``, the window's first sample's too (air_run before the thirty-first round)."""
-    edges = np.flatnonzero(np.diff(np.concatenate(([False], below, [False])).astype(int)))
-    return edges[0::2], edges[1::2]
+    _in_its_gap_and_not_without("interface_window_al_ti_starts_on_ramp", monkeypatch, "_inner_runs",
+                                event_locator._runs, worse_mm=1.0)

@@ -870,9 +870,7 @@ static long loc_first_run(const double *F, long n, double thr, long start)
 static int loc_v_foot(const double *x, const double *F, long n, long g0, long g1, double onset, double *scratch,
                       long *low, double *thr)
 {
-    long j = 0;
-    while (j < n && x[j] < onset)        /* numpy.searchsorted(x, onset) */
-        j++;
+    long j = loc_first_at(x, n, onset);  /* numpy.searchsorted(x, onset) */
     if (j > g1)
         j = g1;
     if (j <= g0)
@@ -905,11 +903,7 @@ static void loc_foot_bound(const double *x, const double *F, long n, long g0, lo
     long low;
     if (!loc_v_foot(x, F, n, g0, g1, *hi, scratch, &low, &thr)) {
         thr = loc_rise_threshold(F, g0, g1, scratch);
-        long i = 0, end = 0;
-        while (i < n && x[i] < mid)          /* numpy.searchsorted(x, mid) */
-            i++;
-        while (end < n && x[end] < *hi)      /* numpy.searchsorted(x, onset) */
-            end++;
+        long i = loc_first_at(x, n, mid), end = loc_first_at(x, n, *hi);   /* numpy.searchsorted */
         if (end <= i)
             return;
         low = i;                             /* _foot_from: the lowest sample before the onset (the first) */
